@@ -1,0 +1,31 @@
+"""robocli: drive robots and read their sensors from a laptop, byte-exact protocols.
+
+``from robocli import Pioneer`` works; the heavy modules load on first use, so importing
+robocli (and running ``robocli --help``) stays fast.
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+from robocli._version import __version__
+
+if TYPE_CHECKING:
+    from robocli.devices.pioneer import Pioneer, PioneerState
+    from robocli.errors import RobocliError
+
+_LAZY = {
+    "Pioneer": "robocli.devices.pioneer",
+    "PioneerState": "robocli.devices.pioneer",
+    "RobocliError": "robocli.errors",
+}
+
+__all__ = ["Pioneer", "PioneerState", "RobocliError", "__version__"]
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'robocli' has no attribute {name!r}")
+    return getattr(importlib.import_module(module), name)
