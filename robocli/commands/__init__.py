@@ -1,0 +1,1 @@
+"""CLI commands: thin Typer functions over the library (imports inside the functions)."""

@@ -1,0 +1,1 @@
+"""Recorders and readers of captures and logs, chosen by file suffix."""
