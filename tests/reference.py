@@ -1,0 +1,273 @@
+"""Pure-Python reference implementations of the C core, for differential tests.
+
+Written for clarity, not speed: checksum, the three framers (same resynchronisation rule:
+drop one byte), the multi-reader ring and timestamp alignment (nearest and linear).
+"""
+
+from __future__ import annotations
+
+import struct
+from bisect import bisect_left, bisect_right
+from collections import deque
+from dataclasses import dataclass
+
+ARCOS_DEFAULT_MAX = 258
+SM_DEFAULT_MAX = 4100
+R4M_HEADER = 27
+R4M_DEFAULT_MAX = 27 + 16 * 1024 * 1024
+
+
+def arcos_checksum(data: bytes) -> int:
+    c = 0
+    i = 0
+    n = len(data)
+    while n - i > 1:
+        c = (c + (data[i] << 8 | data[i + 1])) & 0xFFFF
+        i += 2
+    if n - i == 1:
+        c ^= data[i]
+    return c
+
+
+def arcos_packet(ptype: int, data: bytes = b"") -> bytes:
+    """A whole ARCOS packet of type ``ptype`` carrying ``data``."""
+    body = bytes([ptype]) + data
+    ck = arcos_checksum(body)
+    return b"\xfa\xfb" + bytes([len(body) + 2]) + body + bytes([ck >> 8, ck & 0xFF])
+
+
+@dataclass
+class Stats:
+    frames: int = 0
+    dropped_bytes: int = 0
+    bad_checksums: int = 0
+    bad_lengths: int = 0
+
+
+class RefFramer:
+    """Same contract as robocli.core.Framer: feed bytes, get the complete frames."""
+
+    def __init__(self, protocol: str, max_frame: int | None = None) -> None:
+        defaults = {
+            "arcos": ARCOS_DEFAULT_MAX,
+            "sm-le": SM_DEFAULT_MAX,
+            "sm-be": SM_DEFAULT_MAX,
+            "ros4mat": R4M_DEFAULT_MAX,
+        }
+        if protocol not in defaults:
+            raise ValueError(protocol)
+        self.protocol = protocol
+        self.max_frame = max_frame or defaults[protocol]
+        self.buf = bytearray()
+        self.stats = Stats()
+
+    @property
+    def pending(self) -> int:
+        return len(self.buf)
+
+    def reset(self) -> None:
+        self.buf.clear()
+
+    def feed(self, data: bytes) -> list[bytes]:
+        self.buf += data
+        out = []
+        while True:
+            frame = self._next()
+            if frame is None:
+                return out
+            out.append(frame)
+
+    def _drop(self) -> None:
+        del self.buf[0]
+        self.stats.dropped_bytes += 1
+
+    def _emit(self, total: int) -> bytes:
+        frame = bytes(self.buf[:total])
+        del self.buf[:total]
+        self.stats.frames += 1
+        return frame
+
+    def _next(self) -> bytes | None:
+        if self.protocol == "arcos":
+            return self._next_arcos()
+        if self.protocol == "ros4mat":
+            return self._next_r4m()
+        return self._next_sm()
+
+    def _next_arcos(self) -> bytes | None:
+        b = self.buf
+        while True:
+            if not b:
+                return None
+            if b[0] != 0xFA:
+                self._drop()
+                continue
+            if len(b) < 2:
+                return None
+            if b[1] != 0xFB:
+                self._drop()
+                continue
+            if len(b) < 3:
+                return None
+            count = b[2]
+            total = count + 3
+            if count < 3 or total > self.max_frame:
+                self.stats.bad_lengths += 1
+                self._drop()
+                continue
+            if len(b) < total:
+                return None
+            if arcos_checksum(bytes(b[3 : total - 2])) != (b[total - 2] << 8 | b[total - 1]):
+                self.stats.bad_checksums += 1
+                self._drop()
+                continue
+            return self._emit(total)
+
+    def _next_sm(self) -> bytes | None:
+        b = self.buf
+        fmt = "<I" if self.protocol == "sm-le" else ">I"
+        while True:
+            if len(b) < 4:
+                return None
+            (length,) = struct.unpack_from(fmt, b)
+            if not 12 <= length <= self.max_frame - 4:
+                self.stats.bad_lengths += 1
+                self._drop()
+                continue
+            if len(b) < 4 + length:
+                return None
+            return self._emit(4 + length)
+
+    def _next_r4m(self) -> bytes | None:
+        b = self.buf
+        while True:
+            if len(b) < R4M_HEADER:
+                return None
+            _type, error, _cid, size, usize, csize, ctype, _ts = struct.unpack_from("<bbIIIIbd", b)
+            body = csize if (error != 0 or size != 0) else 0
+            ok = ctype in (0, 1)
+            if ok and ctype == 0 and error == 0 and size != 0 and csize != usize:
+                ok = False
+            if ok and R4M_HEADER + body > self.max_frame:
+                ok = False
+            if not ok:
+                self.stats.bad_lengths += 1
+                self._drop()
+                continue
+            if len(b) < R4M_HEADER + body:
+                return None
+            return self._emit(R4M_HEADER + body)
+
+
+def sm_frame(body: bytes, little: bool = True, msg_type: int = 10) -> bytes:
+    """A Simple Message frame: prefix + 12-byte header + body."""
+    e = "<" if little else ">"
+    header = struct.pack(e + "iii", msg_type, 1, 0) + body
+    return struct.pack(e + "i", len(header)) + header
+
+
+def r4m_frame(mtype: int, body: bytes = b"", size: int | None = None, error: bool = False) -> bytes:
+    """A ros4mat frame (uncompressed); ``error`` makes ``body`` the error text."""
+    n = (1 if body else 0) if size is None else size
+    header = struct.pack(
+        "<bbIIIIbd",
+        mtype,
+        1 if error else 0,
+        7,
+        0 if error else n,
+        0 if error else len(body),
+        len(body),
+        0,
+        0.0,
+    )
+    return header + body
+
+
+class RefRing:
+    """Same semantics as robocli.core.Ring, with an explicit queue per reader."""
+
+    def __init__(self, record_size: int, capacity: int) -> None:
+        self.record_size = record_size
+        self.capacity = capacity
+        self.pushed = 0
+        self.readers: dict[int, tuple[deque[tuple[float, bytes]], list[int]]] = {}
+
+    def push(self, t: float, record: bytes) -> None:
+        assert len(record) == self.record_size
+        self.pushed += 1
+        for q, lost in self.readers.values():
+            if len(q) == q.maxlen:
+                lost[0] += 1
+            q.append((t, bytes(record)))
+
+    def push_many(self, t: list[float], records: bytes) -> None:
+        rs = self.record_size
+        for i, ti in enumerate(t):
+            self.push(ti, records[i * rs : (i + 1) * rs])
+
+    def add_reader(self, limit: int | None = None) -> int:
+        rid = 0
+        while rid in self.readers:
+            rid += 1
+        lim = self.capacity if not limit or limit > self.capacity else limit
+        self.readers[rid] = (deque(maxlen=lim), [0])
+        return rid
+
+    def remove_reader(self, reader: int) -> None:
+        del self.readers[reader]
+
+    def available(self, reader: int) -> int:
+        return len(self.readers[reader][0])
+
+    def lost(self, reader: int) -> int:
+        return self.readers[reader][1][0]
+
+    def read(self, reader: int, max_records: int | None = None) -> list[tuple[float, bytes]]:
+        q = self.readers[reader][0]
+        n = len(q) if max_records is None else min(len(q), max_records)
+        return [q.popleft() for _ in range(n)]
+
+
+def align_nearest(ts: list[float], ref: list[float], tol: float) -> list[int]:
+    out = []
+    n = len(ts)
+    for x in ref:
+        k = bisect_right(ts, x)  # samples <= x
+        best = -1
+        if k > 0:
+            d0 = x - ts[k - 1]
+            left = bisect_left(ts, ts[k - 1])  # earliest of equal samples
+            if k < n:
+                d1 = ts[k] - x
+                if d0 <= d1:
+                    best = left if d0 <= tol else -1
+                else:
+                    best = k if d1 <= tol else -1
+            else:
+                best = left if d0 <= tol else -1
+        elif n > 0:
+            best = 0 if ts[0] - x <= tol else -1
+        out.append(best)
+    return out
+
+
+def align_linear(ts: list[float], ref: list[float]) -> tuple[list[int], list[float]]:
+    idx: list[int] = []
+    w: list[float] = []
+    n = len(ts)
+    for x in ref:
+        k = bisect_right(ts, x)
+        if k == 0 or n == 0 or x > ts[-1]:
+            idx.append(-1)
+            w.append(0.0)
+        elif k == n:
+            if n == 1:
+                idx.append(0)
+                w.append(0.0)
+            else:
+                idx.append(n - 2)
+                w.append(1.0)
+        else:
+            idx.append(k - 1)
+            w.append((x - ts[k - 1]) / (ts[k] - ts[k - 1]))
+    return idx, w

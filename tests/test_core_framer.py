@@ -1,0 +1,280 @@
+"""C framers (robocli.core) against the pure-Python reference, plus known answers."""
+
+from __future__ import annotations
+
+import pathlib
+import re
+import struct
+
+import pytest
+import reference
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from robocli.core import PROTOCOLS, Framer, FramerStats, arcos_checksum
+
+SPECS = pathlib.Path(__file__).resolve().parent.parent / "specs"
+
+WORKED = [
+    "FA FB 03 00 00 00",
+    "FA FB 03 01 00 01",
+    "FA FB 03 02 00 02",
+    "FA FB 06 01 3B 01 00 02 3B",
+    "FA FB 06 04 3B 01 00 05 3B",
+    "FA FB 06 0B 3B C8 00 D3 3B",
+    "FA FB 06 0B 1B C8 00 D3 1B",
+    "FA FB 06 02 3B 01 00 03 3B",
+    "FA FB 1A 02 4D 6F 62 69 6C 65 53 69 6D 00 50 69 6F 6E 65 65 72 00 70 33 64 78 00 93 45",
+]
+
+
+def _stats(ref: reference.RefFramer) -> FramerStats:
+    s = ref.stats
+    return FramerStats(s.frames, s.dropped_bytes, s.bad_checksums, s.bad_lengths)
+
+
+# ------------------------------------------------------------------ known answers
+
+
+@pytest.mark.parametrize("hexstr", WORKED)
+def test_worked_arcos_vectors(hexstr: str) -> None:
+    pkt = bytes.fromhex(hexstr)
+    assert arcos_checksum(pkt[3:-2]) == pkt[-2] << 8 | pkt[-1]
+    assert reference.arcos_checksum(pkt[3:-2]) == pkt[-2] << 8 | pkt[-1]
+    assert reference.arcos_packet(pkt[3], pkt[4:-2]) == pkt
+    f = Framer("arcos")
+    assert f.feed(pkt) == [pkt]
+    assert f.stats == FramerStats(1, 0, 0, 0)
+    assert f.pending == 0
+
+
+def test_checksum_edges() -> None:
+    assert arcos_checksum(b"") == 0
+    assert arcos_checksum(b"\x12") == 0x12
+    assert arcos_checksum(b"\x12\x34\xff") == 0x1234 ^ 0xFF
+    assert arcos_checksum(bytearray(b"\xff\xff\x00\x02")) == 1
+    assert arcos_checksum(memoryview(b"\x01\x3b\x01\x00")) == 0x023B
+
+
+def test_arcos_fa_fa_fb_is_found() -> None:
+    pkt = bytes.fromhex(WORKED[3])
+    f = Framer("arcos")
+    assert f.feed(b"\xfa" + pkt[:4]) == []  # FA FA FB ...
+    assert f.feed(pkt[4:]) == [pkt]
+    assert f.stats == FramerStats(1, 1, 0, 0)
+
+
+def test_arcos_bad_checksum_then_good() -> None:
+    pkt = bytes.fromhex(WORKED[5])
+    bad = pkt[:-1] + bytes([pkt[-1] ^ 0x80])
+    f = Framer("arcos")
+    assert f.feed(bad + pkt) == [pkt]
+    assert f.stats == FramerStats(1, len(bad), 1, 0)
+
+
+def test_arcos_frame_survives_until_next_call() -> None:
+    f = Framer("arcos")
+    frames = [bytes.fromhex(h) for h in WORKED]
+    out = f.feed(b"".join(frames))
+    assert out == frames
+    assert list(f.frames()) == []
+
+
+def test_simple_message_both_orders() -> None:
+    for proto, little in (("sm-le", True), ("sm-be", False)):
+        fr = reference.sm_frame(b"\x01\x02\x03\x04", little=little)
+        f = Framer(proto)
+        assert f.feed(fr[:5]) == []
+        assert f.pending == 5
+        assert f.feed(fr[5:] + fr) == [fr, fr]
+        assert f.feed(b"\xff" * 6) == []
+        assert f.stats == FramerStats(2, 3, 0, 3)
+        assert f.pending == 3
+
+
+def test_simple_message_max_frame() -> None:
+    fr = reference.sm_frame(bytes(100))
+    assert Framer("sm-le").feed(fr) == [fr]
+    f = Framer("sm-le", max_frame=64)
+    assert f.feed(fr) == []
+    assert f.stats.bad_lengths >= 1
+
+
+def test_ros4mat_frames() -> None:
+    data = reference.r4m_frame(0x20, bytes(range(40)), size=1)
+    err = reference.r4m_frame(0x13, b"no such sensor\x00", error=True)
+    pull = reference.r4m_frame(0x20)
+    f = Framer("ros4mat")
+    assert f.feed(data + err + pull) == [data, err, pull]
+    assert len(pull) == 27
+    bad = bytearray(pull)
+    bad[18] = 2
+    assert f.feed(bytes(bad)) == []
+    assert f.stats == FramerStats(3, 1, 0, 1)
+
+
+def test_reset_count_and_errors() -> None:
+    f = Framer("arcos")
+    pkt = bytes.fromhex(WORKED[3])
+    f.feed(pkt[:5])
+    assert f.pending == 5
+    f.reset()
+    assert f.pending == 0
+    assert f.feed(pkt) == [pkt]
+    assert f.count(pkt * 100, chunk=7) == 100
+    assert f.count(pkt * 10) == 10
+    with pytest.raises(ValueError):
+        Framer("modbus")
+    with pytest.raises(ValueError):
+        Framer("sm-le", max_frame=8)
+    with pytest.raises(ValueError):
+        f.count(pkt, chunk=-1)
+    assert set(PROTOCOLS) == {"arcos", "sm-le", "sm-be", "ros4mat"}
+
+
+# ------------------------------------------------------------------ golden vectors (specs/)
+
+
+def _golden() -> list[tuple[str, str]]:
+    out = []
+    for path in sorted(SPECS.glob("*.json")):
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if '"framer"' not in line or '"hex"' not in line:
+                continue
+            kind = re.search(r'"framer"\s*:\s*"([^"]*)"', line)
+            hexstr = re.search(r'"hex"\s*:\s*"([^"]*)"', line)
+            if kind and hexstr:
+                out.append((kind.group(1), hexstr.group(1)))
+    return out
+
+
+GOLDEN = _golden()
+
+
+@pytest.mark.skipif(not GOLDEN, reason="no golden vectors in specs/")
+@pytest.mark.parametrize(("kind", "hexstr"), GOLDEN)
+def test_golden_vector(kind: str, hexstr: str) -> None:
+    frame = bytes.fromhex(hexstr)
+    f = Framer(kind)
+    assert f.feed(frame) == [frame]
+    assert f.stats.dropped_bytes == 0
+    one = Framer(kind)
+    got = [fr for i in range(len(frame)) for fr in one.feed(frame[i : i + 1])]
+    assert got == [frame]
+
+
+# ------------------------------------------------------------------ differential
+
+
+@st.composite
+def arcos_frames(draw: st.DrawFn) -> bytes:
+    data = draw(st.binary(min_size=0, max_size=60))
+    return reference.arcos_packet(draw(st.integers(0, 255)), data)
+
+
+@st.composite
+def sm_frames(draw: st.DrawFn, little: bool) -> bytes:
+    return reference.sm_frame(draw(st.binary(max_size=80)), little=little)
+
+
+@st.composite
+def r4m_frames(draw: st.DrawFn) -> bytes:
+    kind = draw(st.sampled_from(["data", "error", "pull"]))
+    if kind == "data":
+        body = draw(st.binary(min_size=1, max_size=80))
+        return reference.r4m_frame(0x20, body, size=draw(st.integers(1, 9)))
+    if kind == "error":
+        return reference.r4m_frame(0x13, draw(st.binary(max_size=30)), error=True)
+    return reference.r4m_frame(draw(st.integers(-128, 127)))
+
+
+FRAMES = {
+    "arcos": arcos_frames(),
+    "sm-le": sm_frames(True),
+    "sm-be": sm_frames(False),
+    "ros4mat": r4m_frames(),
+}
+
+
+@st.composite
+def streams(draw: st.DrawFn, proto: str) -> bytes:
+    parts = []
+    for _ in range(draw(st.integers(0, 8))):
+        kind = draw(st.sampled_from(["frame", "frame", "garbage", "flip", "cut"]))
+        fr = draw(FRAMES[proto])
+        if kind == "frame":
+            parts.append(fr)
+        elif kind == "garbage":
+            parts.append(draw(st.binary(min_size=1, max_size=20)))
+        elif kind == "flip":
+            b = bytearray(fr)
+            bit = draw(st.integers(0, len(b) * 8 - 1))
+            b[bit // 8] ^= 1 << (bit % 8)
+            parts.append(bytes(b))
+        else:
+            parts.append(fr[: draw(st.integers(0, len(fr)))])
+    return b"".join(parts)
+
+
+def _chunks(data: bytes, cuts: list[int]) -> list[bytes]:
+    points = sorted({c % (len(data) + 1) for c in cuts})
+    out, prev = [], 0
+    for p in [*points, len(data)]:
+        out.append(data[prev:p])
+        prev = p
+    return out
+
+
+def _compare(proto: str, data: bytes, cuts: list[int], max_frame: int | None) -> None:
+    c = Framer(proto, max_frame)
+    r = reference.RefFramer(proto, max_frame)
+    for chunk in _chunks(data, cuts):
+        assert c.feed(chunk) == r.feed(chunk)
+        assert c.stats == _stats(r)
+        assert c.pending == r.pending
+
+
+@pytest.mark.parametrize("proto", PROTOCOLS)
+@settings(max_examples=200, deadline=None)
+@given(data=st.data())
+def test_matches_reference(proto: str, data: st.DataObject) -> None:
+    stream = data.draw(streams(proto))
+    cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=12))
+    _compare(proto, stream, cuts, None)
+
+
+@pytest.mark.parametrize("proto", PROTOCOLS)
+@settings(max_examples=100, deadline=None)
+@given(data=st.data())
+def test_matches_reference_small_max_frame(proto: str, data: st.DataObject) -> None:
+    stream = data.draw(streams(proto))
+    cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=6))
+    low = {"arcos": 6, "sm-le": 16, "sm-be": 16, "ros4mat": 27}[proto]
+    _compare(proto, stream, cuts, data.draw(st.integers(low, low + 60)))
+
+
+@pytest.mark.parametrize("proto", PROTOCOLS)
+@settings(max_examples=100, deadline=None)
+@given(junk=st.binary(max_size=300), cuts=st.lists(st.integers(0, 400), max_size=8))
+def test_random_bytes_match_reference(proto: str, junk: bytes, cuts: list[int]) -> None:
+    _compare(proto, junk, cuts, None)
+
+
+@settings(max_examples=50, deadline=None)
+@given(frames=st.lists(arcos_frames(), min_size=1, max_size=30), size=st.integers(1, 50))
+def test_arcos_clean_stream_any_chunking(frames: list[bytes], size: int) -> None:
+    data = b"".join(frames)
+    f = Framer("arcos")
+    got = [fr for i in range(0, len(data), size) for fr in f.feed(data[i : i + size])]
+    assert got == frames
+    assert f.stats == FramerStats(len(frames), 0, 0, 0)
+    assert Framer("arcos").count(data, size) == len(frames)
+
+
+def test_large_ros4mat_body_grows_buffer() -> None:
+    body = bytes(range(256)) * 4096  # 1 MiB
+    fr = reference.r4m_frame(0x24, body, size=1)
+    f = Framer("ros4mat")
+    got = [x for i in range(0, len(fr), 65536) for x in f.feed(fr[i : i + 65536])]
+    assert got == [fr]
+    assert struct.unpack_from("<I", fr, 14)[0] == len(body)
