@@ -639,8 +639,11 @@ class Pioneer:
                 if now - self._last_tx >= self.keepalive:
                     self.stats.keepalives += 1
                     self.stats.keepalive_times.append(now)
-                    for cmd, arg in setpoints or [(Command.PULSE, None)]:
-                        self._write(arcos.encode_command(cmd, arg))
+                    if setpoints:
+                        for cmd, arg in setpoints:
+                            self._write(arcos.encode_command(cmd, arg))
+                    else:
+                        self._write(arcos.encode_command(Command.PULSE))
             except RobocliError:
                 return
 
