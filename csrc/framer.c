@@ -250,6 +250,15 @@ static int next_sm(rc_framer *f, const unsigned char **frame, size_t *len)
     }
 }
 
+/* A ros4mat message id: 0x0X commands, 0x1X acks, 0x2X sensor data, 0x8X/0x9X reserved
+ * "to sensor". Checking the id class (not its meaning) lets the framer resynchronise:
+ * without it, garbage right before a header reads as a plausible error packet. */
+static int r4m_plausible_id(unsigned char type)
+{
+    unsigned char cls = (unsigned char)(type >> 4);
+    return type != 0 && (cls <= 2 || cls == 8 || cls == 9);
+}
+
 /* Body length of a ros4mat header, or -1 when the header is not plausible. */
 static int r4m_body(const unsigned char *h, size_t max_frame, size_t *body)
 {
@@ -260,7 +269,7 @@ static int r4m_body(const unsigned char *h, size_t max_frame, size_t *body)
     unsigned char ctype = h[18];
     unsigned long b;
 
-    if (ctype > 1) {
+    if (ctype > 1 || h[1] > 1 || !r4m_plausible_id(h[0])) {
         return -1;
     }
     if (ctype == 0 && !error && size != 0 && csize != usize) {
