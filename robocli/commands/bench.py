@@ -81,21 +81,15 @@ def _show(results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool,
     if json_out:
         print_json(results)
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    table = Table(title="all times in microseconds")
-    for col in ("measurement", "n", "mean", "median", "std", "min", "max", "p90", "p99",
-                "x floor (median, p99)"):
-        table.add_column(col, justify="left" if col == "measurement" else "right")
+    typer.echo(f"{'measurement (us)':<34}{'n':>7}" + "".join(
+        f"{k:>10}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")))
     for r in results:
-        ratio = (f"{r['x_floor_median']:.1f} / {r['x_floor_p99']:.1f}"
-                 if "x_floor_median" in r else "")
-        table.add_row(r["name"], str(r["n"]), *(f"{r[k]:.1f}" for k in
-                      ("mean", "median", "std", "min", "max", "p90", "p99")), ratio)
-    console = Console()
-    console.print(table)
+        typer.echo(f"{r['name']:<34}{r['n']:>7}" + "".join(
+            f"{r[k]:>10.1f}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")))
+        if "x_floor_median" in r:
+            typer.echo(f"{'':<34}{'':>7}  = {r['x_floor_median']:.1f} x floor (median), "
+                       f"{r['x_floor_p99']:.1f} x floor (p99)")
     for name, samples in hist.items():
-        console.print(f"histogram: {name}")
+        typer.echo(f"histogram: {name}")
         for line in b.histogram(samples, unit=unit, label=label):
-            console.print(line, highlight=False)
+            typer.echo(line)

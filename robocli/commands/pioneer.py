@@ -111,12 +111,17 @@ def dump(
     if (port is None) == (file is None):
         raise typer.BadParameter("give either a PORT or --file, not both")
     printed = 0
+    in_session = False
 
     def show(direction: str, payload: bytes, t: float | None) -> bool:
-        nonlocal printed
+        nonlocal printed, in_session
         # direction of a raw capture is unknown: client commands never use SIP/CONFIG ids
         from_client = direction == "tx" or (direction == "?" and payload[0] < 0x20)
-        name, fields = arcos.describe(payload, from_client=from_client)
+        name, fields = arcos.describe(payload, from_client=from_client, in_session=in_session)
+        if from_client and payload[0] == arcos.Command.OPEN and len(payload) > 1 or (
+            not from_client and payload[0] & 0xF0 == 0x30
+        ):
+            in_session = True  # OPEN with its argument, or a SIP: the session has started
         arrow = {"tx": "->", "rx": "<-"}.get(direction, "  ")
         stamp = f"{t:10.6f} " if t is not None else ""
         text = " ".join(f"{k}={_short(v)}" for k, v in fields.items())

@@ -184,6 +184,7 @@ class Pioneer:
         self._state: PioneerState | None = None
         self._cond = threading.Condition()
         self._config_event = threading.Event()
+        self._config_raw = b""
         self._error: RobocliError | None = None
         self._closing = False
         self._last_tx = time.monotonic()
@@ -556,7 +557,9 @@ class Pioneer:
                 self.stats.sip_work.append(time.perf_counter() - start)
                 self.stats.sip_times.append(now)
             elif ptype == PacketType.CONFIG:
-                self.config = _plain(arcos.CONFIG.parse(payload[1:]))
+                if payload != self._config_raw:  # construct is slow; CONFIG rarely changes
+                    self.config = _plain(arcos.CONFIG.parse(payload[1:]))
+                    self._config_raw = payload
                 self._config_event.set()
             elif ptype == PacketType.IO:
                 self.io = _plain(arcos.IO.parse(payload[1:]))

@@ -709,14 +709,19 @@ ROBOT_PARAMS: dict[str, RobotParams] = {
 # ----------------------------------------------------------------------------- describing
 
 
-def describe(payload: bytes, *, from_client: bool) -> tuple[str, dict[str, Any]]:
+def describe(
+    payload: bytes, *, from_client: bool, in_session: bool = True
+) -> tuple[str, dict[str, Any]]:
     """Name and decoded fields of one packet payload (type byte + data), for ``dump``.
 
-    Raw units, as on the wire. Client commands 0..2 are named PULSE/OPEN/CLOSE (before a
-    session the same bytes are SYNC0/1/2). Undecodable packets give ``{"raw": hex}``.
+    Raw units, as on the wire. Before a session (``in_session=False``) client commands 0..2
+    without an argument are the handshake's SYNC0/1/2; in a session the same bytes are
+    PULSE/OPEN/CLOSE. Undecodable packets give ``{"raw": hex, "error": why}``.
     """
     ptype = payload[0]
     name = packet_name(ptype, from_client=from_client)
+    if from_client and not in_session and ptype <= 2 and len(payload) == 1:
+        return f"SYNC{ptype}", {}
     try:
         if from_client:
             cmd = decode_command(payload)
