@@ -169,6 +169,10 @@ class SerialTransport(Transport):
                 data += bytes(self.port.read(min(size - len(data), self.port.in_waiting)))
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"{self.url}: {exc}") from None
+        except (TypeError, AttributeError):  # pyserial, when closed by another thread
+            if self._closed:
+                raise ConnectionLost(f"{self.url}: transport is closed") from None
+            raise
         return data
 
     def _write(self, data: bytes) -> None:

@@ -225,6 +225,34 @@ class Pioneer:
         answering), :class:`UnknownRobotError` (no parameters for its subtype).
         """
         transport = open_transport(url, baudrate=baud, timeout=timeout)
+        return cls.from_transport(
+            transport,
+            subtype=subtype,
+            params=params,
+            timeout=timeout,
+            sip_timeout=sip_timeout,
+            keepalive=keepalive,
+            deadman=deadman,
+            require_config=require_config,
+            listeners=listeners,
+        )
+
+    @classmethod
+    def from_transport(
+        cls,
+        transport: Transport,
+        *,
+        subtype: str | None = None,
+        params: RobotParams | None = None,
+        timeout: float = 5.0,
+        sip_timeout: float = 8.0,
+        keepalive: float = 0.4,
+        deadman: float | None = None,
+        require_config: bool = False,
+        listeners: Iterable[PacketListener] = (),
+    ) -> Pioneer:
+        """Like :meth:`connect` over an already open transport (a pipe, a wrapped or
+        fault-injecting stream). The Pioneer owns it from now on and closes it."""
         link = _Link(transport, list(listeners))
         try:
             identity = link.handshake(timeout)
@@ -232,7 +260,7 @@ class Pioneer:
             link.send(arcos.encode_command(Command.OPEN, 1))
             config = link.request_config(1.0)
             if config is None and require_config:
-                raise DeviceError(f"{url}: the robot sent no CONFIG packet")
+                raise DeviceError(f"{transport.url}: the robot sent no CONFIG packet")
         except BaseException:
             transport.close()
             raise
@@ -252,7 +280,8 @@ class Pioneer:
         except BaseException:
             robot.close()
             raise
-        log.info("connected to %s (%s %s) on %s", identity.name, identity.type, chosen.subtype, url)
+        log.info("connected to %s (%s %s) on %s", identity.name, identity.type, chosen.subtype,
+                 transport.url)
         return robot
 
     # ------------------------------------------------------------------ state

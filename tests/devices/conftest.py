@@ -1,0 +1,26 @@
+"""Fixtures: a built-in simulator on an ephemeral loopback port (or ROBOCLI_PIONEER_URL)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from robocli.sim.pioneer import PioneerSim
+from robocli.sim.world import World
+
+
+@pytest.fixture
+def sim() -> Iterator[PioneerSim]:
+    """A P3-DX in the default room, 5x faster than real time."""
+    with PioneerSim("p3dx", time_scale=5.0) as simulator:
+        simulator.serve_tcp("127.0.0.1", 0)
+        yield simulator
+
+
+@pytest.fixture
+def empty_sim() -> Iterator[PioneerSim]:
+    """A P3-DX in an empty world (sonar reads max range), 20x faster than real time."""
+    with PioneerSim("p3dx", time_scale=20.0, world=World.empty()) as simulator:
+        simulator.serve_tcp("127.0.0.1", 0)
+        yield simulator
