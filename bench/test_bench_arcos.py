@@ -15,7 +15,13 @@ from robocli.core import Framer
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 
-TRACE = Path(__file__).resolve().parents[1] / "tests" / "data" / "arcos" / "b_simpleMotionCommands.jsonl"
+TRACE = (
+    Path(__file__).resolve().parents[1]
+    / "tests"
+    / "data"
+    / "arcos"
+    / "b_simpleMotionCommands.jsonl"
+)
 
 
 @pytest.fixture(scope="module")

@@ -23,7 +23,6 @@ def step(title: str) -> None:
     print(f"\n=== {title}", flush=True)
 
 
-
 def run() -> int:
     with PioneerSim("p3dx", time_scale=5.0) as sim:
         url = sim.serve_tcp("127.0.0.1", 0)
@@ -48,16 +47,22 @@ def run() -> int:
                 sim.wait_until(lambda s: abs(s.rot_vel) < 1e-6, timeout=20)
                 robot.wait_for_sip()
                 x, y, th = robot.pose
-                print(f"corner {corner + 1}: odometry x {x - x0:+.3f} m  y {y - y0:+.3f} m  "
-                      f"th {math.degrees(th):+6.1f} deg")
+                print(
+                    f"corner {corner + 1}: odometry x {x - x0:+.3f} m  y {y - y0:+.3f} m  "
+                    f"th {math.degrees(th):+6.1f} deg"
+                )
             truth = sim.snapshot()
-            print(f"simulator truth:  x {truth.x:+.3f} m  y {truth.y:+.3f} m  "
-                  f"th {math.degrees(truth.th):+6.1f} deg")
+            print(
+                f"simulator truth:  x {truth.x:+.3f} m  y {truth.y:+.3f} m  "
+                f"th {math.degrees(truth.th):+6.1f} deg"
+            )
 
             step("examples/wander.py: potential-field wander for 20 s of simulated time")
             result = wander(robot, 200)
-            print(f"travelled {result.distance:.2f} m with {result.bumps} bumps; "
-                  f"link: {robot.stats.sips} SIPs, {robot.stats.bad_checksums} bad checksums")
+            print(
+                f"travelled {result.distance:.2f} m with {result.bumps} bumps; "
+                f"link: {robot.stats.sips} SIPs, {robot.stats.bad_checksums} bad checksums"
+            )
 
         step(f"robocli dump pioneer {url} --count 12")
         if robocli(["dump", "pioneer", url, "--count", "12"]) != 0:

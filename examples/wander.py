@@ -28,11 +28,12 @@ class WanderParams:
     turn_gain: float = 1.5  #: rad/s per rad of heading error
 
 
-def potential_field(ranges: tuple[float, ...], robot: RobotParams,
-                    p: WanderParams) -> tuple[float, float]:
+def potential_field(
+    ranges: tuple[float, ...], robot: RobotParams, p: WanderParams
+) -> tuple[float, float]:
     """(v, w) from one set of sonar ranges (metres, nan = no reading)."""
     fx, fy = p.attraction, 0.0
-    for rng, pose in zip(ranges, robot.sonar):
+    for rng, pose in zip(ranges, robot.sonar, strict=False):
         if math.isnan(rng) or rng >= p.influence:
             continue
         d = max(rng, 0.05)

@@ -7,6 +7,7 @@ robocli (and running ``robocli --help``) stays fast.
 from __future__ import annotations
 
 import importlib
+import logging
 from typing import TYPE_CHECKING, Any
 
 from robocli._version import __version__
@@ -14,6 +15,9 @@ from robocli._version import __version__
 if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer, PioneerState
     from robocli.errors import RobocliError
+
+# The library never prints: without the application's logging set up, log records go nowhere.
+logging.getLogger("robocli").addHandler(logging.NullHandler())
 
 _LAZY = {
     "Pioneer": "robocli.devices.pioneer",

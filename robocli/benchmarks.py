@@ -49,8 +49,9 @@ class Stats:
         return {k: (v if k == "n" else v * scale) for k, v in asdict(self).items()}
 
 
-def histogram(samples: npt.ArrayLike, bins: int = 12, width: int = 40, unit: float = 1e-6,
-              label: str = "us") -> list[str]:
+def histogram(
+    samples: npt.ArrayLike, bins: int = 12, width: int = 40, unit: float = 1e-6, label: str = "us"
+) -> list[str]:
     """A text histogram: one line per bin, ``[lo, hi) count bar``."""
     a = np.asarray(samples, dtype=np.float64) / unit
     if a.size == 0:
@@ -97,7 +98,7 @@ def pioneer_sip_timing(url: str, n: int = 300) -> dict[str, npt.NDArray[np.float
         first = robot.stats.sips
         while robot.stats.sips - first < n + 1:
             robot.wait_for_sip(timeout=robot.sip_timeout)
-        sip_times = np.array(robot.stats.sip_times, dtype=np.float64)[-(n + 1):]
+        sip_times = np.array(robot.stats.sip_times, dtype=np.float64)[-(n + 1) :]
         work = np.array(robot.stats.sip_work, dtype=np.float64)[-n:]
         keep = np.diff(np.array(robot.stats.keepalive_times, dtype=np.float64))
     return {"period": np.diff(sip_times), "work": work, "keepalive": keep}

@@ -114,7 +114,7 @@ class SocketTransport(Transport):
             self._timeout = timeout
         try:
             data = self.sock.recv(size)
-        except (socket.timeout, BlockingIOError):
+        except (TimeoutError, BlockingIOError):
             return b""
         except OSError as exc:
             raise ConnectionLost(f"{self.url}: {exc.strerror or exc}") from None

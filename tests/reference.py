@@ -146,7 +146,12 @@ class RefFramer:
             _type, error, _cid, size, usize, csize, ctype, _ts = struct.unpack_from("<bbIIIIbd", b)
             body = csize if (error != 0 or size != 0) else 0
             mtype = b[0]
-            ok = ctype in (0, 1) and error in (0, 1) and mtype != 0 and (mtype >> 4) in (0, 1, 2, 8, 9)
+            ok = (
+                ctype in (0, 1)
+                and error in (0, 1)
+                and mtype != 0
+                and (mtype >> 4) in (0, 1, 2, 8, 9)
+            )
             if ok and ctype == 0 and error == 0 and size != 0 and csize != usize:
                 ok = False
             if ok and R4M_HEADER + body > self.max_frame:

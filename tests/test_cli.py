@@ -19,8 +19,13 @@ DATA = Path(__file__).resolve().parent / "data" / "arcos"
 
 
 def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "robocli", *args], capture_output=True,
-                          text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [sys.executable, "-m", "robocli", *args],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
+    )
 
 
 def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
@@ -38,16 +43,19 @@ def test_help_and_version() -> None:
     assert run("--version").stdout.strip() == f"robocli {__version__}"
 
 
-@pytest.mark.parametrize("args", [
-    ("connect", "pioneer"),                      # missing PORT
-    ("bench", "rtt", "--n", "x"),                # not a number
-    ("bench", "rtt", "--target", "toaster"),     # unknown target
-    ("sim", "pioneer", "--sip-ms", "0"),         # out of range
-    ("sim", "pioneer", "--subtype", "box"),      # no parameters for it
-    ("dump", "pioneer"),                         # neither PORT nor --file
-    ("teleop", "pioneer", "sim"),                # stdin is not a terminal
-    ("frobnicate",),
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("connect", "pioneer"),  # missing PORT
+        ("bench", "rtt", "--n", "x"),  # not a number
+        ("bench", "rtt", "--target", "toaster"),  # unknown target
+        ("sim", "pioneer", "--sip-ms", "0"),  # out of range
+        ("sim", "pioneer", "--subtype", "box"),  # no parameters for it
+        ("dump", "pioneer"),  # neither PORT nor --file
+        ("teleop", "pioneer", "sim"),  # stdin is not a terminal
+        ("frobnicate",),
+    ],
+)
 def test_usage_errors_exit_2_with_one_line(args: tuple[str, ...]) -> None:
     one_line_error(run(*args), 2)
 
@@ -87,8 +95,17 @@ def test_dump_a_recorded_capture() -> None:
     proc = run("dump", "pioneer", "--file", str(DATA / "a_simpleConnect.jsonl"), "-n", "9", "--hex")
     assert proc.returncode == 0, proc.stderr
     names = [line.split()[2] for line in proc.stdout.splitlines() if "->" in line or "<-" in line]
-    assert names == ["SYNC0", "SYNC0", "SYNC1", "SYNC1", "SYNC2", "SYNC2", "OPEN", "CONFIG",
-                     "CONFIG"]
+    assert names == [
+        "SYNC0",
+        "SYNC0",
+        "SYNC1",
+        "SYNC1",
+        "SYNC2",
+        "SYNC2",
+        "OPEN",
+        "CONFIG",
+        "CONFIG",
+    ]
     assert "fa fb 06 01 3b 01 00 02 3b" in proc.stdout  # OPEN int 1, byte for byte
 
 
@@ -98,13 +115,17 @@ def test_bench_rtt_json_reports_floor_multiples() -> None:
     floor, client = json.loads(proc.stdout)
     assert floor["n"] == client["n"] == 30
     assert 0 < floor["median"] and client["x_floor_median"] == pytest.approx(
-        client["median"] / floor["median"])
+        client["median"] / floor["median"]
+    )
 
 
 def test_sim_server_serves_until_sigterm() -> None:
-    proc = subprocess.Popen([sys.executable, "-m", "robocli", "sim", "pioneer", "--port", "0",
-                             "--robots", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "sim", "pioneer", "--port", "0", "--robots", "2"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert proc.stdout is not None
         urls = [proc.stdout.readline().split(" on ")[1].strip() for _ in range(2)]

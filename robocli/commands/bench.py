@@ -3,7 +3,7 @@ simulators unless ``--url`` names a real robot."""
 
 from __future__ import annotations
 
-from typing import Any, Optional
+from typing import Any
 
 import typer
 
@@ -22,7 +22,7 @@ def _check_target(target: str) -> None:
 
 def rtt(
     target: str = TargetOpt,
-    url: Optional[str] = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(1000, "--n", "-n", min=10, max=1_000_000, help="Round trips."),
     json_out: bool = JsonOpt,
 ) -> None:
@@ -35,14 +35,16 @@ def rtt(
         with pioneer_url(url or "sim") as where:
             samples = b.pioneer_rtt(where, n)
     floor_stats = b.Stats.of(floor)
-    results = [b.report("C floor (loopback TCP ping-pong)", floor),
-               b.report(f"{target} CONFIG round trip", samples, floor_stats)]
+    results = [
+        b.report("C floor (loopback TCP ping-pong)", floor),
+        b.report(f"{target} CONFIG round trip", samples, floor_stats),
+    ]
     _show(results, {"client": samples}, json_out)
 
 
 def jitter(
     target: str = TargetOpt,
-    url: Optional[str] = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
 ) -> None:
@@ -52,13 +54,18 @@ def jitter(
     _check_target(target)
     with sigterm_as_interrupt(), pioneer_url(url or "sim") as where:
         timing = b.pioneer_sip_timing(where, n)
-    _show([b.report("SIP period", timing["period"])], {"period": timing["period"]}, json_out,
-          unit=1e-3, label="ms")
+    _show(
+        [b.report("SIP period", timing["period"])],
+        {"period": timing["period"]},
+        json_out,
+        unit=1e-3,
+        label="ms",
+    )
 
 
 def sip(
     target: str = TargetOpt,
-    url: Optional[str] = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIPs to collect."),
     json_out: bool = JsonOpt,
 ) -> None:
@@ -74,21 +81,34 @@ def sip(
     _show(results, {"work": timing["work"]}, json_out)
 
 
-def _show(results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool,
-          unit: float = 1e-6, label: str = "us") -> None:
+def _show(
+    results: list[dict[str, Any]],
+    hist: dict[str, Any],
+    json_out: bool,
+    unit: float = 1e-6,
+    label: str = "us",
+) -> None:
     from robocli import benchmarks as b
 
     if json_out:
         print_json(results)
         return
-    typer.echo(f"{'measurement (us)':<34}{'n':>7}" + "".join(
-        f"{k:>10}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")))
+    typer.echo(
+        f"{'measurement (us)':<34}{'n':>7}"
+        + "".join(f"{k:>10}" for k in ("mean", "median", "std", "min", "max", "p90", "p99"))
+    )
     for r in results:
-        typer.echo(f"{r['name']:<34}{r['n']:>7}" + "".join(
-            f"{r[k]:>10.1f}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")))
+        typer.echo(
+            f"{r['name']:<34}{r['n']:>7}"
+            + "".join(
+                f"{r[k]:>10.1f}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")
+            )
+        )
         if "x_floor_median" in r:
-            typer.echo(f"{'':<34}{'':>7}  = {r['x_floor_median']:.1f} x floor (median), "
-                       f"{r['x_floor_p99']:.1f} x floor (p99)")
+            typer.echo(
+                f"{'':<34}{'':>7}  = {r['x_floor_median']:.1f} x floor (median), "
+                f"{r['x_floor_p99']:.1f} x floor (p99)"
+            )
     for name, samples in hist.items():
         typer.echo(f"histogram: {name}")
         for line in b.histogram(samples, unit=unit, label=label):

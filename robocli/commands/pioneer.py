@@ -10,7 +10,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -36,7 +36,7 @@ def connect(
     port: str = PortArg,
     once: bool = typer.Option(False, "--once", help="Print one state snapshot and exit."),
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output (with --once)."),
-    subtype: Optional[str] = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
+    subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -62,7 +62,7 @@ def teleop(
     release: float = typer.Option(
         0.45, "--release", min=0.05, max=0.5, help="Stop this long after the last key, s."
     ),
-    subtype: Optional[str] = SubtypeOpt,  # noqa: UP007
+    subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -76,8 +76,10 @@ def teleop(
     with sigterm_as_interrupt(), pioneer_url(port) as url:
         with Pioneer.connect(url, subtype=subtype, baud=baud, timeout=timeout) as robot:
             robot.enable_motors()
-            typer.echo(f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
-                       "space stops, q quits")
+            typer.echo(
+                f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
+                "space stops, q quits"
+            )
             with _raw_terminal() as read_key:
 
                 def show(v: float, w: float) -> None:
@@ -93,15 +95,15 @@ def teleop(
 
 
 def dump(
-    port: Optional[str] = typer.Argument(  # noqa: UP007
+    port: str | None = typer.Argument(  # noqa: UP007
         None, help=PORT_HELP + " Omit with --file.", show_default=False
     ),
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N packets (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    file: Optional[Path] = typer.Option(  # noqa: UP007
+    file: Path | None = typer.Option(  # noqa: UP007
         None, "--file", "-f", help="Decode a capture (.jsonl trace or raw bytes) instead."
     ),
-    subtype: Optional[str] = SubtypeOpt,  # noqa: UP007
+    subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -118,8 +120,11 @@ def dump(
         # direction of a raw capture is unknown: client commands never use SIP/CONFIG ids
         from_client = direction == "tx" or (direction == "?" and payload[0] < 0x20)
         name, fields = arcos.describe(payload, from_client=from_client, in_session=in_session)
-        if from_client and payload[0] == arcos.Command.OPEN and len(payload) > 1 or (
-            not from_client and payload[0] & 0xF0 == 0x30
+        if (
+            from_client
+            and payload[0] == arcos.Command.OPEN
+            and len(payload) > 1
+            or (not from_client and payload[0] & 0xF0 == 0x30)
         ):
             in_session = True  # OPEN with its argument, or a SIP: the session has started
         arrow = {"tx": "->", "rx": "<-"}.get(direction, "  ")
@@ -152,8 +157,9 @@ def dump(
 
     assert port is not None
     with sigterm_as_interrupt(), pioneer_url(port) as url:
-        with Pioneer.connect(url, subtype=subtype, baud=baud, timeout=timeout,
-                             listeners=[listener]) as robot:
+        with Pioneer.connect(
+            url, subtype=subtype, baud=baud, timeout=timeout, listeners=[listener]
+        ) as robot:
             while not done:
                 robot.wait_for_sip()
 
@@ -162,7 +168,7 @@ def simulate(
     port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
-    map_file: Optional[Path] = typer.Option(  # noqa: UP007
+    map_file: Path | None = typer.Option(  # noqa: UP007
         None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
     ),
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
@@ -186,8 +192,10 @@ def simulate(
             for i in range(robots):
                 simulator = PioneerSim(subtype, sip_ms=sip_ms, world=world, time_scale=time_scale)
                 sims.append(simulator)
-                where = simulator.serve_pty() if pty else simulator.serve_tcp(
-                    bind, port + i if port else 0
+                where = (
+                    simulator.serve_pty()
+                    if pty
+                    else simulator.serve_tcp(bind, port + i if port else 0)
                 )
                 typer.echo(f"robot {i + 1}: {subtype} on {where}")
             sys.stdout.flush()
@@ -217,9 +225,13 @@ def _print_snapshot(snapshot: dict[str, Any]) -> None:
     ident = snapshot["identity"]
     st = snapshot["state"]
     typer.echo(f"{ident['name']} {ident['type']} {ident['subtype']} on {snapshot['url']}")
-    typer.echo(f"pose      x {st['x']:+.3f} m  y {st['y']:+.3f} m  th {math.degrees(st['th']):+.1f} deg")
+    typer.echo(
+        f"pose      x {st['x']:+.3f} m  y {st['y']:+.3f} m  th {math.degrees(st['th']):+.1f} deg"
+    )
     typer.echo(f"velocity  v {st['v']:+.3f} m/s  w {st['w']:+.3f} rad/s")
-    typer.echo(f"battery   {st['battery']:.1f} V   motors {'on' if st['motors_enabled'] else 'off'}")
+    typer.echo(
+        f"battery   {st['battery']:.1f} V   motors {'on' if st['motors_enabled'] else 'off'}"
+    )
     sonar = " ".join("-" if r is None else f"{r:.2f}" for r in st["sonar"])
     typer.echo(f"sonar (m) {sonar}")
 
@@ -228,25 +240,38 @@ def _render(robot: Pioneer) -> RenderableType:
     from rich.table import Table
 
     st = robot.state
-    table = Table(title=f"{robot.identity.name} ({robot.params.subtype}) {robot.transport.url}",
-                  show_header=False, expand=False)
+    table = Table(
+        title=f"{robot.identity.name} ({robot.params.subtype}) {robot.transport.url}",
+        show_header=False,
+        expand=False,
+    )
     table.add_column(style="bold")
     table.add_column()
     table.add_row("pose", f"x {st.x:+.3f} m   y {st.y:+.3f} m   th {math.degrees(st.th):+.1f} deg")
     table.add_row("velocity", f"v {st.v:+.3f} m/s   w {math.degrees(st.w):+.1f} deg/s")
-    table.add_row("battery", f"{st.battery:.1f} V" + (
-        f"  {st.state_of_charge:.0%}" if st.state_of_charge is not None else ""))
-    table.add_row("motors", ("[green]enabled[/]" if st.motors_enabled else "[yellow]disabled[/]")
-                  + ("  [red]E-STOP[/]" if st.estop else ""))
-    table.add_row("bumpers", f"front {st.bumpers_front:07b}  rear {st.bumpers_rear:07b}"
-                  + ("  [red]STALL[/]" if st.stalled else ""))
+    table.add_row(
+        "battery",
+        f"{st.battery:.1f} V"
+        + (f"  {st.state_of_charge:.0%}" if st.state_of_charge is not None else ""),
+    )
+    table.add_row(
+        "motors",
+        ("[green]enabled[/]" if st.motors_enabled else "[yellow]disabled[/]")
+        + ("  [red]E-STOP[/]" if st.estop else ""),
+    )
+    table.add_row(
+        "bumpers",
+        f"front {st.bumpers_front:07b}  rear {st.bumpers_rear:07b}"
+        + ("  [red]STALL[/]" if st.stalled else ""),
+    )
     max_range = robot.params.sonar_max_range
     for i, rng in enumerate(robot.sonar):
         bar = "" if math.isnan(rng) else "█" * int(30 * min(rng, max_range) / max_range)
         table.add_row(f"sonar {i:2d}", f"{'  -  ' if math.isnan(rng) else f'{rng:5.2f}'} m {bar}")
     s = robot.stats
-    table.add_row("link", f"{s.sips} SIPs  {s.bad_checksums} bad checksums  "
-                  f"{s.dropped_bytes} bytes dropped")
+    table.add_row(
+        "link", f"{s.sips} SIPs  {s.bad_checksums} bad checksums  {s.dropped_bytes} bytes dropped"
+    )
     return table
 
 

@@ -194,7 +194,9 @@ class Pioneer:
         self._setpoints: list[tuple[int, int]] = []
         self._setpoint_lock = threading.Lock()
         self._reader = threading.Thread(target=self._read_loop, name="pioneer-reader", daemon=True)
-        self._keeper = threading.Thread(target=self._keep_loop, name="pioneer-keepalive", daemon=True)
+        self._keeper = threading.Thread(
+            target=self._keep_loop, name="pioneer-keepalive", daemon=True
+        )
         self._reader.start()
         self._keeper.start()
 
@@ -280,8 +282,13 @@ class Pioneer:
         except BaseException:
             robot.close()
             raise
-        log.info("connected to %s (%s %s) on %s", identity.name, identity.type, chosen.subtype,
-                 transport.url)
+        log.info(
+            "connected to %s (%s %s) on %s",
+            identity.name,
+            identity.type,
+            chosen.subtype,
+            transport.url,
+        )
         return robot
 
     # ------------------------------------------------------------------ state
@@ -332,14 +339,20 @@ class Pioneer:
         data["sonar"] = [None if math.isnan(r) else r for r in self.sonar]
         data.pop("sonar_time")
         return {
-            "identity": {"name": self.identity.name, "type": self.identity.type,
-                         "subtype": self.identity.subtype},
+            "identity": {
+                "name": self.identity.name,
+                "type": self.identity.type,
+                "subtype": self.identity.subtype,
+            },
             "url": self.transport.url,
             "params": self.params.subtype,
             "state": data,
-            "link": {"sips": self.stats.sips, "bad_checksums": self.stats.bad_checksums,
-                     "dropped_bytes": self.stats.dropped_bytes,
-                     "keepalives": self.stats.keepalives},
+            "link": {
+                "sips": self.stats.sips,
+                "bad_checksums": self.stats.bad_checksums,
+                "dropped_bytes": self.stats.dropped_bytes,
+                "keepalives": self.stats.keepalives,
+            },
         }
 
     def add_listener(self, listener: PacketListener) -> None:
@@ -416,7 +429,11 @@ class Pioneer:
     ) -> None:
         """Accelerations in m/s² and rad/s²; decelerations default to the accelerations."""
         for cmd, acc, dec in (
-            (Command.SETA, trans, trans_decel, ),
+            (
+                Command.SETA,
+                trans,
+                trans_decel,
+            ),
             (Command.SETRA, rot, rot_decel),
         ):
             scale = 1000.0 if cmd == Command.SETA else math.degrees(1.0)
@@ -472,7 +489,9 @@ class Pioneer:
     def set_simulator_pose(self, x: float, y: float, th: float) -> None:
         """Simulators only (MobileSim, robocli sim): teleport the true pose (m, m, rad)."""
         self._check()
-        self._write(arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th))))
+        self._write(
+            arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th)))
+        )
 
     # ------------------------------------------------------------------ closing
 
@@ -612,7 +631,11 @@ class Pioneer:
             lv = sip["lvel"] * p.vel_conv / 1000.0
             rv = sip["rvel"] * p.vel_conv / 1000.0
             rotvel = sip["rotvel"]
-            w = math.radians(rotvel / 10.0) if rotvel is not None else (rv - lv) / 2 * p.diff_conv * 1000
+            w = (
+                math.radians(rotvel / 10.0)
+                if rotvel is not None
+                else (rv - lv) / 2 * p.diff_conv * 1000
+            )
             batx10 = sip["battery_x10"]
             io = sip["io"] or {}
             soc = sip["state_of_charge"]

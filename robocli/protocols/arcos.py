@@ -25,14 +25,12 @@ from typing import Any
 
 from construct import (
     Adapter,
-    FormatField,
-    Renamed,
-    Select,
     Bytes,
     Checksum,
     Const,
     Construct,
     CString,
+    FormatField,
     GreedyBytes,
     Int8sl,
     Int8ub,
@@ -42,9 +40,10 @@ from construct import (
     Int32sl,
     Int32ul,
     Optional,
-    PaddedString,
     PrefixedArray,
     Rebuild,
+    Renamed,
+    Select,
     Struct,
     Switch,
     len_,
@@ -259,13 +258,16 @@ StrArg = Struct(
 SimPoseArg = Struct("argtype" / Int8ub, "x" / Int32sl, "y" / Int32sl, "th" / Int32sl)
 
 
-def _arg_kind(ctx: Any) -> str:
-    cmd = int(ctx.command)
+def _arg_kind_of(cmd: int) -> str:
     if cmd == Command.SIM_SET_POSE:
         return "pose"
     if cmd in STRING_COMMANDS:
         return "str"
     return "int"
+
+
+def _arg_kind(ctx: Any) -> str:
+    return _arg_kind_of(int(ctx.command))
 
 
 #: A client command packet payload (type byte = command number, then the optional argument).
@@ -288,7 +290,10 @@ def encode_command(command: int, arg: int | str | bytes | None = None) -> bytes:
     if arg is None:
         payload = bytes((cmd,))
     elif isinstance(arg, int):
-        payload = bytes((cmd,)) + IntArg.build(arg)
+        if not -0xFFFF <= arg <= 0xFFFF:
+            raise ProtocolError(f"ARCOS int argument out of range: {arg}")
+        # same bytes as IntArg.build(arg), through the struct view of its declaration
+        payload = bytes((cmd,)) + _INT_ARG.pack(ARG_NINT if arg < 0 else ARG_INT, abs(arg))
     else:
         text = arg.encode("latin-1") if isinstance(arg, str) else bytes(arg)
         if len(text) > 199:
@@ -335,6 +340,14 @@ class DecodedCommand:
 
 def decode_command(payload: bytes) -> DecodedCommand:
     """Parse a client command payload (type byte + argument)."""
+    cmd = payload[0]
+    if len(payload) == 1:
+        return DecodedCommand(cmd, None)
+    if len(payload) == 1 + _INT_ARG.size and _arg_kind_of(cmd) == "int":
+        # hot path (a robot reads one per command): struct view of IntArg's declaration
+        argtype, magnitude = _INT_ARG.unpack_from(payload, 1)
+        if argtype in (ARG_INT, ARG_NINT):
+            return DecodedCommand(cmd, -magnitude if argtype == ARG_NINT else magnitude)
     parsed = CommandPacket.parse(payload)
     arg: int | bytes | tuple[int, int, int] | None
     raw = parsed.arg
@@ -391,7 +404,6 @@ SIP = Struct(
 )
 
 
-
 def _struct_format(con: Construct) -> str:
     """struct-module format (without byte order) of a fixed-size construct declaration."""
     while isinstance(con, Renamed):
@@ -424,11 +436,14 @@ _SIP_TAIL = tuple(
 )
 
 
+_INT_ARG = struct.Struct("<" + _struct_format(IntArg.subcon))
+
+
 def decode_sip(body: bytes | memoryview) -> dict[str, Any]:
     """Fast SIP body decoder (after the type byte), same result as ``SIP.parse`` but plain
     dicts/tuples: ``sonar`` is a list of ``(number, range)``; absent optional groups are None.
     """
-    out: dict[str, Any] = dict(zip(_SIP_HEAD_NAMES, _SIP_HEAD.unpack_from(body, 0)))
+    out: dict[str, Any] = dict(zip(_SIP_HEAD_NAMES, _SIP_HEAD.unpack_from(body, 0), strict=True))
     pos = _SIP_HEAD.size
     k = body[pos]
     pos += 1
@@ -440,7 +455,7 @@ def decode_sip(body: bytes | memoryview) -> dict[str, Any]:
     for name, fmt, names in _SIP_TAIL:
         if pos + fmt.size <= len(body):
             values = fmt.unpack_from(body, pos)
-            out[name] = dict(zip(names, values)) if names else values[0]
+            out[name] = dict(zip(names, values, strict=True)) if names else values[0]
             pos += fmt.size
         else:
             out[name] = None

@@ -514,6 +514,7 @@ class PioneerSim:
         self._digin, self._digout, self._anport = 0xFF, 0xFF, 0
         self._last_say: tuple[tuple[int, int], ...] = ()
         self._handlers = self._make_handlers()
+        self._config_cache: tuple[tuple[Any, ...], bytes] | None = None
         head = ("x", "y", "th", "lvel", "rvel", "battery", "stall_bumpers", "control", "flags")
         empty: dict[str, Any] = {**dict.fromkeys(head, 0), "compass": 0, "sonar": ()}
         self._sip_fixed = len(encode_sip_body({**empty, **self._sip_tail()}))
@@ -988,7 +989,11 @@ class PioneerSim:
             ticks_mm=TICKS_PER_MM, latvel_top=0, latacc_top=0,
         )  # fmt: skip
         body.update(dict.fromkeys(_CONFIG_OPTIONAL))
-        return encode_server(PacketType.CONFIG, body)
+        key = tuple(body.values())
+        if self._config_cache is None or self._config_cache[0] != key:
+            # construct takes ~0.3 ms to build it: rebuild only when a setting changed
+            self._config_cache = (key, encode_server(PacketType.CONFIG, body))
+        return self._config_cache[1]
 
     def _encoder_packet(self) -> bytes:
         left, right = self._robot.encoder_ticks()

@@ -90,8 +90,12 @@ def test_client_decodes_recorded_session(stem: str) -> None:
     assert state.sonar[:16] == pytest.approx([5.0] * 16) or not state.sonar_enabled
     # the client closed the session as ARIA does: stop, motors off, CLOSE
     time.sleep(0.1)
-    assert server.received[-4:] == [arcos.Command.VEL, arcos.Command.RVEL,
-                                    arcos.Command.ENABLE, arcos.Command.CLOSE]
+    assert server.received[-4:] == [
+        arcos.Command.VEL,
+        arcos.Command.RVEL,
+        arcos.Command.ENABLE,
+        arcos.Command.CLOSE,
+    ]
 
 
 def arcos_identity(name: str, type_: str, subtype: str) -> object:

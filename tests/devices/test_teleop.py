@@ -18,9 +18,15 @@ def test_held_key_drives_and_release_stops_within_timeout() -> None:
     assert c.command(0.56 + 0.46) == (0.0, 0.0)  # released: stopped within 0.5 s
 
 
-@pytest.mark.parametrize(("key", "expected"), [
-    ("left", (0.0, 1.2)), ("d", (0.0, -1.2)), ("s", (-0.5, 0.0)), ("W", (0.5, 0.0)),
-])
+@pytest.mark.parametrize(
+    ("key", "expected"),
+    [
+        ("left", (0.0, 1.2)),
+        ("d", (0.0, -1.2)),
+        ("s", (-0.5, 0.0)),
+        ("W", (0.5, 0.0)),
+    ],
+)
 def test_keymap(key: str, expected: tuple[float, float]) -> None:
     c = TeleopController(max_v=0.5, max_w=1.2)
     c.key(key, 1.0)

@@ -87,8 +87,10 @@ _SIP_LINE = re.compile(
 def test_sip_fields_match_recorded_summaries(trace: Path) -> None:
     """Our decoders agree with the recording's own decoded summary, SIP by SIP."""
     summary = trace.with_suffix(".txt").read_text()
-    expected = [tuple(int(g, 16) if i == 5 else int(g) for i, g in enumerate(m.groups()))
-                for m in _SIP_LINE.finditer(summary)]
+    expected = [
+        tuple(int(g, 16) if i == 5 else int(g) for i, g in enumerate(m.groups()))
+        for m in _SIP_LINE.finditer(summary)
+    ]
     got = []
     for item in read_capture(trace):
         payload = arcos.unframe(item.frame)
@@ -98,9 +100,21 @@ def test_sip_fields_match_recorded_summaries(trace: Path) -> None:
                 "sonar": [[n, r] for n, r in s["sonar"]]
             }
             # the summary shows x/y masked to the 15 bits ARIA uses (AMRISim sends -4 as 65532)
-            got.append((s["x"] & 0x7FFF, s["y"] & 0x7FFF, s["th"], s["lvel"], s["rvel"], s["flags"],
-                        len(s["sonar"]), s["battery_x10"], s["charge_state"], s["rotvel"],
-                        s["temperature"]))
+            got.append(
+                (
+                    s["x"] & 0x7FFF,
+                    s["y"] & 0x7FFF,
+                    s["th"],
+                    s["lvel"],
+                    s["rvel"],
+                    s["flags"],
+                    len(s["sonar"]),
+                    s["battery_x10"],
+                    s["charge_state"],
+                    s["rotvel"],
+                    s["temperature"],
+                )
+            )
     assert got == expected
     if "f_stale" not in trace.name:
         assert len(got) > 10
