@@ -75,7 +75,7 @@ def sip(
     _check_target(target)
     with sigterm_as_interrupt(), pioneer_url(url or "sim") as where:
         timing = b.pioneer_sip_timing(where, n)
-    results = [b.report("client work per SIP", timing["work"])]
+    results = [b.report("client CPU per SIP", timing["work"])]
     if timing["keepalive"].size > 1:
         results.append(b.report("keep-alive period", timing["keepalive"]))
     _show(results, {"work": timing["work"]}, json_out)

@@ -108,7 +108,8 @@ class LinkStats:
     received: Counter[str] = field(default_factory=Counter)
     keepalives: int = 0
     deadman_stops: int = 0
-    #: seconds of client work per SIP (decode + state update), most recent last
+    #: CPU seconds the reader thread spent per SIP (decode + state update), most recent last;
+    #: thread CPU time, so waiting for the GIL (e.g. an in-process simulator) is not counted
     sip_work: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
     #: monotonic send times of keep-alive packets (PULSE or set-point refresh)
     keepalive_times: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
@@ -181,7 +182,9 @@ class Pioneer:
         n_sonar = max(16, len(params.sonar))
         self._sonar = [math.nan] * n_sonar
         self._sonar_t = [math.nan] * n_sonar
-        self._state: PioneerState | None = None
+        self._state: PioneerState | None = None  # built lazily from _sip
+        self._sip: tuple[dict[str, Any], float, tuple[int, int]] | None = None
+        self._sip_count = 0
         self._cond = threading.Condition()
         self._config_event = threading.Event()
         self._config_raw = b""
@@ -296,9 +299,9 @@ class Pioneer:
     @property
     def state(self) -> PioneerState:
         """The latest SIP in SI units. Raises if the link is lost or SIPs stopped."""
-        self._check()
-        assert self._state is not None  # connect() waited for the first SIP
-        return self._state
+        with self._cond:
+            self._check()
+            return self._current_state()
 
     @property
     def pose(self) -> tuple[float, float, float]:
@@ -322,11 +325,11 @@ class Pioneer:
         """Block until the next SIP arrives and return it."""
         deadline = time.monotonic() + (self.sip_timeout if timeout is None else timeout)
         with self._cond:
-            count = self._state.sip_count if self._state else 0
+            count = self._sip_count
             while True:
                 self._check()
-                if self._state is not None and self._state.sip_count > count:
-                    return self._state
+                if self._sip_count > count:
+                    return self._current_state()
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise TimeoutError(f"{self.transport.url}: no SIP within {timeout} s")
@@ -600,9 +603,9 @@ class Pioneer:
             listener("rx", payload, now)
         try:
             if ptype & 0xF0 == 0x30:
-                start = time.perf_counter()
+                start = time.thread_time()
                 self._on_sip(payload, now)
-                self.stats.sip_work.append(time.perf_counter() - start)
+                self.stats.sip_work.append(time.thread_time() - start)
                 self.stats.sip_times.append(now)
             elif ptype == PacketType.CONFIG:
                 if payload != self._config_raw:  # construct is slow; CONFIG rarely changes
@@ -620,59 +623,71 @@ class Pioneer:
             log.warning("undecodable packet 0x%02x: %s", ptype, exc)
 
     def _on_sip(self, payload: bytes, now: float) -> None:
+        # The reader's per-SIP work is kept to decoding, odometry unwrapping and sonar
+        # bookkeeping; the SI-unit snapshot is built when the program asks for it.
         sip = arcos.decode_sip(memoryview(payload)[1:])
-        p = self.params
-        for number, rng in sip["sonar"]:
-            if number < len(self._sonar):
-                self._sonar[number] = rng * p.range_conv / 1000.0
-                self._sonar_t[number] = now
+        conv = self.params.range_conv / 1000.0
+        sonar, sonar_t = self._sonar, self._sonar_t
         with self._cond:
-            ox, oy = self._odo.update(sip["x"], sip["y"])
-            lv = sip["lvel"] * p.vel_conv / 1000.0
-            rv = sip["rvel"] * p.vel_conv / 1000.0
-            rotvel = sip["rotvel"]
-            w = (
-                math.radians(rotvel / 10.0)
-                if rotvel is not None
-                else (rv - lv) / 2 * p.diff_conv * 1000
-            )
-            batx10 = sip["battery_x10"]
-            io = sip["io"] or {}
-            soc = sip["state_of_charge"]
-            temp = sip["temperature"]
-            flags = sip["flags"]
-            sb = sip["stall_bumpers"]
-            count = self._state.sip_count + 1 if self._state else 1
-            self._state = PioneerState(
-                t=now,
-                x=ox * p.dist_conv / 1000.0,
-                y=oy * p.dist_conv / 1000.0,
-                th=_wrap_pi(sip["th"] * p.angle_conv),
-                v=(lv + rv) / 2,
-                w=w,
-                left_velocity=lv,
-                right_velocity=rv,
-                battery=(batx10 if batx10 else sip["battery"]) / 10.0,
-                state_of_charge=soc / 100.0 if soc else None,
-                charge_state=sip["charge_state"],
-                motors_enabled=bool(flags & arcos.FLAG_MOTORS_ON),
-                estop=bool(flags & arcos.FLAG_ESTOP),
-                sonar_enabled=bool(flags & arcos.FLAG_SONAR_MASK),
-                stall_left=bool(sb & arcos.STALL_LEFT),
-                stall_right=bool(sb & arcos.STALL_RIGHT),
-                bumpers_front=(sb & arcos.BUMPERS_FRONT_MASK) >> 9,
-                bumpers_rear=(sb & arcos.BUMPERS_REAR_MASK) >> 1,
-                sonar=tuple(self._sonar),
-                sonar_time=tuple(self._sonar_t),
-                digin=io.get("digin", 0),
-                digout=io.get("digout", 0),
-                analog=io.get("analog", 0) * 5.0 / 255.0,
-                temperature=None if temp is None or temp == -127 else float(temp),
-                sip_count=count,
-            )
+            for number, rng in sip["sonar"]:
+                if number < len(sonar):
+                    sonar[number] = rng * conv
+                    sonar_t[number] = now
+            self._sip = (sip, now, self._odo.update(sip["x"], sip["y"]))
+            self._sip_count += 1
+            self._state = None
             self._last_rx = now
-            self.stats.sips = count
+            self.stats.sips = self._sip_count
             self._cond.notify_all()
+
+    def _current_state(self) -> PioneerState:
+        """The latest SIP as a :class:`PioneerState` (built once per SIP; hold ``_cond``)."""
+        if self._state is None:
+            assert self._sip is not None  # connect() waited for the first SIP
+            self._state = self._build_state(*self._sip)
+        return self._state
+
+    def _build_state(
+        self, sip: dict[str, Any], now: float, odo: tuple[int, int]
+    ) -> PioneerState:
+        p = self.params
+        lv = sip["lvel"] * p.vel_conv / 1000.0
+        rv = sip["rvel"] * p.vel_conv / 1000.0
+        rotvel = sip["rotvel"]
+        w = math.radians(rotvel / 10.0) if rotvel is not None else (rv - lv) / 2 * p.diff_conv * 1e3
+        batx10 = sip["battery_x10"]
+        io = sip["io"] or {}
+        soc = sip["state_of_charge"]
+        temp = sip["temperature"]
+        flags = sip["flags"]
+        sb = sip["stall_bumpers"]
+        return PioneerState(
+            t=now,
+            x=odo[0] * p.dist_conv / 1000.0,
+            y=odo[1] * p.dist_conv / 1000.0,
+            th=_wrap_pi(sip["th"] * p.angle_conv),
+            v=(lv + rv) / 2,
+            w=w,
+            left_velocity=lv,
+            right_velocity=rv,
+            battery=(batx10 if batx10 else sip["battery"]) / 10.0,
+            state_of_charge=soc / 100.0 if soc else None,
+            charge_state=sip["charge_state"],
+            motors_enabled=bool(flags & arcos.FLAG_MOTORS_ON),
+            estop=bool(flags & arcos.FLAG_ESTOP),
+            sonar_enabled=bool(flags & arcos.FLAG_SONAR_MASK),
+            stall_left=bool(sb & arcos.STALL_LEFT),
+            stall_right=bool(sb & arcos.STALL_RIGHT),
+            bumpers_front=(sb & arcos.BUMPERS_FRONT_MASK) >> 9,
+            bumpers_rear=(sb & arcos.BUMPERS_REAR_MASK) >> 1,
+            sonar=tuple(self._sonar),
+            sonar_time=tuple(self._sonar_t),
+            digin=io.get("digin", 0),
+            digout=io.get("digout", 0),
+            analog=io.get("analog", 0) * 5.0 / 255.0,
+            temperature=None if temp is None or temp == -127 else float(temp),
+            sip_count=self._sip_count,
+        )
 
     def _keep_loop(self) -> None:
         """Re-send the set-points when nothing was sent for ``keepalive`` s (PULSE when there
