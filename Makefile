@@ -21,7 +21,7 @@ demo: $(STAMP)
 	$(PY) examples/demo.py
 
 test: $(STAMP) test-c
-	$(PY) -m pytest -q -p no:cacheprovider --benchmark-disable
+	$(PY) -m pytest -q -p no:cacheprovider --benchmark-disable -m "not slow"
 
 # C tests read the golden vectors in specs/; warnings are errors.
 csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h

@@ -73,7 +73,11 @@ def main(argv: list[str] | None = None) -> int:
     from robocli.errors import EXIT_INTERRUPTED, RobocliError
 
     try:
-        app(args=argv, prog_name="robocli", standalone_mode=False)
+        # Typer returns (rather than raises) the code of an Exit, including 130 for Ctrl-C
+        code = app(args=argv, prog_name="robocli", standalone_mode=False)
+        if code == EXIT_INTERRUPTED:
+            typer.echo("robocli: interrupted", err=True)
+        return code if isinstance(code, int) else 0
     except typer.Exit as exc:
         return int(exc.exit_code)
     except (typer.Abort, KeyboardInterrupt):
@@ -91,7 +95,6 @@ def main(argv: list[str] | None = None) -> int:
             typer.echo(f"robocli: {exc.format_message()}", err=True)
             return int(exc.exit_code)
         raise
-    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

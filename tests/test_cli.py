@@ -138,3 +138,19 @@ def test_sim_server_serves_until_sigterm() -> None:
     finally:
         if proc.poll() is None:
             os.kill(proc.pid, signal.SIGKILL)
+
+
+def test_live_view_runs_until_interrupted() -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "robocli", "connect", "pioneer", "sim"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        import time
+
+        time.sleep(3)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=10)
+        assert proc.returncode == 130 and err.strip() == "robocli: interrupted"
+        assert "pose" in out and "sonar 15" in out and "robocli-sim" in out
+    finally:
+        if proc.poll() is None:
+            proc.kill()
