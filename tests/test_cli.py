@@ -141,8 +141,12 @@ def test_sim_server_serves_until_sigterm() -> None:
 
 
 def test_live_view_runs_until_interrupted() -> None:
-    proc = subprocess.Popen([sys.executable, "-m", "robocli", "connect", "pioneer", "sim"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "connect", "pioneer", "sim"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     try:
         import time
 

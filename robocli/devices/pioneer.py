@@ -647,9 +647,7 @@ class Pioneer:
             self._state = self._build_state(*self._sip)
         return self._state
 
-    def _build_state(
-        self, sip: dict[str, Any], now: float, odo: tuple[int, int]
-    ) -> PioneerState:
+    def _build_state(self, sip: dict[str, Any], now: float, odo: tuple[int, int]) -> PioneerState:
         p = self.params
         lv = sip["lvel"] * p.vel_conv / 1000.0
         rv = sip["rvel"] * p.vel_conv / 1000.0

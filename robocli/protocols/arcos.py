@@ -430,12 +430,21 @@ _SONAR_AT = [sub.name for sub in _SIP_SUBCONS].index("sonar")
 _SIP_HEAD = struct.Struct("<" + "".join(_struct_format(s) for s in _SIP_SUBCONS[:_SONAR_AT]))
 _SIP_HEAD_NAMES = tuple(str(s.name) for s in _SIP_SUBCONS[:_SONAR_AT])
 _SONAR_ITEM = struct.Struct("<" + _struct_format(SonarReading))
-_SIP_TAIL = tuple(
-    (str(s.name), struct.Struct("<" + _struct_format(s)), tuple(_field_names(s)))
-    for s in _SIP_SUBCONS[_SONAR_AT + 1 :]
-)
-
-
+_SIP_GROUPS = [
+    (str(s.name), _struct_format(s), tuple(_field_names(s))) for s in _SIP_SUBCONS[_SONAR_AT + 1 :]
+]
+_SIP_GROUP_STRUCTS = [(name, struct.Struct("<" + f), names) for name, f, names in _SIP_GROUPS]
+# One struct per number k of trailing groups present (a robot sends a prefix of them), so a
+# SIP's tail is a single unpack: (size, struct, [(name, field names, n values)...]).
+_SIP_TAILS = [
+    (
+        struct.calcsize("<" + "".join(f for _, f, _ in _SIP_GROUPS[:k])),
+        struct.Struct("<" + "".join(f for _, f, _ in _SIP_GROUPS[:k])),
+        [(name, names, max(1, len(names))) for name, _, names in _SIP_GROUPS[:k]],
+    )
+    for k in range(len(_SIP_GROUPS), -1, -1)
+]
+_SIP_ABSENT = {name: None for name, _, _ in _SIP_GROUPS}
 _INT_ARG = struct.Struct("<" + _struct_format(IntArg.subcon))
 
 
@@ -451,14 +460,16 @@ def decode_sip(body: bytes | memoryview) -> dict[str, Any]:
     if end > len(body):
         raise ProtocolError(f"SIP announces {k} sonar readings but holds {len(body) - pos} bytes")
     out["sonar"] = list(_SONAR_ITEM.iter_unpack(body[pos:end]))
-    pos = end
-    for name, fmt, names in _SIP_TAIL:
-        if pos + fmt.size <= len(body):
-            values = fmt.unpack_from(body, pos)
-            out[name] = dict(zip(names, values, strict=True)) if names else values[0]
-            pos += fmt.size
-        else:
-            out[name] = None
+    out.update(_SIP_ABSENT)
+    rest = len(body) - end
+    for size, fmt, groups in _SIP_TAILS:
+        if size <= rest:
+            values = fmt.unpack_from(body, end)
+            i = 0
+            for name, names, n in groups:
+                out[name] = dict(zip(names, values[i : i + n], strict=True)) if names else values[i]
+                i += n
+            break
     return out
 
 
@@ -471,7 +482,7 @@ def encode_sip_body(fields: dict[str, Any]) -> bytes:
     sonar = fields.get("sonar") or ()
     parts = [_SIP_HEAD.pack(*(fields[n] for n in _SIP_HEAD_NAMES)), bytes((len(sonar),))]
     parts.extend(_SONAR_ITEM.pack(num, rng) for num, rng in sonar)
-    for name, fmt, names in _SIP_TAIL:
+    for name, fmt, names in _SIP_GROUP_STRUCTS:
         value = fields.get(name)
         if value is None:
             break
