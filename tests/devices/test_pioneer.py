@@ -273,3 +273,57 @@ def test_teleop_with_scripted_keys(sim: PioneerSim) -> None:
         settle(sim, robot)
         assert robot.pose[0] > 0.05  # it drove forward, then stopped on release
     assert seen[0] == (0.3, 0.0) and seen[-1] == (0.0, 0.0)
+
+
+def test_io_encoder_packets_and_odometry_reset(empty_sim: PioneerSim) -> None:
+    assert empty_sim.url is not None
+    with Pioneer.connect(empty_sim.url) as robot:
+        robot.request_io(1)
+        robot.request_encoders(1)
+        for _ in range(5):
+            robot.wait_for_sip()
+            if robot.io is not None and robot.encoders is not None:
+                break
+        assert robot.io is not None and len(robot.io["digin"]) == 4
+        assert robot.encoders == empty_sim.snapshot().encoder_ticks
+        robot.enable_motors()
+        robot.move(0.5)
+        empty_sim.wait_until(lambda s: s.trans_vel > 0.01, timeout=5)
+        settle(empty_sim, robot)
+        assert robot.pose[0] == pytest.approx(0.5, abs=0.01)
+        robot.reset_odometry()
+        empty_sim.wait_until(lambda s: s.odom_raw == (0, 0, 0), timeout=3)
+        robot.wait_for_sip()
+        assert robot.pose == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
+
+
+def test_bumping_a_wall_shows_in_the_state() -> None:
+    wall = World.from_segments([(1.0, -5.0, 1.0, 5.0)])
+    with PioneerSim("p3dx", time_scale=5.0, world=wall) as sim:
+        url = sim.serve_tcp("127.0.0.1", 0)
+        with Pioneer.connect(url) as robot:
+            robot.enable_motors()
+            robot.set_velocity(0.3, 0.0)
+            state = robot.wait_for_sip()
+            deadline = time.monotonic() + 10
+            while not (state.bumped and state.stalled) and time.monotonic() < deadline:
+                state = robot.wait_for_sip()
+            assert state.bumpers_front and state.stalled and not state.bumpers_rear
+            assert min(robot.sonar[2:6]) < 0.6  # the front sonars see the wall
+            robot.set_velocity(-0.2, 0.0)
+            while state.bumped and time.monotonic() < deadline:
+                state = robot.wait_for_sip()
+            assert not state.bumped
+
+
+def test_sips_stopping_mid_session_raise_timeout() -> None:
+    """The link stays open but the robot stops talking: the caller gets TimeoutError."""
+    from test_pioneer_replay import DATA, ReplayServer
+
+    server = ReplayServer(DATA / "a_simpleConnect.jsonl")
+    with Pioneer.connect(server.url, sip_timeout=0.5) as robot:
+        with pytest.raises(TimeoutError, match="no SIP"):
+            for _ in range(200):
+                robot.wait_for_sip(timeout=2)
+        with pytest.raises(TimeoutError):
+            _ = robot.state
