@@ -37,6 +37,7 @@ from robocli.errors import (
 )
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType, RobotParams
+from robocli.protocols.common import plain
 from robocli.transports import Transport, open_transport
 
 log = logging.getLogger("robocli.devices.pioneer")
@@ -609,16 +610,16 @@ class Pioneer:
                 self.stats.sip_times.append(now)
             elif ptype == PacketType.CONFIG:
                 if payload != self._config_raw:  # construct is slow; CONFIG rarely changes
-                    self.config = _plain(arcos.CONFIG.parse(payload[1:]))
+                    self.config = plain(arcos.CONFIG.parse(payload[1:]))
                     self._config_raw = payload
                 self._config_event.set()
             elif ptype == PacketType.IO:
-                self.io = _plain(arcos.IO.parse(payload[1:]))
+                self.io = plain(arcos.IO.parse(payload[1:]))
             elif ptype == PacketType.ENCODER:
                 enc = arcos.ENCODER.parse(payload[1:])
                 self.encoders = (int(enc.left), int(enc.right))
             elif ptype == PacketType.BATTERY:
-                self.battery_info = _plain(arcos.BATTERY.parse(payload[1:]))
+                self.battery_info = plain(arcos.BATTERY.parse(payload[1:]))
         except Exception as exc:  # construct's errors: log, count, keep the session alive
             log.warning("undecodable packet 0x%02x: %s", ptype, exc)
 
@@ -798,7 +799,7 @@ class _Link:
             while time.monotonic() < resend:
                 payload = self.next_packet(0.05)
                 if payload is not None and payload[0] == PacketType.CONFIG:
-                    return dict(_plain(arcos.CONFIG.parse(payload[1:])))
+                    return dict(plain(arcos.CONFIG.parse(payload[1:])))
         return None
 
 
@@ -811,15 +812,6 @@ def _params_for(subtype: str, identity: RobotIdentity) -> RobotParams:
             f"no parameters for (known: {known}); pass subtype=... or params=RobotParams(...)"
         )
     return params
-
-
-def _plain(container: Any) -> Any:
-    """construct Container -> plain dicts/lists (no private keys)."""
-    if isinstance(container, dict):
-        return {k: _plain(v) for k, v in container.items() if not k.startswith("_")}
-    if isinstance(container, list):
-        return [_plain(v) for v in container]
-    return container
 
 
 def _clamp_int(value: int) -> int:

@@ -51,6 +51,7 @@ from construct import (
 )
 
 from robocli.errors import ChecksumError, FramingError, ProtocolError
+from robocli.protocols.common import plain
 
 SYNC = b"\xfa\xfb"
 MAX_PAYLOAD = 200  #: the simulator keeps every packet's data at most this long (MobileSim rule)
@@ -764,6 +765,6 @@ def describe(
         ptype, body = decode_server(payload)
         if isinstance(body, bytes):
             return name, ({"raw": body.hex()} if body else {})
-        return name, {k: v for k, v in body.items() if not k.startswith("_")}
+        return name, plain(body)
     except Exception as exc:  # construct's errors: show the bytes and why
         return name, {"raw": payload[1:].hex(), "error": str(exc).splitlines()[0]}

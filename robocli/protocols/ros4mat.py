@@ -43,6 +43,7 @@ import construct as cs
 import numpy as np
 
 from robocli.errors import FramingError, ProtocolError
+from robocli.protocols.common import plain
 
 PORT = 1500
 PROTOCOL_VERSION = 3
@@ -590,15 +591,6 @@ class Message:
     compression_type: int = 0
     packet_timestamp: float = 0.0
     error_text: str | None = None
-
-
-def plain(obj: Any) -> Any:
-    """A parsed ``construct`` value as plain dicts/lists (private ``_io`` keys dropped)."""
-    if isinstance(obj, dict):
-        return {k: plain(v) for k, v in obj.items() if not k.startswith("_")}
-    if isinstance(obj, list):
-        return [plain(v) for v in obj]
-    return obj
 
 
 def body_length(header: Mapping[str, Any]) -> int:

@@ -40,6 +40,7 @@ from typing import Any, Literal
 import construct as cs
 
 from robocli.errors import FramingError, ProtocolError
+from robocli.protocols.common import plain
 
 ByteOrder = Literal["<", ">"]
 RealSize = Literal[4, 8]
@@ -420,15 +421,6 @@ def _enum(kind: type[enum.IntEnum], value: int) -> int:
         return kind(value)
     except ValueError:
         return value
-
-
-def plain(obj: Any) -> Any:
-    """A parsed ``construct`` value as plain dicts/lists (private ``_io`` keys dropped)."""
-    if isinstance(obj, dict):
-        return {k: plain(v) for k, v in obj.items() if not k.startswith("_")}
-    if isinstance(obj, list):
-        return [plain(v) for v in obj]
-    return obj
 
 
 def validate_header(msg_type: int, comm_type: int, reply_code: int) -> None:
