@@ -158,3 +158,12 @@ def test_live_view_runs_until_interrupted() -> None:
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_sim_reports_a_bad_map_and_a_busy_port(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"walls": [[0, 0, 1]]}')
+    assert "wall 0" in one_line_error(run("sim", "pioneer", "--map", str(bad)), 2)
+    with socket.create_server(("127.0.0.1", 0)) as busy:
+        port = str(busy.getsockname()[1])
+        assert "in use" in one_line_error(run("sim", "pioneer", "--port", port), 3)
