@@ -572,29 +572,35 @@ class Pioneer:
         self._config_event.set()
 
     def _read_loop(self) -> None:
+        """Blocking reads (a read with a timeout costs a poll per packet); the keep-alive
+        thread watches for silence and closes the transport, which ends the read."""
         while not self._closing and self._error is None:
             try:
-                data = self.transport.read(4096, timeout=0.05)
+                data = self.transport.read(4096, timeout=None)
             except ConnectionLost as exc:
                 if not self._closing:
                     self._fail(ConnectionLost(f"{self.transport.url}: link lost ({exc})"))
                 return
             now = time.monotonic()
-            if data:
-                for frame in self._framer.feed(data):
-                    self._handle(frame, now)
-                st = self._framer.stats
-                self.stats.bad_checksums = st.bad_checksums
-                self.stats.dropped_bytes = st.dropped_bytes
-            elif now - self._last_rx > self.sip_timeout:
-                self._fail(
-                    TimeoutError(
-                        f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
-                        "(robot off, cable unplugged, or session closed)"
-                    )
-                )
-                self._emergency_stop()
-                return
+            for frame in self._framer.feed(data):
+                self._handle(frame, now)
+            st = self._framer.stats
+            self.stats.bad_checksums = st.bad_checksums
+            self.stats.dropped_bytes = st.dropped_bytes
+
+    def _check_silence(self, now: float) -> bool:
+        """No SIP for ``sip_timeout``: try to stop the robot, report, end the link."""
+        if now - self._last_rx <= self.sip_timeout:
+            return False
+        self._fail(
+            TimeoutError(
+                f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
+                "(robot off, cable unplugged, or session closed)"
+            )
+        )
+        self._emergency_stop()
+        self.transport.close()
+        return True
 
     def _handle(self, frame: bytes, now: float) -> None:
         payload = frame[3:-2]
@@ -690,11 +696,14 @@ class Pioneer:
 
     def _keep_loop(self) -> None:
         """Re-send the set-points when nothing was sent for ``keepalive`` s (PULSE when there
-        are none) and run the dead-man. Sleeps until the next packet is due (<= 50 ms)."""
+        are none), run the dead-man and watch for silence. Sleeps until the next packet is due
+        (<= 50 ms)."""
         while not self._closing and self._error is None:
             now = time.monotonic()
             time.sleep(max(0.0005, min(0.05, self._last_tx + self.keepalive - now)))
             now = time.monotonic()
+            if self._check_silence(now):
+                return
             try:
                 with self._setpoint_lock:
                     setpoints = list(self._setpoints)
