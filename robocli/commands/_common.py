@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import json
 import signal
-import sys
 from collections.abc import Iterator
 from typing import Any
 
@@ -59,12 +58,3 @@ def _json_default(obj: Any) -> Any:
     if isinstance(obj, (set, frozenset, tuple)):
         return list(obj)
     return str(obj)
-
-
-def fail_usage(message: str) -> None:
-    """Exit 2 with one line, like any bad argument."""
-    raise typer.BadParameter(message)
-
-
-def stderr_line(text: str) -> None:
-    sys.stderr.write(text + "\n")
