@@ -114,6 +114,8 @@ class LinkStats:
     sip_work: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
     #: monotonic send times of keep-alive packets (PULSE or set-point refresh)
     keepalive_times: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
+    #: monotonic send times of every packet (what the robot's watchdog sees)
+    tx_times: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
     #: monotonic receive times of SIPs
     sip_times: deque[float] = field(default_factory=lambda: deque(maxlen=100_000))
 
@@ -542,6 +544,7 @@ class Pioneer:
             self._fail(exc)
             raise
         self._last_tx = time.monotonic()
+        self.stats.tx_times.append(self._last_tx)
         payload = data[3:-2]
         self.stats.sent[arcos.packet_name(payload[0], from_client=True)] += 1
         for listener in self._listeners:
