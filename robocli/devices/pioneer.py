@@ -187,7 +187,6 @@ class Pioneer:
         self._sonar_t = [math.nan] * n_sonar
         self._state: PioneerState | None = None  # built lazily from _sip
         self._sip: tuple[dict[str, Any], float, tuple[int, int]] | None = None
-        self._sip_count = 0
         self._cond = threading.Condition()
         self._config_event = threading.Event()
         self._config_raw = b""
@@ -328,10 +327,10 @@ class Pioneer:
         """Block until the next SIP arrives and return it."""
         deadline = time.monotonic() + (self.sip_timeout if timeout is None else timeout)
         with self._cond:
-            count = self._sip_count
+            count = self.stats.sips
             while True:
                 self._check()
-                if self._sip_count > count:
+                if self.stats.sips > count:
                     return self._current_state()
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -644,10 +643,9 @@ class Pioneer:
                     sonar[number] = rng * conv
                     sonar_t[number] = now
             self._sip = (sip, now, self._odo.update(sip["x"], sip["y"]))
-            self._sip_count += 1
+            self.stats.sips += 1
             self._state = None
             self._last_rx = now
-            self.stats.sips = self._sip_count
             self._cond.notify_all()
 
     def _current_state(self) -> PioneerState:
@@ -694,7 +692,7 @@ class Pioneer:
             digout=io.get("digout", 0),
             analog=io.get("analog", 0) * 5.0 / 255.0,
             temperature=None if temp is None or temp == -127 else float(temp),
-            sip_count=self._sip_count,
+            sip_count=self.stats.sips,
         )
 
     def _keep_loop(self) -> None:
