@@ -108,4 +108,49 @@ void rc_align_linear(const double *ts, size_t n, const double *ref, size_t m, lo
  * (or on platforms without POSIX threads). */
 int rc_pingpong_tcp(size_t n, size_t msg_size, double *out_rtt);
 
+
+/* ------------------------------------------------------------------ benchmark peers */
+
+/* 1 when threads can be pinned to a CPU (Linux), else 0: then every `cpu` argument below
+ * must be -1 (unpinned) or the call fails. */
+int rc_pin_supported(void);
+
+/* A persistent loopback TCP ping-pong (TCP_NODELAY): an echo thread, pinned to `echo_cpu`
+ * (-1: not pinned), and the thread that calls rc_pingpong_run. Runs can be short chunks, so
+ * a caller stays interruptible. NULL on failure (sockets, threads, msg_size 0 or > 64 KiB). */
+typedef struct rc_pingpong rc_pingpong;
+
+rc_pingpong *rc_pingpong_new(size_t msg_size, int echo_cpu);
+/* n round trips from the calling thread, pinned to `cpu` for the call (-1: as it is; the
+ * previous affinity is restored). Each round trip in seconds goes to out_rtt.
+ * 0 ok, -1 socket error, -2 a thread could not be pinned. */
+int rc_pingpong_run(rc_pingpong *p, size_t n, int cpu, double *out_rtt);
+void rc_pingpong_free(rc_pingpong *p); /* ends the echo thread (bounded) and closes */
+
+/* A minimal ARCOS responder on 127.0.0.1 (ephemeral port), one client at a time, in its own
+ * thread: for every complete ARCOS frame whose payload (type byte + data) equals a table
+ * key, it writes that entry's reply bytes; other frames get no reply. The table is given as
+ * n_entries keys (key_lens[i] bytes each, concatenated in `keys`) and replies (likewise);
+ * it is copied. At most 256 entries of at most 4096 bytes. NULL on bad table or no memory. */
+typedef struct rc_responder rc_responder;
+
+typedef struct rc_responder_stats {
+    unsigned long connections; /* clients accepted                          */
+    unsigned long frames;      /* complete frames received                   */
+    unsigned long replies;     /* replies written (counted as the write starts) */
+    int pin_failed;            /* 1 when the thread could not be pinned      */
+} rc_responder_stats;
+
+rc_responder *rc_responder_new(const unsigned char *keys, const size_t *key_lens,
+                               const unsigned char *replies, const size_t *reply_lens,
+                               size_t n_entries);
+/* Listen and start the thread, pinned to `cpu` (-1: not pinned). Returns the TCP port,
+ * or -1 on failure. */
+int rc_responder_start(rc_responder *r, int cpu);
+void rc_responder_get_stats(const rc_responder *r, rc_responder_stats *out);
+/* Stop the thread and join it: bounded (~0.1 s, ~1 s while a peer does not read).
+ * 0 ok, -1 when it was not running. */
+int rc_responder_stop(rc_responder *r);
+void rc_responder_free(rc_responder *r); /* stops it first when running */
+
 #endif /* ROBOCLI_CORE_H */

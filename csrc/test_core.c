@@ -4,6 +4,13 @@
  * Checks the ARCOS checksum vectors, every golden frame vector of SPECDIR/ *.json (one
  * vector object per line with "framer" and "hex" keys) under chunking and garbage, the
  * ring buffer, alignment and the ping-pong floor. Last line: "N passed, M failed".
+ *
+ * The golden vectors cannot pass vacuously: each spec file declares its number of vectors
+ * on a top-level line '"count": N,' and the suite fails when SPECDIR cannot be read, holds
+ * no spec file, a file has no count, no vectors, or not exactly N vector lines, or when a
+ * framer (arcos, sm-le, sm-be, ros4mat) has no vector at all.
+ *
+ * ./test_core --specs-only SPECDIR runs the golden-vector checks alone.
  */
 #include <dirent.h>
 #include <math.h>
@@ -348,12 +355,44 @@ static char *find_value(char *line, const char *key, size_t *vlen)
     return p;
 }
 
+/* The declared count of a top-level '"count": N' line (first key on its line), else -1. */
+static long count_line(const char *line)
+{
+    const char *p = line;
+    long v = 0;
+    int digits = 0;
+    while (*p == ' ' || *p == '\t') {
+        p++;
+    }
+    if (strncmp(p, "\"count\"", 7) != 0) {
+        return -1;
+    }
+    p += 7;
+    while (*p == ' ' || *p == '\t') {
+        p++;
+    }
+    if (*p != ':') {
+        return -1;
+    }
+    p++;
+    while (*p == ' ' || *p == '\t') {
+        p++;
+    }
+    while (*p >= '0' && *p <= '9' && digits < 9) {
+        v = v * 10 + (*p - '0');
+        p++;
+        digits++;
+    }
+    return digits > 0 ? v : -1;
+}
+
 static int load_file(const char *path)
 {
     FILE *fp = fopen(path, "rb");
     char *line;
     size_t cap = 1 << 16, n;
-    int c, count = 0;
+    int c, count = 0, lost = 0;
+    long declared = -1, v;
 
     if (fp == NULL) {
         fprintf(stderr, "cannot open %s\n", path);
@@ -375,6 +414,11 @@ static int load_file(const char *path)
             line[n++] = (char)c;
         }
         line[n] = '\0';
+        v = count_line(line);
+        if (v >= 0) {
+            CHECK(declared < 0, "one top-level count per spec file");
+            declared = v;
+        }
         kind = find_value(line, "\"framer\"", &klen);
         hex = find_value(line, "\"hex\"", &hlen);
         if (kind != NULL && hex != NULL) {
@@ -393,6 +437,8 @@ static int load_file(const char *path)
                     vs->len[vs->n] = parse_hex(hex, hlen, vs->data[vs->n]);
                     vs->n++;
                     count++;
+                } else {
+                    lost++;
                 }
             }
         }
@@ -402,6 +448,15 @@ static int load_file(const char *path)
     }
     free(line);
     fclose(fp);
+    if (declared < 0) {
+        fprintf(stderr, "FAIL %s: no top-level \"count\" line\n", path);
+    } else if (declared != (long)count || lost != 0) {
+        fprintf(stderr, "FAIL %s: declares %ld vectors, %d found (%d over capacity)\n", path,
+                declared, count, lost);
+    }
+    CHECK(declared >= 0, "spec file declares its vector count");
+    CHECK(declared > 0 && declared == (long)count && lost == 0,
+          "spec file holds exactly its declared number of vectors");
     return count;
 }
 
@@ -415,8 +470,9 @@ static void test_spec_vectors(const char *dir)
     char name[64];
 
     if (d == NULL) {
-        fprintf(stderr, "warning: cannot open spec directory %s: no golden vectors tested\n",
-                dir != NULL ? dir : "(none)");
+        fprintf(stderr, "FAIL cannot open spec directory %s: no golden vectors tested\n",
+                dir != NULL ? dir : "(none; usage: test_core [--specs-only] SPECDIR)");
+        n_fail++;
         return;
     }
     while ((e = readdir(d)) != NULL) {
@@ -429,8 +485,15 @@ static void test_spec_vectors(const char *dir)
     }
     closedir(d);
     if (nfiles == 0 || nvec == 0) {
-        fprintf(stderr, "warning: %d spec files, %d golden frame vectors in %s\n", nfiles, nvec,
+        fprintf(stderr, "FAIL %d spec files, %d golden frame vectors in %s\n", nfiles, nvec,
                 dir);
+    }
+    CHECK(nfiles > 0 && nvec > 0, "golden vectors found in the spec directory");
+    for (proto = 1; proto <= 4; proto++) {
+        if (sets[proto].n == 0) {
+            fprintf(stderr, "FAIL no golden vector for framer %d in %s\n", proto, dir);
+        }
+        CHECK(sets[proto].n > 0, "golden vectors for every framer");
     }
     for (proto = 1; proto <= 4; proto++) {
         for (i = 0; i < sets[proto].n; i++) {
@@ -787,6 +850,11 @@ static void test_pingpong(void)
 
 int main(int argc, char **argv)
 {
+    if (argc > 1 && strcmp(argv[1], "--specs-only") == 0) {
+        test_spec_vectors(argc > 2 ? argv[2] : NULL);
+        printf("%lu passed, %lu failed\n", n_pass, n_fail);
+        return n_fail == 0 ? 0 : 1;
+    }
     test_checksum();
     test_framer_units();
     test_spec_vectors(argc > 1 ? argv[1] : NULL);

@@ -1,15 +1,74 @@
 """Pure-Python reference implementations of the C core, for differential tests.
 
 Written for clarity, not speed: checksum, the three framers (same resynchronisation rule:
-drop one byte), the multi-reader ring and timestamp alignment (nearest and linear).
+drop one byte), the multi-reader ring and timestamp alignment (nearest and linear). Also the
+one loader of the golden vectors in ``specs/`` that every Python test (and the fuzzers) use.
 """
 
 from __future__ import annotations
 
+import json
 import struct
 from bisect import bisect_left, bisect_right
 from collections import deque
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+SPECS_DIR = Path(__file__).resolve().parent.parent / "specs"
+SPEC_NAMES = ("arcos", "ros4mat", "simple_message")
+FRAMER_KINDS = ("arcos", "sm-le", "sm-be", "ros4mat")
+
+
+class SpecError(ValueError):
+    """A golden-vector file that cannot prove anything: missing, empty, miscounted."""
+
+
+def load_spec(name: str, folder: Path = SPECS_DIR) -> dict[str, Any]:
+    """Parse ``folder/name.json`` and check it: a top-level ``count`` equal to the number of
+    ``vectors`` (at least one), each with a ``name``, a known ``framer`` and a non-empty
+    ``hex``, each on its own line (the C suite reads them line by line and checks the same
+    count). Raises :class:`SpecError` otherwise."""
+    path = Path(folder) / f"{name}.json"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise SpecError(f"{path}: cannot read golden vectors: {exc}") from exc
+    spec = json.loads(text)
+    vectors = spec.get("vectors")
+    count = spec.get("count")
+    if not isinstance(vectors, list) or not vectors:
+        raise SpecError(f"{path}: no golden vectors")
+    if not isinstance(count, int) or count != len(vectors):
+        raise SpecError(f"{path}: declares count {count!r}, holds {len(vectors)} vectors")
+    for vec in vectors:
+        if vec.get("framer") not in FRAMER_KINDS or not vec.get("name") or not vec.get("hex"):
+            raise SpecError(f"{path}: malformed vector {str(vec)[:80]}")
+        bytes.fromhex(vec["hex"])
+    lines = [line for line in text.splitlines() if '"framer"' in line]
+    if len(lines) != count:
+        raise SpecError(f"{path}: {count} vectors on {len(lines)} lines (one per line)")
+    return dict(spec)
+
+
+def load_specs(folder: Path = SPECS_DIR) -> dict[str, dict[str, Any]]:
+    """Every spec file of ``folder`` (all of :data:`SPEC_NAMES` must be there), checked by
+    :func:`load_spec`. Raises :class:`SpecError` on an empty or incomplete folder."""
+    found = sorted(p.stem for p in Path(folder).glob("*.json"))
+    missing = [n for n in SPEC_NAMES if n not in found]
+    if not found or missing:
+        raise SpecError(f"{folder}: golden-vector files missing: {missing or list(SPEC_NAMES)}")
+    return {name: load_spec(name, folder) for name in found}
+
+
+def golden_frames(folder: Path = SPECS_DIR) -> list[tuple[str, str, bytes]]:
+    """(framer kind, vector name, frame bytes) of every golden vector of ``folder``."""
+    return [
+        (v["framer"], v["name"], bytes.fromhex(v["hex"]))
+        for spec in load_specs(folder).values()
+        for v in spec["vectors"]
+    ]
+
 
 ARCOS_DEFAULT_MAX = 258
 SM_DEFAULT_MAX = 4100

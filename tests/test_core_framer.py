@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import pathlib
-import re
+import shutil
 import struct
+import subprocess
 
 import pytest
 import reference
@@ -13,19 +15,10 @@ from hypothesis import strategies as st
 
 from robocli.core import PROTOCOLS, Framer, FramerStats, arcos_checksum
 
-SPECS = pathlib.Path(__file__).resolve().parent.parent / "specs"
-
-WORKED = [
-    "FA FB 03 00 00 00",
-    "FA FB 03 01 00 01",
-    "FA FB 03 02 00 02",
-    "FA FB 06 01 3B 01 00 02 3B",
-    "FA FB 06 04 3B 01 00 05 3B",
-    "FA FB 06 0B 3B C8 00 D3 3B",
-    "FA FB 06 0B 1B C8 00 D3 1B",
-    "FA FB 06 02 3B 01 00 03 3B",
-    "FA FB 1A 02 4D 6F 62 69 6C 65 53 69 6D 00 50 69 6F 6E 65 65 72 00 70 33 64 78 00 93 45",
-]
+GOLDEN = reference.golden_frames()
+#: The ARCOS vectors of specs/arcos.json (the manual's worked examples and recorded frames).
+ARCOS = {name: frame for kind, name, frame in GOLDEN if kind == "arcos"}
+ROOT = pathlib.Path(__file__).resolve().parent.parent
 
 
 def _stats(ref: reference.RefFramer) -> FramerStats:
@@ -36,9 +29,8 @@ def _stats(ref: reference.RefFramer) -> FramerStats:
 # ------------------------------------------------------------------ known answers
 
 
-@pytest.mark.parametrize("hexstr", WORKED)
-def test_worked_arcos_vectors(hexstr: str) -> None:
-    pkt = bytes.fromhex(hexstr)
+@pytest.mark.parametrize("pkt", ARCOS.values(), ids=ARCOS.keys())
+def test_worked_arcos_vectors(pkt: bytes) -> None:
     assert arcos_checksum(pkt[3:-2]) == pkt[-2] << 8 | pkt[-1]
     assert reference.arcos_checksum(pkt[3:-2]) == pkt[-2] << 8 | pkt[-1]
     assert reference.arcos_packet(pkt[3], pkt[4:-2]) == pkt
@@ -57,7 +49,7 @@ def test_checksum_edges() -> None:
 
 
 def test_arcos_fa_fa_fb_is_found() -> None:
-    pkt = bytes.fromhex(WORKED[3])
+    pkt = ARCOS["open_int1"]
     f = Framer("arcos")
     assert f.feed(b"\xfa" + pkt[:4]) == []  # FA FA FB ...
     assert f.feed(pkt[4:]) == [pkt]
@@ -65,7 +57,7 @@ def test_arcos_fa_fa_fb_is_found() -> None:
 
 
 def test_arcos_bad_checksum_then_good() -> None:
-    pkt = bytes.fromhex(WORKED[5])
+    pkt = ARCOS["vel_200"]
     bad = pkt[:-1] + bytes([pkt[-1] ^ 0x80])
     f = Framer("arcos")
     assert f.feed(bad + pkt) == [pkt]
@@ -74,7 +66,7 @@ def test_arcos_bad_checksum_then_good() -> None:
 
 def test_arcos_frame_survives_until_next_call() -> None:
     f = Framer("arcos")
-    frames = [bytes.fromhex(h) for h in WORKED]
+    frames = list(ARCOS.values())
     out = f.feed(b"".join(frames))
     assert out == frames
     assert list(f.frames()) == []
@@ -115,7 +107,7 @@ def test_ros4mat_frames() -> None:
 
 def test_reset_count_and_errors() -> None:
     f = Framer("arcos")
-    pkt = bytes.fromhex(WORKED[3])
+    pkt = ARCOS["open_int1"]
     f.feed(pkt[:5])
     assert f.pending == 5
     f.reset()
@@ -135,32 +127,101 @@ def test_reset_count_and_errors() -> None:
 # ------------------------------------------------------------------ golden vectors (specs/)
 
 
-def _golden() -> list[tuple[str, str]]:
-    out = []
-    for path in sorted(SPECS.glob("*.json")):
-        for line in path.read_text(encoding="utf-8").splitlines():
-            if '"framer"' not in line or '"hex"' not in line:
-                continue
-            kind = re.search(r'"framer"\s*:\s*"([^"]*)"', line)
-            hexstr = re.search(r'"hex"\s*:\s*"([^"]*)"', line)
-            if kind and hexstr:
-                out.append((kind.group(1), hexstr.group(1)))
-    return out
-
-
-GOLDEN = _golden()
-
-
-@pytest.mark.skipif(not GOLDEN, reason="no golden vectors in specs/")
-@pytest.mark.parametrize(("kind", "hexstr"), GOLDEN)
-def test_golden_vector(kind: str, hexstr: str) -> None:
-    frame = bytes.fromhex(hexstr)
+@pytest.mark.parametrize(
+    ("kind", "frame"), [(k, f) for k, _, f in GOLDEN], ids=[n for _, n, _ in GOLDEN]
+)
+def test_golden_vector(kind: str, frame: bytes) -> None:
     f = Framer(kind)
     assert f.feed(frame) == [frame]
     assert f.stats.dropped_bytes == 0
     one = Framer(kind)
     got = [fr for i in range(len(frame)) for fr in one.feed(frame[i : i + 1])]
     assert got == [frame]
+
+
+def test_golden_vectors_are_all_there() -> None:
+    """Every framer has vectors, and as many as the spec files declare."""
+    specs = reference.load_specs()
+    assert len(GOLDEN) == sum(spec["count"] for spec in specs.values()) > 0
+    assert {kind for kind, _, _ in GOLDEN} == set(reference.FRAMER_KINDS)
+
+
+def _write_spec(folder: pathlib.Path, name: str, count: int | None, n: int) -> None:
+    vectors = json.loads(reference.SPECS_DIR.joinpath(f"{name}.json").read_text())["vectors"]
+    kinds = {v["framer"]: v for v in vectors}  # one vector of each framer the file feeds
+    lines = [json.dumps(list(kinds.values())[i % len(kinds)]) for i in range(n)]
+    head = f'{{\n  "protocol": "{name}",\n'
+    if count is not None:
+        head += f'  "count": {count},\n'
+    text = head + '  "vectors": [\n    ' + ",\n    ".join(lines) + "\n  ]\n}\n"
+    folder.joinpath(f"{name}.json").write_text(text)
+
+
+def _spec_folder(tmp: pathlib.Path, count: int | None, n: int) -> pathlib.Path:
+    for name in reference.SPEC_NAMES:
+        _write_spec(tmp, name, 2, 2)
+    _write_spec(tmp, "arcos", count, n)
+    return tmp
+
+
+@pytest.mark.parametrize(("count", "n"), [(None, 0), (0, 0), (3, 2), (1, 2), (None, 2)])
+def test_python_loader_refuses_empty_or_miscounted_specs(
+    tmp_path: pathlib.Path, count: int | None, n: int
+) -> None:
+    with pytest.raises(reference.SpecError):
+        reference.load_specs(tmp_path)  # empty folder
+    folder = _spec_folder(tmp_path, count, n)
+    with pytest.raises(reference.SpecError):
+        reference.golden_frames(folder)
+
+
+def test_python_loader_accepts_a_well_counted_folder(tmp_path: pathlib.Path) -> None:
+    folder = _spec_folder(tmp_path, 2, 2)
+    assert len(reference.golden_frames(folder)) == 2 * len(reference.SPEC_NAMES)
+
+
+@pytest.fixture(scope="module")
+def test_core(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    """csrc/test_core built the way ``make test-c`` builds it (C89, warnings are errors)."""
+    gcc = shutil.which("gcc") or shutil.which("cc")
+    if gcc is None:
+        pytest.skip("no C compiler to build csrc/test_core")
+    exe = tmp_path_factory.mktemp("c") / "test_core"
+    csrc = ROOT / "csrc"
+    # the sources `make test-c` links: the Makefile's CSRC list, then the test itself
+    line = next(x for x in (ROOT / "Makefile").read_text().splitlines() if x.startswith("CSRC"))
+    sources = [str(ROOT / p) for p in line.split(":=", 1)[1].split()] + [str(csrc / "test_core.c")]
+    cmd = [gcc, "-std=c89", "-Wall", "-Wextra", "-pedantic", "-Werror", "-O1"]
+    cmd += ["-D_POSIX_C_SOURCE=200112L", f"-I{csrc}", "-o", str(exe), *sources]
+    subprocess.run([*cmd, "-lpthread", "-lm"], check=True, timeout=120)
+    return exe
+
+
+def _run_specs(exe: pathlib.Path, folder: pathlib.Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [str(exe), "--specs-only", str(folder)], capture_output=True, text=True, timeout=60
+    )
+
+
+def test_c_suite_passes_on_the_real_specs(test_core: pathlib.Path) -> None:
+    run = _run_specs(test_core, reference.SPECS_DIR)
+    assert run.returncode == 0, run.stderr
+    assert " 0 failed" in run.stdout
+
+
+@pytest.mark.parametrize(("count", "n"), [(None, 2), (0, 0), (3, 2), (1, 2)])
+def test_c_suite_fails_on_empty_or_miscounted_specs(
+    test_core: pathlib.Path, tmp_path: pathlib.Path, count: int | None, n: int
+) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert _run_specs(test_core, empty).returncode != 0
+    assert _run_specs(test_core, tmp_path / "missing").returncode != 0
+    folder = _spec_folder(tmp_path, count, n)
+    run = _run_specs(test_core, folder)
+    assert run.returncode != 0, run.stdout
+    assert "FAIL" in run.stderr
+    assert _run_specs(test_core, _spec_folder(tmp_path, 2, 2)).returncode == 0
 
 
 # ------------------------------------------------------------------ differential
@@ -278,3 +339,14 @@ def test_large_ros4mat_body_grows_buffer() -> None:
     got = [x for i in range(0, len(fr), 65536) for x in f.feed(fr[i : i + 65536])]
     assert got == [fr]
     assert struct.unpack_from("<I", fr, 14)[0] == len(body)
+
+
+def test_both_suites_fail_when_a_spec_file_is_missing(
+    test_core: pathlib.Path, tmp_path: pathlib.Path
+) -> None:
+    for name in ("arcos", "simple_message"):
+        _write_spec(tmp_path, name, 2, 2)
+    with pytest.raises(reference.SpecError, match="ros4mat"):
+        reference.load_specs(tmp_path)
+    run = _run_specs(test_core, tmp_path)
+    assert run.returncode != 0 and "no golden vector for framer" in run.stderr

@@ -40,7 +40,7 @@ from typing import Any, Literal
 import construct as cs
 
 from robocli.errors import FramingError, ProtocolError
-from robocli.protocols.common import plain
+from robocli.protocols.common import DECODE_ERRORS, enum_name, enum_or_int, plain, undecodable
 
 ByteOrder = Literal["<", ">"]
 RealSize = Literal[4, 8]
@@ -416,13 +416,6 @@ class Message:
     body: dict[str, Any] | bytes | None = None
 
 
-def _enum(kind: type[enum.IntEnum], value: int) -> int:
-    try:
-        return kind(value)
-    except ValueError:
-        return value
-
-
 def validate_header(msg_type: int, comm_type: int, reply_code: int) -> None:
     """Apply the reference library's header rule, or raise :class:`ProtocolError`.
 
@@ -513,15 +506,20 @@ def decode(
             f"Simple Message length prefix {length} does not match the "
             f"{len(frame) - PREFIX_SIZE} bytes after it"
         )
-    parsed = messages(byteorder, real).Frame.parse(frame)
+    spec = messages(byteorder, real)
+    try:
+        parsed = spec.Frame.parse(frame)
+    except DECODE_ERRORS as exc:
+        (msg_type,) = struct.unpack_from(byteorder + "i", frame, PREFIX_SIZE)
+        undecodable(f"Simple Message {enum_name(MsgType, msg_type, str(msg_type))}", frame, exc)
     header = parsed.header
     if validate:
         validate_header(header.msg_type, header.comm_type, header.reply_code)
     body = parsed.body
     return Message(
-        msg_type=_enum(MsgType, header.msg_type),
-        comm_type=_enum(CommType, header.comm_type),
-        reply_code=_enum(ReplyCode, header.reply_code),
+        msg_type=enum_or_int(MsgType, header.msg_type),
+        comm_type=enum_or_int(CommType, header.comm_type),
+        reply_code=enum_or_int(ReplyCode, header.reply_code),
         body=body if body is None or isinstance(body, bytes) else plain(body),
     )
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import random
 import zlib
@@ -11,21 +10,18 @@ from typing import Any
 
 import numpy as np
 import pytest
+import reference
 
 from robocli.errors import FramingError, ProtocolError
 from robocli.protocols import ros4mat as r4m
 
 ROOT = Path(__file__).resolve().parents[2]
-SPEC = json.loads((ROOT / "specs" / "ros4mat.json").read_text())
+SPEC = reference.load_spec("ros4mat")
 
 
 def test_spec_file_shape() -> None:
     assert SPEC["protocol"] == "ros4mat"
-    text = (ROOT / "specs" / "ros4mat.json").read_text()
-    framer_lines = [line for line in text.splitlines() if '"framer"' in line]
-    assert len(framer_lines) == len(SPEC["vectors"])
-    for line in framer_lines:
-        vector = json.loads(line.strip().rstrip(","))
+    for vector in SPEC["vectors"]:
         assert vector["framer"] == "ros4mat" and vector["message"] in r4m.MsgType.__members__
     for s in SPEC["structs"]:
         assert "framer" not in s

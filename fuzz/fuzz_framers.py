@@ -1,0 +1,83 @@
+"""Fuzz harnesses of the C framers (``robocli.core.Framer``, through the cffi module).
+
+Each input is split into chunks (sizes taken from its first bytes) and fed to the C framer
+and to the pure-Python reference framer of ``tests/reference.py``. They must return the same
+frames, the same counters and the same pending byte count after every chunk, and every frame
+must satisfy the protocol's own framing rule. A difference, or any exception, is a finding.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import reference
+
+from robocli.core import Framer
+
+#: harness name -> (framer protocol, golden-vector kinds seeding it)
+TARGETS = {
+    "framer-arcos": ("arcos", ("arcos",)),
+    "framer-sm-le": ("sm-le", ("sm-le",)),
+    "framer-sm-be": ("sm-be", ("sm-be",)),
+    "framer-ros4mat": ("ros4mat", ("ros4mat",)),
+}
+
+
+def _chunks(data: bytes) -> tuple[int | None, list[bytes]]:
+    """(max_frame or None, the stream in chunks) from one fuzz input."""
+    if len(data) < 2:
+        return None, [data]
+    head, stream = data[:2], data[2:]
+    max_frame = None if head[0] & 0x80 == 0 else 32 + head[0] * 4  # small limits sometimes
+    step = head[1] % 17 or len(stream) or 1
+    return max_frame, [stream[i : i + step] for i in range(0, len(stream), step)]
+
+
+def check_frame(protocol: str, frame: bytes) -> None:
+    """The protocol's framing rule, checked independently of both framers."""
+    if protocol == "arcos":
+        assert frame[:2] == b"\xfa\xfb" and frame[2] + 3 == len(frame), frame.hex()
+        body = frame[3:-2]
+        assert reference.arcos_checksum(body) == int.from_bytes(frame[-2:], "big"), frame.hex()
+    elif protocol in ("sm-le", "sm-be"):
+        length = int.from_bytes(frame[:4], "little" if protocol == "sm-le" else "big", signed=True)
+        assert length + 4 == len(frame), frame.hex()
+    else:
+        assert len(frame) >= reference.R4M_HEADER, frame.hex()
+
+
+def fuzz_framer(protocol: str, data: bytes) -> None:
+    """One input: C framer == reference framer, chunk by chunk."""
+    max_frame, chunks = _chunks(data)
+    try:
+        c_framer = Framer(protocol, max_frame=max_frame)
+    except ValueError:  # a limit below the protocol's minimum is refused, as documented
+        return
+    ref = reference.RefFramer(protocol, max_frame=max_frame)
+    for chunk in chunks:
+        got, want = c_framer.feed(chunk), ref.feed(chunk)
+        assert got == want, (protocol, [f.hex() for f in got], [f.hex() for f in want])
+        s = ref.stats
+        assert c_framer.stats == type(c_framer.stats)(
+            s.frames, s.dropped_bytes, s.bad_checksums, s.bad_lengths
+        ), (protocol, c_framer.stats, s)
+        assert c_framer.pending == ref.pending, (protocol, c_framer.pending, ref.pending)
+        for frame in got:
+            check_frame(protocol, frame)
+
+
+def seed_inputs(frames: list[bytes]) -> list[bytes]:
+    """Golden frames as inputs: whole, byte by byte, and all of them behind garbage."""
+    whole = [b"\x00\x00" + f for f in frames]
+    bytewise = [b"\x00\x01" + f for f in frames]
+    return [*whole, *bytewise, b"\x00\x05\x00\xfa\xff" + b"".join(frames)]
+
+
+def target(name: str) -> tuple[Callable[[bytes], None], tuple[str, ...]]:
+    """(one-input function, seed kinds) of a harness name."""
+    protocol, kinds = TARGETS[name]
+
+    def one_input(data: bytes) -> None:
+        fuzz_framer(protocol, data)
+
+    return one_input, kinds
