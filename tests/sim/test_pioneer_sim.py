@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import socket
 import statistics
 import time
 from collections.abc import Callable
@@ -22,6 +23,7 @@ import pytest
 from robocli.errors import TimeoutError, TransportError
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
+from robocli.protocols.common import find_refusal
 from robocli.sim.pioneer import PioneerSim, SimState, serve_many, sonar_batch
 from robocli.sim.world import MapError, World
 
@@ -234,7 +236,7 @@ def test_out_of_order_sync_restarts(make_sim: MakeSim, connect: Connect) -> None
 def test_half_open_handshake_times_out(
     make_sim: MakeSim, connect: Connect, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("robocli.sim.pioneer.HANDSHAKE_TIMEOUT_S", 0.2)
+    monkeypatch.setattr("robocli.sim.arcos_session.HANDSHAKE_TIMEOUT_S", 0.2)
     sim = make_sim()
     client = connect(sim)
     client.send_raw(arcos.frame(b"\x00") + arcos.frame(b"\x01"))
@@ -285,17 +287,21 @@ def test_close_then_resync_on_same_connection(make_sim: MakeSim, connect: Connec
     assert cfg.transvel_max == 3000  # per-session settings reverted
 
 
-def test_second_client_refused(make_sim: MakeSim, connect: Connect) -> None:
+def test_second_client_refused_with_a_reason(make_sim: MakeSim, connect: Connect) -> None:
     sim = make_sim()
     first = connect(sim)
     first.open_session()
-    second = connect(sim)
-    with pytest.raises(ConnectionError):
-        for _ in range(20):
-            second.send_raw(arcos.frame(b"\x00"))
-            assert second.next(0.05) is None
+    assert sim.url is not None
+    host, port = sim.url.removeprefix("tcp://").rsplit(":", 1)
+    with socket.create_connection((host, int(port)), timeout=2.0) as second:
+        second.sendall(arcos.frame(b"\x00"))  # it does not know yet: starts a handshake
+        got = b""
+        while chunk := second.recv(4096):
+            got += chunk
+    assert got == b"robocli-refused: robot busy: another client holds it\n"
+    assert find_refusal(got) == "robot busy: another client holds it"
     first.sip()  # the first client is undisturbed
-    assert sim.snapshot().session_open
+    assert sim.snapshot().session_open and sim.snapshot().commands["SYNC0"] == 1
 
 
 def test_disconnect_ends_session_and_port_is_reused(make_sim: MakeSim, connect: Connect) -> None:

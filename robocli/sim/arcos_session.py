@@ -1,0 +1,493 @@
+"""The ARCOS side of the simulated Pioneer: what its microcontroller does, without sockets.
+
+:class:`ArcosController` is the robot's firmware: the handshake state machine, the command
+handlers driving a :class:`~robocli.sim.pioneer_model.PioneerModel`, the server packets (SIP,
+CONFIG, IO, encoder, battery), the watchdog, and the rule that one client at a time holds the
+session. :class:`ArcosSession` is one link's protocol state (a
+:class:`~robocli.sim.serving.Session`): the serving layer hands it complete frames from the
+link's thread and writes its replies; the simulator's ticker calls :meth:`ArcosController.tick`
+and pushes the packets it returns. Every method that touches state takes the controller's lock.
+
+Deliberate differences from MobileSim/AMRISim are listed in ``robocli.sim.pioneer``.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+from construct import ConstructError
+
+from robocli.errors import RobocliError
+from robocli.protocols.arcos import (
+    CONFIG,
+    FLAG_ESTOP,
+    FLAG_MOTORS_ON,
+    FLAG_SONAR_MASK,
+    MAX_PAYLOAD,
+    Command,
+    PacketType,
+    decode_command,
+    encode_server,
+    encode_sip_body,
+    frame,
+    split_two_bytes,
+)
+from robocli.sim.pioneer_model import NUM_BUMPERS, TICKS_PER_MM, PioneerModel, clamp
+from robocli.sim.serving import Link
+
+__all__ = ["ArcosController", "ArcosSession", "sonar_batch"]
+
+log = logging.getLogger("robocli.sim.pioneer")
+
+HANDSHAKE_TIMEOUT_S = 10.0  #: wall seconds of silence after which a half-open handshake resets
+
+# ArcosSession.sync_state values
+PRE_SYNC, AFTER_SYNC0, AFTER_SYNC1, AFTER_SYNC2, IN_SESSION = 0, 1, 2, 3, 4
+
+
+def _int16(v: float) -> int:
+    return int(clamp(round(v), -32768, 32767))
+
+
+def sonar_batch(n_total: int, cursor: int, k_max: int) -> tuple[list[int], int]:
+    """Indices of the sonars to report in one SIP (at most ``k_max``) and the next cursor:
+    all of them when they fit, else the next ``k_max`` in rotation."""
+    if n_total <= k_max:
+        return list(range(n_total)), 0
+    idx = [(cursor + i) % n_total for i in range(k_max)]
+    return idx, (cursor + k_max) % n_total
+
+
+class ArcosSession:
+    """One link's ARCOS state: handshake progress, watchdog, packet requests."""
+
+    def __init__(self, controller: ArcosController, link: Link, now: float) -> None:
+        self.controller, self.link, self.name = controller, link, link.name
+        self.sync_state = PRE_SYNC
+        self.last_rx = now
+        self.watchdog_tripped = False
+        self.sip_due = 0.0
+        self.requests = {"encoder": 0, "io": 0, "battery": 0}
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        """One complete ARCOS frame from the client -> the immediate reply, if any."""
+        c = self.controller
+        with c.lock:
+            return c.handle(self, frame[3:-2], now)
+
+    def on_close(self) -> None:
+        """The link is gone: a session it held ends (the robot stops)."""
+        self.controller.detach(self)
+
+
+class ArcosController:
+    """The robot's ARCOS firmware over a model (see the module docstring).
+
+    ``name``/``subtype``: what SYNC2 and CONFIG report. ``sip_ms``: SIP cycle (simulated ms);
+    ``period``: wall seconds between ticks. ``watchdog_s``: wall seconds without a valid
+    packet after which the session's robot is stopped (0 disables).
+    """
+
+    def __init__(
+        self, model: PioneerModel, *, name: str, subtype: str, sip_ms: float,
+        period: float, watchdog_s: float,
+    ) -> None:  # fmt: skip
+        self.model, self.params = model, model.params
+        self.name, self.subtype = name, subtype
+        self.sip_ms, self.watchdog_s = sip_ms, watchdog_s
+        self._dt, self._period = sip_ms / 1000.0, period
+        self.lock = threading.RLock()
+        self.links: list[ArcosSession] = []  #: every link's session
+        self.holder: ArcosSession | None = None  #: the session that OPENed the robot
+        self.last: ArcosSession | None = None  #: the session that last sent a packet
+        self.commands: collections.Counter[str] = collections.Counter()
+        self.sessions = self.watchdog_trips = self.sips = 0
+        self.sonar_on = False
+        self._sonar_cursor = 0
+        self._digin, self.digout, self._anport = 0xFF, 0xFF, 0
+        self.last_say: tuple[tuple[int, int], ...] = ()
+        self._handlers = self._make_handlers()
+        self._config_cache: tuple[tuple[float, ...], bytes] | None = None
+        head = ("x", "y", "th", "lvel", "rvel", "battery", "stall_bumpers", "control", "flags")
+        empty: dict[str, Any] = {**dict.fromkeys(head, 0), "compass": 0, "sonar": ()}
+        self._sip_fixed = len(encode_sip_body({**empty, **self._sip_tail()}))
+        self._sonar_k_max = max(0, (MAX_PAYLOAD - self._sip_fixed) // 3)
+
+    # ---------------------------------------------------------------- links and ticks
+
+    def attach(self, link: Link) -> ArcosSession:
+        """The session of a new link (a :data:`~robocli.sim.serving.SessionFactory`)."""
+        with self.lock:
+            session = ArcosSession(self, link, time.monotonic())
+            self.links.append(session)
+        return session
+
+    def detach(self, session: ArcosSession) -> None:
+        """Forget a link's session; a session it held ends."""
+        with self.lock:
+            self._end_session(session, "link closed")
+            if session in self.links:
+                self.links.remove(session)
+            if self.last is session:
+                self.last = None
+
+    def tick(self, now: float) -> tuple[ArcosSession | None, bytes]:
+        """One period: step the model, run the watchdog, and return the packets due (SIP and
+        requested IO/encoder/battery) with the session to push them to."""
+        with self.lock:
+            self.model.step(self._dt)
+            self._housekeeping(now)
+            holder = self.holder
+            data = self._session_packets(holder, now) if holder is not None else b""
+        return holder, data
+
+    def odom_raw(self) -> tuple[int, int, int]:
+        """The SIP's (x, y, th) odometry counters now."""
+        with self.lock:
+            return self._odom_raw()
+
+    def _housekeeping(self, now: float) -> None:
+        link = self.holder
+        if (
+            link is not None
+            and self.watchdog_s > 0
+            and not link.watchdog_tripped
+            and now - link.last_rx > self.watchdog_s
+        ):
+            link.watchdog_tripped = True
+            self.watchdog_trips += 1
+            self.model.halt()
+            log.warning(
+                "%s: no valid packet for %.0f ms (watchdog %.0f ms): stopping the robot",
+                link.name, (now - link.last_rx) * 1e3, self.watchdog_s * 1e3,
+            )  # fmt: skip
+        for other in self.links:
+            in_handshake = AFTER_SYNC0 <= other.sync_state <= AFTER_SYNC2
+            if in_handshake and now - other.last_rx > HANDSHAKE_TIMEOUT_S:
+                log.info("%s: handshake abandoned; back to pre-sync", other.name)
+                other.sync_state = PRE_SYNC
+
+    # ---------------------------------------------------------------- protocol (lock held)
+
+    def handle(self, link: ArcosSession, payload: bytes, now: float) -> bytes | None:
+        """One valid client packet (type + args) -> the immediate reply, if any."""
+        link.last_rx = now
+        link.watchdog_tripped = False
+        self.last = link
+        try:
+            cmd = decode_command(payload)
+        except (ConstructError, RobocliError, ValueError) as exc:
+            log.debug("%s: undecodable command %s (%s)", link.name, payload.hex(" "), exc)
+            return None
+        if link.sync_state == IN_SESSION:
+            self.commands[cmd.name] += 1
+            handler = self._handlers.get(cmd.command)
+            if handler is None:
+                log.debug("%s: ignoring command %s", link.name, cmd.name)
+                return None
+            return handler(link, cmd.arg)
+        return self._pre_session(link, cmd.command, cmd.arg)
+
+    def _pre_session(self, link: ArcosSession, c: int, arg: object) -> bytes | None:
+        state = link.sync_state
+        if c == 0:
+            self.commands["SYNC0"] += 1
+            link.sync_state = AFTER_SYNC0
+            return frame(b"\x00")
+        if c == 1 and state == AFTER_SYNC0:
+            self.commands["SYNC1"] += 1
+            link.sync_state = AFTER_SYNC1
+            return frame(b"\x01")
+        if c == 2 and state == AFTER_SYNC1:
+            self.commands["SYNC2"] += 1
+            link.sync_state = AFTER_SYNC2
+            return encode_server(
+                PacketType.SYNC2, {"name": self.name, "type": "Pioneer", "subtype": self.subtype}
+            )
+        if c == 1 and state == AFTER_SYNC2:
+            self.commands["OPEN"] += 1
+            self._open(link)
+            return None
+        if c in (1, 2):
+            self.commands[("OPEN", "CLOSE")[c - 1] if arg is not None else f"SYNC{c}"] += 1
+            log.debug("%s: out-of-order sync %d in state %d; restarting", link.name, c, state)
+            link.sync_state = PRE_SYNC
+        else:
+            self.commands[_command_name(c)] += 1
+            log.debug("%s: command %s before OPEN ignored", link.name, _command_name(c))
+        return None
+
+    def _open(self, link: ArcosSession) -> None:
+        holder = self.holder
+        if holder is not None and holder is not link:
+            log.warning("%s: OPEN refused, %s holds the session", link.name, holder.name)
+            link.sync_state = PRE_SYNC
+            return
+        self.holder = link
+        link.sync_state = IN_SESSION
+        link.requests = dict.fromkeys(link.requests, 0)
+        link.sip_due = time.monotonic() + self._period / 2.0  # first SIP ~ one period after OPEN
+        self.sessions += 1
+        self.model.reset_session()
+        self.sonar_on, self._sonar_cursor = True, 0
+        log.info("%s: session %d open", link.name, self.sessions)
+
+    def _end_session(self, link: ArcosSession, why: str) -> None:
+        link.sync_state = PRE_SYNC
+        if self.holder is not link:
+            return
+        self.holder = None
+        self.model.reset_session()
+        self.sonar_on = False
+        log.info("%s: session ended (%s)", link.name, why)
+
+    def _session_packets(self, link: ArcosSession, now: float) -> bytes:
+        if now < link.sip_due:
+            return b""
+        packets = [self._sip()]
+        self.sips += 1
+        for kind, build in (
+            ("encoder", self._encoder_packet),
+            ("io", self._io_packet),
+            ("battery", self._battery_packet),
+        ):
+            mode = link.requests[kind]
+            if mode:
+                packets.append(build())
+                if mode == 1:
+                    link.requests[kind] = 0
+        return b"".join(packets)
+
+    # ---------------------------------------------------------------- server packets
+
+    def _odom_raw(self) -> tuple[int, int, int]:
+        p, (ox, oy, oth) = self.params, self.model.odom
+        x = round(ox * 1000.0 / p.dist_conv) & 0x7FFF
+        y = round(oy * 1000.0 / p.dist_conv) & 0x7FFF
+        th = (round(oth / p.angle_conv) + 2048) % 4096 - 2048
+        return x, y, th
+
+    def _sip_tail(self) -> dict[str, Any]:
+        r = self.model
+        volts = round(r.volts * 10.0)
+        return {
+            "io": {"grip_state": 0, "anport": self._anport, "analog": 0,
+                   "digin": self._digin, "digout": self.digout},
+            "battery_x10": int(clamp(volts, 0, 65535)), "charge_state": 0,
+            "rotvel": _int16(math.degrees(r.w) * 10.0), "fault_flags": 0, "latvel": 0,
+            "temperature": -127, "state_of_charge": round(r.state_of_charge),
+        }  # fmt: skip
+
+    def _sip(self) -> bytes:
+        r, p = self.model, self.params
+        x, y, th = self._odom_raw()
+        left, right = r.wheel_speeds()
+        flags = (FLAG_MOTORS_ON if r.motors else 0) | (FLAG_ESTOP if r.estop else 0)
+        sonar: list[tuple[int, int]] = []
+        if self.sonar_on:
+            flags |= FLAG_SONAR_MASK
+            idx, self._sonar_cursor = sonar_batch(
+                len(r.sonar), self._sonar_cursor, self._sonar_k_max
+            )
+            conv = 1000.0 / p.range_conv
+            sonar = [(i, int(clamp(round(r.sonar[i] * conv), 0, 65535))) for i in idx]
+        body = {
+            "x": x, "y": y, "th": th,
+            "lvel": _int16(left * 1000.0 / p.vel_conv), "rvel": _int16(right * 1000.0 / p.vel_conv),
+            "battery": int(clamp(round(r.volts * 10.0), 0, 255)),
+            "stall_bumpers": r.stall_bits | r.bumper_bits, "control": 0, "flags": flags,
+            "compass": 0, "sonar": sonar, **self._sip_tail(),
+        }  # fmt: skip
+        return frame(bytes((PacketType.SIP,)) + encode_sip_body(body))
+
+    def _config_packet(self) -> bytes:
+        lim = self.model.limits
+        key = (lim.trans_vel_max, lim.trans_accel, lim.trans_decel,
+               lim.rot_vel_max, lim.rot_accel, lim.rot_decel)  # fmt: skip
+        cache = self._config_cache
+        if cache is not None and cache[0] == key:
+            return cache[1]  # the only fields that change are the per-session limits
+        p, deg = self.params, math.degrees
+        body: dict[str, Any] = {name: 0 for name in _CONFIG_FIELDS}
+        body.update(
+            robot_type="Pioneer", subtype=self.subtype, serial="SIM", name=self.name,
+            firmware="robocli", rotvel_top=round(deg(p.max_rot_velocity)),
+            transvel_top=round(p.max_velocity * 1000), rotacc_top=500, transacc_top=2000,
+            pwm_max=400, sip_cycle=int(round(self.sip_ms)), front_sonar=1,
+            rear_sonar=1 if len(p.sonar) > 8 else 0,
+            watchdog=min(65535, round(self.watchdog_s * 1000)),
+            rotvel_max=round(deg(lim.rot_vel_max)), transvel_max=round(lim.trans_vel_max * 1000),
+            rot_accel=round(deg(lim.rot_accel)), rot_decel=round(deg(lim.rot_decel)),
+            trans_accel=round(lim.trans_accel * 1000), trans_decel=round(lim.trans_decel * 1000),
+            front_bumps=NUM_BUMPERS, rear_bumps=NUM_BUMPERS, reset_baud=2,
+            ticks_mm=TICKS_PER_MM, latvel_top=0, latacc_top=0,
+        )  # fmt: skip
+        body.update(dict.fromkeys(_CONFIG_OPTIONAL))
+        # construct takes ~0.3 ms to build it: rebuild only when a limit changed
+        self._config_cache = (key, encode_server(PacketType.CONFIG, body))
+        return self._config_cache[1]
+
+    def _encoder_packet(self) -> bytes:
+        left, right = self.model.encoder_ticks()
+        return encode_server(PacketType.ENCODER, {"left": left, "right": right})
+
+    def _io_packet(self) -> bytes:
+        bumps = self.model.bumper_bits
+        digin = [self._digin, (bumps >> 8) & 0xFF, bumps & 0xFF, 0]
+        return encode_server(
+            PacketType.IO, {"digin": digin, "digout": [self.digout], "analog": [0] * 8}
+        )
+
+    def _battery_packet(self) -> bytes:
+        soc = round(self.model.state_of_charge)
+        data = bytes((0, 0, 0, soc, soc))
+        return encode_server(
+            PacketType.BATTERY, {"count": 1, "bytes_per_battery": len(data), "data": data}
+        )
+
+    # ---------------------------------------------------------------- in-session commands
+
+    def _make_handlers(self) -> dict[int, Callable[[ArcosSession, Any], bytes | None]]:
+        return {
+            Command.PULSE: lambda link, arg: None,
+            Command.OPEN: lambda link, arg: None,
+            Command.CLOSE: self._cmd_close,
+            Command.ENABLE: self._cmd_enable,
+            Command.SETA: self._cmd_seta,
+            Command.SETV: self._cmd_setv,
+            Command.SETO: lambda link, arg: self.model.reset_odometry(),
+            Command.MOVE: self._motion(lambda a: self.model.move(a / 1000.0)),
+            Command.ROTATE: self._motion(lambda a: self.model.set_rot(math.radians(a))),
+            Command.SETRV: self._cmd_setrv,
+            Command.VEL: self._motion(lambda a: self.model.set_trans(a / 1000.0)),
+            Command.HEAD: self._motion(lambda a: self.model.head(math.radians(a))),
+            Command.DHEAD: self._motion(self._dhead),
+            Command.SAY: self._cmd_say,
+            Command.CONFIG: lambda link, arg: self._config_packet(),
+            Command.ENCODER: self._request("encoder"),
+            Command.RVEL: self._motion(lambda a: self.model.set_rot(math.radians(a))),
+            Command.DCHEAD: self._motion(self._dchead),
+            Command.SETRA: self._cmd_setra,
+            Command.SONAR: self._cmd_sonar,
+            Command.STOP: lambda link, arg: self.model.halt(),
+            Command.DIGOUT: self._cmd_digout,
+            Command.VEL2: self._motion(self._vel2),
+            Command.ADSEL: self._cmd_adsel,
+            Command.IOREQUEST: self._request("io"),
+            Command.BUMPSTALL: self._cmd_bumpstall,
+            Command.ESTOP: lambda link, arg: self.model.emergency_stop(),
+            Command.BATTERYINFO: self._request("battery"),
+            Command.SIM_SET_POSE: self._cmd_sim_set_pose,
+            Command.SIM_RESET: self._cmd_sim_reset,
+            Command.BATTEST: self._cmd_battest,
+        }
+
+    def _motion(self, apply: Callable[[int], None]) -> Callable[[ArcosSession, Any], None]:
+        """A motion command taking an int: ignored (logged) while the motors are disabled."""
+
+        def handler(link: ArcosSession, arg: Any) -> None:
+            if not isinstance(arg, int):
+                log.debug("%s: motion command without an int argument ignored", link.name)
+            elif not self.model.motors:
+                log.debug("%s: motors disabled; motion command ignored", link.name)
+            else:
+                apply(arg)
+
+        return handler
+
+    def _request(self, kind: str) -> Callable[[ArcosSession, Any], None]:
+        def handler(link: ArcosSession, arg: Any) -> None:
+            link.requests[kind] = int(clamp(_int_arg(arg, 1), 0, 2))
+
+        return handler
+
+    def _cmd_close(self, link: ArcosSession, arg: Any) -> None:
+        self._end_session(link, "CLOSE")
+
+    def _cmd_enable(self, link: ArcosSession, arg: Any) -> None:
+        self.model.set_motors(_int_arg(arg) != 0)
+
+    def _cmd_seta(self, link: ArcosSession, arg: Any) -> None:
+        a = _int_arg(arg) / 1000.0
+        if a > 0:
+            self.model.limits.trans_accel = a
+        elif a < 0:
+            self.model.limits.trans_decel = -a
+
+    def _cmd_setra(self, link: ArcosSession, arg: Any) -> None:
+        a = math.radians(_int_arg(arg))
+        if a > 0:
+            self.model.limits.rot_accel = a
+        elif a < 0:
+            self.model.limits.rot_decel = -a
+
+    def _cmd_setv(self, link: ArcosSession, arg: Any) -> None:
+        self.model.limits.trans_vel_max = abs(_int_arg(arg)) / 1000.0
+
+    def _cmd_setrv(self, link: ArcosSession, arg: Any) -> None:
+        self.model.limits.rot_vel_max = math.radians(abs(_int_arg(arg)))
+
+    def _dhead(self, deg: int) -> None:
+        self.model.head(self.model.odom[2] + math.radians(deg))
+
+    def _dchead(self, deg: int) -> None:
+        r = self.model
+        base = r.head_set if r.rot_mode == "head" else r.odom[2]
+        r.head(base + math.radians(deg))
+
+    def _vel2(self, arg: int) -> None:
+        left, right = split_two_bytes(arg)
+        div = self.params.vel2_divisor / 1000.0
+        self.model.wheels(left * div, right * div)
+
+    def _cmd_say(self, link: ArcosSession, arg: Any) -> None:
+        if isinstance(arg, bytes):
+            pairs = zip(arg[0::2], arg[1::2], strict=False)
+            self.last_say = tuple((d * 20, tone) for d, tone in pairs)
+
+    def _cmd_sonar(self, link: ArcosSession, arg: Any) -> None:
+        self.sonar_on = _int_arg(arg) != 0
+
+    def _cmd_digout(self, link: ArcosSession, arg: Any) -> None:
+        mask, values = (b & 0xFF for b in split_two_bytes(_int_arg(arg)))
+        self.digout = (self.digout & ~mask | values & mask) & 0xFF
+
+    def _cmd_adsel(self, link: ArcosSession, arg: Any) -> None:
+        self._anport = _int_arg(arg) & 0xFF
+
+    def _cmd_bumpstall(self, link: ArcosSession, arg: Any) -> None:
+        self.model.bump_stall = _int_arg(arg) & 3
+
+    def _cmd_battest(self, link: ArcosSession, arg: Any) -> None:
+        dv = _int_arg(arg)
+        self.model.battery_override = dv / 10.0 if dv > 0 else None
+
+    def _cmd_sim_set_pose(self, link: ArcosSession, arg: Any) -> None:
+        if isinstance(arg, tuple):
+            x, y, th = arg
+            self.model.teleport(x / 1000.0, y / 1000.0, math.radians(th))
+
+    def _cmd_sim_reset(self, link: ArcosSession, arg: Any) -> None:
+        self.model.teleport(*self.model.start)
+        self.model.reset_odometry()
+
+
+_CONFIG_FIELDS = [str(sc.name) for sc in CONFIG.subcons]
+_CONFIG_OPTIONAL = _CONFIG_FIELDS[_CONFIG_FIELDS.index("powerbot_charge_threshold") + 1 :]
+
+
+def _int_arg(arg: Any, default: int = 0) -> int:
+    return arg if isinstance(arg, int) else default
+
+
+def _command_name(c: int) -> str:
+    try:
+        return Command(c).name
+    except ValueError:
+        return f"CMD_{c}"

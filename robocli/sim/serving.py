@@ -1,0 +1,417 @@
+"""The serving layer of the built-in simulators: TCP and pty links, limits, a ticker.
+
+A simulator is a :class:`Session` per client link plus whatever it shares between them (its
+robot). This module owns everything about bytes on the wire, so the sessions never see a
+socket:
+
+* **TCP**: a listener thread accepts; each link has **one thread, blocking in** ``recv``, that
+  frames the bytes, calls :meth:`Session.on_frame` for each complete frame and writes the
+  replies **inline** from that same thread (no hand-off on the request/reply path).
+* **pty**: a pseudo-terminal in raw mode, served by one such link thread.
+* **Limits**: ``max_clients`` links at once; a client beyond it gets
+  :func:`~robocli.protocols.common.refusal_line` (``robocli-refused: <reason>``) and is
+  closed. ``max_frame`` bounds every frame (the link's framer drops and counts an oversize
+  one). A partial frame with no new byte for ``byte_timeout`` seconds is abandoned: its first
+  byte is dropped and the rest rescanned, so garbage that looks like a header never holds the
+  commands behind it hostage.
+* **Writes never block the server.** :meth:`Link.send` is thread-safe and non-blocking: what
+  the kernel cannot take now waits in a bounded backlog, flushed by the next send or by the
+  link's thread. A client whose backlog is older than ``send_timeout`` (or larger than
+  ``max_backlog``) is not reading: it is dropped. On a pty, output the line cannot take is
+  dropped as on a serial line with nobody listening.
+* :class:`Ticker`: periodic work (physics, SIPs, a state stream) on absolute deadlines
+  ``t0 + k * period``; it pushes through :meth:`Link.send`.
+
+Nothing here is global: two servers in one process are independent. :meth:`Server.close` stops
+and joins every thread within a bounded time. Protocol-agnostic: the protocol name only picks
+the C framer (:data:`robocli.core.PROTOCOLS`).
+"""
+
+from __future__ import annotations
+
+import errno
+import logging
+import os
+import select
+import socket
+import threading
+import time
+from collections.abc import Callable
+from typing import Protocol
+
+from robocli.core import Framer
+from robocli.errors import TransportError
+from robocli.protocols.common import refusal_line
+from robocli.sim.links import DONTWAIT, Link, LinkLimits, LinkStats, PtyLink, TcpLink
+
+__all__ = [
+    "BUSY_REASON",
+    "Link",
+    "LinkStats",
+    "Server",
+    "Session",
+    "SessionFactory",
+    "Ticker",
+]
+
+log = logging.getLogger("robocli.sim.serving")
+
+BUSY_REASON = "robot busy: another client holds it"
+JOIN_TIMEOUT_S = 2.0  #: close() waits at most this long for the threads, in total
+REFUSE_LINGER_S = 0.5  #: a refused client has this long to read the refusal line
+MAX_REFUSING = 8  #: refused connections lingering at once; beyond, they are closed bare
+
+
+class Session(Protocol):
+    """One client's protocol state machine (no sockets).
+
+    Called from its link's thread only: :meth:`on_frame` for each complete frame, in order,
+    then :meth:`on_close` once when the link ends (whatever the reason). A session shared
+    with other threads (a ticker) guards its own state.
+    """
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        """Handle one complete frame (header and checksum included) received at ``now``
+        (monotonic seconds); return the bytes to reply at once, if any."""
+        ...
+
+    def on_close(self) -> None:
+        """The link is gone (peer closed, dropped, server closing)."""
+        ...
+
+
+SessionFactory = Callable[[Link], Session]
+
+
+# ============================================================================ the server
+
+
+class Server:
+    """Serves one endpoint (a TCP port or a pty) with a :class:`Session` per link.
+
+    ``session_factory(link)`` makes the session of each new link. ``protocol`` picks the
+    framer (:data:`robocli.core.PROTOCOLS`), ``max_frame`` bounds its frames (bytes, header
+    included; None: the protocol's default). ``max_clients``: links at once (1 for a
+    single-client robot); one more is sent ``refusal_line(busy_reason)`` and closed.
+    ``byte_timeout``: seconds after which a partial frame is abandoned. ``send_timeout``:
+    seconds a client may leave output unread before it is dropped; ``max_backlog``: bytes
+    of output it may leave unread. ``name`` prefixes the threads' names.
+    """
+
+    def __init__(
+        self,
+        session_factory: SessionFactory,
+        *,
+        protocol: str,
+        max_clients: int = 1,
+        max_frame: int | None = None,
+        byte_timeout: float = 0.1,
+        send_timeout: float = 1.0,
+        max_backlog: int = 1 << 20,
+        name: str = "server",
+        busy_reason: str = BUSY_REASON,
+    ) -> None:
+        if max_clients < 1:
+            raise ValueError("max_clients must be >= 1")
+        if not (byte_timeout > 0 and send_timeout > 0 and max_backlog > 0):
+            raise ValueError("byte_timeout, send_timeout and max_backlog must be > 0")
+        Framer(protocol, max_frame)  # validates both now, not in the first link's thread
+        self.limits = LinkLimits(protocol, max_frame, byte_timeout, send_timeout, max_backlog)
+        self.max_clients = max_clients
+        self.name, self.busy_reason = name, busy_reason
+        self._factory = session_factory
+        self._lock = threading.Lock()
+        self._links: list[Link] = []
+        self._threads: list[threading.Thread] = []
+        self._refusing: set[socket.socket] = set()
+        self._past = LinkStats()
+        self._accepted = self._refused = 0
+        self._closed = False
+        self._listener: socket.socket | None = None
+        self._waker: tuple[socket.socket, socket.socket] | None = None
+        self._url: str | None = None
+        self._pty_path: str | None = None
+
+    # ---------------------------------------------------------------- public API
+
+    @property
+    def url(self) -> str | None:
+        """``tcp://host:port`` once :meth:`serve_tcp` ran."""
+        return self._url
+
+    @property
+    def pty_path(self) -> str | None:
+        """The pseudo-terminal's device once :meth:`serve_pty` ran."""
+        return self._pty_path
+
+    @property
+    def accepted(self) -> int:
+        """Links accepted since the start."""
+        return self._accepted
+
+    @property
+    def refused(self) -> int:
+        """Connections refused (limit reached) since the start."""
+        return self._refused
+
+    def links(self) -> list[Link]:
+        """The links open now."""
+        with self._lock:
+            return list(self._links)
+
+    def stats(self) -> LinkStats:
+        """Counters summed over every link, past and present."""
+        with self._lock:
+            total = LinkStats()
+            total.add(self._past)
+            for link in self._links:
+                total.add(link.stats)
+        return total
+
+    def serve_tcp(self, host: str = "127.0.0.1", port: int = 0) -> str:
+        """Listen on ``host:port`` (0: an ephemeral port); returns ``tcp://host:port``."""
+        self._check_unused()
+        listener = listen(host, port)
+        try:
+            self._waker = socket.socketpair()
+        except OSError as exc:
+            listener.close()
+            raise TransportError(f"cannot create the server's wake-up socket: {exc}") from exc
+        self._listener = listener
+        real_port = listener.getsockname()[1]
+        shown = f"[{host}]" if ":" in host else host
+        self._url = f"tcp://{shown}:{real_port}"
+        self._start(f"{self.name}-accept-{real_port}", self._accept_loop)
+        log.info("%s listening on %s", self.name, self._url)
+        return self._url
+
+    def serve_pty(self) -> str:
+        """Serve one link on a new pseudo-terminal in raw mode; returns its device path."""
+        self._check_unused()
+        if not hasattr(os, "openpty"):
+            raise TransportError("pseudo-terminals are not available on this platform")
+        import tty
+
+        master, slave = os.openpty()
+        try:
+            tty.setraw(slave)
+            os.set_blocking(master, False)
+            path = os.ttyname(slave)
+            link = PtyLink(self.limits, master, slave, path, self._detach)
+        except BaseException:
+            os.close(master)
+            os.close(slave)
+            raise
+        self._pty_path = path
+        with self._lock:
+            self._admit(link)
+        log.info("%s serving on %s", self.name, path)
+        return path
+
+    def close(self, timeout: float = JOIN_TIMEOUT_S) -> None:
+        """Drop every link, stop and join every thread (within ``timeout`` s in total; a
+        thread that would not stop is logged). Idempotent."""
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            links = list(self._links)
+            threads = list(self._threads)
+            refusing = list(self._refusing)
+        if self._waker is not None:
+            self._waker[1].send(b"x")
+        for link in links:
+            link.close()
+        for sock in refusing:
+            _shutdown(sock)  # the refusal line was sent or is lost: stop lingering
+        deadline = time.monotonic() + timeout
+        for t in threads:
+            if t is not threading.current_thread():
+                t.join(max(0.0, deadline - time.monotonic()))
+                if t.is_alive():
+                    log.warning("%s: thread %s did not stop within %.1f s", self.name, t.name,
+                                timeout)  # fmt: skip
+        for sock in (self._listener, *(self._waker or ())):
+            if sock is not None:
+                sock.close()
+
+    # ---------------------------------------------------------------- internals
+
+    def _check_unused(self) -> None:
+        if self._closed:
+            raise TransportError(f"{self.name} is closed")
+        if self._url is not None or self._pty_path is not None:
+            raise TransportError(f"{self.name} already serves {self._url or self._pty_path}")
+
+    def _start(self, name: str, target: Callable[[], None]) -> None:
+        t = threading.Thread(target=target, name=name, daemon=True)
+        self._threads = [old for old in self._threads if old.is_alive()]
+        self._threads.append(t)
+        t.start()
+
+    def _admit(self, link: Link) -> None:
+        """Make the link's session and start its thread (server lock held)."""
+        link.session = self._factory(link)
+        self._links.append(link)
+        self._accepted += 1
+        self._start(f"{self.name}-{link.name}", link._run)
+
+    def _detach(self, link: Link) -> None:
+        """Called by a link's thread as it ends: the session hears it under the server lock,
+        so a client accepted next never sees the old session still open."""
+        with self._lock:
+            if link not in self._links:
+                return
+            self._links.remove(link)
+            self._past.add(link.stats)
+            session = link.session
+            if session is not None:
+                session.on_close()
+        log.info("%s: %s gone", self.name, link.name)
+
+    def _accept_loop(self) -> None:
+        listener, waker = self._listener, self._waker
+        assert listener is not None and waker is not None
+        while True:
+            ready, _, _ = select.select([listener, waker[0]], [], [])
+            if waker[0] in ready:
+                return
+            try:
+                sock, addr = listener.accept()
+            except OSError as exc:  # the peer gave up before accept, or fds exhausted
+                log.debug("%s: accept failed: %s", self.name, exc)
+                time.sleep(0.01)
+                continue
+            peer = f"tcp {addr[0]}:{addr[1]}"
+            with self._lock:
+                if self._closed:
+                    sock.close()
+                    return
+                if len(self._links) >= self.max_clients:
+                    self._refuse(sock, peer)
+                    continue
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                self._admit(TcpLink(self.limits, sock, peer, self._detach))
+            log.info("%s: %s connected", self.name, peer)
+
+    def _refuse(self, sock: socket.socket, peer: str) -> None:
+        """Send the refusal line and close (server lock held). The socket lingers in a short
+        thread, reading until the client closes, so the line is not lost to a reset."""
+        self._refused += 1
+        log.warning("%s: %s refused (%s)", self.name, peer, self.busy_reason)
+        line = refusal_line(self.busy_reason)
+        if len(self._refusing) >= MAX_REFUSING:
+            try:
+                sock.send(line, DONTWAIT)
+            except OSError:
+                pass  # the peer is gone: nothing to tell
+            sock.close()
+            return
+
+        def linger() -> None:
+            try:
+                sock.settimeout(REFUSE_LINGER_S)
+                sock.sendall(line)
+                sock.shutdown(socket.SHUT_WR)
+                end = time.monotonic() + REFUSE_LINGER_S
+                while time.monotonic() < end and sock.recv(4096):
+                    pass
+            except OSError:
+                pass  # timeout or reset: the line was offered, the link closes anyway
+            finally:
+                with self._lock:
+                    self._refusing.discard(sock)
+                sock.close()
+
+        self._refusing.add(sock)
+        self._start(f"{self.name}-{peer}-refuse", linger)
+
+
+def _shutdown(sock: socket.socket) -> None:
+    try:
+        sock.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass  # not connected any more
+
+
+def listen(host: str, port: int, backlog: int = 8) -> socket.socket:
+    """A listening TCP socket on ``host:port``; a port in use is a clear
+    :class:`~robocli.errors.TransportError`."""
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(
+            host, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE
+        )[0]
+    except socket.gaierror as exc:
+        raise TransportError(f"cannot listen on {host}:{port}: {exc.strerror}") from exc
+    sock = socket.socket(family, kind, proto)
+    try:
+        if os.name == "nt":
+            sock.setsockopt(socket.SOL_SOCKET, getattr(socket, "SO_EXCLUSIVEADDRUSE", 0), 1)
+        else:
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(addr)
+        sock.listen(backlog)
+    except OSError as exc:
+        sock.close()
+        if exc.errno in (errno.EADDRINUSE, getattr(errno, "WSAEADDRINUSE", -1)):
+            raise TransportError(f"port {port} is in use: is another simulator running?") from exc
+        raise TransportError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from exc
+    return sock
+
+
+# ============================================================================ the ticker
+
+
+class Ticker:
+    """Calls ``tick(now)`` every ``period`` wall seconds, on absolute deadlines
+    ``t0 + k * period`` (no drift); when more than a period late it skips the missed ticks.
+
+    An exception in ``tick`` is logged with its traceback and counted in :attr:`errors`; the
+    ticker goes on (one bad tick must not stop a robot's stream).
+    """
+
+    def __init__(self, period: float, tick: Callable[[float], None], name: str) -> None:
+        if not period > 0:
+            raise ValueError("period must be > 0")
+        self.period, self.name = period, name
+        self.errors = 0
+        self.ticks = 0
+        self._tick = tick
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    def start(self) -> None:
+        """Start ticking (once; later calls do nothing)."""
+        if self._thread is None and not self._stop.is_set():
+            self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
+            self._thread.start()
+
+    def close(self, timeout: float = JOIN_TIMEOUT_S) -> None:
+        """Stop and join (within ``timeout`` s). Idempotent."""
+        self._stop.set()
+        t = self._thread
+        if t is not None and t is not threading.current_thread():
+            t.join(timeout)
+            if t.is_alive():
+                log.warning("ticker %s did not stop within %.1f s", self.name, timeout)
+
+    def _loop(self) -> None:
+        period, stop = self.period, self._stop
+        t0 = time.monotonic()
+        k = 0
+        while not stop.is_set():
+            k += 1
+            delay = t0 + k * period - time.monotonic()
+            if delay > 0:
+                if stop.wait(delay):
+                    break
+            elif -delay > period:
+                skipped = int(-delay / period)
+                log.debug("%s %.1f ms late; skipping %d ticks", self.name, -delay * 1e3, skipped)
+                k += skipped
+            try:
+                self._tick(time.monotonic())
+            except Exception:  # logged whole and counted; the stream goes on
+                self.errors += 1
+                log.exception("%s: tick failed", self.name)
+            self.ticks += 1
