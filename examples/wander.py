@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass
 
 from robocli import Pioneer
-from robocli.protocols.arcos import RobotParams
+from robocli.robots.pioneer import RobotParams
 
 
 @dataclass

@@ -63,6 +63,13 @@ class UnknownRobotError(DeviceError):
     """The robot identified itself with a subtype robocli has no parameters for."""
 
 
+class InvalidArgument(RobocliError, ValueError):
+    """A value the caller gave is not one the robot or the protocol can take (NaN, a string
+    for a number, out of range); the message names the argument. Also a ``ValueError``."""
+
+    exit_code = EXIT_USAGE
+
+
 class TimeoutError(RobocliError, builtins.TimeoutError):  # noqa: A001 - deliberate: also the builtin
     """A device did not answer in time. Also a :class:`builtins.TimeoutError`."""
 
@@ -74,6 +81,7 @@ __all__ = [
     "ConnectionLost",
     "DeviceError",
     "FramingError",
+    "InvalidArgument",
     "ProtocolError",
     "RobocliError",
     "TimeoutError",

@@ -10,14 +10,17 @@
 
 Every transport has the same small interface: :meth:`Transport.read` returns what arrived
 (``b""`` on timeout) and raises :class:`~robocli.errors.ConnectionLost` when the peer is gone;
-:meth:`Transport.write` sends everything or raises. :class:`FaultyTransport` wraps any of them
-to split, drop, corrupt or delay incoming bytes for robustness tests.
+:meth:`Transport.write` sends everything within its deadline or raises.
+:class:`FaultyTransport` wraps any of them to split, drop, corrupt or delay incoming bytes
+for robustness tests.
 """
 
 from __future__ import annotations
 
+import math
 import random
 import re
+import select
 import socket
 import threading
 import time
@@ -28,31 +31,67 @@ from robocli.errors import ConnectionLost, TransportError
 _TCP_URL = re.compile(r"^(?:tcp://)?(?P<host>\[[^\]]+\]|[A-Za-z0-9_.\-]+):(?P<port>\d{1,5})/?$")
 
 
+#: Default deadline of one write, in seconds: past it the peer is taken as not reading.
+WRITE_TIMEOUT = 1.0
+
+
 class Transport:
-    """A bidirectional byte stream. Subclasses implement ``_read``/``_write``/``_close``."""
+    """A bidirectional byte stream. Subclasses implement ``_read``/``_write``/``_close`` and,
+    where they can, ``_wait_readable``.
+
+    Every write has a deadline (:attr:`write_timeout`, about 1 s by default): a peer that stops
+    reading makes :meth:`write` raise :class:`~robocli.errors.TransportError`, never hang.
+    """
 
     url: str = ""
 
     def __init__(self) -> None:
         self._closed = False
         self._write_lock = threading.Lock()
+        self.write_timeout = WRITE_TIMEOUT
 
     def read(self, size: int = 4096, timeout: float | None = None) -> bytes:
         """Return up to ``size`` bytes, ``b""`` if none arrived within ``timeout`` seconds
-        (``None`` blocks). Raises :class:`ConnectionLost` once the stream has ended."""
+        (``None`` blocks, ``0`` only takes what is there). Raises :class:`ConnectionLost` once
+        the stream has ended."""
         if self._closed:
             raise ConnectionLost(f"{self.url}: transport is closed")
         return self._read(size, timeout)
 
-    def write(self, data: bytes) -> None:
-        """Send all of ``data`` (thread-safe: writes from several threads never interleave)."""
+    def wait_readable(self, timeout: float) -> bool:
+        """True when a :meth:`read` would return data (or report the end of the stream)
+        without waiting; False after ``timeout`` seconds. Consumes nothing."""
         if self._closed:
             raise ConnectionLost(f"{self.url}: transport is closed")
-        with self._write_lock:
-            self._write(bytes(data))
+        return self._wait_readable(timeout)
+
+    def fileno(self) -> int | None:
+        """The file descriptor to wait on with ``poll``/``select``, or None when the stream
+        has none (pyserial URL handlers, wrapped transports): use :meth:`wait_readable`."""
+        return None
+
+    def write(self, data: bytes, timeout: float | None = None) -> None:
+        """Send all of ``data`` within ``timeout`` seconds (default :attr:`write_timeout`),
+        else raise :class:`TransportError`. Thread-safe: writes from several threads never
+        interleave; waiting for another thread's write counts against the deadline."""
+        if self._closed:
+            raise ConnectionLost(f"{self.url}: transport is closed")
+        limit = self.write_timeout if timeout is None else timeout
+        deadline = time.monotonic() + limit
+        if not self._write_lock.acquire(timeout=max(limit, 0.0)):
+            raise TransportError(
+                f"{self.url}: write blocked for {limit:g} s by another write "
+                "(the peer is not reading)"
+            )
+        try:
+            if self._closed:
+                raise ConnectionLost(f"{self.url}: transport is closed")
+            self._write(bytes(data), deadline)
+        finally:
+            self._write_lock.release()
 
     def close(self) -> None:
-        """Close the stream; idempotent."""
+        """Close the stream; idempotent, never waits for a blocked write."""
         if not self._closed:
             self._closed = True
             self._close()
@@ -74,23 +113,57 @@ class Transport:
     def _read(self, size: int, timeout: float | None) -> bytes:
         raise NotImplementedError
 
-    def _write(self, data: bytes) -> None:
+    def _write(self, data: bytes, deadline: float) -> None:
         raise NotImplementedError
 
     def _close(self) -> None:
         raise NotImplementedError
 
+    def _wait_readable(self, timeout: float) -> bool:
+        """Fallback for streams without a file descriptor: look every 2 ms."""
+        deadline = time.monotonic() + timeout
+        while True:
+            if self._pending_bytes():
+                return True
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            time.sleep(min(0.002, left))
+
+    def _pending_bytes(self) -> int:
+        raise NotImplementedError
+
+
+def _write_timed_out(url: str, sent: int, total: int) -> TransportError:
+    return TransportError(
+        f"{url}: write timed out ({sent} of {total} bytes sent; the peer is not reading)"
+    )
+
+
+def _poll(fd: int, events: int, timeout: float | None) -> bool:
+    """Wait until ``fd`` has one of ``events`` (or an error/hang-up); ``None`` waits forever."""
+    poller = select.poll()
+    poller.register(fd, events)
+    ms = None if timeout is None else max(0, math.ceil(timeout * 1000))
+    while True:
+        try:
+            return bool(poller.poll(ms))
+        except InterruptedError:  # pragma: no cover - PEP 475 retries already
+            continue
+
 
 class SocketTransport(Transport):
-    """A connected stream socket (TCP or a socketpair end)."""
+    """A connected stream socket (TCP or a socketpair end), used non-blocking: reads wait with
+    ``poll``, writes wait for room until their deadline."""
 
     def __init__(self, sock: socket.socket, url: str) -> None:
         super().__init__()
         self.sock = sock
         self.url = url
-        self._timeout: float | None | str = "unset"
+        self._fd = sock.fileno()
         if sock.family in (socket.AF_INET, socket.AF_INET6):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        sock.setblocking(False)
 
     @classmethod
     def connect(cls, host: str, port: int, timeout: float = 5.0) -> SocketTransport:
@@ -109,28 +182,49 @@ class SocketTransport(Transport):
         return cls(sock, url)
 
     def _read(self, size: int, timeout: float | None) -> bytes:
-        if timeout != self._timeout:
-            self.sock.settimeout(timeout)
-            self._timeout = timeout
+        # Try first, wait only when nothing is there: on loopback a reply is often in the
+        # socket already by the time its request's send() returns.
         try:
             data = self.sock.recv(size)
-        except (TimeoutError, BlockingIOError):
-            return b""
+        except BlockingIOError:
+            if timeout == 0 or not _poll(self._fd, select.POLLIN, timeout):
+                return b""
+            try:
+                data = self.sock.recv(size)
+            except BlockingIOError:
+                return b""
+            except OSError as exc:
+                raise ConnectionLost(f"{self.url}: {exc.strerror or exc}") from None
         except OSError as exc:
             raise ConnectionLost(f"{self.url}: {exc.strerror or exc}") from None
         if not data:
             raise ConnectionLost(f"{self.url}: connection closed by the peer")
         return data
 
-    def _write(self, data: bytes) -> None:
-        try:
-            self.sock.sendall(data)
-        except OSError as exc:
-            raise ConnectionLost(f"{self.url}: {exc.strerror or exc}") from None
+    def _wait_readable(self, timeout: float) -> bool:
+        return _poll(self._fd, select.POLLIN, timeout)
+
+    def fileno(self) -> int | None:
+        return self._fd
+
+    def _write(self, data: bytes, deadline: float) -> None:
+        view = memoryview(data)
+        sent = 0
+        while sent < len(data):
+            try:
+                sent += self.sock.send(view[sent:])
+                continue
+            except BlockingIOError:
+                pass
+            except OSError as exc:
+                raise ConnectionLost(f"{self.url}: {exc.strerror or exc}") from None
+            left = deadline - time.monotonic()
+            if left <= 0 or not _poll(self._fd, select.POLLOUT, left):
+                raise _write_timed_out(self.url, sent, len(data))
 
     def _close(self) -> None:
         try:
-            self.sock.shutdown(socket.SHUT_RDWR)
+            self.sock.shutdown(socket.SHUT_RDWR)  # wakes a thread waiting in poll
         except OSError:
             pass
         self.sock.close()
@@ -143,6 +237,10 @@ class SerialTransport(Transport):
         super().__init__()
         self.port = port
         self.url = url
+        try:
+            self._fd: int | None = int(port.fileno())
+        except (AttributeError, OSError, ValueError, TypeError):
+            self._fd = None  # URL handlers (loop://, rfc2217://...) and Windows
 
     @classmethod
     def open(cls, url: str, baudrate: int = 9600) -> SerialTransport:
@@ -154,7 +252,7 @@ class SerialTransport(Transport):
             else:
                 port = serial.Serial(url, baudrate=baudrate, timeout=0)
         except (serial.SerialException, ValueError) as exc:
-            raise TransportError(f"cannot open {url}: {exc}") from None
+            raise TransportError(f"cannot open {url}: {exc}{_serial_hint(exc)}") from None
         return cls(port, url)
 
     def _read(self, size: int, timeout: float | None) -> bytes:
@@ -175,16 +273,49 @@ class SerialTransport(Transport):
             raise
         return data
 
-    def _write(self, data: bytes) -> None:
+    def _wait_readable(self, timeout: float) -> bool:
+        if self._fd is None:
+            return super()._wait_readable(timeout)
+        return _poll(self._fd, select.POLLIN, timeout)
+
+    def fileno(self) -> int | None:
+        return self._fd
+
+    def _pending_bytes(self) -> int:
         import serial
 
         try:
+            return int(self.port.in_waiting)
+        except (serial.SerialException, OSError) as exc:
+            raise ConnectionLost(f"{self.url}: {exc}") from None
+
+    def _write(self, data: bytes, deadline: float) -> None:
+        import serial
+
+        try:
+            self.port.write_timeout = max(0.001, deadline - time.monotonic())
             self.port.write(data)
+        except serial.SerialTimeoutException:
+            raise _write_timed_out(self.url, 0, len(data)) from None
         except (serial.SerialException, OSError) as exc:
             raise ConnectionLost(f"{self.url}: {exc}") from None
 
     def _close(self) -> None:
         self.port.close()
+
+
+def _serial_hint(exc: BaseException) -> str:
+    """What a lab user should do about a serial port error they usually cannot read."""
+    errno_ = getattr(exc, "errno", None)
+    text = str(exc)
+    if errno_ == 13 or "Permission denied" in text:
+        return (
+            " (on Linux, serial ports belong to the 'dialout' group: "
+            "sudo usermod -aG dialout $USER, then log out and in again)"
+        )
+    if errno_ == 16 or "Device or resource busy" in text:
+        return " (another program holds the port: close it, or find it with `fuser PORT`)"
+    return ""
 
 
 def open_transport(url: str, *, baudrate: int = 9600, timeout: float = 5.0) -> Transport:
@@ -264,8 +395,11 @@ class FaultyTransport(Transport):
             out.append(byte)
         return bytes(out)
 
-    def _write(self, data: bytes) -> None:
-        self.inner.write(data)
+    def _write(self, data: bytes, deadline: float) -> None:
+        self.inner.write(data, timeout=max(0.0, deadline - time.monotonic()))
+
+    def _wait_readable(self, timeout: float) -> bool:
+        return bool(self._pending) or self.inner.wait_readable(timeout)
 
     def _close(self) -> None:
         self.inner.close()

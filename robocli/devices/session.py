@@ -1,0 +1,579 @@
+"""The client machinery every robocli device is built on: one link to one robot.
+
+A :class:`Session` owns a transport and a framer and gives a device:
+
+- **a reader thread** for unsolicited frames (SIPs, state streams, pushed samples);
+- **request/reply read by the caller itself** (leader/follower): :meth:`Session.request`
+  takes the read side, writes the request and reads until the reply, handling every other
+  frame that arrives meanwhile exactly as the reader thread would. No thread hands the
+  reply over, which keeps a round trip near the machine's floor;
+- **listeners** (:class:`Listeners`) that see every frame sent and received. A listener that
+  raises is isolated: the first failure of each listener is logged with its traceback, every
+  failure is counted in :attr:`LinkStats.listener_errors`, the listener stays registered,
+  and the thread that called it goes on. A printing listener whose pipe closed cannot stop
+  the keep-alive that keeps a robot safe;
+- **periodic tasks** (:class:`PeriodicTask`) that sleep on an event until they are due, in
+  the manner of python-can's cyclic send tasks: keep-alives, supervisors, dead-man checks;
+- **writes with a deadline** (:attr:`Transport.write_timeout`, 1 s by default);
+- **a close that always finishes**: :meth:`Session.close` sends the device's stop sequence
+  from a ``finally``, within ``close_timeout`` seconds in all, shuts the transport down even
+  when another thread holds the write side, joins every thread and says which would not stop.
+
+**Failing closed.** A robocli error in a client thread (link lost, silence, a write past its
+deadline) and any unexpected exception there (a bug) end the session: the device's
+emergency stop is sent (best effort, bounded), every waiting caller is woken, and the next
+call on the device raises that error, with its traceback for a bug. A frame that does not
+decode (:class:`~robocli.errors.ProtocolError`) is counted in
+:attr:`LinkStats.decode_errors` and logged (the first with its traceback); the session goes on.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import select
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable, Sequence
+from typing import Any, Generic, TypeVar
+
+from robocli.core import Framer
+from robocli.errors import ConnectionLost, ProtocolError, RobocliError, TimeoutError
+from robocli.transports import Transport
+
+log = logging.getLogger("robocli.devices.session")
+
+#: Listener signature: (direction "tx"/"rx", payload, monotonic time of send/receipt).
+FrameListener = Callable[[str, bytes, float], None]
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+#: How long the reader thread waits for bytes before it looks at its stop flag again
+#: (a closed socket wakes it at once; a closed serial port may not).
+_READER_POLL_S = 0.25
+#: The reader stays parked this long after the last caller read its own reply, so that a
+#: loop of requests keeps it out of the way, and looks again this often while parked.
+_LEADER_LINGER = 0.002
+_PARK_S = 0.005
+#: Raw bytes kept before the first frame, to show why a server refused the link.
+_RAW_TAIL = 512
+
+
+class LinkStats:
+    """Counters of one link, safe to update from any thread and to read at any time.
+
+    ``sent``/``received`` count packets by name; ``bad_checksums`` and ``dropped_bytes`` come
+    from the framer's resynchronisation; ``decode_errors`` are frames that did not decode;
+    ``listener_errors`` are exceptions raised by listeners; ``write_timeouts`` are writes
+    that missed their deadline.
+    """
+
+    _COUNTERS: tuple[str, ...] = (
+        "bad_checksums",
+        "dropped_bytes",
+        "decode_errors",
+        "listener_errors",
+        "write_timeouts",
+    )
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.sent: Counter[str] = Counter()
+        self.received: Counter[str] = Counter()
+        self.decode_errors = 0
+        self.listener_errors = 0
+        self.write_timeouts = 0
+
+    def add(self, name: str, n: int = 1) -> None:
+        """Add ``n`` to the counter ``name`` (thread-safe)."""
+        with self._lock:
+            setattr(self, name, getattr(self, name) + n)
+
+    def count_sent(self, name: str) -> None:
+        with self._lock:
+            self.sent[name] += 1
+
+    def count_received(self, name: str) -> None:
+        with self._lock:
+            self.received[name] += 1
+
+    #: the framer whose resynchronisation counters these are (read when asked, so that
+    #: the per-frame path does not pay for them)
+    framer: Framer | None = None
+
+    @property
+    def bad_checksums(self) -> int:
+        return self.framer.stats.bad_checksums if self.framer is not None else 0
+
+    @property
+    def dropped_bytes(self) -> int:
+        return self.framer.stats.dropped_bytes if self.framer is not None else 0
+
+    def as_dict(self) -> dict[str, Any]:
+        """A consistent, JSON-ready copy of every counter."""
+        with self._lock:
+            out: dict[str, Any] = {name: getattr(self, name) for name in self._counter_names()}
+            out["sent"] = dict(self.sent)
+            out["received"] = dict(self.received)
+        return out
+
+    def _counter_names(self) -> tuple[str, ...]:
+        return self._COUNTERS
+
+    def __repr__(self) -> str:
+        data = self.as_dict()
+        counts = " ".join(f"{k}={v}" for k, v in data.items() if not isinstance(v, dict))
+        return (
+            f"<{type(self).__name__} {counts} sent={sum(self.sent.values())} "
+            f"received={sum(self.received.values())}>"
+        )
+
+
+class Listeners(Generic[F]):
+    """Callbacks that cannot kill the thread that calls them.
+
+    :meth:`notify` calls each listener in the order added. An exception from a listener is
+    caught, counted in ``stats.listener_errors`` and logged, with its traceback the first time
+    that listener fails; the listener stays registered and the next one is still called.
+    """
+
+    def __init__(self, stats: LinkStats, where: str) -> None:
+        self._stats = stats
+        self._where = where
+        self._items: tuple[F, ...] = ()
+        self._failed: set[int] = set()
+        self._lock = threading.Lock()
+
+    def add(self, listener: F) -> None:
+        with self._lock:
+            self._items = (*self._items, listener)
+
+    def remove(self, listener: F) -> None:
+        """Remove ``listener``; a listener that was not added is ignored."""
+        with self._lock:
+            self._items = tuple(x for x in self._items if x is not listener)
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def notify(self, *args: Any) -> None:
+        for listener in self._items:
+            try:
+                listener(*args)
+            except Exception:  # noqa: BLE001 - the isolation policy above: count, log, go on
+                self._stats.add("listener_errors")
+                if id(listener) not in self._failed:
+                    self._failed.add(id(listener))
+                    log.error(
+                        "%s: listener %r raised; it stays registered, later failures are "
+                        "only counted (stats.listener_errors)",
+                        self._where,
+                        listener,
+                        exc_info=True,
+                    )
+
+
+class PeriodicTask:
+    """A thread that runs ``step()`` whenever it is due, sleeping on an event in between.
+
+    ``step`` does its work and returns the seconds until it wants to run again (its next
+    deadline, e.g. "0.4 s after the last packet sent"). :meth:`stop` wakes the thread at once;
+    :meth:`wake` makes it run ``step`` now. An exception from ``step`` ends the task and goes
+    to ``on_error`` (the session fails closed); it never disappears silently.
+    """
+
+    def __init__(
+        self,
+        name: str,
+        step: Callable[[], float],
+        on_error: Callable[[BaseException], None],
+    ) -> None:
+        self.name = name
+        self._step = step
+        self._on_error = on_error
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        self.thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        self._wake.set()
+
+    def wake(self) -> None:
+        self._wake.set()
+
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
+
+    def _run(self) -> None:
+        delay = 0.0
+        while not self._stop.is_set():
+            if delay > 0:
+                self._wake.wait(delay)
+                self._wake.clear()
+                if self._stop.is_set():
+                    return
+            try:
+                delay = self._step()
+            except BaseException as exc:  # noqa: BLE001 - handed on: the session fails closed
+                if not self._stop.is_set():
+                    self._on_error(exc)
+                return
+
+
+class Session:
+    """One link to one robot. See the module docstring for the guarantees.
+
+    ``on_frame(frame, t)`` is the device's handler of every received frame (in whichever
+    thread read it: the reader, or a caller waiting for a reply). ``name_of(payload,
+    direction)`` names packets for the statistics; ``payload_of(frame)`` strips the framing
+    for listeners. ``emergency_stop`` gives the packets that stop the robot at once (sent when
+    a client thread fails); :meth:`close` takes the full stop sequence.
+    """
+
+    def __init__(
+        self,
+        transport: Transport,
+        framer: Framer,
+        *,
+        on_frame: Callable[[bytes, float], None],
+        payload_of: Callable[[bytes], bytes] = bytes,
+        name_of: Callable[[bytes, str], str] = lambda payload, direction: "frame",
+        emergency_stop: Callable[[], Sequence[bytes]] = tuple,
+        stats: LinkStats | None = None,
+        close_timeout: float = 2.0,
+        name: str = "session",
+    ) -> None:
+        self.transport = transport
+        self.framer = framer
+        self.stats = stats if stats is not None else LinkStats()
+        self.stats.framer = framer
+        self.listeners: Listeners[FrameListener] = Listeners(self.stats, transport.url)
+        self.close_timeout = close_timeout
+        self.name = name
+        #: notified whenever a frame was handled or the session failed; devices wait on it
+        self.cond = threading.Condition()
+        #: monotonic time of the last packet written (what a robot's watchdog sees)
+        self.last_tx = time.monotonic()
+        self.error: BaseException | None = None
+        self.stuck_threads: list[str] = []
+        #: the device's handler of every received frame (settable until :meth:`start`)
+        self.on_frame = on_frame
+        self._payload_of = payload_of
+        self._name_of = name_of
+        self._emergency_stop = emergency_stop
+        self._read_lock = threading.Lock()
+        self._leaders = 0  # callers reading their replies right now
+        self._leader_lock = threading.Lock()
+        self._leader_end = 0.0  # monotonic time the last one finished
+        self._reader_polling = False
+        self._parked = threading.Event()  # set only to end the session: wakes a parked reader
+        self._wake_r: int | None = None
+        self._wake_w: int | None = None
+        self._closing = False
+        self._close_lock = threading.Lock()
+        self._tasks: list[PeriodicTask] = []
+        self._reader: threading.Thread | None = None
+        self._raw_tail: bytearray | None = bytearray()
+        self._decode_logged = False
+
+    # ------------------------------------------------------------------ state
+
+    @property
+    def alive(self) -> bool:
+        """True until the session failed or began closing."""
+        return self.error is None and not self._closing
+
+    @property
+    def closing(self) -> bool:
+        return self._closing
+
+    def check(self) -> None:
+        """Raise the error that ended the session, or :class:`ConnectionLost` once closed."""
+        if self.error is not None:
+            raise self.error
+        if self._closing:
+            raise ConnectionLost(f"{self.transport.url}: the connection is closed")
+
+    def raw_tail(self) -> bytes:
+        """The raw bytes read before the first frame (what a refusing server said)."""
+        return bytes(self._raw_tail or b"")
+
+    # ------------------------------------------------------------------ threads
+
+    def start(self) -> None:
+        """Start the reader thread and every task added so far."""
+        self._raw_tail = None
+        if self.transport.fileno() is not None:
+            self._wake_r, self._wake_w = os.pipe()
+            os.set_blocking(self._wake_r, False)
+            os.set_blocking(self._wake_w, False)
+        self._reader = threading.Thread(
+            target=self._read_loop, name=f"{self.name}-reader", daemon=True
+        )
+        self._reader.start()
+        for task in self._tasks:
+            task.start()
+
+    def add_task(self, name: str, step: Callable[[], float]) -> PeriodicTask:
+        """A :class:`PeriodicTask` of this session (started by :meth:`start`, or now if the
+        session runs); its exceptions fail the session closed."""
+        task = PeriodicTask(f"{self.name}-{name}", step, self.fail)
+        self._tasks.append(task)
+        if self._reader is not None:
+            task.start()
+        return task
+
+    # ------------------------------------------------------------------ writing
+
+    def send(self, packet: bytes, timeout: float | None = None) -> None:
+        """Write one framed packet within ``timeout`` (default: the transport's deadline).
+        A lost link or a missed deadline fails the session and raises."""
+        self.check()
+        self._send(packet, timeout)
+
+    def _send(self, packet: bytes, timeout: float | None) -> None:
+        try:
+            self.transport.write(packet, timeout)
+        except ConnectionLost as exc:
+            self.fail(exc)
+            raise
+        except RobocliError as exc:  # the deadline: the peer does not read
+            self.stats.add("write_timeouts")
+            self.fail(exc)
+            raise
+        now = time.monotonic()
+        self.last_tx = now
+        payload = self._payload_of(packet)
+        self.stats.count_sent(self._name_of(payload, "tx"))
+        if len(self.listeners):
+            self.listeners.notify("tx", payload, now)
+
+    # ------------------------------------------------------------------ reading
+
+    def request(
+        self,
+        packet: bytes | None,
+        match: Callable[[bytes], bool],
+        timeout: float,
+    ) -> bytes:
+        """Send ``packet`` (if any) and return the first frame for which ``match`` is true,
+        reading the link in this thread. Frames that arrive meanwhile are handled as usual.
+        Raises :class:`TimeoutError` after ``timeout`` seconds, or the session's error."""
+        deadline = time.monotonic() + timeout
+        self.check()
+        with self._leader_lock:  # the reader parks while callers lead (no GIL contention)
+            self._leaders += 1
+        if self._reader_polling:
+            self._wake_reader()
+        if not self._read_lock.acquire(timeout=max(0.0, timeout)):
+            self._leader_done()
+            raise TimeoutError(f"{self.transport.url}: the link stayed busy for {timeout:g} s")
+        try:
+            if packet is not None:
+                self._send(packet, min(timeout, self.transport.write_timeout))
+            while True:
+                self.check()
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"{self.transport.url}: no reply within {timeout:g} s")
+                reply = self._read_once(left, match)
+                if reply is not None:
+                    return reply
+        finally:
+            self._read_lock.release()
+            self._leader_done()
+
+    def _leader_done(self) -> None:
+        with self._leader_lock:
+            self._leader_end = time.monotonic()
+            self._leaders -= 1
+
+    def _wake_reader(self) -> None:
+        if self._wake_w is not None:
+            try:
+                os.write(self._wake_w, b"\0")
+            except (BlockingIOError, OSError):
+                pass  # a wake is already pending, or the session is closing
+
+    def _read_once(
+        self, timeout: float, match: Callable[[bytes], bool] | None = None
+    ) -> bytes | None:
+        """Read what arrives within ``timeout`` and handle it (hold ``_read_lock``).
+        Returns the first frame ``match`` accepts."""
+        try:
+            data = self.transport.read(65536, timeout)
+        except ConnectionLost as exc:
+            why = ConnectionLost(f"{self.transport.url}: link lost ({exc})")
+            self.fail(why)
+            raise why from None
+        if not data:
+            return None
+        now = time.monotonic()
+        if self._raw_tail is not None:
+            self._raw_tail += data
+            del self._raw_tail[:-_RAW_TAIL]
+        frames = self.framer.feed(data)
+        reply = None
+        for frame in frames:
+            self._dispatch(frame, now)
+            if reply is None and match is not None and match(frame):
+                reply = frame
+        return reply
+
+    def _dispatch(self, frame: bytes, now: float) -> None:
+        payload = self._payload_of(frame)
+        self.stats.count_received(self._name_of(payload, "rx"))
+        if len(self.listeners):
+            self.listeners.notify("rx", payload, now)
+        try:
+            self.on_frame(frame, now)
+        except ProtocolError as exc:
+            self.stats.add("decode_errors")
+            if not self._decode_logged:
+                self._decode_logged = True
+                log.warning("%s: %s (later ones only counted)", self.transport.url, exc,
+                            exc_info=True)  # fmt: skip
+            else:
+                log.debug("%s: %s", self.transport.url, exc)
+
+    def _read_loop(self) -> None:
+        """Handle unsolicited frames while no caller holds the read side.
+
+        While callers read their own replies (and for ``_LEADER_LINGER`` s after the last
+        one), the reader parks instead of polling the link: otherwise every reply would wake
+        it, and it would take the GIL from the very caller waiting for that reply."""
+        fd = self.transport.fileno()
+        wake = self._wake_r
+        poller = None
+        if fd is not None and wake is not None:
+            poller = select.poll()
+            poller.register(fd, select.POLLIN)
+            poller.register(wake, select.POLLIN)
+        try:
+            while not self._closing and self.error is None:
+                if self._leaders or time.monotonic() - self._leader_end < _LEADER_LINGER:
+                    self._parked.wait(_PARK_S)
+                    continue
+                self._reader_polling = True
+                if self._leaders:  # a caller began leading as we were about to poll
+                    self._reader_polling = False
+                    continue
+                if poller is not None and wake is not None:
+                    events = poller.poll(_READER_POLL_S * 1000)
+                    ready = any(ev_fd == fd for ev_fd, _ in events)
+                    if any(ev_fd == wake for ev_fd, _ in events):
+                        _drain_pipe(wake)
+                else:
+                    ready = self.transport.wait_readable(_READER_POLL_S)
+                self._reader_polling = False
+                if not ready or not self._read_lock.acquire(blocking=False):
+                    continue  # nothing yet, or a caller leads: it handles what arrives
+                try:
+                    if not self._closing:
+                        self._read_once(0)
+                finally:
+                    self._read_lock.release()
+        except RobocliError as exc:
+            if not self._closing:
+                self.fail(exc)
+        except BaseException as exc:  # noqa: BLE001 - a bug: fail closed, the caller sees it
+            self.fail(exc)
+
+    # ------------------------------------------------------------------ failing, closing
+
+    def fail(self, exc: BaseException) -> None:
+        """End the session with ``exc`` (first error wins): stop the robot (best effort,
+        bounded), wake every waiter. Callable from any thread; idempotent."""
+        with self.cond:
+            if self.error is not None or self._closing:
+                self.cond.notify_all()
+                return
+            self.error = exc
+            self.cond.notify_all()
+        if isinstance(exc, RobocliError):
+            log.error("%s", exc)
+        else:
+            log.error("%s: client thread failed", self.transport.url, exc_info=exc)
+        for task in self._tasks:
+            task.stop()
+        self._try_send(self._emergency_stop(), time.monotonic() + 0.5)
+
+    def _try_send(self, packets: Sequence[bytes], deadline: float) -> bool:
+        """Write ``packets`` in order until one fails or ``deadline`` passes."""
+        for packet in packets:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                log.warning("%s: stop sequence cut short by its deadline", self.transport.url)
+                return False
+            try:
+                self.transport.write(packet, timeout=left)
+            except RobocliError as exc:
+                log.warning("%s: could not send the stop sequence: %s", self.transport.url, exc)
+                return False
+            self.last_tx = time.monotonic()
+            payload = self._payload_of(packet)
+            self.stats.count_sent(self._name_of(payload, "tx"))
+            if len(self.listeners):
+                self.listeners.notify("tx", payload, self.last_tx)
+        return True
+
+    def close(self, stop_sequence: Sequence[bytes] = ()) -> bool:
+        """Send ``stop_sequence``, then shut the link down and join the threads, all within
+        ``close_timeout`` seconds. Returns True when the whole stop sequence went out.
+        Idempotent; safe from any thread, including a listener or a task."""
+        with self._close_lock:
+            if self._closing:
+                return False
+            self._closing = True
+        deadline = time.monotonic() + self.close_timeout
+        sent = False
+        me = threading.current_thread()
+        try:
+            for task in self._tasks:
+                task.stop()
+            # a task may be mid-write (a keep-alive re-sending a set-point): let it finish,
+            # so that nothing it sends lands after the stop sequence
+            for task in self._tasks:
+                if task.thread is not me and task.thread.is_alive():
+                    task.thread.join(
+                        max(0.0, deadline - 0.6 * self.close_timeout - time.monotonic())
+                    )
+            # the link may be dead already: still try, every write is bounded
+            sent = self._try_send(stop_sequence, deadline - 0.2 * self.close_timeout)
+        finally:
+            self.transport.close()  # never waits for a blocked writer; wakes the reader
+            self._parked.set()
+            self._wake_reader()
+            with self.cond:
+                self.cond.notify_all()
+            threads = [t.thread for t in self._tasks] + ([self._reader] if self._reader else [])
+            for thread in threads:
+                if thread is me or not thread.is_alive():
+                    continue
+                thread.join(max(0.05, deadline - time.monotonic()))
+                if thread.is_alive():
+                    self.stuck_threads.append(thread.name)
+                    log.warning("%s: thread %s did not stop", self.transport.url, thread.name)
+            if not self.stuck_threads:
+                for pipe_fd in (self._wake_r, self._wake_w):
+                    if pipe_fd is not None:
+                        os.close(pipe_fd)
+                self._wake_r = self._wake_w = None
+        return sent
+
+
+def _drain_pipe(fd: int) -> None:
+    try:
+        while os.read(fd, 64):
+            pass
+    except (BlockingIOError, OSError):
+        pass
+
+
+__all__ = ["FrameListener", "LinkStats", "Listeners", "PeriodicTask", "Session"]

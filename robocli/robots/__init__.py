@@ -1,0 +1,1 @@
+"""Robot models apart from their wire formats: parameters and geometry (no sockets, no bytes)."""

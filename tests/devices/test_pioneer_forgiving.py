@@ -1,0 +1,78 @@
+"""The library forgives a student's mistakes (issue 7, items 6-8), against the simulator."""
+
+from __future__ import annotations
+
+import logging
+import math
+
+import pytest
+
+from robocli.devices.pioneer import Pioneer
+from robocli.errors import InvalidArgument
+from robocli.protocols.arcos import Command
+from robocli.sim.pioneer import PioneerSim
+
+
+@pytest.mark.parametrize(
+    ("v", "w", "named"),
+    [(math.nan, 0.0, "v"), (0.1, math.inf, "w"), ("fast", 0.0, "v"), (None, 0.0, "v")],
+)
+def test_motion_arguments_must_be_finite_numbers(sim: PioneerSim, v: object, w: object,
+                                                 named: str) -> None:  # fmt: skip
+    assert sim.url is not None
+    with Pioneer.connect(sim.url) as robot:
+        robot.enable_motors()
+        with pytest.raises(InvalidArgument, match=f"^{named} must be") as info:
+            robot.set_velocity(v, w)  # type: ignore[arg-type]
+        assert info.value.exit_code == 2 and isinstance(info.value, ValueError)
+        assert sim.snapshot().trans_vel_set == 0
+
+
+def test_mm_per_second_habit_is_clamped_with_one_warning(
+    sim: PioneerSim, caplog: pytest.LogCaptureFixture
+) -> None:
+    assert sim.url is not None
+    with caplog.at_level(logging.WARNING, "robocli.devices.pioneer"):
+        with Pioneer.connect(sim.url) as robot:
+            robot.enable_motors()
+            robot.set_velocity(200, 0)  # the vendor SDK's mm/s
+            s = sim.wait_until(lambda s: s.trans_vel_set != 0, timeout=3)
+            robot.set_velocity(-300, 0)
+            sim.wait_until(lambda s: s.trans_vel_set < 0, timeout=3)
+            top = robot.config["transvel_top"] / 1000.0  # type: ignore[index]
+    assert s.trans_vel_set == pytest.approx(top)
+    warnings = [r for r in caplog.records if "beyond the robot's limit" in r.getMessage()]
+    assert len(warnings) == 1 and "v=200" in warnings[0].getMessage()
+    # motors were enabled first: no motors-off warning, although the SIP may lag ENABLE
+    assert not [r for r in caplog.records if "motors are disabled" in r.getMessage()]
+
+
+def test_moving_with_motors_off_warns_once(
+    sim: PioneerSim, caplog: pytest.LogCaptureFixture
+) -> None:
+    assert sim.url is not None
+    with caplog.at_level(logging.WARNING, "robocli.devices.pioneer"):
+        with Pioneer.connect(sim.url) as robot:
+            assert not robot.state.motors_enabled
+            robot.set_velocity(0.2, 0.0)
+            robot.set_velocity(0.3, 0.0)
+            robot.enable_motors()
+            robot.wait_for_sip()
+            robot.wait_for_sip()
+            assert robot.state.motors_enabled
+    warned = [r for r in caplog.records if "motors are disabled" in r.getMessage()]
+    assert len(warned) == 1
+
+
+def test_an_empty_battery_reads_zero_not_none(sim: PioneerSim) -> None:
+    """A state of charge of 0 % used to come back as None (unknown)."""
+    assert sim.url is not None
+    with Pioneer.connect(sim.url) as robot:
+        robot.send_command(Command.BATTEST, 95)  # the simulator's battery now reads 9.5 V
+        state = robot.wait_for_sip()
+        for _ in range(5):
+            if state.battery < 10:
+                break
+            state = robot.wait_for_sip()
+        assert state.battery == pytest.approx(9.5)
+        assert state.state_of_charge == 0.0
