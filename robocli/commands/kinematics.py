@@ -1,0 +1,225 @@
+"""``robocli traj ...`` and ``robocli validate``: thin layers over robocli.kinematics.
+
+NumPy and the kinematics package are imported inside the commands, so that
+``robocli --help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import print_json
+
+if TYPE_CHECKING:
+    from robocli.io.trajlog import TrajectoryLog
+    from robocli.kinematics.model import RobotModel
+
+RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
+PointsOpt = typer.Option(100, "--points", "-n", min=2, max=100_000, help="Number of points.")
+OutOpt = typer.Option(Path("sim.json"), "--out", "-o",
+                      help="Log to write (.json, .csv or .npz).")
+PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli[plot]).")
+SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
+DurationOpt = typer.Option(None, "--duration", help="Total duration, s (instead of --speed).")
+StartOpt = typer.Option(
+    None, "--start", help="Start pose, comma-separated joint angles in deg (default: work pose)."
+)
+CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
+PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
+JsonOpt = typer.Option(False, "--json", help="Print a JSON summary instead of text.")
+
+
+def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        values = [float(v) for v in text.replace(" ", "").split(",") if v]
+    except ValueError:
+        raise typer.BadParameter(f"{name} takes comma-separated numbers, not {text!r}") from None
+    if n is not None and len(values) != n:
+        raise typer.BadParameter(f"{name} takes {n} numbers, got {len(values)}")
+    if not all(math.isfinite(v) for v in values):
+        raise typer.BadParameter(f"{name} must be finite numbers")
+    return values
+
+
+def _model(robot: str) -> RobotModel:
+    from robocli.kinematics import load_model
+
+    return load_model(robot)
+
+
+def _start(model: RobotModel, start: str | None) -> Any:
+    values = _floats(start, model.n_joints, "--start")
+    return None if values is None else [math.radians(v) for v in values]
+
+
+def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path,
+            plot: Path | None, json_out: bool) -> None:
+    import numpy as np
+
+    from robocli.io.trajlog import write_log
+
+    if plot is not None:
+        from robocli.kinematics.plot import plot_trajectory
+
+        plot_trajectory(log, plot, title=f"{model.name} {shape}")
+    write_log(log, out)
+    speeds = np.max(np.abs(log.velocities), axis=0)
+    fastest = int(np.argmax(speeds / model.max_speed))
+    fraction = float(speeds[fastest] / model.max_speed[fastest])
+    duration = float(log.time[-1] - log.time[0])
+    summary: dict[str, Any] = {
+        "robot": model.name, "shape": shape, "points": len(log),
+        "duration_s": duration, "out": str(out),
+        "plot": None if plot is None else str(plot),
+        "max_speed_fraction": fraction,
+        "max_speed_joint": fastest + 1,
+    }
+    if json_out:
+        print_json(summary)
+        return
+    typer.echo(
+        f"{model.name} {shape}: {len(log)} points over {duration:.3f} s, "
+        f"fastest joint {fastest + 1} at {math.degrees(speeds[fastest]):.1f} deg/s "
+        f"({100 * fraction:.0f}% of its limit) -> {out}"
+        + (f", plot {plot}" if plot else "")
+    )
+
+
+def circle(
+    robot: str = RobotOpt, points: int = PointsOpt,
+    radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
+    center: str | None = CenterOpt, plane: str = PlaneOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+) -> None:
+    """A circle in a plane through IK, sampled ideally and written as a log."""
+    from robocli.kinematics.trajectory import circle as make
+
+    model = _model(robot)
+    log = make(model, points, radius, _floats(center, 3, "--center"), plane,
+               _start(model, start), speed, duration)
+    _finish(model, log, "circle", out, plot, json_out)
+
+
+def rectangle(
+    robot: str = RobotOpt, points: int = PointsOpt,
+    width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
+    height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
+    center: str | None = CenterOpt, plane: str = PlaneOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+) -> None:
+    """A rectangle in a plane through IK, sampled ideally and written as a log."""
+    from robocli.kinematics.trajectory import rectangle as make
+
+    model = _model(robot)
+    log = make(model, points, width, height, _floats(center, 3, "--center"), plane,
+               _start(model, start), speed, duration)
+    _finish(model, log, "rectangle", out, plot, json_out)
+
+
+def ptp_joint(
+    to: str = typer.Option(..., "--to", help="Goal joint angles, comma-separated, deg."),
+    robot: str = RobotOpt, points: int = PointsOpt,
+    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+) -> None:
+    """Joint-space point-to-point move with a quintic profile."""
+    from robocli.kinematics.trajectory import ptp_joint as make
+
+    model = _model(robot)
+    goal = [math.radians(v) for v in _floats(to, model.n_joints, "--to") or []]
+    log = make(model, goal, points, _start(model, start), speed, duration)
+    _finish(model, log, "ptp-joint", out, plot, json_out)
+
+
+def ptp_cartesian(
+    to: str = typer.Option(..., "--to", help="Goal TCP position x,y,z, m."),
+    robot: str = RobotOpt, points: int = PointsOpt,
+    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+) -> None:
+    """Straight TCP line to a point, keeping the start orientation, through IK."""
+    from robocli.kinematics.trajectory import ptp_cartesian as make
+
+    model = _model(robot)
+    goal = _floats(to, 3, "--to") or []
+    log = make(model, goal, points, _start(model, start), speed, duration)
+    _finish(model, log, "ptp-cartesian", out, plot, json_out)
+
+
+def file(
+    waypoints: Path = typer.Argument(..., help="Waypoints: .json or .csv (joints or x,y,z)."),
+    robot: str = RobotOpt,
+    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+) -> None:
+    """User waypoints from a file; times from the file, else from --speed or --duration."""
+    from robocli.io.waypoints import read_waypoints
+    from robocli.kinematics.trajectory import waypoints as make
+
+    model = _model(robot)
+    wp = read_waypoints(waypoints)
+    log = make(model, wp.joints, wp.points, wp.time if speed is None and duration is None
+               else None, _start(model, start), speed, duration)
+    _finish(model, log, "file", out, plot, json_out)
+
+
+def validate(
+    sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz)."),
+    real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz)."),
+    robot: str = typer.Option(
+        "irb120", "--robot", "-r", help="Model for the TCP error when a log has no TCP column."
+    ),
+    plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),  # noqa: UP007
+    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+) -> None:
+    """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
+    from robocli.io.trajlog import read_log
+    from robocli.kinematics.validate import validate as compare
+
+    sim_log, real_log = read_log(sim), read_log(real)
+    model = _model(robot) if robot else None
+    if model is not None and model.n_joints != sim_log.n_joints:
+        model = None
+    result = compare(sim_log, real_log, model)
+    if plot is not None:
+        from robocli.kinematics.plot import plot_validation
+
+        plot_validation(sim_log, real_log, result, plot, model)
+    if json_out:
+        print_json(result.to_dict())
+        return
+    _table(result, plot)
+
+
+def _table(result: Any, plot: Path | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    table = Table(title=f"simulated vs measured ({result.samples} samples, "
+                        f"delay {result.delay_s * 1e3:.1f} ms)")
+    table.add_column("joint", justify="right")
+    for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
+        table.add_column(name, justify="right")
+    for j in range(result.rmse.shape[0]):
+        table.add_row(str(j + 1), f"{result.rmse[j]:.6f}", f"{result.mae[j]:.6f}",
+                      f"{result.max_abs[j]:.6f}")
+    console = Console()
+    console.print(table)
+    if result.tcp_rmse_mm is not None:
+        console.print(f"TCP position error: RMSE {result.tcp_rmse_mm:.3f} mm, mean "
+                      f"{result.tcp_mean_mm:.3f} mm, max {result.tcp_max_mm:.3f} mm")
+    if plot is not None:
+        console.print(f"plot written to {plot}")
