@@ -12,7 +12,7 @@ import sys
 import typer
 
 from robocli._version import __version__
-from robocli.commands import bench, pioneer
+from robocli.commands import bench, kinematics, pioneer
 
 app = typer.Typer(
     name="robocli",
@@ -66,6 +66,14 @@ sim.command("pioneer")(pioneer.simulate)
 bench_group.command("rtt")(bench.rtt)
 bench_group.command("jitter")(bench.jitter)
 bench_group.command("sip")(bench.sip)
+
+traj = _group("traj", "Generate an arm trajectory, sample it ideally and write the JSON log.")
+traj.command("circle")(kinematics.circle)
+traj.command("rectangle")(kinematics.rectangle)
+traj.command("ptp-joint")(kinematics.ptp_joint)
+traj.command("ptp-cartesian")(kinematics.ptp_cartesian)
+traj.command("file")(kinematics.file)
+app.command("validate")(kinematics.validate)
 
 
 def main(argv: list[str] | None = None) -> int:

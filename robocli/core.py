@@ -9,10 +9,13 @@ This is the only module that imports the compiled extension. It offers:
   reader with its own cursor and limit;
 * :func:`align_nearest` / :func:`align_linear` -- map sorted sample times of K streams onto
   one sorted reference timeline;
-* :func:`pingpong_floor` -- the machine's loopback TCP round-trip floor, measured in C.
+* :class:`PingPong` / :func:`pingpong_floor` -- the machine's loopback TCP round-trip floor,
+  measured in C, each end optionally pinned to a CPU;
+* :class:`Responder` -- a minimal ARCOS server in C answering frames from a canned table.
 
 The C calls release the GIL. :class:`Framer` objects are not thread-safe (use one per
-stream); :class:`Ring` serialises every call with a lock.
+stream); :class:`Ring` serialises every call with a lock. NumPy is imported only by the
+ring, alignment and floor functions, so a client that only frames bytes does not load it.
 """
 
 from __future__ import annotations
@@ -20,13 +23,14 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import Any
-
-import numpy as np
-import numpy.typing as npt
+from typing import TYPE_CHECKING, Any, Union
 
 from robocli._core import ffi, lib
 from robocli.errors import TransportError
+
+if TYPE_CHECKING:  # NumPy is imported by the functions that need it: framing does not
+    import numpy as np
+    import numpy.typing as npt
 
 __all__ = [
     "PROTOCOLS",
@@ -36,7 +40,11 @@ __all__ = [
     "align_linear",
     "align_nearest",
     "arcos_checksum",
+    "pin_supported",
     "pingpong_floor",
+    "PingPong",
+    "Responder",
+    "ResponderStats",
 ]
 
 PROTOCOLS = ("arcos", "sm-le", "sm-be", "ros4mat")
@@ -48,20 +56,21 @@ _PROTO_IDS = {
     "ros4mat": lib.RC_PROTO_ROS4MAT,
 }
 
-# C ``long`` is int64 on LP64 (Linux, macOS) but int32 on Windows: index outputs are written
-# as C long and returned as int64.
-_C_LONG = np.dtype("l")
-_INT64 = np.dtype(np.int64)
+Buffer = Union[bytes, bytearray, memoryview]  # noqa: UP007 (a runtime alias on 3.10)
 
-Buffer = bytes | bytearray | memoryview
+
+def _view(data: Any) -> memoryview:
+    """A memoryview of any buffer-protocol object (bytes, arrays)."""
+    return memoryview(data)
 
 
 def _bytes_view(data: Buffer | npt.NDArray[Any]) -> Any:
-    """A cffi ``unsigned char[]`` view of a bytes-like object (no copy when contiguous)."""
-    if isinstance(data, np.ndarray):
-        data = np.ascontiguousarray(data)
-    elif isinstance(data, memoryview) and not data.c_contiguous:
-        data = data.tobytes()
+    """A cffi ``unsigned char[]`` view of a bytes-like object or array (no copy when it is
+    contiguous; a non-contiguous one is copied)."""
+    if not isinstance(data, bytes | bytearray):
+        view = _view(data)
+        if not view.c_contiguous:
+            data = view.tobytes()
     return ffi.from_buffer("unsigned char[]", data)
 
 
@@ -190,7 +199,7 @@ class Ring:
 
     def push(self, t: float, record: Buffer | npt.NDArray[Any]) -> None:
         """Append one record (exactly ``record_size`` bytes) stamped ``t`` seconds."""
-        nbytes = record.nbytes if isinstance(record, np.ndarray | memoryview) else len(record)
+        nbytes = _view(record).nbytes
         if nbytes != self._record_size:
             raise ValueError(f"record has {nbytes} bytes, expected {self._record_size}")
         buf = _bytes_view(record)
@@ -203,12 +212,14 @@ class Ring:
         ``records`` is typically a uint8 array of shape (n, record_size), or any contiguous
         array (e.g. a structured array of n records) holding n * record_size bytes.
         """
+        import numpy as np
+
         tt = np.ascontiguousarray(t, dtype=np.float64)
         if tt.ndim != 1:
             raise ValueError("t must be one-dimensional")
         n = tt.shape[0]
         rec = np.ascontiguousarray(records) if isinstance(records, np.ndarray) else records
-        nbytes = rec.nbytes if isinstance(rec, np.ndarray | memoryview) else len(rec)
+        nbytes = _view(rec).nbytes
         if nbytes != n * self._record_size:
             raise ValueError(f"records hold {nbytes} bytes, expected {n} x {self._record_size}")
         if n == 0:
@@ -259,6 +270,8 @@ class Ring:
         Returns ``(t, records)``: float64 shape (n,) and uint8 shape (n, record_size), freshly
         allocated (one copy out of the ring).
         """
+        import numpy as np
+
         if max_records is not None and max_records < 0:
             raise ValueError("max_records must be >= 0")
         with self._lock:
@@ -287,6 +300,8 @@ class Ring:
 
 
 def _times(a: npt.ArrayLike, what: str) -> npt.NDArray[np.float64]:
+    import numpy as np
+
     arr = np.ascontiguousarray(a, dtype=np.float64)
     if arr.ndim != 1:
         raise ValueError(f"{what} must be one-dimensional")
@@ -297,6 +312,8 @@ def _streams(
     streams: Sequence[npt.ArrayLike] | npt.NDArray[Any],
 ) -> tuple[list[npt.NDArray[np.float64]], bool]:
     """The list of streams, and whether a single 1-D stream was given."""
+    import numpy as np
+
     if isinstance(streams, np.ndarray):
         if streams.ndim == 1:
             return [_times(streams, "stream")], True
@@ -307,11 +324,17 @@ def _streams(
 
 
 def _long_out(shape: tuple[int, ...]) -> npt.NDArray[Any]:
-    return np.empty(shape, dtype=_C_LONG)
+    import numpy as np
+
+    # C ``long`` is int64 on LP64 (Linux, macOS) but int32 on Windows: index outputs are
+    # written as C long and returned as int64.
+    return np.empty(shape, dtype=np.dtype("l"))
 
 
 def _as_int64(a: npt.NDArray[Any]) -> npt.NDArray[np.int64]:
-    return a if a.dtype == _INT64 else a.astype(np.int64)
+    import numpy as np
+
+    return a if a.dtype == np.dtype(np.int64) else a.astype(np.int64)
 
 
 def align_nearest(
@@ -354,6 +377,8 @@ def align_linear(
     w = 1 (j = 0, w = 0 for a one-sample stream). Outside: idx -1, w 0. ``ts`` is one 1-D
     sorted array (results of shape (M,)) or K of them (results of shape (K, M)).
     """
+    import numpy as np
+
     ss, single = _streams(ts)
     r = _times(ref, "ref")
     m = r.shape[0]
@@ -378,15 +403,152 @@ def align_linear(
 # ---------------------------------------------------------------------------- latency floor
 
 
-def pingpong_floor(n: int = 1000, msg_size: int = 16) -> npt.NDArray[np.float64]:
-    """Round-trip times (seconds) of ``n`` ``msg_size``-byte ping-pongs between two C threads
-    over loopback TCP with TCP_NODELAY: the floor any request/acknowledge exchange on this
-    machine can reach. Raises :class:`~robocli.errors.TransportError` if sockets fail or the
-    platform has no POSIX threads.
+def pin_supported() -> bool:
+    """Whether threads can be pinned to a CPU here (Linux); elsewhere every ``cpu`` argument
+    below must be None."""
+    return bool(lib.rc_pin_supported())
+
+
+def _cpu_arg(cpu: int | None) -> int:
+    if cpu is None:
+        return -1
+    if cpu < 0:
+        raise ValueError("cpu must be >= 0 (or None: not pinned)")
+    if not pin_supported():
+        raise ValueError("this platform cannot pin threads to a CPU; pass cpu=None")
+    return cpu
+
+
+class PingPong:
+    """The machine's floor for request/acknowledge round trips: ``msg_size``-byte ping-pongs
+    over one loopback TCP connection (TCP_NODELAY) between a C echo thread, pinned to
+    ``echo_cpu``, and the thread that calls :meth:`run`, pinned to ``cpu`` for the call.
+
+    The connection and the echo thread persist between calls, so a long measurement can run
+    in short chunks and stay interruptible. Use as a context manager, or call :meth:`close`.
     """
+
+    def __init__(self, msg_size: int = 16, echo_cpu: int | None = None) -> None:
+        if not 0 < msg_size <= 65536:
+            raise ValueError("msg_size must be 1..65536")
+        ptr = lib.rc_pingpong_new(msg_size, _cpu_arg(echo_cpu))
+        if ptr == ffi.NULL:
+            raise TransportError("loopback ping-pong could not start (sockets or threads)")
+        self._p: Any = ffi.gc(ptr, lib.rc_pingpong_free)
+        self.msg_size = msg_size
+        self.echo_cpu = echo_cpu
+
+    def run(self, n: int, cpu: int | None = None) -> npt.NDArray[np.float64]:
+        """``n`` round trips (seconds each) from this thread, pinned to ``cpu`` for the call
+        (the previous affinity is restored). Releases the GIL while it runs."""
+        import numpy as np
+
+        if n <= 0:
+            raise ValueError("n must be positive")
+        if self._p is None:
+            raise TransportError("ping-pong is closed")
+        out = np.empty(n, dtype=np.float64)
+        rc = lib.rc_pingpong_run(self._p, n, _cpu_arg(cpu), ffi.from_buffer("double[]", out))
+        if rc == -2:
+            raise ValueError(f"cannot pin to CPU {cpu} (echo CPU {self.echo_cpu})")
+        if rc != 0:
+            raise TransportError("loopback ping-pong failed")
+        return out
+
+    def close(self) -> None:
+        """End the echo thread and close the sockets (bounded: the echo sees end of stream)."""
+        if self._p is not None:
+            ffi.release(self._p)  # runs rc_pingpong_free now
+            self._p = None
+
+    def __enter__(self) -> PingPong:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def pingpong_floor(
+    n: int = 1000, msg_size: int = 16, cpu: int | None = None, echo_cpu: int | None = None
+) -> npt.NDArray[np.float64]:
+    """Round-trip times (seconds) of ``n`` ping-pongs of :class:`PingPong` (ends pinned to
+    ``cpu`` and ``echo_cpu``, or left to the scheduler). Raises
+    :class:`~robocli.errors.TransportError` if sockets fail or the platform has no POSIX
+    threads."""
     if n <= 0 or msg_size <= 0:
         raise ValueError("n and msg_size must be positive")
-    out = np.empty(n, dtype=np.float64)
-    if lib.rc_pingpong_tcp(n, msg_size, ffi.from_buffer("double[]", out)) != 0:
-        raise TransportError("loopback ping-pong failed (sockets or threads unavailable)")
-    return out
+    with PingPong(msg_size, echo_cpu) as pp:
+        return pp.run(n, cpu)
+
+
+@dataclass(frozen=True)
+class ResponderStats:
+    """Counters of a :class:`Responder` since it started."""
+
+    connections: int
+    frames: int
+    replies: int
+    pin_failed: bool
+
+
+class Responder:
+    """A minimal ARCOS responder in C on 127.0.0.1: for every complete ARCOS frame whose
+    payload (type byte + data) is a key of ``table`` it writes that key's reply bytes
+    (already framed); other frames get no reply. One client at a time, in a C thread pinned
+    to ``cpu`` (None: not pinned). It isolates a client's own cost in a round trip.
+
+    At most 256 entries; keys 1..4096 bytes, replies 0..4096 bytes.
+    """
+
+    def __init__(self, table: dict[bytes, bytes], cpu: int | None = None) -> None:
+        if len(table) > 256:
+            raise ValueError("at most 256 table entries")
+        for key, reply in table.items():
+            if not 0 < len(key) <= 4096 or len(reply) > 4096:
+                raise ValueError("keys must be 1..4096 bytes, replies at most 4096 bytes")
+        keys, replies = list(table), list(table.values())
+        ptr = lib.rc_responder_new(
+            b"".join(keys),
+            ffi.new("size_t[]", [len(k) for k in keys] or [0]),
+            b"".join(replies),
+            ffi.new("size_t[]", [len(r) for r in replies] or [0]),
+            len(keys),
+        )
+        if ptr == ffi.NULL:
+            raise MemoryError("cannot allocate the responder table")
+        self._r: Any = ffi.gc(ptr, lib.rc_responder_free)
+        port = int(lib.rc_responder_start(self._r, _cpu_arg(cpu)))
+        if port <= 0:
+            raise TransportError("ARCOS responder could not listen on loopback")
+        self.port = port
+        self.cpu = cpu
+        self._stats = ffi.new("rc_responder_stats *")
+        self._final = ResponderStats(0, 0, 0, False)
+
+    @property
+    def url(self) -> str:
+        """``tcp://127.0.0.1:PORT`` of the listening socket."""
+        return f"tcp://127.0.0.1:{self.port}"
+
+    @property
+    def stats(self) -> ResponderStats:
+        """The counters (after :meth:`close`: their final values)."""
+        if self._r is None:
+            return self._final
+        lib.rc_responder_get_stats(self._r, self._stats)
+        s = self._stats
+        return ResponderStats(int(s.connections), int(s.frames), int(s.replies), bool(s.pin_failed))
+
+    def close(self) -> None:
+        """Stop the thread (within ~0.1 s; ~1 s if the peer stopped reading) and close."""
+        if self._r is not None:
+            lib.rc_responder_stop(self._r)
+            self._final = self.stats
+            ffi.release(self._r)  # rc_responder_free
+            self._r = None
+
+    def __enter__(self) -> Responder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

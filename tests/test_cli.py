@@ -110,10 +110,11 @@ def test_dump_a_recorded_capture() -> None:
 
 
 def test_bench_rtt_json_reports_floor_multiples() -> None:
-    proc = run("bench", "rtt", "-n", "30", "--json")
+    proc = run("bench", "rtt", "-n", "30", "--floor-n", "200", "--json")
     assert proc.returncode == 0, proc.stderr
-    floor, client = json.loads(proc.stdout)
-    assert floor["n"] == client["n"] == 30
+    stages = {row["name"]: row for row in json.loads(proc.stdout)}
+    floor, client = stages["C floor, same CPU"], stages["client vs C responder"]
+    assert floor["n"] == 200 and client["n"] == 30
     assert 0 < floor["median"] and client["x_floor_median"] == pytest.approx(
         client["median"] / floor["median"]
     )

@@ -1,18 +1,41 @@
 """``robocli bench rtt|jitter|sip``: latency and timing statistics, against the built-in
-simulators unless ``--url`` names a real robot."""
+simulators unless ``--url`` names a real robot.
+
+Every bench stops within about a second on Ctrl-C (or SIGTERM), prints what it collected
+so far and exits 130. On a terminal, runs longer than about 2 s show a progress bar on
+stderr (stdout stays clean for ``--json``).
+"""
 
 from __future__ import annotations
 
-from typing import Any
+import sys
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import pioneer_url, print_json, sigterm_as_interrupt
+from robocli.commands._common import (
+    pioneer_sim_process,
+    pioneer_url,
+    print_json,
+    sigterm_as_interrupt,
+)
+
+if TYPE_CHECKING:
+    from robocli.benchmarks import Run
 
 TARGETS = ("pioneer",)
 TargetOpt = typer.Option("pioneer", "--target", "-t", help="Robot type: pioneer.")
 UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
 JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
+EXIT_INTERRUPTED = 130
+#: Multiples of the same-CPU floor (median, p99) the client must stay under.
+RESPONDER_TARGETS = (3.0, 6.0)
+SIM_TARGETS = (6.0, 15.0)
+#: A run shows progress once it has lasted this long (seconds), on a terminal only.
+PROGRESS_AFTER = 2.0
 
 
 def _check_target(target: str) -> None:
@@ -20,26 +43,164 @@ def _check_target(target: str) -> None:
         raise typer.BadParameter(f"unknown target {target!r}; choose from {', '.join(TARGETS)}")
 
 
+class _Progress:
+    """Rich progress on stderr, started only when stderr is a terminal and a stage has run
+    for :data:`PROGRESS_AFTER` seconds (short runs stay silent; pipes never see it)."""
+
+    def __init__(self) -> None:
+        self.enabled = sys.stderr.isatty()
+        self._bar: Any = None
+        self._task: Any = None
+
+    @contextmanager
+    def stage(self, label: str, total: int) -> Iterator[Callable[[int], None]]:
+        start = time.monotonic()
+
+        def update(done: int) -> None:
+            if not self.enabled:
+                return
+            if self._bar is None:
+                if time.monotonic() - start < PROGRESS_AFTER:
+                    return
+                from rich.console import Console
+                from rich.progress import Progress
+
+                self._bar = Progress(console=Console(stderr=True), transient=True)
+                self._bar.start()
+                self._task = self._bar.add_task(label, total=total)
+            self._bar.update(self._task, completed=done)
+
+        try:
+            yield update
+        finally:
+            if self._bar is not None:
+                self._bar.stop()
+                self._bar = None
+
+
+def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
+    """(the CPU both ends share, another CPU for the cross-CPU floor), None where pinning is
+    impossible (another platform, or a single allowed CPU for the second)."""
+    from robocli import benchmarks as b
+
+    allowed = b.allowed_cpus()
+    if not allowed:
+        return None, None
+    if cpu is not None and cpu not in allowed:
+        raise typer.BadParameter(f"CPU {cpu} is not available; allowed: {allowed}")
+    same = allowed[0] if cpu is None else cpu
+    other = next((c for c in allowed if c != same), None)
+    return same, other
+
+
 def rtt(
     target: str = TargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(1000, "--n", "-n", min=10, max=1_000_000, help="Round trips."),
+    floor_n: int | None = typer.Option(  # noqa: UP007
+        None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
+    ),
+    cpu: int | None = typer.Option(  # noqa: UP007
+        None, "--cpu", min=0, help="CPU for the same-CPU floor and the client (default: first)."
+    ),
     json_out: bool = JsonOpt,
 ) -> None:
-    """Request/acknowledge round trips through the real client, and the C floor."""
+    """Request/acknowledge round trips through the real client, as multiples of the C
+    ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
+
+    Without --url: a bare Python socket, then the client, against a minimal C ARCOS
+    responder (the client's own cost), then the client against the built-in simulator
+    running in its own process; all pinned to one CPU.
+    """
     from robocli import benchmarks as b
 
     _check_target(target)
+    same, other = _cpus(cpu)
+    at = b.cpu_label
+    progress = _Progress()
+    runs: list[tuple[Run, tuple[float, float] | None]] = []
+    interrupted = False
+
+    def stage(
+        name: str, where: str, targets: tuple[float, float] | None = None, count: int = n
+    ) -> Run:
+        run = b.Run(name, count, where)
+        runs.append((run, targets))
+        return run
+
     with sigterm_as_interrupt():
-        floor = b.c_floor(n)
-        with pioneer_url(url or "sim") as where:
-            samples = b.pioneer_rtt(where, n)
-    floor_stats = b.Stats.of(floor)
+        try:
+            fn = floor_n or n
+            run = stage("C floor, same CPU", f"both ends on {at(same)}", count=fn)
+            with progress.stage(run.name, fn) as update:
+                b.c_floor(run, same, same, progress=update)
+            if other is not None:
+                where = f"ends on {at(same)} and {at(other)}"
+                run = stage("C floor, different CPUs", where, count=fn)
+                with progress.stage(run.name, fn) as update:
+                    b.c_floor(run, same, other, progress=update)
+            if url is not None:
+                run = stage(f"{target} CONFIG, {url}", f"client on {at(same)}")
+                with progress.stage(run.name, n) as update, b.pinned(same):
+                    with b.pioneer_at(url) as robot:
+                        b.pioneer_rtt(robot, run, progress=update)
+            else:
+                run = stage("bare socket vs C responder", f"both on {at(same)}")
+                with progress.stage(run.name, n) as update, b.pinned(same):
+                    with b.arcos_responder(same) as responder:
+                        b.bare_rtt(responder.port, run, progress=update)
+                run = stage(
+                    "client vs C responder", f"client, responder on {at(same)}", RESPONDER_TARGETS
+                )
+                with progress.stage(run.name, n) as update, b.pinned(same):
+                    with b.arcos_responder(same) as responder:
+                        with b.pioneer_on_responder(responder) as robot:
+                            b.pioneer_rtt(robot, run, progress=update)
+                run = stage(
+                    "client vs simulator process",
+                    f"client, simulator on {at(same)}",
+                    SIM_TARGETS,
+                )
+                with progress.stage(run.name, n) as update, b.pinned(same):
+                    with pioneer_sim_process(same) as sim_url, b.pioneer_at(sim_url) as robot:
+                        b.pioneer_rtt(robot, run, progress=update)
+        except KeyboardInterrupt:
+            interrupted = True
+    floor_run = runs[0][0]
+    floor = b.Stats.of(floor_run.values) if floor_run.count else None
     results = [
-        b.report("C floor (loopback TCP ping-pong)", floor),
-        b.report(f"{target} CONFIG round trip", samples, floor_stats),
+        b.report(run.name, run.values, floor if i else None, targets, run.where)
+        for i, (run, targets) in enumerate(runs)
+        if run.count
     ]
-    _show(results, {"client": samples}, json_out)
+    hist = {run.name: run.values for run, _ in runs if run.count and "floor" not in run.name}
+    _show(results, hist, json_out, floor_note="x floor = multiple of the same-CPU C floor median")
+    if interrupted:
+        typer.echo(
+            f"interrupted: partial results ({sum(r.count for r, _ in runs)} samples)", err=True
+        )
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
+    """SIP timing through the client; on Ctrl-C, what was collected and True."""
+    from robocli import benchmarks as b
+
+    timing: dict[str, Any] = {}
+    progress = _Progress()
+    with sigterm_as_interrupt():
+        try:
+            with pioneer_url(url or "sim") as where, progress.stage("SIPs", n) as update:
+                b.pioneer_sip_timing(where, n, progress=update, into=timing)
+        except KeyboardInterrupt:
+            return timing, True
+    return timing, False
+
+
+def _finish(interrupted: bool) -> None:
+    if interrupted:
+        typer.echo("interrupted: partial results", err=True)
+        raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def jitter(
@@ -52,15 +213,11 @@ def jitter(
     from robocli import benchmarks as b
 
     _check_target(target)
-    with sigterm_as_interrupt(), pioneer_url(url or "sim") as where:
-        timing = b.pioneer_sip_timing(where, n)
-    _show(
-        [b.report("SIP period", timing["period"])],
-        {"period": timing["period"]},
-        json_out,
-        unit=1e-3,
-        label="ms",
-    )
+    timing, interrupted = _sip_timing(url, n)
+    period = timing.get("period")
+    if period is not None and period.size:
+        _show([b.report("SIP period", period)], {"period": period}, json_out, 1e-3, "ms")
+    _finish(interrupted)
 
 
 def sip(
@@ -73,12 +230,17 @@ def sip(
     from robocli import benchmarks as b
 
     _check_target(target)
-    with sigterm_as_interrupt(), pioneer_url(url or "sim") as where:
-        timing = b.pioneer_sip_timing(where, n)
-    results = [b.report("client CPU per SIP", timing["work"])]
-    if timing["keepalive"].size > 1:
-        results.append(b.report("keep-alive period", timing["keepalive"]))
-    _show(results, {"work": timing["work"]}, json_out)
+    timing, interrupted = _sip_timing(url, n)
+    results = []
+    work = timing.get("work")
+    if work is not None and work.size:
+        results.append(b.report("client CPU per SIP", work))
+    keep = timing.get("keepalive")
+    if keep is not None and keep.size > 1:
+        results.append(b.report("keep-alive period", keep))
+    if results:
+        _show(results, {"work": work} if work is not None and work.size else {}, json_out)
+    _finish(interrupted)
 
 
 def _show(
@@ -87,28 +249,31 @@ def _show(
     json_out: bool,
     unit: float = 1e-6,
     label: str = "us",
+    floor_note: str = "",
 ) -> None:
     from robocli import benchmarks as b
 
     if json_out:
         print_json(results)
         return
-    typer.echo(
-        f"{'measurement (us)':<34}{'n':>7}"
-        + "".join(f"{k:>10}" for k in ("mean", "median", "std", "min", "max", "p90", "p99"))
-    )
+    keys = ("mean", "median", "std", "min", "max", "p90", "p99")
+    typer.echo(f"{'measurement (' + label + ')':<30}{'n':>8}" + "".join(f"{k:>9}" for k in keys))
     for r in results:
-        typer.echo(
-            f"{r['name']:<34}{r['n']:>7}"
-            + "".join(
-                f"{r[k]:>10.1f}" for k in ("mean", "median", "std", "min", "max", "p90", "p99")
-            )
-        )
+        typer.echo(f"{r['name']:<30}{r['n']:>8}" + "".join(f"{r[k]:>9.1f}" for k in keys))
+        notes = [r["where"]] if "where" in r else []
         if "x_floor_median" in r:
-            typer.echo(
-                f"{'':<34}{'':>7}  = {r['x_floor_median']:.1f} x floor (median), "
-                f"{r['x_floor_p99']:.1f} x floor (p99)"
+            notes.append(
+                f"= {r['x_floor_median']:.1f} x floor (median), {r['x_floor_p99']:.1f} x (p99)"
             )
+        if "target_met" in r:
+            notes.append(
+                f"target <= {r['target_median_x']:g} x / {r['target_p99_x']:g} x: "
+                + ("met" if r["target_met"] else "NOT met")
+            )
+        if notes:
+            typer.echo("  " + "; ".join(notes))
+    if floor_note:
+        typer.echo(floor_note)
     for name, samples in hist.items():
         typer.echo(f"histogram: {name}")
         for line in b.histogram(samples, unit=unit, label=label):

@@ -179,8 +179,8 @@ def simulate(
     ),
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
-    from robocli.protocols.arcos import ROBOT_PARAMS
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.robots.pioneer import ROBOT_PARAMS
+    from robocli.sim.pioneer import PioneerSim, serve_many
     from robocli.sim.world import World
 
     if subtype not in ROBOT_PARAMS:
@@ -189,15 +189,12 @@ def simulate(
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():
         try:
-            for i in range(robots):
-                simulator = PioneerSim(subtype, sip_ms=sip_ms, world=world, time_scale=time_scale)
-                sims.append(simulator)
-                where = (
-                    simulator.serve_pty()
-                    if pty
-                    else simulator.serve_tcp(bind, port + i if port else 0)
-                )
-                typer.echo(f"robot {i + 1}: {subtype} on {where}")
+            sims = serve_many(
+                robots, host=bind, port=port, pty=pty,
+                subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
+            )  # fmt: skip
+            for i, simulator in enumerate(sims):
+                typer.echo(f"robot {i + 1}: {subtype} on {simulator.pty_path or simulator.url}")
             sys.stdout.flush()
             while True:
                 time.sleep(3600)
