@@ -20,6 +20,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # plain help: no `<bool>` placeholders, fits any terminal
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
@@ -48,7 +49,7 @@ def _root(
 
 
 def _group(name: str, help_text: str) -> typer.Typer:
-    group = typer.Typer(name=name, help=help_text, no_args_is_help=True)
+    group = typer.Typer(name=name, help=help_text, no_args_is_help=True, rich_markup_mode=None)
     app.add_typer(group)
     return group
 
@@ -76,13 +77,27 @@ traj.command("file")(kinematics.file)
 app.command("validate")(kinematics.validate)
 
 
+def _hoist_verbose(argv: list[str]) -> list[str]:
+    """``-v``/``-vv``/``--verbose`` anywhere before ``--`` count as the root option, so
+    ``robocli connect pioneer sim -v`` works like ``robocli -v connect pioneer sim``."""
+    end = argv.index("--") if "--" in argv else len(argv)
+    verbose = [
+        a for a in argv[:end] if a == "--verbose" or (len(a) > 1 and a == "-" + "v" * (len(a) - 1))
+    ]
+    rest = [a for a in argv[:end] if a not in verbose]
+    return verbose + rest + argv[end:]
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, map errors to one line and an exit code."""
+    from typer.exceptions import TyperException
+
     from robocli.errors import EXIT_INTERRUPTED, RobocliError
 
+    args = _hoist_verbose(sys.argv[1:] if argv is None else list(argv))
     try:
         # Typer returns (rather than raises) the code of an Exit, including 130 for Ctrl-C
-        code = app(args=argv, prog_name="robocli", standalone_mode=False)
+        code = app(args=args, prog_name="robocli", standalone_mode=False)
         if code == EXIT_INTERRUPTED:
             typer.echo("robocli: interrupted", err=True)
         return code if isinstance(code, int) else 0
@@ -91,18 +106,38 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        return _quiet_broken_pipe()
     except RobocliError as exc:
         typer.echo(f"robocli: {exc}", err=True)
         return exc.exit_code
-    except Exception as exc:
-        # Typer's usage errors (bad option, missing argument: exit code 2) carry their own
-        # message and code; anything else is a bug and keeps its traceback.
-        if hasattr(exc, "format_message") and hasattr(exc, "exit_code"):
-            if type(exc).__name__ == "NoArgsIsHelpError":
-                return 0
-            typer.echo(f"robocli: {exc.format_message()}", err=True)
-            return int(exc.exit_code)
-        raise
+    except TyperException as exc:  # usage errors (bad option, missing argument: code 2)
+        if type(exc).__name__ == "NoArgsIsHelpError":
+            return 0
+        message = exc.format_message().rstrip(".")
+        typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
+        return int(exc.exit_code)
+
+
+def _help_hint(exc: Exception) -> str:
+    """`` Try 'robocli dump pioneer -h'.`` for a usage error, naming the command it was in."""
+    ctx = getattr(exc, "ctx", None)
+    if ctx is None or getattr(exc, "exit_code", 0) != 2:
+        return ""
+    return f" Try '{ctx.command_path} -h'."
+
+
+def _quiet_broken_pipe() -> int:
+    """The reader of our stdout went away (``robocli dump ... | head``): exit 0 quietly,
+    without Python's own complaint when it flushes stdout at exit."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
