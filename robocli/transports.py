@@ -26,9 +26,15 @@ import threading
 import time
 from typing import Any
 
-from robocli.errors import ConnectionLost, TransportError
+from robocli.errors import ConnectionLost, InvalidArgument, TransportError
 
 _TCP_URL = re.compile(r"^(?:tcp://)?(?P<host>\[[^\]]+\]|[A-Za-z0-9_.\-]+):(?P<port>\d{1,5})/?$")
+
+
+class InvalidURL(InvalidArgument, TransportError):
+    """A port or URL that cannot name a stream (bad port number, unknown scheme): the
+    caller's mistake, so a usage error (exit code 2); also a :class:`TransportError` for
+    code that catches those around :func:`open_transport`."""
 
 
 #: Default deadline of one write, in seconds: past it the peer is taken as not reading.
@@ -319,19 +325,39 @@ def _serial_hint(exc: BaseException) -> str:
 
 
 def open_transport(url: str, *, baudrate: int = 9600, timeout: float = 5.0) -> Transport:
-    """Open a byte stream from ``url`` (see the module table). ``timeout`` bounds connecting."""
+    """Open a byte stream from ``url`` (see the module table). ``timeout`` bounds connecting.
+    Raises :class:`InvalidURL` for a URL that names no stream, :class:`TransportError` when
+    the stream cannot be opened."""
     url = url.strip()
     if not url:
-        raise TransportError("empty port or URL")
+        raise InvalidURL("empty port or URL: give e.g. /dev/ttyUSB0 or tcp://HOST:8101")
     match = _TCP_URL.match(url)
     if match and (url.startswith("tcp://") or not url.startswith("/")):
         port = int(match["port"])
         if not 0 < port < 65536:
-            raise TransportError(f"bad TCP port in {url!r}")
+            raise InvalidURL(f"bad TCP port {port} in {url!r}: expected 1..65535")
         return SocketTransport.connect(match["host"], port, timeout=timeout)
-    if url.startswith("tcp://"):
-        raise TransportError(f"bad TCP URL {url!r}: expected tcp://host:port")
+    if url.startswith("tcp://") or (url.endswith(":") and "/" not in url):
+        raise InvalidURL(f"bad TCP URL {url!r}: expected tcp://HOST:PORT, PORT a number")
+    scheme = url.split("://", 1)[0] if "://" in url else ""
+    if scheme and not _pyserial_scheme(scheme):
+        raise InvalidURL(
+            f"unknown URL scheme {scheme!r} in {url!r}: use tcp://HOST:PORT, a serial "
+            "port, or a pyserial URL (socket://, rfc2217://, ...)"
+        )
     return SerialTransport.open(url, baudrate=baudrate)
+
+
+def _pyserial_scheme(scheme: str) -> bool:
+    """Whether pyserial has a URL handler for ``scheme`` (``socket``, ``rfc2217``...)."""
+    import importlib.util
+
+    if not scheme.isidentifier():
+        return False
+    try:
+        return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme}") is not None
+    except (ImportError, ValueError):
+        return False
 
 
 def pair() -> tuple[SocketTransport, SocketTransport]:
