@@ -49,7 +49,7 @@ def test_golden_vector_decodes_and_rebuilds(vec: dict) -> None:
             {"number": n, "range": r} for n, r in fields["sonar"]
         ]
         assert arcos.encode_server(payload[0], arcos.SIP.parse(payload[1:])) == raw
-    elif vec["message"] in ("config", "sync2_reply"):
+    elif vec["message"] in ("config", "sync2_reply", "sim_laser", "sim_laser_plain", "sim_stat"):
         ptype, body = arcos.decode_server(payload)
         assert {k: v for k, v in _lists(body).items() if v is not None} == fields
         assert arcos.encode_server(ptype, fields) == raw
