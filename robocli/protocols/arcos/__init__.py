@@ -12,7 +12,8 @@ Client commands carry at most one argument: a sign-magnitude int (``0x3B`` +, ``
 an unsigned 16-bit little-endian magnitude), a string (``0x2B``, length byte, bytes), or for
 ``SIM_SET_POSE`` one ignored type byte then three little-endian int32. Server packets are the
 SYNC replies, the standard SIP (0x32/0x33) with optional trailing groups, CONFIG (0x20),
-IO (0xF0), encoders (0x90) and battery info (0xFA).
+IO (0xF0), encoders (0x90) and battery info (0xFA); MobileSim's laser (0x60/0x61) and
+SIMSTAT (0x62) packets are in :mod:`robocli.protocols.arcos.simext`.
 """
 
 from __future__ import annotations
@@ -45,6 +46,25 @@ from robocli.protocols.arcos.packets import (
     parse_encoder,
     parse_io,
     parse_sync_reply,
+)
+from robocli.protocols.arcos.simext import (
+    LASER_MAX_READINGS,
+    LASER_NO_RETURN_MM,
+    SIM_LASER_MOVED,
+    SIMSTAT_FLAG_GEOREF,
+    SIMSTAT_FLAG_ODOM_ERROR,
+    LaserPacket,
+    LaserRange,
+    LaserReading,
+    SetoArg,
+    SimLaser,
+    SimLaserPlain,
+    SimStat,
+    decode_laser,
+    decode_seto,
+    decode_simstat,
+    encode_laser_scan,
+    encode_simstat,
 )
 from robocli.protocols.arcos.wire import (
     ARG_INT,
@@ -90,15 +110,27 @@ __all__ = [
     "Frame",
     "IO",
     "IntArg",
+    "LASER_MAX_READINGS",
+    "LASER_NO_RETURN_MM",
+    "LaserPacket",
+    "LaserRange",
+    "LaserReading",
     "MAX_PAYLOAD",
     "PacketType",
     "SERVER_BODIES",
+    "SIMSTAT_FLAG_GEOREF",
+    "SIMSTAT_FLAG_ODOM_ERROR",
+    "SIM_LASER_MOVED",
     "SIP",
     "STALL_LEFT",
     "STALL_RIGHT",
     "STRING_COMMANDS",
     "SYNC",
+    "SetoArg",
+    "SimLaser",
+    "SimLaserPlain",
     "SimPoseArg",
+    "SimStat",
     "SonarReading",
     "StrArg",
     "SyncReply",
@@ -106,12 +138,17 @@ __all__ = [
     "checksum",
     "decode_body",
     "decode_command",
+    "decode_laser",
     "decode_server",
+    "decode_seto",
+    "decode_simstat",
     "decode_sip",
     "describe",
     "encode_command",
+    "encode_laser_scan",
     "encode_server",
     "encode_sim_pose",
+    "encode_simstat",
     "encode_sip_body",
     "encode_two_bytes",
     "frame",

@@ -25,6 +25,7 @@ from construct import (
 )
 
 from robocli.errors import ProtocolError
+from robocli.protocols.arcos.simext import SimLaser, SimLaserPlain, SimStat
 from robocli.protocols.arcos.wire import (
     TWO_BYTE_COMMANDS,
     Command,
@@ -256,6 +257,9 @@ SERVER_BODIES: dict[int, Construct] = {
     PacketType.IO: IO,
     PacketType.ENCODER: ENCODER,
     PacketType.BATTERY: BATTERY,
+    PacketType.SIM_LASER_A: SimLaserPlain,
+    PacketType.SIM_LASER: SimLaser,
+    PacketType.SIM_STAT: SimStat,
 }
 
 
