@@ -1,0 +1,497 @@
+"""The sensor hub client: ros4mat v3 over TCP, ``from robocli import Hub``.
+
+>>> with Hub.connect("127.0.0.1") as hub:          # doctest: +SKIP
+...     hub.subscribe("imu", rate=200)
+...     data, t = hub.read("imu")                   # 9 x N, (N,)
+...     hub.read("imu").accel                        # 3 x N
+
+Every call is one request, read in the caller's thread (:class:`~robocli.devices.session.
+Session` leader/follower): ros4mat has no unsolicited messages. Requests are byte for byte
+those of the original MATLAB client (``shared/protocols/ros4mat.md`` section 7). Replies are
+decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub_decode`).
+
+**Clock offset.** Every data reply carries the hub's send time; each pull gives one NTP-style
+sample ``offset = packet_timestamp - (t_request + t_reply) / 2`` whose error is at most half
+the round trip. The estimate is the sample with the smallest round trip among the last
+:data:`CLOCK_WINDOW` pulls (a min-RTT filter), and ``Reading.t`` is on the client's clock
+(``hub_t - offset``) unless ``hub_clock=True``.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from robocli.core import Framer, align_linear, align_nearest
+from robocli.devices.hub_decode import HEADER, Reading, body_of, decode_reading
+from robocli.devices.session import LinkStats, Session
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.protocols.ros4mat import (
+    PARAMS,
+    PORT,
+    PROTOCOL_VERSION,
+    MsgType,
+    SerialStatus,
+    adc_freq_send_default,
+    encode_request,
+    sensor_type,
+)
+from robocli.transports import Transport, open_transport
+
+#: Pulls whose round trips the clock filter looks at.
+CLOCK_WINDOW = 64
+#: Sensors whose subscribe params carry a ``freq_send`` (the driver's batch rate).
+_WITH_FREQ_SEND = (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.BATTERY)
+_CAMERAS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT, MsgType.KINECT_DEPTH)
+
+
+def parse_hub(address: str, default_port: int = PORT) -> tuple[str, int]:
+    """``HOST``, ``HOST:PORT`` or ``tcp://HOST:PORT`` -> (host, port)."""
+    text = address.strip().removeprefix("tcp://")
+    host, sep, port = text.rpartition(":")
+    if not sep:
+        return text or "127.0.0.1", default_port
+    try:
+        number = int(port)
+    except ValueError:
+        raise InvalidArgument(f"hub: bad port in {address!r}") from None
+    if not 0 < number < 65536:
+        raise InvalidArgument(f"hub: port {number} out of range in {address!r}")
+    return host or "127.0.0.1", number
+
+
+def _u16(name: str, value: Any, low: int = 0) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise InvalidArgument(f"{name} must be a number, not {value!r}")
+    if int(value) != value or not low <= value <= 0xFFFF:
+        raise InvalidArgument(f"{name} must be an integer in {low}..65535, not {value!r}")
+    return int(value)
+
+
+def resolution(text: str) -> tuple[int, int]:
+    """The original client's rule: ``'640x480'`` -> width ⌊640/20⌋·20 clamped to 160..1600,
+    height 3/4 of it (4:3 only)."""
+    head = text.lower().split("x", 1)[0].strip()
+    digits = ""
+    for ch in head:
+        if not ch.isdigit():
+            break
+        digits += ch
+    width = min(1600, max(160, (int(digits or 0) // 20) * 20))
+    return width, width * 3 // 4
+
+
+def _camera_params(kind: MsgType, fps: int, params: dict[str, Any]) -> dict[str, Any]:
+    res = params.pop("resolution", None)
+    width, height = resolution(res) if res is not None else (320, 240)
+    width = _u16("width", params.pop("width", width))
+    height = _u16("height", params.pop("height", height))
+    quality = _u16("quality", params.pop("quality", 0))
+    if quality > 100:
+        raise InvalidArgument(f"quality must be 0 (raw) or 1..100 (JPEG), not {quality}")
+    roi = params.pop("roi", None)
+    if kind == MsgType.WEBCAM:
+        return {
+            "fps": fps, "width": width, "height": height, "id": params.pop("id", 0),
+            "compression": quality, "exposure": params.pop("exposure", 300),
+            "use_roi": int(roi is not None), "roi": list(roi or (0, 0, 0, 0)),
+        }  # fmt: skip
+    if kind == MsgType.WEBCAM_STEREO:
+        roi_right = params.pop("roi_right", None)
+        return {
+            "fps": fps, "width": width, "height": height,
+            "id_left": params.pop("id_left", 0), "id_right": params.pop("id_right", 1),
+            "compression": quality,
+            "exposure_left": params.pop("exposure_left", 300),
+            "exposure_right": params.pop("exposure_right", 300),
+            "use_roi": int(roi is not None),
+            "roi_left": list(roi or (0, 0, 0, 0)), "roi_right": list(roi_right or roi or (0,) * 4),
+        }  # fmt: skip
+    roi_rgb = params.pop("roi_rgb", None)
+    return {  # the original client always sends send_rgb = send_depth = fps_depth = 0
+        "fps_rgb": fps, "width_rgb": width, "height_rgb": height,
+        "send_rgb": params.pop("send_rgb", 0), "id": params.pop("id", 0),
+        "send_depth": params.pop("send_depth", 0), "fps_depth": params.pop("fps_depth", 0),
+        "compression_rgb": quality, "use_roi_depth": int(roi is not None),
+        "roi_depth": list(roi or (0,) * 4), "use_roi_rgb": int(roi_rgb is not None),
+        "roi_rgb": list(roi_rgb or (0,) * 4),
+    }  # fmt: skip
+
+
+def subscribe_body(
+    sensor: str | int,
+    rate: float | None = None,
+    *,
+    buffer: int | None = None,
+    poll: float | None = None,
+    **params: Any,
+) -> dict[str, Any]:
+    """The SUBSCRIBE body the original client sends (for :func:`encode_request`).
+
+    ``rate`` None: a silent subscribe (join the current settings). ``buffer`` defaults to
+    ``rate`` (one second); ``poll`` is the driver's batch rate (``freqSend``: default
+    ⌊rate/4 + 10⌋, an explicit value is clamped to ``rate``). ``params``: ``channels`` (ADC
+    mask, default 0xFF); cameras ``resolution='640x480'`` or ``width``/``height``, ``id``,
+    ``quality`` (0 raw, 1..100 JPEG), ``exposure``, ``roi``; stereo ``id_left``/``id_right``,
+    ``exposure_left``/``exposure_right``; Kinect ``send_rgb``, ``send_depth``,
+    ``fps_depth``, ``roi_rgb``.
+    """
+    kind = sensor_type(sensor)
+    if kind not in PARAMS:
+        raise InvalidArgument(f"sensor: {kind.name} cannot be subscribed to")
+    if rate is None:
+        if params or buffer is not None or poll is not None:
+            raise InvalidArgument("rate: a silent subscribe (no rate) takes no other setting")
+        return {"sensor": kind, "silent": 1, "buffer_size": 0, "params": None}
+    freq = _u16("rate", rate, 1)
+    size = freq if buffer is None else int(buffer)
+    if isinstance(buffer, bool) or not 1 <= size <= 0xFFFFFFFF:
+        raise InvalidArgument(f"buffer must be a positive number of samples, not {buffer!r}")
+    extra = dict(params)
+    values: dict[str, Any]
+    if kind in _CAMERAS:
+        values = _camera_params(kind, freq, extra)
+    else:
+        values = {"freq_acquisition": freq}
+        if kind in _WITH_FREQ_SEND:
+            send = adc_freq_send_default(freq) if poll is None else min(_u16("poll", poll), freq)
+            values["freq_send"] = send
+        if kind == MsgType.ADC:
+            mask = _u16("channels", extra.pop("channels", 0xFF))
+            if mask > 0xFF:
+                raise InvalidArgument(f"channels must be an 8-bit mask, not {mask:#x}")
+            values["channels"] = mask
+    if extra:
+        raise InvalidArgument(f"{next(iter(extra))}: not a setting of {kind.name.lower()}")
+    return {"sensor": kind, "silent": 0, "buffer_size": size, "params": values}
+
+
+class ClockSync:
+    """NTP-style offset of the hub's clock from the client's (min-RTT filter)."""
+
+    def __init__(self, window: int = CLOCK_WINDOW) -> None:
+        self._samples: deque[tuple[float, float]] = deque(maxlen=window)
+        self._lock = threading.Lock()
+        self.offset: float | None = None
+        self.rtt: float | None = None
+
+    def add(self, t_request: float, t_reply: float, hub_time: float) -> None:
+        """One exchange: client times around it and the hub's send time in the reply."""
+        if hub_time == 0.0:
+            return
+        rtt = t_reply - t_request
+        with self._lock:
+            self._samples.append((rtt, hub_time - (t_request + t_reply) / 2))
+            self.rtt, self.offset = min(self._samples)
+
+
+class Hub:
+    """A client of a ros4mat v3 sensor hub (``robocli serve`` or the original server)."""
+
+    def __init__(
+        self,
+        session: Session,
+        client_id: int,
+        *,
+        compress: bool,
+        timeout: float,
+        clock: Callable[[], float],
+        hub_clock: bool,
+    ) -> None:
+        self.session = session
+        self.client_id = client_id
+        self.compress = compress
+        self.timeout = timeout
+        self.clock = clock
+        self.hub_clock = hub_clock
+        self.sync = ClockSync()
+        self._subscribed: dict[str, MsgType] = {}
+
+    # ------------------------------------------------------------------ connecting
+
+    @classmethod
+    def connect(
+        cls,
+        host: str = "127.0.0.1",
+        port: int | None = None,
+        *,
+        compress: bool = False,
+        timeout: float = 5.0,
+        client_id: int = 0,
+        clock: Callable[[], float] = time.time,
+        hub_clock: bool = False,
+    ) -> Hub:
+        """Connect to the hub at ``host`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
+        default 1500) and send CONNECT. ``compress``: the hub zlib-compresses every reply.
+        ``client_id``: re-attach to that client's buffers. ``clock``: the client's clock
+        (seconds, like :func:`time.time`). Raises :class:`TransportError` when nobody
+        listens, :class:`TimeoutError` when the hub does not answer."""
+        h, p = parse_hub(host)
+        if port is not None:
+            p = port
+        transport = open_transport(f"tcp://{h}:{p}", timeout=timeout)
+        return cls.from_transport(
+            transport, compress=compress, timeout=timeout, client_id=client_id,
+            clock=clock, hub_clock=hub_clock,
+        )  # fmt: skip
+
+    @classmethod
+    def from_transport(
+        cls,
+        transport: Transport,
+        *,
+        compress: bool = False,
+        timeout: float = 5.0,
+        client_id: int = 0,
+        clock: Callable[[], float] = time.time,
+        hub_clock: bool = False,
+    ) -> Hub:
+        """Like :meth:`connect` over an open transport (the hub owns it from now on)."""
+        session = Session(
+            transport,
+            Framer("ros4mat"),
+            on_frame=_ignore,
+            name_of=packet_name,
+            stats=LinkStats(),
+            name="hub",
+        )
+        hello = {"protocol_version": PROTOCOL_VERSION, "compression": int(bool(compress))}
+        try:
+            session.start()
+            reply = session.request(
+                encode_request(MsgType.CONNECT, hello, client_id=client_id),
+                _is(MsgType.CONNECT_ACK),
+                timeout,
+            )
+            header, _ = body_of(reply)
+        except BaseException:
+            session.close()
+            raise
+        return cls(
+            session, header[2], compress=compress, timeout=timeout, clock=clock,
+            hub_clock=hub_clock,
+        )  # fmt: skip
+
+    @property
+    def url(self) -> str:
+        return self.session.transport.url
+
+    @property
+    def stats(self) -> LinkStats:
+        return self.session.stats
+
+    @property
+    def clock_offset(self) -> float | None:
+        """Hub clock minus client clock (seconds), None before the first data reply."""
+        return self.sync.offset
+
+    # ------------------------------------------------------------------ requests
+
+    def _request(self, packet: bytes, reply: MsgType) -> bytes:
+        return self.session.request(packet, _is(reply), self.timeout)
+
+    def subscribe(
+        self,
+        name: str,
+        rate: float | None = None,
+        *,
+        buffer: int | None = None,
+        poll: float | None = None,
+        **params: Any,
+    ) -> None:
+        """Subscribe to ``name`` (adc, imu, gps, battery, computer, hokuyo, camera,
+        camera_stereo, kinect) at ``rate`` Hz keeping ``buffer`` samples; no ``rate``: a
+        silent subscribe. See :func:`subscribe_body` for the settings. Raises
+        :class:`DeviceError` when the hub refuses."""
+        body = subscribe_body(name, rate, buffer=buffer, poll=poll, **params)
+        packet = encode_request(MsgType.SUBSCRIBE, body, client_id=self.client_id)
+        body_of(self._request(packet, MsgType.SUBSCRIBE_ACK))  # an error reply raises
+        self._subscribed[name.lower()] = sensor_type(name)
+
+    def unsubscribe(self, name: str) -> None:
+        """Stop receiving ``name`` (no reply, as in the original protocol)."""
+        kind = sensor_type(name)
+        self.session.send(
+            encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
+        )
+        self._subscribed.pop(name.lower(), None)
+
+    def pull(self, name: str) -> bytes:
+        """One data pull of ``name``: the raw reply frame (header + body). Feeds the clock
+        filter."""
+        kind = sensor_type(name)
+        packet = HEADER.pack(kind, 0, self.client_id, 0, 0, 0, 0, 0.0)
+        t0 = self.clock()
+        frame = self._request(packet, kind)
+        t1 = self.clock()
+        self.sync.add(t0, t1, HEADER.unpack_from(frame, 0)[7])
+        return frame
+
+    def read(self, name: str) -> Reading:
+        """Every new sample of ``name`` since the last read (a destructive pull): a
+        :class:`Reading` that unpacks as ``data, t`` in the original client's shapes."""
+        frame = self.pull(name)
+        offset = None if self.hub_clock else (self.sync.offset or 0.0)
+        return decode_reading(frame, name.lower(), offset)
+
+    def read_aligned(
+        self,
+        names: Sequence[str],
+        *,
+        rate: float | None = None,
+        reference: str | None = None,
+        tolerance: float | None = None,
+    ) -> dict[str, Any]:
+        """Read ``names`` and put them on one time base (the C alignment).
+
+        ``rate``: a uniform grid over the span every sensor covers; ``reference``: the
+        times of that sensor (one of ``names``). Numeric sensors are linearly interpolated
+        (:func:`~robocli.core.align_linear`); images and laser scans take the nearest
+        sample within ``tolerance`` (default: one grid step), NaN/zero where none is.
+        Returns ``{"t": times, name: data (fields x M)...}``.
+        """
+        if (rate is None) == (reference is None):
+            raise InvalidArgument("read_aligned: give either rate or reference")
+        if reference is not None and reference not in names:
+            raise InvalidArgument(f"reference: {reference!r} is not one of {list(names)}")
+        readings = {name: self.read(name) for name in names}
+        return align_readings(readings, rate=rate, reference=reference, tolerance=tolerance)
+
+    def serial(
+        self,
+        port: str,
+        data: bytes = b"",
+        *,
+        baud: int = 9600,
+        parity: bool = False,
+        stop_bits: int = 1,
+        recv: int = 0,
+        timeout: float = 1.0,
+        close_after: bool = False,
+    ) -> bytes:
+        """Write ``data`` to the hub's serial ``port`` and read up to ``recv`` bytes within
+        ``timeout`` s (SERIAL_CMD). A timeout returns what arrived; a port the hub will not
+        open raises :class:`DeviceError`."""
+        if not 0 <= len(data) <= 1024 or not 0 <= recv <= 1024:
+            raise InvalidArgument("serial: at most 1024 bytes sent and received per call")
+        if not 0 <= timeout < 32767:
+            raise InvalidArgument(f"timeout must be 0..32767 s, not {timeout!r}")
+        raw_port = port.encode()
+        cmd = {
+            "port_length": len(raw_port), "speed": int(baud), "parity": int(bool(parity)),
+            "stop_bits": int(stop_bits), "send_length": len(data), "read_length": int(recv),
+            "read_timeout_sec": int(timeout), "read_timeout_usec": int(timeout % 1 * 1e6),
+            "close_after": int(bool(close_after)),
+        }  # fmt: skip
+        packet = encode_request(
+            MsgType.SERIAL_CMD,
+            {"cmd": cmd, "port": raw_port, "data": bytes(data)},
+            client_id=self.client_id,
+        )
+        # the hub waits for the port up to `timeout` before it answers
+        frame = self.session.request(packet, _is(MsgType.SERIAL_ANS), self.timeout + timeout)
+        _header, body = body_of(frame)
+        if len(body) < 5:
+            raise ProtocolError(f"ros4mat SERIAL_ANS body of {len(body)} bytes")
+        status, length = int(np.int8(body[0])), int.from_bytes(body[1:5], "little")
+        payload = bytes(body[5 : 5 + length])
+        if status in (SerialStatus.OK, SerialStatus.TIMEOUT):
+            return payload
+        why = {int(SerialStatus.NO_OPEN): "could not open", int(SerialStatus.BAD_SELECT): "failed"}
+        raise DeviceError(f"hub serial port {port}: {why.get(status, str(status))}", status)
+
+    def digital_out(self, d0: int, d1: int, d2: int, d3: int) -> None:
+        """Set the ADC board's digital outputs D0..D3 (no reply)."""
+        body = {"d0": int(d0), "d1": int(d1), "d2": int(d2), "d3": int(d3)}
+        self.session.send(encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id))
+
+    def close(self, quit: bool = True) -> None:  # noqa: A002 - the protocol's word
+        """Send QUIT (the hub forgets this client; ``quit=False`` keeps its buffers for a
+        reconnect with :attr:`client_id`) and close the link, bounded."""
+        stop = (HEADER.pack(MsgType.QUIT, 0, self.client_id, 0, 0, 0, 0, 0.0),) if quit else ()
+        self.session.close(stop)
+
+    def __enter__(self) -> Hub:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<Hub {self.url} client {self.client_id}>"
+
+
+def align_readings(
+    readings: Mapping[str, Reading],
+    *,
+    rate: float | None = None,
+    reference: str | None = None,
+    tolerance: float | None = None,
+) -> dict[str, Any]:
+    """Put readings on one time base (see :meth:`Hub.read_aligned`)."""
+    empty = [name for name, r in readings.items() if len(r) == 0]
+    if empty:
+        raise TimeoutError(f"read_aligned: no samples yet from {', '.join(empty)}")
+    if reference is not None:
+        ref = np.ascontiguousarray(readings[reference].t, dtype=np.float64)
+    else:
+        if rate is None or not rate > 0:
+            raise InvalidArgument(f"rate must be positive, not {rate!r}")
+        start = max(float(r.t[0]) for r in readings.values())
+        end = min(float(r.t[-1]) for r in readings.values())
+        ref = start + np.arange(max(0, int(math.floor((end - start) * rate)) + 1)) / rate
+    step = (1.0 / rate) if rate else float(np.median(np.diff(ref))) if len(ref) > 1 else 1.0
+    tol = step if tolerance is None else tolerance
+    out: dict[str, Any] = {"t": ref}
+    for name, r in readings.items():
+        data = r.data
+        if data.ndim == 2 and data.dtype.kind == "f":
+            idx, w = align_linear(r.t, ref)
+            ok = idx >= 0
+            j = np.where(ok, idx, 0)
+            j1 = np.minimum(j + 1, data.shape[1] - 1)
+            vals = (1 - w) * data[:, j] + w * data[:, j1]
+            out[name] = np.where(ok, vals, np.nan)
+        else:
+            idx = align_nearest(r.t, ref, tol)
+            picked = np.take(data, np.where(idx >= 0, idx, 0), axis=data.ndim - 1)
+            missing = idx < 0
+            if missing.any():
+                picked = picked.astype(np.float64) if data.dtype.kind == "f" else picked.copy()
+                picked[..., missing] = np.nan if data.dtype.kind == "f" else 0
+            out[name] = picked
+    return out
+
+
+def _ignore(frame: bytes, t: float) -> None:
+    """Frames nobody asked for (none in ros4mat) are counted by the session, not kept."""
+
+
+def _is(kind: int) -> Callable[[bytes], bool]:
+    return lambda frame: frame[0] == kind
+
+
+def packet_name(payload: bytes, direction: str) -> str:
+    """The message name of a packet (for the session's statistics)."""
+    try:
+        return MsgType(payload[0]).name
+    except (ValueError, IndexError):
+        return "unknown"
+
+
+__all__ = [
+    "CLOCK_WINDOW",
+    "ClockSync",
+    "Hub",
+    "Reading",
+    "align_readings",
+    "parse_hub",
+    "resolution",
+    "subscribe_body",
+]

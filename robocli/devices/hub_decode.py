@@ -1,0 +1,288 @@
+"""Zero-copy decoding of ros4mat data replies into :class:`Reading` objects.
+
+Part of :mod:`robocli.devices.hub` (import from there). A data reply's body is viewed in
+place with :func:`numpy.frombuffer` and structured dtypes: the matrices the original MATLAB
+client returns (fields x samples) are transposed views over the received bytes, never built
+sample by sample. Only GPS, COMPUTER and BATTERY (mixed integer and float fields, reordered
+for GPS) are copied, once per reply, with vectorised assignments; JPEG frames are decoded
+one frame at a time (Pillow, optional).
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from robocli.errors import DeviceError, ProtocolError
+from robocli.protocols.ros4mat import (
+    HEADER_SIZE,
+    Compression,
+    MsgType,
+    inflate,
+    record_dtype,
+)
+
+#: ``msgHeader`` for the hot path (27 B, little-endian, packed).
+HEADER = struct.Struct("<bbIIIIbd")
+
+
+def _view_dtype(n_floats: int, itemsize: int) -> np.dtype[Any]:
+    """``n_floats`` float32 then a float64 ``t``: a record viewed as one float vector."""
+    return np.dtype(
+        {"names": ["v", "t"], "formats": [("<f4", (n_floats,)), "<f8"],
+         "offsets": [0, 4 * n_floats], "itemsize": itemsize}
+    )  # fmt: skip
+
+
+_ADC = _view_dtype(8, 40)
+_IMU = _view_dtype(9, 44)
+
+#: Row names of the matrices built by copying (fields x samples, float64).
+GPS_ROWS = ("state", "longitude", "latitude", "altitude", "speed", "track", "climb")
+COMPUTER_ROWS = (
+    "state", "cpu_temperature", "load1", "load5", "load15",
+    "cpu_user", "cpu_sys", "cpu_nice", "cpu_idle", "cpu_iowait", "cpu_hirq", "cpu_sirq",
+    "mem_used", "mem_free", "mem_buffers",
+)  # fmt: skip
+BATTERY_ROWS = (
+    "vtotal", "current", "n_cells", *(f"vcell{i}" for i in range(8)), "state", "state_of_charge",
+)  # fmt: skip
+#: ``info`` of a laser reading: from the last scan, in the original client's order.
+HOKUYO_INFO = ("angle_min", "angle_max", "angle_increment", "range_min", "range_max",
+               "time_increment")  # fmt: skip
+
+
+@dataclass
+class Reading:
+    """The samples of one pull of one sensor.
+
+    ``data`` is shaped as the original ros4mat client returns it (fields x samples: 8 x N
+    ADC, 9 x N IMU, 7 x N GPS with longitude first, 15 x N computer, 13 x N battery; images
+    H x W x 3 x N; laser ranges x N). ``t`` (N,) are acquisition times on the client's clock
+    (or the hub's, see :class:`~robocli.devices.hub.Hub`), ``hub_t`` on the hub's.
+    Named rows and extra arrays are attributes: ``reading.accel`` (3 x N), ``.gyro``,
+    ``.mag``, ``.longitude``, ``.ranges``, ``.depth``, ``.right``... (:attr:`fields` lists
+    them). ``data, t = reading`` unpacks like the MATLAB call. Arrays over an uncompressed
+    reply are read-only views of the received bytes.
+    """
+
+    sensor: str
+    data: np.ndarray[Any, Any]
+    t: np.ndarray[Any, Any]
+    hub_t: np.ndarray[Any, Any]
+    packet_timestamp: float = 0.0
+    info: np.ndarray[Any, Any] | None = None
+    fields: dict[str, np.ndarray[Any, Any]] = field(default_factory=dict)
+    nbytes: int = 0
+
+    def __iter__(self) -> Any:
+        yield self.data
+        yield self.t
+
+    def __len__(self) -> int:
+        return int(self.t.shape[0])
+
+    def __getattr__(self, name: str) -> Any:
+        fields = self.__dict__.get("fields", {})
+        if name in fields:
+            return fields[name]
+        raise AttributeError(f"{self.__dict__.get('sensor', 'reading')} has no field {name!r}")
+
+
+def body_of(frame: bytes) -> tuple[tuple[Any, ...], bytes | memoryview]:
+    """The parsed header of a reply and its body, inflated when compressed (bounded).
+    An error reply raises :class:`DeviceError` with the hub's text."""
+    header = HEADER.unpack_from(frame, 0)
+    mtype, error, _cid, size, usize, csize, ctype, _ts = header
+    payload = memoryview(frame)[HEADER_SIZE:]
+    if error:
+        text = bytes(payload).split(b"\0", 1)[0].decode("ascii", "replace")
+        raise DeviceError(f"hub refused {_name(mtype)}: {text or 'error ' + str(error)}", error)
+    if size == 0 or not len(payload):
+        return header, b""
+    if ctype == Compression.ZLIB:
+        return header, inflate(bytes(payload), usize, what=f"ros4mat {_name(mtype)} body")
+    if ctype != Compression.NONE or usize != csize:
+        raise ProtocolError(f"ros4mat {_name(mtype)}: bad compression fields {ctype}/{usize}")
+    return header, payload
+
+
+def _name(mtype: int) -> str:
+    try:
+        return MsgType(mtype).name
+    except ValueError:
+        return f"0x{mtype & 0xFF:02x}"
+
+
+def _records(body: Any, dtype: np.dtype[Any], n: int, what: str) -> np.ndarray[Any, Any]:
+    if len(body) != n * dtype.itemsize:
+        raise ProtocolError(
+            f"ros4mat {what}: {len(body)} body bytes for {n} records of {dtype.itemsize}"
+        )
+    return np.frombuffer(body, dtype=dtype, count=n)
+
+
+def _copy_rows(rec: np.ndarray[Any, Any], cols: list[tuple[str, int | None]]) -> Any:
+    out = np.empty((len(cols), rec.shape[0]), dtype=np.float64)
+    for row, (name, index) in enumerate(cols):
+        out[row] = rec[name] if index is None else rec[name][:, index]
+    return out
+
+
+def _fixed(mtype: MsgType, body: Any, n: int) -> tuple[Any, Any, dict[str, Any], Any]:
+    """data, hub_t, named fields, info of a fixed-record reply."""
+    what = mtype.name
+    if mtype == MsgType.ADC:
+        rec = _records(body, _ADC, n, what)
+        data = rec["v"].T
+        return data, rec["t"], {"channels": data}, None
+    if mtype == MsgType.IMU:
+        rec = _records(body, _IMU, n, what)
+        data = rec["v"].T
+        named = {"accel": data[0:3], "gyro": data[3:6], "mag": data[6:9]}
+        return data, rec["t"], named, None
+    rec = _records(body, record_dtype(mtype), n, what)
+    if mtype == MsgType.GPS:
+        cols: list[tuple[str, int | None]] = [(name, None) for name in GPS_ROWS]
+        data = _copy_rows(rec, cols)
+        return data, rec["t"], dict(zip(GPS_ROWS, data, strict=True)), None
+    if mtype == MsgType.COMPUTER:
+        cols = [("state", None), ("cpu_temperature", None)]
+        cols += [("unix_load", i) for i in range(3)] + [("cpu_load", i) for i in range(7)]
+        cols += [("memory", i) for i in range(3)]
+        data = _copy_rows(rec, cols)
+        named = dict(zip(COMPUTER_ROWS, data, strict=True))
+        named.update(load=data[2:5], cpu=data[5:12], memory=data[12:15])
+        return data, rec["t"], named, None
+    # BATTERY (robocli's own record)
+    cols = [("vtotal", None), ("current", None), ("n_cells", None)]
+    cols += [("vcell", i) for i in range(8)] + [("state", None), ("state_of_charge", None)]
+    data = _copy_rows(rec, cols)
+    named = dict(zip(BATTERY_ROWS, data, strict=True))
+    named["vcell"] = data[3:11]
+    return data, rec["t"], named, None
+
+
+def _image_block(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, int]:
+    """N images of identical raw size laid end to end from ``offset``: (N, H, W, C) view."""
+    w, h, c = int(infos["width"][0]), int(infos["height"][0]), int(infos["channels"][0])
+    size = int(infos["size_data"][0])
+    n = infos.shape[0]
+    if (infos["size_data"] != size).any() or (infos["width"] != w).any():
+        raise ProtocolError(f"ros4mat {what}: frames of different sizes in one reply")
+    if size != w * h * c:
+        raise ProtocolError(f"ros4mat {what}: {size} bytes for a raw {w}x{h}x{c} image")
+    if offset + n * size > len(body):
+        raise ProtocolError(f"ros4mat {what}: body too short for {n} images of {size} bytes")
+    arr = np.frombuffer(body, dtype=np.uint8, count=n * size, offset=offset)
+    return arr.reshape(n, h, w, c), offset + n * size
+
+
+def decode_jpeg(blob: bytes) -> np.ndarray[Any, Any]:
+    """One JPEG frame as an H x W x 3 uint8 array (needs Pillow: ``robocli[camera]``)."""
+    try:
+        from PIL import Image  # type: ignore[import-not-found,unused-ignore]
+    except ImportError:
+        raise DeviceError(
+            "the hub sends JPEG frames: install Pillow (pip install 'robocli[camera]') or "
+            "subscribe with quality=0 (raw)"
+        ) from None
+    import io
+
+    try:
+        with Image.open(io.BytesIO(blob)) as img:
+            return np.asarray(img.convert("RGB"))
+    except (OSError, ValueError) as exc:
+        raise ProtocolError(f"undecodable JPEG frame: {exc}") from None
+
+
+def _images(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, int]:
+    """(N, H, W, 3) images from ``offset`` (raw: a view; JPEG: decoded), and the end."""
+    if not infos.shape[0]:
+        return np.zeros((0, 0, 0, 3), np.uint8), offset
+    if not (infos["compression"] != 0).any():
+        return _image_block(body, offset, infos, what)
+    frames = []
+    for size in infos["size_data"]:
+        frames.append(decode_jpeg(bytes(body[offset : offset + int(size)])))
+        offset += int(size)
+    return np.stack(frames), offset
+
+
+def _blobs(mtype: MsgType, body: Any, n: int) -> tuple[Any, Any, dict[str, Any], Any]:
+    what = mtype.name
+    info_dtype = record_dtype(mtype)
+    count = 2 * n if mtype == MsgType.WEBCAM_STEREO else n
+    head = count * info_dtype.itemsize
+    if len(body) < head:
+        raise ProtocolError(f"ros4mat {what}: body shorter than its {count} info records")
+    infos = np.frombuffer(body, dtype=info_dtype, count=count)
+    if mtype == MsgType.HOKUYO:
+        beams = int(infos["size_data"][0]) // 4 if n else 0
+        if n and ((infos["size_data"] != beams * 4).any() or len(body) != head + n * beams * 4):
+            raise ProtocolError(f"ros4mat {what}: scans of different sizes or a short body")
+        ranges = np.frombuffer(body, dtype="<f4", count=n * beams, offset=head)
+        data = ranges.reshape(n, beams).T
+        info = None
+        if n:
+            last = infos[-1]
+            info = np.array([last[k] for k in HOKUYO_INFO], dtype=np.float64)
+        return data, infos["t"], {"ranges": data}, info
+    if mtype == MsgType.WEBCAM:
+        imgs, _ = _images(body, head, infos, what)
+        data = imgs.transpose(1, 2, 3, 0)
+        return data, infos["t"], {"images": data}, None
+    if mtype == MsgType.WEBCAM_STEREO:
+        left, right = infos[0::2], infos[1::2]
+        if n and not (infos["compression"] != 0).any():
+            pairs, _ = _image_block(body, head, infos, what)
+            both = pairs.reshape(n, 2, *pairs.shape[1:])
+            lv, rv = both[:, 0].transpose(1, 2, 3, 0), both[:, 1].transpose(1, 2, 3, 0)
+        else:
+            frames, _ = _images(body, head, infos, what)
+            lv, rv = frames[0::2].transpose(1, 2, 3, 0), frames[1::2].transpose(1, 2, 3, 0)
+        return lv, left["t"], {"left": lv, "right": rv, "right_t": right["t"]}, None
+    # KINECT: per frame an RGB blob then a depth blob
+    rgb_i, depth_i = infos["rgb"], infos["depth"]
+    if not n:
+        empty = np.zeros((0, 0, 3, 0), np.uint8)
+        return empty, rgb_i["t"], {"rgb": empty, "depth": np.zeros((0, 0, 0), "<u2")}, None
+    rs, ds = int(rgb_i["size_data"][0]), int(depth_i["size_data"][0])
+    dw, dh = int(depth_i["width"][0]), int(depth_i["height"][0])
+    uniform = (rgb_i["size_data"] == rs).all() and (depth_i["size_data"] == ds).all()
+    if not uniform or ds != dw * dh * 2 or len(body) != head + n * (rs + ds):
+        raise ProtocolError(f"ros4mat {what}: frames of different sizes or a short body")
+    frame_dt = np.dtype([("rgb", np.uint8, (rs,)), ("depth", "<u2", (dh, dw))])
+    frames = np.frombuffer(body, dtype=frame_dt, count=n, offset=head)
+    if (rgb_i["compression"] != 0).any():
+        rgb = np.stack([decode_jpeg(bytes(f)) for f in frames["rgb"]])
+    else:
+        w, h = int(rgb_i["width"][0]), int(rgb_i["height"][0])
+        if rs != w * h * 3:
+            raise ProtocolError(f"ros4mat {what}: {rs} bytes for a raw {w}x{h} RGB image")
+        rgb = frames["rgb"].reshape(n, h, w, 3)
+    data = rgb.transpose(1, 2, 3, 0)
+    depth = frames["depth"].transpose(1, 2, 0)
+    return data, rgb_i["t"], {"rgb": data, "depth": depth}, None
+
+
+def decode_reading(frame: bytes, sensor: str, offset: float | None = None) -> Reading:
+    """A data reply (one whole frame) as a :class:`Reading`. ``offset`` (hub clock minus
+    client clock, seconds) moves ``t`` onto the client's clock; None keeps the hub's."""
+    header, body = body_of(frame)
+    mtype = MsgType(header[0])
+    n = header[3]
+    if mtype in (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.COMPUTER, MsgType.BATTERY):
+        data, hub_t, named, info = _fixed(mtype, body, n)
+    elif mtype in (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.HOKUYO, MsgType.KINECT):
+        data, hub_t, named, info = _blobs(mtype, body, n)
+    else:
+        raise ProtocolError(f"ros4mat {mtype.name} is not a sensor reply robocli decodes")
+    t = hub_t if offset is None else hub_t - offset
+    return Reading(sensor, data, t, hub_t, header[7], info, named, len(frame))
+
+
+__all__ = ["HEADER", "Reading", "body_of", "decode_jpeg", "decode_reading"]
