@@ -20,12 +20,13 @@ if TYPE_CHECKING:
 logging.getLogger("robocli").addHandler(logging.NullHandler())
 
 _LAZY = {
+    "Hub": "robocli.devices.hub",
     "Pioneer": "robocli.devices.pioneer",
     "PioneerState": "robocli.devices.pioneer",
     "RobocliError": "robocli.errors",
 }
 
-__all__ = ["Pioneer", "PioneerState", "RobocliError", "__version__"]
+__all__ = ["Hub", "Pioneer", "PioneerState", "RobocliError", "__version__"]
 
 
 def __getattr__(name: str) -> Any:
