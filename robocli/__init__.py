@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 from robocli._version import __version__
 
 if TYPE_CHECKING:
+    from robocli.devices.arm import Arm
     from robocli.devices.pioneer import Pioneer, PioneerState
     from robocli.errors import RobocliError
 
@@ -20,13 +21,14 @@ if TYPE_CHECKING:
 logging.getLogger("robocli").addHandler(logging.NullHandler())
 
 _LAZY = {
+    "Arm": "robocli.devices.arm",
     "Hub": "robocli.devices.hub",
     "Pioneer": "robocli.devices.pioneer",
     "PioneerState": "robocli.devices.pioneer",
     "RobocliError": "robocli.errors",
 }
 
-__all__ = ["Hub", "Pioneer", "PioneerState", "RobocliError", "__version__"]
+__all__ = ["Arm", "Hub", "Pioneer", "PioneerState", "RobocliError", "__version__"]
 
 
 def __getattr__(name: str) -> Any:
