@@ -13,6 +13,8 @@ import typer
 
 from robocli._version import __version__
 from robocli.commands import bench, kinematics, pioneer
+from robocli.commands import hub as hub_commands
+from robocli.commands._common import PlainCommand
 
 app = typer.Typer(
     name="robocli",
@@ -60,10 +62,10 @@ dump = _group("dump", "Show every packet, named and decoded, like a protocol ana
 sim = _group("sim", "Run a built-in simulator speaking the robot's real protocol.")
 bench_group = _group("bench", "Measure latency, jitter and per-packet cost.")
 
-connect.command("pioneer")(pioneer.connect)
-teleop.command("pioneer")(pioneer.teleop)
-dump.command("pioneer")(pioneer.dump)
-sim.command("pioneer")(pioneer.simulate)
+connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
+teleop.command("pioneer", cls=PlainCommand)(pioneer.teleop)
+dump.command("pioneer", cls=PlainCommand)(pioneer.dump)
+sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
 bench_group.command("rtt")(bench.rtt)
 bench_group.command("jitter")(bench.jitter)
 bench_group.command("sip")(bench.sip)
@@ -75,6 +77,11 @@ traj.command("ptp-joint")(kinematics.ptp_joint)
 traj.command("ptp-cartesian")(kinematics.ptp_cartesian)
 traj.command("file")(kinematics.file)
 app.command("validate")(kinematics.validate)
+
+app.command("subscribe")(hub_commands.subscribe)
+app.command("serial")(hub_commands.serial)
+connect.command("hub")(hub_commands.connect)
+dump.command("hub")(hub_commands.dump)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:
@@ -106,8 +113,6 @@ def main(argv: list[str] | None = None) -> int:
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
-    except BrokenPipeError:
-        return _quiet_broken_pipe()
     except RobocliError as exc:
         typer.echo(f"robocli: {exc}", err=True)
         return exc.exit_code
@@ -125,19 +130,6 @@ def _help_hint(exc: Exception) -> str:
     if ctx is None or getattr(exc, "exit_code", 0) != 2:
         return ""
     return f" Try '{ctx.command_path} -h'."
-
-
-def _quiet_broken_pipe() -> int:
-    """The reader of our stdout went away (``robocli dump ... | head``): exit 0 quietly,
-    without Python's own complaint when it flushes stdout at exit."""
-    import os
-
-    try:
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-    except (OSError, ValueError):
-        pass
-    return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

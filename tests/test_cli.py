@@ -97,11 +97,11 @@ def test_dump_a_recorded_capture() -> None:
     names = [line.split()[2] for line in proc.stdout.splitlines() if "->" in line or "<-" in line]
     assert names == [
         "SYNC0",
-        "SYNC0",
+        "SYNC0-reply",
         "SYNC1",
-        "SYNC1",
+        "SYNC1-reply",
         "SYNC2",
-        "SYNC2",
+        "SYNC2-reply",
         "OPEN",
         "CONFIG",
         "CONFIG",
@@ -155,7 +155,7 @@ def test_live_view_runs_until_interrupted() -> None:
         proc.send_signal(signal.SIGTERM)
         out, err = proc.communicate(timeout=10)
         assert proc.returncode == 130 and err.strip() == "robocli: interrupted"
-        assert "pose" in out and "sonar 15" in out and "robocli-sim" in out
+        assert "pose" in out and "sonar (m)" in out and "robocli-sim" in out
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -1,14 +1,18 @@
-"""What the commands share: the embedded `sim` target, signal handling, JSON output."""
+"""What the commands share: the embedded `sim` target, connecting with the reasons a robot
+refuses spelled out, signal handling, JSON output rounded to the protocol's resolution."""
 
 from __future__ import annotations
 
 import contextlib
 import json
+import re
 import signal
+import sys
 from collections.abc import Iterator
 from typing import Any
 
 import typer
+from typer.core import TyperCommand
 
 SIM = "sim"
 PORT_HELP = (
@@ -17,10 +21,37 @@ PORT_HELP = (
 )
 
 
+_TYPE_HINT = re.compile(r"(?<=\w) <(?:str|int|float|bool|path|file|text|[a-z]+ range)>")
+
+
+class PlainCommand(TyperCommand):
+    """A command whose help reads like a man page: ``PORT`` (not ``{port}``) in the usage
+    line and no ``<str>``-style type placeholders after argument names."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        return [
+            piece.replace("{", "").replace("}", "") for piece in super().collect_usage_pieces(ctx)
+        ]
+
+    def format_help(self, ctx: Any, formatter: Any) -> None:
+        super().format_help(ctx, formatter)
+        # blank the placeholders (same width, so that the help column stays aligned)
+        formatter.buffer[:] = [
+            _TYPE_HINT.sub(lambda m: " " * len(m.group()), part) for part in formatter.buffer
+        ]
+
+
 @contextlib.contextmanager
 def pioneer_url(port: str, **sim_options: Any) -> Iterator[str]:
     """Yield a URL for ``port``; for ``sim`` start an in-process simulator on an ephemeral
     loopback port and stop it afterwards (the CLI, not the client, knows simulators)."""
+    if port.strip().lower().startswith("loop://"):
+        from robocli.errors import InvalidArgument
+
+        raise InvalidArgument(
+            f"PORT {port!r} is pyserial's loopback, which echoes what is sent: no robot can "
+            "answer there (for a simulated robot, give PORT 'sim')"
+        )
     if port != SIM:
         yield port
         return
@@ -109,8 +140,73 @@ def sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def reader_may_leave() -> Iterator[None]:
+    """Around output to a pipe: when its reader goes away (``robocli dump ... | head``),
+    stop quietly with exit code 0 (stdout goes to /dev/null, so that the final flush
+    does not complain)."""
+    import os
+
+    try:
+        yield
+    except BrokenPipeError:
+        with contextlib.suppress(OSError, ValueError):
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        raise typer.Exit(0) from None
+
+
+@contextlib.contextmanager
+def explain_refusal(url: str) -> Iterator[None]:
+    """Around connecting: a link reset by the peer during the handshake (a real robot, or
+    its serial-to-network bridge, holding another client) becomes a :class:`DeviceError`
+    that says what this usually means. Refusals with a reason already are DeviceErrors."""
+    from robocli.errors import ConnectionLost, DeviceError
+
+    try:
+        yield
+    except ConnectionLost as exc:
+        if "reset" not in str(exc).lower():
+            raise
+        raise DeviceError(
+            f"{url}: the connection was reset during the handshake; this usually means the "
+            "robot is busy: another client holds it (close that program, or wait 2 s for "
+            "the robot's watchdog to end its session, then retry)"
+        ) from None
+
+
+#: Decimals kept in JSON output, by field name: the protocol's resolution in SI units
+#: (odometry 0.485 mm and 2*pi/4096 rad, speeds 1 mm/s and 0.1 deg/s, battery 0.1 V...).
+RESOLUTION = {
+    "t": 6, "x": 4, "y": 4, "th": 4, "v": 3, "w": 4, "left_velocity": 3,
+    "right_velocity": 3, "battery": 1, "state_of_charge": 2, "sonar": 3, "analog": 3,
+    "temperature": 1, "ranges": 3, "angles": 4, "range": 3, "angle": 4,
+}  # fmt: skip
+
+
+def rounded(data: Any, digits: int = 6, resolution: dict[str, int] = RESOLUTION) -> Any:
+    """``data`` with every float rounded to its field's decimals in ``resolution`` (else
+    ``digits``): no ``0.9590000000000001`` noise in JSON. NaN becomes None."""
+    if isinstance(data, float):
+        return None if data != data else round(data, digits)
+    if isinstance(data, dict):
+        return {k: rounded(v, resolution.get(str(k), digits), resolution) for k, v in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [rounded(v, digits, resolution) for v in data]
+    if hasattr(data, "tolist"):
+        return rounded(data.tolist(), digits, resolution)
+    return data
+
+
 def print_json(data: Any) -> None:
+    """Pretty JSON of ``data`` on stdout (round floats first with :func:`rounded`)."""
     typer.echo(json.dumps(data, indent=2, default=_json_default, allow_nan=True))
+
+
+def print_json_line(data: Any) -> None:
+    """One compact JSON object on one line (JSON Lines), flushed: for pipes and scripts."""
+    sys.stdout.write(json.dumps(data, default=_json_default) + "\n")
+    sys.stdout.flush()
 
 
 def _json_default(obj: Any) -> Any:

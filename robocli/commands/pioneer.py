@@ -1,14 +1,16 @@
-"""``robocli connect|teleop|dump|sim pioneer``: thin layers over robocli.devices.pioneer."""
+"""``robocli connect|teleop|dump|sim pioneer``: thin layers over robocli.devices.pioneer.
+
+Human views show metres, m/s, degrees and deg/s; JSON output is SI (m, rad, m/s, rad/s),
+rounded to the protocol's resolution.
+"""
 
 from __future__ import annotations
 
-import contextlib
-import math
-import os
-import select
+import queue
 import sys
 import time
 from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -16,152 +18,237 @@ import typer
 
 from robocli.commands._common import (
     PORT_HELP,
+    explain_refusal,
     pioneer_url,
     print_json,
+    print_json_line,
+    reader_may_leave,
+    rounded,
     sigterm_as_interrupt,
 )
 
 if TYPE_CHECKING:
-    from rich.console import RenderableType
-
     from robocli.devices.pioneer import Pioneer
 
-PortArg = typer.Argument(..., help=PORT_HELP, show_default=False)
-SubtypeOpt = typer.Option(None, "--subtype", help="Override the robot's subtype (p3dx, ...).")
-BaudOpt = typer.Option(9600, "--baud", min=300, help="Serial baud rate.")
-TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, help="Seconds to wait for the robot.")
+
+def _check_subtype(value: str | None) -> str | None:
+    """``--subtype`` must name a robot robocli has parameters for (a usage error, not the
+    robot's fault)."""
+    from robocli.robots.pioneer import ROBOT_PARAMS
+
+    if value is not None and value not in ROBOT_PARAMS:
+        raise typer.BadParameter(f"unknown subtype {value!r}; known: {', '.join(ROBOT_PARAMS)}")
+    return value
+
+
+PortArg = typer.Argument(..., help=PORT_HELP, show_default=False, metavar="PORT")
+SubtypeOpt = typer.Option(
+    None, "--subtype", metavar="NAME", callback=_check_subtype,
+    help="Override the robot's subtype (p3dx, p3at, ...).",
+)  # fmt: skip
+BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+TimeoutOpt = typer.Option(
+    5.0, "--timeout", min=0.1, metavar="SECONDS", help="Seconds to wait for the robot."
+)
+
+
+@contextmanager
+def _connected(port: str, **options: Any) -> Iterator[Pioneer]:
+    """A connected Pioneer on ``port`` (``sim``: an embedded simulator), Ctrl-C and SIGTERM
+    stopping it; a reset during the handshake is explained as a busy robot."""
+    from robocli.devices.pioneer import Pioneer
+
+    with reader_may_leave(), sigterm_as_interrupt(), pioneer_url(port) as url:
+        with explain_refusal(url):
+            robot = Pioneer.connect(url, **options)
+        with robot:
+            yield robot
 
 
 def connect(
     port: str = PortArg,
     once: bool = typer.Option(False, "--once", help="Print one state snapshot and exit."),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output (with --once)."),
+    json_out: bool = typer.Option(
+        False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
+    ),
     subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
-    """Connect to a Pioneer, print its identity, then show its live state until Ctrl-C."""
-    from robocli.devices.pioneer import Pioneer
+    """Connect to a Pioneer and show its live state until q or Ctrl-C (--once: one
+    snapshot; --json: machine-readable, SI units)."""
+    from robocli.commands._screens import live_view
 
-    with sigterm_as_interrupt(), pioneer_url(port) as url:
-        with Pioneer.connect(url, subtype=subtype, baud=baud, timeout=timeout) as robot:
-            if once:
-                snapshot = robot.snapshot()
-                if json_out:
-                    print_json(snapshot)
-                else:
-                    _print_snapshot(snapshot)
-                return
-            _live_view(robot)
+    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+        if once:
+            if json_out:
+                print_json(rounded(_snapshot(robot)))
+            else:
+                _print_snapshot(robot)
+        elif json_out:
+            while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
+                print_json_line(rounded(_snapshot(robot)))
+                robot.wait_for_sip()
+        else:
+            live_view(robot)
+
+
+def _snapshot(robot: Pioneer) -> dict[str, Any]:
+    """The robot's snapshot, with the latest laser scan when it has one."""
+    data = robot.snapshot()
+    scan = getattr(robot, "laser", None)
+    if scan is not None and "laser" not in data:
+        fields = getattr(scan, "__dataclass_fields__", None)
+        data["laser"] = {k: getattr(scan, k) for k in fields} if fields else str(scan)
+    return data
 
 
 def teleop(
     port: str = PortArg,
-    max_v: float = typer.Option(0.4, "--max-v", min=0.0, max=2.0, help="Top speed, m/s."),
-    max_w: float = typer.Option(1.0, "--max-w", min=0.0, max=5.0, help="Top turn rate, rad/s."),
-    release: float = typer.Option(
-        0.45, "--release", min=0.05, max=0.5, help="Stop this long after the last key, s."
+    max_v: float = typer.Option(
+        0.4, "--max-v", min=0.0, max=2.0, metavar="M/S", help="Top speed, m/s."
     ),
+    max_w: float = typer.Option(
+        1.0,
+        "--max-w",
+        min=0.0,
+        max=5.0,
+        metavar="RAD/S",
+        help="Top turn rate, rad/s (shown in deg/s).",
+    ),  # fmt: skip
+    release: float = typer.Option(
+        0.45,
+        "--release",
+        min=0.05,
+        max=0.5,
+        metavar="SECONDS",
+        help="Stop this long after the last key, s.",
+    ),  # fmt: skip
     subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
-    from robocli.devices.pioneer import Pioneer
+    from robocli.commands._screens import StatusLine, end_line, raw_terminal
     from robocli.devices.teleop import TeleopController, run_teleop
 
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")
     controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
-    with sigterm_as_interrupt(), pioneer_url(port) as url:
-        with Pioneer.connect(url, subtype=subtype, baud=baud, timeout=timeout) as robot:
-            robot.enable_motors()
-            typer.echo(
-                f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
-                "space stops, q quits"
-            )
-            with _raw_terminal() as read_key:
-
-                def show(v: float, w: float) -> None:
-                    x, y, th = robot.pose
-                    sys.stdout.write(
-                        f"\rv {v:+.2f} m/s  w {w:+.2f} rad/s   pose {x:+7.2f} {y:+7.2f} "
-                        f"{math.degrees(th):+6.1f} deg  battery {robot.battery:4.1f} V  "
-                    )
-                    sys.stdout.flush()
-
-                run_teleop(robot, read_key, controller, on_update=show)
-            typer.echo("")
+    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+        robot.enable_motors()
+        typer.echo(
+            f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
+            "space stops, q or Ctrl-C quits"
+        )
+        status = StatusLine(robot)
+        try:
+            with raw_terminal() as read_key:
+                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
+        finally:
+            end_line()
 
 
 def dump(
+    ctx: typer.Context,
     port: str | None = typer.Argument(  # noqa: UP007
-        None, help=PORT_HELP + " Omit with --file.", show_default=False
+        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT"
     ),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N packets (0: none)."),
+    count: int = typer.Option(
+        0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
+    ),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
+    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
+    output: Path | None = typer.Option(  # noqa: UP007
+        None,
+        "--output",
+        "-o",
+        metavar="FILE.jsonl",
+        dir_okay=False,
+        help="Also record the packets to a .jsonl capture (what --file reads).",
+    ),  # fmt: skip
     file: Path | None = typer.Option(  # noqa: UP007
-        None, "--file", "-f", help="Decode a capture (.jsonl trace or raw bytes) instead."
-    ),
+        None,
+        "--file",
+        "-f",
+        metavar="CAPTURE",
+        exists=True,
+        dir_okay=False,
+        help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
+    ),  # fmt: skip
     subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
-    """Print every packet in both directions with its name and decoded fields."""
-    from robocli.protocols import arcos
+    """Print every packet in both directions, in time order, with its name and decoded
+    fields (raw units; lines cut at 160 characters unless -v)."""
+    from robocli.commands._packets import PacketView
+    from robocli.io.capture import CaptureWriter
 
-    if (port is None) == (file is None):
-        raise typer.BadParameter("give either a PORT or --file, not both")
-    printed = 0
-    in_session = False
+    if port is None and file is None:
+        raise typer.BadParameter("give PORT or --file")
+    if port is not None and file is not None:
+        raise typer.BadParameter("give PORT or --file, not both")
+    if output is not None and output.suffix != ".jsonl":
+        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
+    full = bool(ctx.find_root().params.get("verbose"))
+    writer = CaptureWriter(output) if output is not None else None
+    try:
+        view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
+        if file is not None:
+            _dump_file(view, file)
+        else:
+            assert port is not None
+            _dump_live(view, port, subtype=subtype, baud=baud, timeout=timeout)
+    finally:
+        if writer is not None:
+            writer.close()
 
-    def show(direction: str, payload: bytes, t: float | None) -> bool:
-        nonlocal printed, in_session
-        # direction of a raw capture is unknown: client commands never use SIP/CONFIG ids
-        from_client = direction == "tx" or (direction == "?" and payload[0] < 0x20)
-        name, fields = arcos.describe(payload, from_client=from_client, in_session=in_session)
-        if (
-            from_client
-            and payload[0] == arcos.Command.OPEN
-            and len(payload) > 1
-            or (not from_client and payload[0] & 0xF0 == 0x30)
-        ):
-            in_session = True  # OPEN with its argument, or a SIP: the session has started
-        arrow = {"tx": "->", "rx": "<-"}.get(direction, "  ")
-        stamp = f"{t:10.6f} " if t is not None else ""
-        text = " ".join(f"{k}={_short(v)}" for k, v in fields.items())
-        typer.echo(f"{stamp}{arrow} {name:<13} {text}")
-        if hex_out:
-            frame = arcos.frame(payload)
-            typer.echo(f"{'':{len(stamp)}}   {frame.hex(' ')}")
-        printed += 1
-        return bool(count) and printed >= count
 
-    if file is not None:
-        from robocli.io.capture import read_capture
+def _dump_file(view: Any, file: Path) -> None:
+    """Show the packets of a capture, streamed; exit 1 when it holds none."""
+    from robocli.errors import RobocliError
+    from robocli.io.capture import CaptureStats, read_capture
 
-        for item in read_capture(file):
-            if show(item.direction, item.frame[3:-2], item.t):
-                break
-        return
+    stats = CaptureStats()
+    with reader_may_leave(), sigterm_as_interrupt():
+        for item in read_capture(file, stats=stats):
+            view.show(item.direction, item.frame[3:-2], item.t)
+            if view.done:
+                return
+    summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
+    if stats.frames == 0:
+        raise RobocliError(f"{file}: {summary}")
+    if stats.dropped_bytes:
+        typer.echo(f"robocli: {file}: {summary}", err=True)
 
-    from robocli.devices.pioneer import Pioneer
 
+#: How long a packet waits for older ones from another thread before it is printed (s).
+_REORDER = 0.05
+
+
+def _dump_live(view: Any, port: str, **options: Any) -> None:
+    """Show a live session's packets in time order (sent and received ones come from
+    different threads), until Ctrl-C or ``--count``."""
     start = time.monotonic()
-    done = False
+    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
 
     def listener(direction: str, payload: bytes, t: float) -> None:
-        nonlocal done
-        if not done:
-            done = show(direction, payload, t - start)
+        seen.put((direction, payload, t - start))
 
-    assert port is not None
-    with sigterm_as_interrupt(), pioneer_url(port) as url:
-        with Pioneer.connect(
-            url, subtype=subtype, baud=baud, timeout=timeout, listeners=[listener]
-        ) as robot:
-            while not done:
-                robot.wait_for_sip()
+    with _connected(port, listeners=[listener], **options) as robot:
+        while not view.done:
+            try:
+                view.add(*seen.get(timeout=_REORDER))
+                while True:
+                    view.add(*seen.get_nowait())
+            except queue.Empty:
+                pass
+            view.flush(before=time.monotonic() - start - _REORDER)
+            if not robot.connected:
+                robot.wait_for_sip(0)  # raises the reason the session ended
+        return
+    view.flush()
 
 
 def simulate(
@@ -208,110 +295,17 @@ def simulate(
 # ---------------------------------------------------------------------- rendering
 
 
-def _short(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list) and value and isinstance(value[0], tuple):
-        return "[" + ",".join(f"{n}:{r}" for n, r in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ",".join(f"{k}={v}" for k, v in value.items()) + "}"
-    return str(value)
-
-
-def _print_snapshot(snapshot: dict[str, Any]) -> None:
-    ident = snapshot["identity"]
-    st = snapshot["state"]
-    typer.echo(f"{ident['name']} {ident['type']} {ident['subtype']} on {snapshot['url']}")
-    typer.echo(
-        f"pose      x {st['x']:+.3f} m  y {st['y']:+.3f} m  th {math.degrees(st['th']):+.1f} deg"
-    )
-    typer.echo(f"velocity  v {st['v']:+.3f} m/s  w {st['w']:+.3f} rad/s")
-    typer.echo(
-        f"battery   {st['battery']:.1f} V   motors {'on' if st['motors_enabled'] else 'off'}"
-    )
-    sonar = " ".join("-" if r is None else f"{r:.2f}" for r in st["sonar"])
-    typer.echo(f"sonar (m) {sonar}")
-
-
-def _render(robot: Pioneer) -> RenderableType:
-    from rich.table import Table
+def _print_snapshot(robot: Pioneer) -> None:
+    from robocli.commands._screens import laser_text, pose_text, sonar_text, velocity_text
 
     st = robot.state
-    table = Table(
-        title=f"{robot.identity.name} ({robot.params.subtype}) {robot.transport.url}",
-        show_header=False,
-        expand=False,
-    )
-    table.add_column(style="bold")
-    table.add_column()
-    table.add_row("pose", f"x {st.x:+.3f} m   y {st.y:+.3f} m   th {math.degrees(st.th):+.1f} deg")
-    table.add_row("velocity", f"v {st.v:+.3f} m/s   w {math.degrees(st.w):+.1f} deg/s")
-    table.add_row(
-        "battery",
-        f"{st.battery:.1f} V"
-        + (f"  {st.state_of_charge:.0%}" if st.state_of_charge is not None else ""),
-    )
-    table.add_row(
-        "motors",
-        ("[green]enabled[/]" if st.motors_enabled else "[yellow]disabled[/]")
-        + ("  [red]E-STOP[/]" if st.estop else ""),
-    )
-    table.add_row(
-        "bumpers",
-        f"front {st.bumpers_front:07b}  rear {st.bumpers_rear:07b}"
-        + ("  [red]STALL[/]" if st.stalled else ""),
-    )
-    max_range = robot.params.sonar_max_range
-    for i, rng in enumerate(robot.sonar):
-        bar = "" if math.isnan(rng) else "█" * int(30 * min(rng, max_range) / max_range)
-        table.add_row(f"sonar {i:2d}", f"{'  -  ' if math.isnan(rng) else f'{rng:5.2f}'} m {bar}")
-    s = robot.stats
-    table.add_row(
-        "link", f"{s.sips} SIPs  {s.bad_checksums} bad checksums  {s.dropped_bytes} bytes dropped"
-    )
-    return table
-
-
-def _live_view(robot: Pioneer) -> None:
-    from rich.live import Live
-
-    with Live(_render(robot), refresh_per_second=10, screen=False) as live:
-        while True:
-            robot.wait_for_sip()
-            live.update(_render(robot))
-
-
-_ARROWS = {"A": "up", "B": "down", "C": "right", "D": "left"}
-
-
-@contextlib.contextmanager
-def _raw_terminal() -> Iterator[Any]:
-    """Put stdin in cbreak mode; yield ``read_key(timeout) -> name | None``."""
-    import termios
-    import tty
-
-    fd = sys.stdin.fileno()
-    saved = termios.tcgetattr(fd)
-
-    def read_key(timeout: float) -> str | None:
-        ready, _, _ = select.select([fd], [], [], timeout)
-        if not ready:
-            return None
-        ch = os.read(fd, 1)
-        if ch == b"\x1b":
-            more, _, _ = select.select([fd], [], [], 0.01)
-            if not more:
-                return "esc"
-            seq = os.read(fd, 2)
-            return _ARROWS.get(seq[-1:].decode(errors="replace"), None)
-        if ch == b"\x03":
-            return "ctrl-c"
-        if ch == b" ":
-            return "space"
-        return ch.decode(errors="replace")
-
-    try:
-        tty.setcbreak(fd)
-        yield read_key
-    finally:
-        termios.tcsetattr(fd, termios.TCSADRAIN, saved)
+    ident = robot.identity
+    typer.echo(f"{ident.name} {ident.type} {ident.subtype} on {robot.transport.url}")
+    typer.echo(f"pose      {pose_text(st.x, st.y, st.th)}")
+    typer.echo(f"velocity  {velocity_text(st.v, st.w)}")
+    typer.echo(f"battery   {st.battery:.1f} V   motors {'on' if st.motors_enabled else 'off'}")
+    for i, line in enumerate(sonar_text(robot.sonar)):
+        typer.echo(f"{'sonar (m)' if i == 0 else '':10}{line}")
+    laser = laser_text(robot)
+    if laser is not None:
+        typer.echo(f"laser     {laser}")

@@ -1,63 +1,172 @@
-"""Captured byte streams: read them back frame by frame.
+"""Captured byte streams: read them back frame by frame, in bounded memory, and record them.
 
 Formats, by suffix:
 
-* ``.jsonl``: one JSON object per chunk, ``{"t": s, "dir": "c2s"|"s2c", "hex": "..."}``
-  (the format of the recorded traces in ``shared/traces``; lines without ``hex`` are events);
+* ``.jsonl``: one JSON object per chunk of bytes, in time order::
+
+      {"t": 0.046518, "dir": "s2c", "hex": "fafb03000000"}
+
+  ``t`` is seconds since the capture started, ``dir`` is ``c2s`` (host to robot) or ``s2c``
+  (robot to host), ``hex`` the bytes as they arrived (any chunking; frames may span lines).
+  This is the format of the recorded traces in ``tests/data/arcos`` and of
+  ``robocli dump pioneer PORT --output FILE.jsonl``; lines without ``hex`` are events and
+  are skipped.
 * anything else: raw bytes of one direction (what a serial sniffer or ``cat`` saved).
+
+Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size (even
+``/dev/zero``) is read in constant memory; a JSON line longer than :data:`MAX_LINE` bytes,
+an undecodable line and bytes that form no frame are counted in :class:`CaptureStats`.
 """
 
 from __future__ import annotations
 
 import json
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import IO
 
 from robocli.core import Framer
 from robocli.errors import RobocliError
 
+#: Bytes read from a file at a time.
+CHUNK = 64 * 1024
+#: Longest accepted line of a ``.jsonl`` capture (a longer one is dropped, read in pieces).
+MAX_LINE = 1024 * 1024
+
 #: direction names used in captures -> "tx" (host to robot) / "rx" (robot to host)
 _DIRECTIONS = {"c2s": "tx", "client->server": "tx", "s2c": "rx", "server->client": "rx"}
+_NAMES = {"tx": "c2s", "rx": "s2c"}
 
 
 @dataclass(frozen=True)
 class CapturedFrame:
+    """One frame of a capture."""
+
     t: float | None  #: seconds since the capture started, when the format has it
     direction: str  #: "tx" host->robot, "rx" robot->host, "?" unknown (raw files)
     frame: bytes  #: one whole frame (sync/prefix included)
 
 
-def read_capture(path: str | Path, protocol: str = "arcos") -> Iterator[CapturedFrame]:
-    """Frames of a capture file in order; each direction is framed separately, so garbage in
-    one direction never hides the other's frames."""
+@dataclass
+class CaptureStats:
+    """What reading a capture found: bytes read, frames, and bytes that formed no frame
+    (garbage, bad checksums, an unfinished last frame, undecodable JSON lines)."""
+
+    bytes_read: int = 0
+    frames: int = 0
+    dropped_bytes: int = 0
+
+
+def read_capture(
+    path: str | Path, protocol: str = "arcos", stats: CaptureStats | None = None
+) -> Iterator[CapturedFrame]:
+    """Frames of a capture file in order, streamed; each direction is framed separately, so
+    garbage in one direction never hides the other's frames. ``stats`` (optional) is
+    updated as the file is read. Raises :class:`RobocliError` when the file cannot be read."""
     path = Path(path)
+    stats = CaptureStats() if stats is None else stats
     try:
-        if path.suffix == ".jsonl":
-            yield from _read_jsonl(path, protocol)
-        else:
-            framer = Framer(protocol)
-            for frame in framer.feed(path.read_bytes()):
-                yield CapturedFrame(None, "?", frame)
+        with path.open("rb") as stream:
+            if path.suffix == ".jsonl":
+                yield from _read_jsonl(stream, protocol, stats)
+            else:
+                yield from _read_raw(stream, protocol, stats)
     except OSError as exc:
         raise RobocliError(f"cannot read capture {path}: {exc.strerror or exc}") from None
 
 
-def _read_jsonl(path: Path, protocol: str) -> Iterator[CapturedFrame]:
+def _read_raw(stream: IO[bytes], protocol: str, stats: CaptureStats) -> Iterator[CapturedFrame]:
+    framer = Framer(protocol)
+    try:
+        while chunk := stream.read(CHUNK):
+            stats.bytes_read += len(chunk)
+            for frame in framer.feed(chunk):
+                stats.frames += 1
+                yield CapturedFrame(None, "?", frame)
+    finally:
+        stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def _read_jsonl(stream: IO[bytes], protocol: str, stats: CaptureStats) -> Iterator[CapturedFrame]:
     framers: dict[str, Framer] = {}
-    with path.open() as lines:
-        for number, line in enumerate(lines, 1):
-            if not line.strip():
+    try:
+        while line := stream.readline(MAX_LINE):
+            stats.bytes_read += len(line)
+            if not line.endswith(b"\n") and len(line) == MAX_LINE:
+                stats.dropped_bytes += len(line) + _skip_line(stream, stats)
                 continue
-            try:
-                record = json.loads(line)
-                data = bytes.fromhex(record.get("hex", ""))
-            except (ValueError, AttributeError) as exc:
-                raise RobocliError(f"{path}:{number}: not a capture record ({exc})") from None
-            if not data:
+            record = _record(line)
+            if record is None:
+                stats.dropped_bytes += len(line.strip())
                 continue
-            direction = _DIRECTIONS.get(str(record.get("dir")), "?")
+            t, direction, data = record
             framer = framers.setdefault(direction, Framer(protocol))
-            t = record.get("t")
             for frame in framer.feed(data):
-                yield CapturedFrame(float(t) if t is not None else None, direction, frame)
+                stats.frames += 1
+                yield CapturedFrame(t, direction, frame)
+    finally:
+        for framer in framers.values():
+            stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def _record(line: bytes) -> tuple[float | None, str, bytes] | None:
+    """(t, direction, bytes) of one capture line; None for a line that is not a record
+    (an event line without bytes gives empty bytes)."""
+    if not line.strip():
+        return None
+    try:
+        record = json.loads(line)
+        data = bytes.fromhex(record.get("hex", ""))
+        t = record.get("t")
+        t = float(t) if t is not None else None
+    except (ValueError, TypeError, AttributeError):  # not JSON, not an object, bad hex or t
+        return None
+    return t, _DIRECTIONS.get(str(record.get("dir")), "?"), data
+
+
+def _skip_line(stream: IO[bytes], stats: CaptureStats) -> int:
+    """Read to the end of an overlong line; return how many bytes that was."""
+    skipped = 0
+    while piece := stream.readline(MAX_LINE):
+        skipped += len(piece)
+        if piece.endswith(b"\n"):
+            break
+    stats.bytes_read += skipped
+    return skipped
+
+
+class CaptureWriter:
+    """Record a session in the ``.jsonl`` capture format (see the module docstring), one
+    line per packet, flushed as it goes so that an interrupted session keeps what it saw.
+    Thread-safe: packets sent and received in different threads never interleave."""
+
+    def __init__(self, path: str | Path) -> None:
+        self.path = Path(path)
+        try:
+            self._file = self.path.open("w", encoding="utf-8")
+        except OSError as exc:
+            raise RobocliError(f"cannot write capture {path}: {exc.strerror or exc}") from None
+        self._lock = threading.Lock()
+        self.records = 0
+
+    def write(self, t: float, direction: str, data: bytes) -> None:
+        """Append ``data`` sent ("tx") or received ("rx") at ``t`` s since the start."""
+        line = json.dumps({"t": round(t, 6), "dir": _NAMES.get(direction, "?"), "hex": data.hex()})
+        with self._lock:
+            if not self._file.closed:
+                self._file.write(line + "\n")
+                self._file.flush()
+                self.records += 1
+
+    def close(self) -> None:
+        """Close the file; idempotent."""
+        with self._lock:
+            self._file.close()
+
+    def __enter__(self) -> CaptureWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
