@@ -1,0 +1,147 @@
+""":class:`HubServer`: the hub's sources and rings served over ros4mat v3 TCP."""
+
+from __future__ import annotations
+
+import logging
+from typing import Any
+
+from robocli.errors import InvalidArgument
+from robocli.hub.registry import ClientInfo, Hub
+from robocli.hub.rings import DEFAULT_BUDGET
+from robocli.hub.server import Ros4matSession
+from robocli.hub.sources import Source, simulated_sources
+from robocli.protocols.ros4mat import HEADER_SIZE, PORT
+from robocli.sim.links import Link
+from robocli.sim.serving import Server
+
+__all__ = ["HubServer", "PORT"]
+
+log = logging.getLogger("robocli.hub")
+
+MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
+SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
+EXPOSED_BINDS = ("0.0.0.0", "::", "")
+
+
+class HubServer:
+    """The sensor hub: sensor sources, one ring per sensor, the ros4mat front-end.
+
+    ``bind``/``port``: where to listen (port 0: ephemeral; ros4mat's is 1500). ``sim``: serve
+    the simulated sensors. ``serial_ports``: local serial ports a client may use through
+    SERIAL_CMD (no other). ``gpsd``: ``"HOST:PORT"`` of a gpsd daemon for the GPS.
+    ``pioneer``: URL of a Pioneer robot (reserved). ``token``: shared secret required for
+    the commands that change settings or write to a serial port (None: open, as ros4mat).
+    ``max_clients``: connections at once; ``max_body``: largest request body (bytes).
+    ``sources``: extra or replacement sources by sensor name.
+    """
+
+    def __init__(
+        self,
+        bind: str = "127.0.0.1",
+        port: int = PORT,
+        *,
+        sim: bool = True,
+        serial_ports: tuple[str, ...] | list[str] = (),
+        gpsd: str | None = None,
+        pioneer: str | None = None,
+        token: str | bytes | None = None,
+        max_clients: int = 64,
+        max_body: int = MAX_BODY,
+        ring_budget: int = DEFAULT_BUDGET,
+        sources: dict[str, Source] | None = None,
+    ) -> None:
+        if max_clients < 1:
+            raise InvalidArgument("max_clients must be >= 1")
+        if max_body < 64:
+            raise InvalidArgument("max_body must be >= 64 bytes")
+        self.bind, self._port = bind, port
+        self.serial_ports = tuple(serial_ports)
+        self.gpsd, self.pioneer = gpsd, pioneer
+        if isinstance(token, str):
+            token = token.encode()
+        if token is not None and not token:
+            raise InvalidArgument("token must not be empty")
+        self._token = token
+        all_sources = self._sources(sim)
+        all_sources.update(sources or {})
+        self.hub = Hub(all_sources, ring_budget=ring_budget)
+        self._serial: Any = None
+        self._server = Server(
+            self._session,
+            protocol="ros4mat",
+            max_clients=max_clients,
+            max_frame=HEADER_SIZE + max_body,
+            byte_timeout=1.0,
+            send_timeout=SEND_TIMEOUT_S,
+            max_backlog=ring_budget + (1 << 20),
+            name="hub",
+            busy_reason="hub full: too many clients",
+        )
+        self._url: str | None = None
+        self.warnings: list[str] = []
+
+    def _sources(self, sim: bool) -> dict[str, Source]:
+        return simulated_sources() if sim else {}
+
+    def _session(self, link: Link) -> Ros4matSession:
+        return Ros4matSession(link, self.hub, link.name, self._token, self._serial)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> HubServer:
+        """Listen and serve; returns self. Binding every interface logs a loud warning (also
+        kept in :attr:`warnings`)."""
+        msg = self.exposure_warning()
+        if msg is not None:
+            self.warnings.append(msg)
+            log.warning(msg)
+        self._url = self._server.serve_tcp(self.bind, self._port)
+        return self
+
+    def exposure_warning(self) -> str | None:
+        """What a hub bound to every interface exposes, said loudly (None on a specific
+        address)."""
+        if self.bind not in EXPOSED_BINDS:
+            return None
+        what = ", ".join(sorted(self.hub.channels)) or "no sensor"
+        extra = f"; serial ports {', '.join(self.serial_ports)}" if self.serial_ports else ""
+        auth = "token required for settings and serial" if self._token else "NO authentication"
+        return (f"hub listening on ALL interfaces ({self.bind or '*'}): anyone on the network "
+                f"can read {what}{extra} ({auth})")  # fmt: skip
+
+    @property
+    def url(self) -> str:
+        """``tcp://HOST:PORT`` (after :meth:`start`)."""
+        if self._url is None:
+            raise InvalidArgument("the hub is not started")
+        return self._url
+
+    @property
+    def port(self) -> int:
+        """The bound TCP port (after :meth:`start`)."""
+        return int(self.url.rsplit(":", 1)[1])
+
+    @property
+    def clients(self) -> list[ClientInfo]:
+        """Every known client: connected, or detached with its buffers kept."""
+        return self.hub.clients()
+
+    @property
+    def sensors(self) -> dict[str, dict[str, Any]]:
+        """Sensor name -> its settings, rate, ring and subscriber count."""
+        return self.hub.sensors()
+
+    def close(self) -> None:
+        """Close every connection, stop every sensor (bounded). Idempotent."""
+        self._server.close()
+        self.hub.close()
+        if self._serial is not None:
+            self._serial.close()
+
+    def __enter__(self) -> HubServer:
+        if self._url is None:
+            self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

@@ -1,0 +1,341 @@
+"""The hub's core, wire-agnostic: sensors (source + one ring + a driver) and clients (cursors).
+
+Front-ends (the ros4mat TCP server, later others) call :class:`Hub` only: connect a client,
+subscribe it to a sensor with parameters or silently, pull its new samples, unsubscribe, quit.
+A sensor runs while at least one client (connected or detached) is subscribed; its driver
+polls the source at the source's batch rate and pushes into the sensor's ring. Settings are
+shared: a non-silent subscribe reconfigures the sensor for everyone (last writer wins), as in
+ros4mat. A client that disconnects without QUIT is kept, detached, so that it can re-attach
+with its id and find its buffers; at most ``max_detached`` are kept (the oldest go first).
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import threading
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robocli.errors import DeviceError, InvalidArgument
+from robocli.hub.rings import Cursor, SensorRing, ring_capacity
+from robocli.hub.sources.base import Source
+from robocli.sim.serving import Ticker
+
+__all__ = ["Channel", "ClientInfo", "ClientState", "Hub", "Pulled", "hub_clock"]
+
+log = logging.getLogger("robocli.hub")
+
+RING_SECONDS = 10.0  #: a ring holds this many seconds of samples (within its byte budget)
+
+
+def hub_clock() -> Callable[[], float]:
+    """The hub's clock: Unix time (s) advancing with the monotonic clock (no steps)."""
+    wall0, mono0 = time.time(), time.monotonic()
+    return lambda: wall0 + (time.monotonic() - mono0)
+
+
+@dataclass(frozen=True)
+class Pulled:
+    """A pull's result: acquisition times, structured records, the source that made them."""
+
+    t: npt.NDArray[np.float64]
+    records: npt.NDArray[Any]
+    source: Source
+
+
+@dataclass(frozen=True)
+class ClientInfo:
+    """What :attr:`robocli.hub.HubServer.clients` shows of one client."""
+
+    id: int
+    peer: str
+    connected: bool
+    compress: bool
+    subscriptions: dict[str, int]  #: sensor -> its buffer capacity (records)
+    pulls: int
+    samples: int
+    dropped: int  #: samples dropped for it because it pulled too rarely
+
+
+@dataclass
+class ClientState:
+    """One client's state, kept across reconnects until QUIT."""
+
+    id: int
+    peer: str = ""
+    compress: bool = False
+    authorized: bool = False
+    connected: bool = False
+    cursors: dict[str, Cursor] = field(default_factory=dict)
+    pulls: int = 0
+    samples: int = 0
+    detached_at: float = 0.0
+
+
+class Channel:
+    """One sensor: its source, its ring (while subscribed) and its driver thread."""
+
+    def __init__(self, source: Source, clock: Callable[[], float], budget: int) -> None:
+        self.source = source
+        self.name = source.name
+        self._clock = clock
+        self._budget = budget
+        self.ring: SensorRing | None = None
+        self._ticker: Ticker | None = None
+        self.lock = threading.Lock()
+
+    @property
+    def active(self) -> bool:
+        return self.ring is not None and self.ring.cursors > 0
+
+    def configure(self, params: Mapping[str, Any] | None, buffer: int) -> None:
+        """Apply ``params`` (None: keep the current settings) and make sure the driver runs
+        with a ring of at least ``buffer`` records (within the byte budget)."""
+        src = self.source
+        old_dtype = src.dtype()
+        old = (dict(src.params), src.rate, src.batch_rate)
+        if params is not None:
+            src.configure(params)
+        changed = old != (dict(src.params), src.rate, src.batch_rate)
+        dtype = src.dtype()
+        wanted = max(buffer, int(src.rate * RING_SECONDS))
+        capacity = ring_capacity(dtype.itemsize, wanted, self._budget)
+        if self.ring is None:
+            self.ring = SensorRing(self.name, dtype, capacity)
+        elif dtype != old_dtype or capacity > self.ring.capacity:
+            self.ring.reshape(dtype, capacity)
+        if changed or self._ticker is None:
+            self._restart()
+
+    def _restart(self) -> None:
+        self._stop_driver()
+        src = self.source
+        src.start(self._clock())
+        ticker = Ticker(1.0 / src.batch_rate, self._tick, f"hub-{self.name}")
+        self._ticker = ticker
+        ticker.start()
+
+    def _tick(self, _now: float) -> None:
+        t, records = self.source.poll(self._clock())
+        ring = self.ring
+        if len(t) and ring is not None and records.dtype == ring.dtype:
+            ring.push(t, records)
+
+    def _stop_driver(self) -> None:
+        if self._ticker is not None:
+            self._ticker.close()
+            self._ticker = None
+            self.source.stop()
+
+    def stop(self) -> None:
+        """Stop the driver and free the ring."""
+        self._stop_driver()
+        self.ring = None
+
+    @property
+    def errors(self) -> int:
+        return self._ticker.errors if self._ticker is not None else 0
+
+
+class Hub:
+    """Sensors and clients. Thread-safe; every front-end thread calls in."""
+
+    def __init__(
+        self,
+        sources: Mapping[str, Source],
+        *,
+        clock: Callable[[], float] | None = None,
+        max_detached: int = 256,
+        ring_budget: int = 64 << 20,
+    ) -> None:
+        self.clock = clock or hub_clock()
+        self.channels = {name: Channel(s, self.clock, ring_budget) for name, s in sources.items()}
+        self.max_detached = max_detached
+        self._clients: dict[int, ClientState] = {}
+        self._ids = itertools.count(1)
+        self._lock = threading.Lock()
+
+    # ------------------------------------------------------------------ clients
+
+    def connect(self, client_id: int, peer: str, compress: bool) -> ClientState:
+        """Attach a connection: a new client (id 0 or unknown id) or a detached one."""
+        with self._lock:
+            state = self._clients.get(client_id) if client_id else None
+            if state is not None and state.connected:
+                raise DeviceError(f"client id {client_id} is in use by {state.peer}")
+            if state is None:
+                state = ClientState(next(self._ids))
+                self._clients[state.id] = state
+            state.peer, state.compress, state.connected = peer, compress, True
+            state.authorized = False
+            log.info("client %d connected from %s", state.id, peer)
+            return state
+
+    def attach(self, client_id: int, peer: str) -> ClientState | None:
+        """Re-attach a detached client by id without CONNECT (None: unknown or in use)."""
+        with self._lock:
+            state = self._clients.get(client_id)
+            if state is None or state.connected:
+                return None
+            state.peer, state.connected = peer, True
+            return state
+
+    def detach(self, state: ClientState) -> None:
+        """The connection ended without QUIT: keep the client and its buffers."""
+        with self._lock:
+            if self._clients.get(state.id) is not state:
+                return
+            state.connected = False
+            state.detached_at = self.clock()
+            detached = sorted(
+                (c for c in self._clients.values() if not c.connected),
+                key=lambda c: c.detached_at,
+            )
+            evict = detached[: max(0, len(detached) - self.max_detached)]
+        for old in evict:
+            self.quit(old)
+
+    def quit(self, state: ClientState) -> None:
+        """Forget the client: unsubscribe everything."""
+        for name in list(state.cursors):
+            self.unsubscribe(state, name)
+        with self._lock:
+            if self._clients.get(state.id) is state:
+                del self._clients[state.id]
+        state.connected = False
+
+    # ------------------------------------------------------------------ sensors
+
+    def channel(self, name: str) -> Channel:
+        try:
+            return self.channels[name]
+        except KeyError:
+            raise DeviceError(f"sensor {name!r} is not served by this hub") from None
+
+    def subscribe(
+        self, state: ClientState, name: str, params: Mapping[str, Any] | None, buffer: int
+    ) -> int:
+        """Subscribe ``state`` to sensor ``name``; returns its buffer capacity (records).
+
+        ``params`` None is a silent subscribe: join the current settings (and copy another
+        subscriber's capacity when ``buffer`` is 0); it fails if nobody is subscribed.
+        ``buffer`` 0 means one second of samples. Raises :class:`DeviceError`.
+        """
+        ch = self.channel(name)
+        with ch.lock:
+            if params is None and not ch.active and name not in state.cursors:
+                raise DeviceError(f"silent subscribe to {name}: nobody is subscribed to it")
+            if params is None and not buffer:
+                buffer = max((c.limit for c in self._cursors_of(name)), default=1)
+            try:
+                ch.configure(params, buffer)
+            except InvalidArgument as exc:
+                raise DeviceError(f"{name}: {exc}") from exc
+            ring = ch.ring
+            assert ring is not None
+            buffer = buffer or max(1, int(ch.source.rate))
+            cursor = state.cursors.get(name)
+            if cursor is None:
+                state.cursors[name] = cursor = ring.attach(buffer)
+            else:
+                ring.set_limit(cursor, buffer)
+            how = "silent" if params is None else ch.source.settings()
+            log.info(
+                "client %d subscribed to %s (%s, buffer %d)", state.id, name, how, cursor.limit
+            )
+            return cursor.limit
+
+    def _cursors_of(self, name: str) -> list[Cursor]:
+        with self._lock:
+            return [c.cursors[name] for c in self._clients.values() if name in c.cursors]
+
+    def unsubscribe(self, state: ClientState, name: str) -> None:
+        """Drop ``state``'s subscription (no error if it had none); the sensor stops when
+        nobody is subscribed any more."""
+        ch = self.channels.get(name)
+        cursor = state.cursors.pop(name, None)
+        if ch is None or cursor is None:
+            return
+        with ch.lock:
+            if ch.ring is not None:
+                ch.ring.detach(cursor)
+                if ch.ring.cursors == 0:
+                    ch.stop()
+                    log.info("%s stopped: no subscriber left", name)
+
+    def pull(self, state: ClientState, name: str) -> Pulled:
+        """Every new sample of ``name`` for ``state`` (consumed for it only)."""
+        cursor = state.cursors.get(name)
+        ch = self.channels.get(name)
+        ring = ch.ring if ch is not None else None
+        if cursor is None or ring is None or ch is None:
+            raise DeviceError(f"not subscribed to {name}")
+        t, records = ring.read(cursor)
+        state.pulls += 1
+        state.samples += len(t)
+        return Pulled(t, records, ch.source)
+
+    def dropped(self, state: ClientState, name: str) -> int:
+        """Samples of ``name`` dropped for ``state`` (it fell more than its buffer behind)."""
+        ch, cursor = self.channels.get(name), state.cursors.get(name)
+        if ch is None or cursor is None or ch.ring is None:
+            return 0
+        return ch.ring.lost(cursor)
+
+    def digital_out(self, levels: list[int]) -> None:
+        """Set the ADC board's four digital outputs (kept by the ADC source, shown in
+        :meth:`sensors`)."""
+        ch = self.channel("adc")
+        if not hasattr(ch.source, "digital"):
+            raise DeviceError("this hub's ADC has no digital outputs")
+        if len(levels) != 4:
+            raise InvalidArgument("digital_out takes exactly 4 levels")
+        ch.source.digital = [1 if v else 0 for v in levels]
+
+    # ------------------------------------------------------------------ views
+
+    def clients(self) -> list[ClientInfo]:
+        with self._lock:
+            states = list(self._clients.values())
+        return [
+            ClientInfo(
+                s.id,
+                s.peer,
+                s.connected,
+                s.compress,
+                {n: c.limit for n, c in s.cursors.items()},
+                s.pulls,
+                s.samples,
+                sum(self.dropped(s, n) for n in list(s.cursors)),
+            )
+            for s in states
+        ]
+
+    def sensors(self) -> dict[str, dict[str, Any]]:
+        out = {}
+        for name, ch in self.channels.items():
+            ring = ch.ring
+            out[name] = {
+                "active": ch.active,
+                "simulated": ch.source.simulated,
+                "subscribers": ring.cursors if ring is not None else 0,
+                "ring_records": ring.capacity if ring is not None else 0,
+                "ring_bytes": ring.nbytes if ring is not None else 0,
+                "errors": ch.errors,
+                **ch.source.settings(),
+            }
+        return out
+
+    def close(self) -> None:
+        """Stop every driver and forget every client."""
+        for ch in self.channels.values():
+            with ch.lock:
+                ch.stop()
+        with self._lock:
+            self._clients.clear()

@@ -1,0 +1,239 @@
+"""The ros4mat v3 front-end of the hub: TCP (port 1500), many clients, wire-compatible.
+
+Each connection has one thread (:class:`robocli.sim.serving.Server`): it frames requests with
+the C ros4mat framer (bounded by ``max_body``) and answers each one inline, as fast as they
+arrive (the original served one request per connection per 5 ms loop). Everything about
+sensors and clients is in :class:`robocli.hub.registry.Hub`; this module only translates
+packets. Beyond ros4mat:
+
+* every data reply carries the send time on the hub's clock (``packet_timestamp``);
+* a malformed, compressed or unknown request gets an error reply (type = the request's);
+  garbage is skipped by the framer; a client that stops reading is dropped. No other client
+  notices;
+* optional shared-token authentication (off by default, as ros4mat had none): the token goes
+  after the 2-byte ``msgConnect`` body of CONNECT (``size`` stays 1); without it, a
+  non-silent SUBSCRIBE (it changes the sensor's settings for everyone), SERIAL_CMD and
+  DOUT_CTRL get an error reply "unauthorized";
+* reconnecting with an old client id (in CONNECT's header) re-attaches to its buffers; a
+  request from a known, detached id without CONNECT also re-attaches.
+"""
+
+from __future__ import annotations
+
+import hmac
+import logging
+import struct
+import zlib
+from collections.abc import Mapping
+from typing import Any
+
+import construct as cs
+import numpy as np
+
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError
+from robocli.hub.registry import ClientState, Hub, Pulled
+from robocli.protocols import layout
+from robocli.protocols.ros4mat import (
+    HEADER_SIZE,
+    Compression,
+    DigitalOut,
+    Header,
+    MsgType,
+    SerialCmdRequest,
+    SubscribeRequest,
+    encode_error,
+    plain,
+)
+from robocli.sim.links import Link
+
+__all__ = ["SENSOR_IDS", "Ros4matSession", "pull_body"]
+
+log = logging.getLogger("robocli.hub")
+
+SENSOR_IDS: dict[int, str] = {
+    MsgType.ADC: "adc",
+    MsgType.IMU: "imu",
+    MsgType.BATTERY: "battery",
+    MsgType.GPS: "gps",
+    MsgType.WEBCAM: "camera",
+    MsgType.COMPUTER: "sysinfo",
+    MsgType.HOKUYO: "laser",
+    MsgType.KINECT: "depth",
+    MsgType.WEBCAM_STEREO: "stereo",
+}
+"""ros4mat sensor id -> the hub's sensor name."""
+
+_REPLY_TYPES = {
+    MsgType.CONNECT: MsgType.CONNECT_ACK,
+    MsgType.SUBSCRIBE: MsgType.SUBSCRIBE_ACK,
+    MsgType.SERIAL_CMD: MsgType.SERIAL_ANS,
+}
+"""Request -> the type of its reply (an error reply has the type of the expected reply)."""
+
+_HEADER: struct.Struct = layout.struct_of(Header, "msgHeader")
+
+
+def pull_body(pulled: Pulled) -> bytes:
+    """The body of a data reply: the records, or their info records then their blobs."""
+    rec, src = pulled.records, pulled.source
+    if not src.blobs:
+        return rec.tobytes()
+    n = len(rec)
+    parts = [rec["info"].tobytes()]
+    sizes = src.blob_sizes(rec)
+    widths = np.array([rec.dtype[b].itemsize for b in src.blobs])
+    if n and (sizes == widths).all():
+        # every blob full: frame 0 blobs, frame 1 blobs, ... in one copy
+        parts.append(np.concatenate([rec[b].reshape(n, -1) for b in src.blobs], axis=1).tobytes())
+    else:
+        for i in range(n):
+            for j, b in enumerate(src.blobs):
+                parts.append(rec[b][i, : sizes[i, j]].tobytes())
+    return b"".join(parts)
+
+
+class Ros4matSession:
+    """One ros4mat connection (its link's thread calls :meth:`on_frame` in order)."""
+
+    def __init__(self, link: Link, hub: Hub, peer: str, token: bytes | None, serial: Any) -> None:
+        self.link, self.hub, self.peer = link, hub, peer
+        self._token = token
+        self._serial = serial
+        self.state: ClientState | None = None
+
+    # ---------------------------------------------------------------- replies
+
+    def _cid(self) -> int:
+        return self.state.id if self.state is not None else 0
+
+    def _error(self, msg_type: int, text: str) -> bytes:
+        log.info("%s: %s", self.peer, text)
+        return encode_error(msg_type, text, client_id=self._cid())
+
+    def _packet(self, msg_type: int, payload: bytes, size: int) -> bytes:
+        """A reply with ``size`` records, zlib-compressed if the client asked, sent now."""
+        compress = bool(payload) and self.state is not None and self.state.compress
+        wire = zlib.compress(payload) if compress else payload
+        kind = Compression.ZLIB if compress else Compression.NONE
+        return (
+            _HEADER.pack(
+                msg_type, 0, self._cid(), size, len(payload), len(wire), kind, self.hub.clock()
+            )
+            + wire
+        )
+
+    # ---------------------------------------------------------------- session protocol
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        try:
+            return self._handle(frame)
+        except (ProtocolError, DeviceError, InvalidArgument) as exc:
+            kind = frame[0] if frame else 0
+            return self._error(_REPLY_TYPES.get(kind, kind), str(exc))
+
+    def on_close(self) -> None:
+        if self.state is not None:
+            self.hub.detach(self.state)
+            log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)
+
+    # ---------------------------------------------------------------- dispatch
+
+    def _handle(self, frame: bytes) -> bytes | None:
+        kind, error, cid, size, usize, csize, ctype, _ts = _HEADER.unpack_from(frame)
+        body = frame[HEADER_SIZE:]
+        if error or ctype != Compression.NONE or (size and usize != len(body)):
+            return self._error(_REPLY_TYPES.get(kind, kind), "malformed request header")
+        if kind == MsgType.CONNECT:
+            return self._connect(cid, body)
+        if self.state is None:
+            self.state = self.hub.attach(cid, self.peer) if cid else None
+            if self.state is None:
+                return self._error(kind, "not connected: send CONNECT first")
+        state = self.state
+        if kind in SENSOR_IDS:
+            name = SENSOR_IDS[kind]
+            if body:
+                return self._error(kind, "a data pull has no body")
+            pulled = self.hub.pull(state, name)
+            return self._packet(kind, pull_body(pulled), len(pulled.t))
+        if kind == MsgType.SUBSCRIBE:
+            return self._subscribe(body)
+        if kind == MsgType.UNSUBSCRIBE:
+            if len(body) != 1:
+                return self._error(kind, "UNSUBSCRIBE takes 1 byte")
+            name = SENSOR_IDS.get(body[0])
+            if name is not None:
+                self.hub.unsubscribe(state, name)
+            return None
+        if kind == MsgType.QUIT:
+            self.hub.quit(state)
+            self.state = None
+            self.link.close()
+            return None
+        if kind == MsgType.DOUT_CTRL:
+            self._authorize(kind)
+            levels = _parse(DigitalOut, body, "DOUT_CTRL")
+            self.hub.digital_out([levels[k] for k in ("d0", "d1", "d2", "d3")])
+            return None
+        if kind == MsgType.SERIAL_CMD:
+            self._authorize(kind)
+            return self._serial_cmd(body)
+        return self._error(kind, f"unknown message id 0x{kind & 0xFF:02x}")
+
+    def _authorize(self, kind: int) -> None:
+        if self._token is not None and not (self.state is not None and self.state.authorized):
+            raise DeviceError(f"unauthorized: {MsgType(kind).name} needs the hub's token")
+
+    def _connect(self, cid: int, body: bytes) -> bytes:
+        if len(body) < 2:
+            return self._error(MsgType.CONNECT_ACK, "CONNECT body is 2 bytes")
+        if self.state is not None:
+            self.hub.detach(self.state)
+        self.state = self.hub.connect(cid, self.peer, body[1] == 1)
+        given = body[2:]
+        if self._token is not None and given:
+            self.state.authorized = hmac.compare_digest(given, self._token)
+        return self._packet(MsgType.CONNECT_ACK, b"", 0)
+
+    def _subscribe(self, body: bytes) -> bytes:
+        kind = MsgType.SUBSCRIBE_ACK
+        req = _parse(SubscribeRequest, body, "SUBSCRIBE")
+        name = SENSOR_IDS.get(req["sensor"])
+        if name is None:
+            return self._error(kind, f"sensor 0x{req['sensor']:02x} is not served")
+        params = req["params"]
+        silent = bool(req["silent"])
+        if not silent:
+            self._authorize(MsgType.SUBSCRIBE)
+            if not isinstance(params, Mapping):
+                return self._error(kind, f"{name}: {req['params_size']} bytes of parameters "
+                                   "do not match the sensor's")  # fmt: skip
+        assert self.state is not None
+        self.hub.subscribe(self.state, name, None if silent else params, req["buffer_size"])
+        return self._packet(kind, b"", 0)
+
+    def _serial_cmd(self, body: bytes) -> bytes:
+        req = _parse(SerialCmdRequest, body, "SERIAL_CMD")
+        if self._serial is None:
+            raise DeviceError("this hub serves no serial port")
+        status, data = self._serial.command(req)
+        payload = struct.pack("<bI", status, len(data)) + data
+        return self._packet(MsgType.SERIAL_ANS, payload, 1)
+
+
+def _parse(decl: Any, body: bytes, what: str) -> dict[str, Any]:
+    try:
+        if len(body) < decl.sizeof() if _fixed(decl) else False:
+            raise ProtocolError(f"{what} body of {len(body)} bytes is too short")
+        value: dict[str, Any] = plain(decl.parse(body))
+    except (cs.ConstructError, ValueError, OverflowError) as exc:
+        raise ProtocolError(f"{what} body does not decode: {exc}") from exc
+    return value
+
+
+def _fixed(decl: Any) -> bool:
+    try:
+        decl.sizeof()
+    except cs.SizeofError:
+        return False
+    return True
