@@ -1,0 +1,298 @@
+"""``robocli subscribe``, ``connect hub``, ``dump hub``, ``serial``, ``bench throughput``:
+thin layers over :mod:`robocli.devices.hub` and :mod:`robocli.hub_bench`."""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import sys
+import time
+from collections import deque
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import print_json, sigterm_as_interrupt
+
+if TYPE_CHECKING:
+    import numpy as np
+
+    from robocli.devices.hub import Hub
+
+EXIT_INTERRUPTED = 130
+HUB_HELP = "Hub address HOST[:PORT] (default $ROBOCLI_HUB, else 127.0.0.1; port 1500)."
+HubOpt = typer.Option(None, "--hub", help=HUB_HELP, show_default=False)
+HubArg = typer.Argument(..., help="Hub address HOST[:PORT].", show_default=False)
+FORMATS = ("table", "csv", "jsonl")
+
+
+def _address(hub: str | None) -> str:
+    return hub or os.environ.get("ROBOCLI_HUB") or "127.0.0.1"
+
+
+def open_hub(address: str, *, compress: bool = False, timeout: float = 5.0) -> Hub:
+    """Connect, turning "nobody listens" into one line with a hint (exit 3)."""
+    from robocli.devices.hub import Hub, parse_hub
+    from robocli.errors import TransportError
+    from robocli.transports import InvalidURL
+
+    host, port = parse_hub(address)
+    try:
+        return Hub.connect(host, port, compress=compress, timeout=timeout)
+    except InvalidURL:
+        raise
+    except TransportError:
+        raise TransportError(
+            f"no hub listening at {host}:{port}; start one with `robocli serve --sim` "
+            "(or give --hub HOST[:PORT] / $ROBOCLI_HUB)"
+        ) from None
+
+
+def _mask(text: str) -> int:
+    try:
+        value = int(text, 0)
+    except ValueError:
+        raise typer.BadParameter(f"--channels: {text!r} is not a number (255, 0xff)") from None
+    if not 0 < value <= 0xFF:
+        raise typer.BadParameter(f"--channels: {text} is not an 8-bit mask with a channel set")
+    return value
+
+
+def subscribe(
+    sensor: str = typer.Argument(..., help="adc, imu, gps, battery, computer, hokuyo, camera..."),
+    rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
+    hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
+    buffer: int | None = typer.Option(  # noqa: UP007
+        None, "--buffer", min=1, help="Samples the hub keeps for us (default: 1 s)."
+    ),
+    poll: float | None = typer.Option(  # noqa: UP007
+        None, "--poll", min=0.1, max=1000, help="Pulls per second (default: rate/4 + 10)."
+    ),
+    channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
+    duration: float | None = typer.Option(  # noqa: UP007
+        None, "--duration", min=0, help="Stop after S seconds."
+    ),
+    count: int | None = typer.Option(None, "--count", "-n", min=1, help="Stop after N samples."),  # noqa: UP007
+    fmt: str | None = typer.Option(  # noqa: UP007
+        None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
+    ),
+    compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
+) -> None:
+    """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
+    --count. Times are on this machine's clock (the hub's offset is estimated)."""
+    from robocli.devices.hub_tools import columns_of, rows_of, stream
+    from robocli.protocols.ros4mat import adc_freq_send_default, sensor_type
+
+    if duration is not None and count is not None:
+        raise typer.BadParameter("give --duration or --count, not both")
+    fmt = fmt or ("table" if sys.stdout.isatty() else "csv")
+    if fmt not in FORMATS:
+        raise typer.BadParameter(f"--format: choose from {', '.join(FORMATS)}")
+    kind = sensor_type(sensor)
+    mask = _mask(channels)
+    params: dict[str, Any] = {"channels": mask} if kind == 0x20 else {}
+    pulls = poll or min(float(adc_freq_send_default(rate)), float(rate))
+    out: _Output | None = None
+    with sigterm_as_interrupt():
+        try:
+            with open_hub(_address(hub), compress=compress) as client:
+                client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
+                out = _Output(fmt, columns_of(sensor, mask))
+                for reading in stream(client, sensor, pulls, duration=duration, count=count):
+                    out.write(rows_of(reading, mask))
+        except KeyboardInterrupt:
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        finally:
+            if out is not None:
+                out.close()
+
+
+class _Output:
+    """Rows as CSV, JSON lines, or a table (live on a terminal, aligned text otherwise)."""
+
+    def __init__(self, fmt: str, cols: tuple[str, ...]) -> None:
+        self.fmt, self.cols = fmt, cols
+        self.rows = 0
+        self.start = time.monotonic()
+        self.live: Any = None
+        self.recent: deque[Any] = deque(maxlen=20)
+        if fmt == "csv":
+            self._emit(",".join(cols) + "\n")
+        elif fmt == "table" and sys.stdout.isatty():
+            from rich.live import Live
+
+            self.live = Live(auto_refresh=False)
+            self.live.start()
+        elif fmt == "table":
+            self._emit("".join(f"{c:>18}" for c in cols) + "\n")
+
+    def _emit(self, text: str) -> None:
+        sys.stdout.write(text)
+        sys.stdout.flush()
+
+    def write(self, rows: np.ndarray[Any, Any]) -> None:
+        import numpy as np
+
+        self.rows += len(rows)
+        buf = io.StringIO()
+        if self.fmt == "csv":
+            np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
+        elif self.fmt == "jsonl":
+            for row in rows.tolist():
+                buf.write(json.dumps(dict(zip(self.cols, row, strict=True))) + "\n")
+        elif self.live is None:
+            np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
+        else:
+            self.recent.extend(rows.tolist())
+            self._refresh()
+            return
+        self._emit(buf.getvalue())
+
+    def _refresh(self) -> None:
+        from rich.table import Table
+
+        span = max(time.monotonic() - self.start, 1e-9)
+        table = Table(title=f"{self.rows} samples, {self.rows / span:.1f}/s")
+        for c in self.cols:
+            table.add_column(c, justify="right")
+        for row in self.recent:
+            table.add_row(f"{row[0]:.6f}", *(f"{v:.5g}" for v in row[1:]))
+        self.live.update(table, refresh=True)
+
+    def close(self) -> None:
+        if self.live is not None:
+            self.live.stop()
+            self.live = None
+
+
+def connect(
+    host: str = HubArg,
+    once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
+    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
+) -> None:
+    """Survey a hub over ros4mat: running sensors and their rates, round trip, clock offset,
+    the client id it gave us (clients seen). Repeats every window until Ctrl-C."""
+    from robocli.devices.hub_tools import survey
+
+    with sigterm_as_interrupt():
+        try:
+            with open_hub(host) as client:
+                while True:
+                    info = survey(client, window)
+                    if json_out:
+                        print_json(info)
+                    else:
+                        _print_survey(info)
+                    if once:
+                        return
+        except KeyboardInterrupt:
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+
+
+def _print_survey(info: dict[str, Any]) -> None:
+    typer.echo(
+        f"hub {info['hub']}  ros4mat v{info['protocol_version']}  client id "
+        f"{info['client_id']} (clients seen)  rtt {info['rtt_ms']} ms  "
+        f"clock offset {info['clock_offset_ms']} ms"
+    )
+    for name, s in info["sensors"].items():
+        if s["active"]:
+            typer.echo(f"  {name:<14} running  {s['rate_hz']:>8} Hz")
+        else:
+            typer.echo(f"  {name:<14} idle     ({s['reason']})")
+
+
+def dump(
+    host: str = HubArg,
+    listen: str = typer.Option(
+        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
+    ),
+    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
+    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
+    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    output: Path | None = typer.Option(  # noqa: UP007
+        None, "--output", "-o", help="Also record the session (.jsonl capture)."
+    ),
+) -> None:
+    """A recording proxy: point ros4mat clients at --listen; every message both ways is
+    printed, named and decoded, and passed on unchanged."""
+    import threading
+
+    from robocli.devices.hub import parse_hub
+    from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
+    from robocli.io.capture import CaptureWriter
+
+    upstream = parse_hub(host)
+    check_upstream(*upstream)
+    bind, port = parse_hub(listen, 1501)
+    done = threading.Event()
+    printed = 0
+    writer = CaptureWriter(output) if output is not None else None
+
+    def show(msg: Message) -> None:
+        nonlocal printed
+        if done.is_set():
+            return
+        if writer is not None:
+            writer.write(msg.t, "tx" if msg.direction == "c2s" else "rx", msg.frame)
+        if json_out:
+            record = {"t": round(msg.t, 6), "dir": msg.direction, "name": msg.name, **msg.fields}
+            if hex_out:
+                record["hex"] = msg.frame.hex()
+            line = json.dumps(record, default=str)
+        else:
+            arrow = "->" if msg.direction == "c2s" else "<-"
+            text = " ".join(f"{k}={v}" for k, v in msg.fields.items())
+            line = f"{msg.t:10.6f} {arrow} {msg.name:<14} {text}"
+            if hex_out:
+                line += "\n" + " " * 14 + msg.frame[:256].hex(" ")
+        typer.echo(line)
+        printed += 1
+        if count and printed >= count:
+            done.set()
+
+    with sigterm_as_interrupt():
+        try:
+            with DumpProxy(upstream, show, bind=bind, port=port).start() as proxy:
+                typer.echo(
+                    f"dump: clients connect to {bind}:{proxy.port}, relayed to "
+                    f"{upstream[0]}:{upstream[1]}",
+                    err=True,
+                )
+                while not done.wait(0.25):
+                    pass
+        except KeyboardInterrupt:
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        finally:
+            if writer is not None:
+                writer.close()
+
+
+def serial(
+    hub: str = HubArg,
+    port: str = typer.Argument(..., help="The serial port on the hub, e.g. /dev/ttyUSB0."),
+    baud: int = typer.Option(9600, "--baud", min=50, help="Baud rate."),
+    send: str = typer.Option("", "--send", help="Bytes to send: text, or hex with --hex."),
+    recv: int = typer.Option(0, "--recv", min=0, max=1024, help="Bytes to read back."),
+    hex_io: bool = typer.Option(False, "--hex", help="--send is hex; print the reply in hex."),
+    timeout: float = typer.Option(1.0, "--timeout", min=0, max=60, help="Read timeout, s."),
+    parity: bool = typer.Option(False, "--parity", help="Even parity."),
+    stop_bits: int = typer.Option(1, "--stop-bits", min=1, max=2, help="Stop bits."),
+) -> None:
+    """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD)."""
+    if hex_io:
+        try:
+            data = bytes.fromhex(send)
+        except ValueError:
+            raise typer.BadParameter(f"--send: {send!r} is not hex") from None
+    else:
+        data = send.encode().decode("unicode_escape").encode("latin-1")
+    with open_hub(hub) as client:
+        reply = client.serial(
+            port, data, baud=baud, recv=recv, timeout=timeout, parity=parity,
+            stop_bits=stop_bits,
+        )  # fmt: skip
+    typer.echo(reply.hex(" ") if hex_io else reply.decode("latin-1"))

@@ -1,0 +1,329 @@
+"""What the hub commands are made of: sample rows, streaming pulls, a survey of a hub and a
+recording proxy that names and decodes every ros4mat message of a session.
+
+Part of the hub client (:mod:`robocli.devices.hub`); the CLI (``robocli subscribe``,
+``connect hub``, ``dump hub``) is a thin layer over these.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from robocli.core import Framer
+from robocli.devices.hub import Hub, Reading
+from robocli.devices.hub_decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
+from robocli.errors import DeviceError, ProtocolError, TransportError
+from robocli.protocols.common import plain
+from robocli.protocols.ros4mat import (
+    HEADER_SIZE,
+    SENSORS,
+    MsgType,
+    decode,
+    sensor_type,
+)
+
+_COLUMNS: dict[int, tuple[str, ...]] = {
+    MsgType.ADC: tuple(f"ch{i}" for i in range(8)),
+    MsgType.IMU: ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
+    MsgType.GPS: GPS_ROWS,
+    MsgType.COMPUTER: COMPUTER_ROWS,
+    MsgType.BATTERY: BATTERY_ROWS,
+}
+
+
+def columns_of(sensor: str, channels: int = 0xFF) -> tuple[str, ...]:
+    """Column names of :func:`rows_of` (``t`` first). ``channels`` masks ADC channels."""
+    kind = sensor_type(sensor)
+    if kind == MsgType.ADC:
+        return ("t", *(c for i, c in enumerate(_COLUMNS[kind]) if channels >> i & 1))
+    if kind in _COLUMNS:
+        return ("t", *_COLUMNS[kind])
+    if kind == MsgType.HOKUYO:
+        return ("t", "beams", "min", "max", "mean")
+    return ("t", "height", "width", "mean")
+
+
+def rows_of(reading: Reading, channels: int = 0xFF) -> np.ndarray[Any, Any]:
+    """One row per sample (samples x columns, float64): the reading's time, then its fields
+    (fixed-record sensors) or a summary of the scan / image (laser, cameras)."""
+    n = len(reading)
+    kind = sensor_type(reading.sensor)
+    if kind in _COLUMNS:
+        data = reading.data
+        if kind == MsgType.ADC:
+            data = data[[i for i in range(8) if channels >> i & 1]]
+        return np.column_stack([reading.t, np.asarray(data, dtype=np.float64).T])
+    if kind == MsgType.HOKUYO:
+        r = reading.data
+        if not n:
+            return np.empty((0, 5))
+        stats = [np.full(n, r.shape[0]), r.min(axis=0), r.max(axis=0), r.mean(axis=0)]
+        return np.column_stack([reading.t, *stats])
+    d = reading.data
+    if not n:
+        return np.empty((0, 4))
+    means = d.reshape(-1, n).mean(axis=0)
+    return np.column_stack([reading.t, np.full(n, d.shape[0]), np.full(n, d.shape[1]), means])
+
+
+def stream(
+    hub: Hub,
+    sensor: str,
+    poll: float,
+    *,
+    duration: float | None = None,
+    count: int | None = None,
+    clock: Callable[[], float] = time.monotonic,
+    sleep: Callable[[float], Any] = time.sleep,
+) -> Iterator[Reading]:
+    """Pull ``sensor`` ``poll`` times a second and yield each non-empty reading, until
+    ``duration`` seconds passed or ``count`` samples came (the last reading is cut to
+    ``count``). Pulls keep a fixed schedule (no drift), skipping missed slots."""
+    period = 1.0 / poll
+    start = clock()
+    due = start
+    got = 0
+    while True:
+        reading = hub.read(sensor)
+        if count is not None and got + len(reading) > count:
+            reading = _head(reading, count - got)
+        got += len(reading)
+        if len(reading):
+            yield reading
+        now = clock()
+        if (count is not None and got >= count) or (
+            duration is not None and now - start >= duration
+        ):
+            return
+        due += period
+        if due < now:
+            due = now + period - (now - due) % period
+        wait = due - now
+        if duration is not None:
+            wait = min(wait, start + duration - now)
+        if wait > 0:
+            sleep(wait)
+
+
+def _head(reading: Reading, n: int) -> Reading:
+    cut = {k: v[..., :n] for k, v in reading.fields.items()}
+    return Reading(
+        reading.sensor, reading.data[..., :n], reading.t[:n], reading.hub_t[:n],
+        reading.packet_timestamp, reading.info, cut, reading.nbytes,
+    )  # fmt: skip
+
+
+def survey(hub: Hub, window: float = 0.5, sensors: tuple[str, ...] | None = None) -> dict[str, Any]:
+    """What a client can learn about a hub over ros4mat alone: for each sensor, whether a
+    silent subscribe is accepted (someone runs it) and, over ``window`` seconds, its sample
+    rate and latest time; the round trip and clock offset. ros4mat has no message listing
+    sensors or clients: the client id the hub assigned (max existing + 1) bounds the number
+    of clients it has seen."""
+    names = sensors or tuple(n for n in SENSORS if n not in ("webcam", "ordinateur"))
+    active: dict[str, Any] = {}
+    for name in names:
+        try:
+            hub.subscribe(name)
+        except DeviceError as exc:
+            active[name] = {"active": False, "reason": str(exc).split(": ", 1)[-1]}
+        else:
+            active[name] = {"active": True}
+    running = [n for n, v in active.items() if v["active"]]
+    first = {n: hub.read(n) for n in running}
+    start = time.monotonic()
+    time.sleep(window)
+    for name in running:
+        reading = hub.read(name)
+        span = time.monotonic() - start
+        latest = reading.hub_t[-1] if len(reading) else (first[name].hub_t[-1:] or [None])[0]
+        active[name].update(
+            rate_hz=round(len(reading) / span, 1),
+            samples_per_pull=len(reading),
+            latest_hub_time=None if latest is None else float(latest),
+        )
+    for name in running:
+        with contextlib.suppress(DeviceError):
+            hub.unsubscribe(name)
+    return {
+        "hub": hub.url,
+        "protocol_version": 3,
+        "client_id": hub.client_id,
+        "clients_seen": hub.client_id,
+        "compression": hub.compress,
+        "rtt_ms": None if hub.sync.rtt is None else round(hub.sync.rtt * 1e3, 3),
+        "clock_offset_ms": None if hub.sync.offset is None else round(hub.sync.offset * 1e3, 3),
+        "sensors": active,
+    }
+
+
+# ---------------------------------------------------------------------- recording proxy
+
+
+@dataclass
+class Message:
+    """One ros4mat message seen by :class:`DumpProxy`."""
+
+    t: float
+    direction: str  # "c2s" (client to hub) or "s2c"
+    name: str
+    frame: bytes
+    fields: dict[str, Any]
+
+
+def describe(frame: bytes) -> tuple[str, dict[str, Any]]:
+    """Name and decoded fields of one ros4mat frame; bulky bodies are summarised."""
+    try:
+        msg = decode(frame)
+    except ProtocolError as exc:
+        return "undecodable", {"error": str(exc), "bytes": len(frame)}
+    try:
+        name = MsgType(msg.msg_type).name
+    except ValueError:
+        name = f"0x{int(msg.msg_type) & 0xFF:02x}"
+    fields: dict[str, Any] = {"client_id": msg.client_id, "size": msg.size}
+    if msg.packet_timestamp:
+        fields["packet_timestamp"] = msg.packet_timestamp
+    if msg.compression_type:
+        fields["zlib"] = f"{len(frame) - HEADER_SIZE} B"
+    if msg.error_text is not None:
+        fields["error"] = msg.error_text
+    body = msg.body
+    if isinstance(body, list):
+        fields["records"] = len(body)
+        if body:
+            fields["first"] = body[0]
+    elif isinstance(body, dict) and "infos" in body:
+        fields["infos"] = body["infos"][:2]
+        fields["blob_bytes"] = len(frame) - HEADER_SIZE
+    elif isinstance(body, dict):
+        fields.update({k: v for k, v in plain(body).items() if k != "data"})
+        if "data" in body:
+            fields["data"] = bytes(body["data"]).hex()
+    elif isinstance(body, bytes):
+        fields["body"] = body[:32].hex()
+    return name, fields
+
+
+class DumpProxy:
+    """A transparent TCP proxy in front of a hub that names and decodes every message.
+
+    Clients connect to :attr:`port` (on ``bind``) instead of the hub; bytes pass through
+    unchanged in both directions, and each complete ros4mat frame goes to ``on_message``
+    (from the pumping threads; its exceptions are the caller's, they end that session).
+    """
+
+    def __init__(
+        self,
+        upstream: tuple[str, int],
+        on_message: Callable[[Message], None],
+        *,
+        bind: str = "127.0.0.1",
+        port: int = 0,
+        max_clients: int = 8,
+    ) -> None:
+        self.upstream = upstream
+        self.on_message = on_message
+        self._lock = threading.Lock()
+        self._listener = socket.create_server((bind, port))
+        self._listener.settimeout(0.25)
+        self.port = self._listener.getsockname()[1]
+        self._closing = threading.Event()
+        self._socks: list[socket.socket] = []
+        self._max = max_clients
+        self._start = time.monotonic()
+        self._thread = threading.Thread(target=self._accept, name="hub-dump", daemon=True)
+
+    def start(self) -> DumpProxy:
+        self._thread.start()
+        return self
+
+    def _accept(self) -> None:
+        while not self._closing.is_set():
+            try:
+                client, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            try:
+                hub = socket.create_connection(self.upstream, timeout=5.0)
+            except OSError:
+                client.close()
+                continue
+            for s in (client, hub):
+                s.settimeout(None)
+                s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._lock:
+                if len(self._socks) >= 2 * self._max:
+                    client.close()
+                    hub.close()
+                    continue
+                self._socks += [client, hub]
+            for src, dst, direction in ((client, hub, "c2s"), (hub, client, "s2c")):
+                threading.Thread(target=self._pump, args=(src, dst, direction), daemon=True).start()
+
+    def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
+        framer = Framer("ros4mat")
+        try:
+            while True:
+                data = src.recv(65536)
+                if not data:
+                    break
+                dst.sendall(data)
+                now = time.monotonic() - self._start
+                for frame in framer.feed(data):
+                    name, fields = describe(frame)
+                    with self._lock:
+                        self.on_message(Message(now, direction, name, frame, fields))
+        except OSError:
+            pass
+        finally:
+            for s in (src, dst):
+                with contextlib.suppress(OSError):
+                    s.shutdown(socket.SHUT_RDWR)
+
+    def close(self) -> None:
+        """Stop accepting and cut every proxied session."""
+        self._closing.set()
+        self._listener.close()
+        with self._lock:
+            socks, self._socks = self._socks, []
+        for s in socks:
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+            s.close()
+        self._thread.join(1.0)
+
+    def __enter__(self) -> DumpProxy:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def check_upstream(host: str, port: int, timeout: float = 2.0) -> None:
+    """Raise :class:`TransportError` when nothing listens at the hub's address."""
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        raise TransportError(f"no hub at {host}:{port} ({exc.strerror or exc})") from None
+
+
+__all__ = [
+    "DumpProxy",
+    "Message",
+    "check_upstream",
+    "columns_of",
+    "describe",
+    "rows_of",
+    "stream",
+    "survey",
+]
