@@ -12,7 +12,7 @@ import sys
 import typer
 
 from robocli._version import __version__
-from robocli.commands import bench, kinematics, pioneer
+from robocli.commands import bench, kinematics, pioneer, ports
 from robocli.commands import hub as hub_commands
 from robocli.commands._common import PlainCommand
 
@@ -66,6 +66,7 @@ connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
 teleop.command("pioneer", cls=PlainCommand)(pioneer.teleop)
 dump.command("pioneer", cls=PlainCommand)(pioneer.dump)
 sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
+app.command("ports", cls=PlainCommand)(ports.ports)
 bench_group.command("rtt")(bench.rtt)
 bench_group.command("jitter")(bench.jitter)
 bench_group.command("sip")(bench.sip)
@@ -99,7 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, map errors to one line and an exit code."""
     from typer.exceptions import TyperException
 
-    from robocli.errors import EXIT_INTERRUPTED, RobocliError
+    from robocli.errors import EXIT_INTERRUPTED, EXIT_USAGE, RobocliError
 
     args = _hoist_verbose(sys.argv[1:] if argv is None else list(argv))
     try:
@@ -114,7 +115,9 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
     except RobocliError as exc:
-        typer.echo(f"robocli: {exc}", err=True)
+        hint = f" Try 'robocli {_command_of(args)} -h'." if exc.exit_code == EXIT_USAGE else ""
+        message = str(exc).rstrip(".") + "." if hint else str(exc)
+        typer.echo(f"robocli: {message}{hint}", err=True)
         return exc.exit_code
     except TyperException as exc:  # usage errors (bad option, missing argument: code 2)
         if type(exc).__name__ == "NoArgsIsHelpError":
@@ -122,6 +125,13 @@ def main(argv: list[str] | None = None) -> int:
         message = exc.format_message().rstrip(".")
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
+
+
+def _command_of(args: list[str]) -> str:
+    """The command words of ``args`` (``connect pioneer``): the leading non-options."""
+    words = [a for a in args if not a.startswith("-")]
+    groups = {info.name for info in app.registered_groups}
+    return " ".join(words[:2] if words[:1] and words[0] in groups else words[:1])
 
 
 def _help_hint(exc: Exception) -> str:

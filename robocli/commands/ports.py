@@ -1,0 +1,38 @@
+"""``robocli ports``: the serial ports of this computer, with what is plugged into them."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import typer
+
+from robocli.commands._common import print_json
+
+
+def list_serial_ports() -> list[dict[str, Any]]:
+    """Serial ports as pyserial's ``list_ports`` sees them: device, description, hardware id
+    (USB vendor:product and serial number), sorted by device name."""
+    from serial.tools import list_ports
+
+    return [
+        {"device": p.device, "description": p.description, "hwid": p.hwid}
+        for p in sorted(list_ports.comports(), key=lambda p: p.device)
+    ]
+
+
+def ports(
+    json_out: bool = typer.Option(False, "--json", help="A JSON list instead of a table."),
+) -> None:
+    """List serial ports (a Pioneer's USB-serial adapter shows as /dev/ttyUSB0, COM3...)."""
+    found = list_serial_ports()
+    if json_out:
+        print_json(found)
+        return
+    if not found:
+        typer.echo("no serial ports found (is the USB-serial adapter plugged in?)")
+        return
+    width = max(len("DEVICE"), *(len(p["device"]) for p in found))
+    described = max(len("DESCRIPTION"), *(len(p["description"]) for p in found))
+    typer.echo(f"{'DEVICE':<{width}}  {'DESCRIPTION':<{described}}  HWID")
+    for p in found:
+        typer.echo(f"{p['device']:<{width}}  {p['description']:<{described}}  {p['hwid']}")
