@@ -1,0 +1,195 @@
+"""The hub client against the built-in hub over real sockets: every sensor in the original
+client's shapes, many clients, compression, alignment, clock offset, reconnects."""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocli import Hub
+from robocli.errors import DeviceError, InvalidArgument, TransportError
+from robocli.hub import HubServer
+
+# sensor -> (subscribe arguments, the hub's name, expected data shape without N)
+SENSORS: dict[str, tuple[dict[str, Any], str, tuple[int, ...]]] = {
+    "adc": ({"rate": 200}, "adc", (8,)),
+    "imu": ({"rate": 100}, "imu", (9,)),
+    "gps": ({"rate": 5}, "gps", (7,)),
+    "battery": ({"rate": 10}, "battery", (13,)),
+    "computer": ({"rate": 10}, "sysinfo", (15,)),
+    "hokuyo": ({"rate": 40}, "laser", (1081,)),
+    "camera": ({"rate": 30, "resolution": "320x240"}, "camera", (240, 320, 3)),
+    "camera_stereo": ({"rate": 15, "resolution": "320x240"}, "stereo", (240, 320, 3)),
+    "kinect": ({"rate": 15, "resolution": "320x240"}, "depth", (240, 320, 3)),
+}
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[HubServer]:
+    with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:
+        yield srv
+
+
+@pytest.fixture
+def hub(server: HubServer) -> Iterator[Hub]:
+    with Hub.connect("127.0.0.1", server.port) as client:
+        yield client
+
+
+def wait_for(read: Callable[[], Any], n: int, timeout: float = 10.0) -> list[Any]:
+    """Readings until they hold ``n`` samples in all (bounded by ``timeout``)."""
+    got: list[Any] = []
+    deadline = time.monotonic() + timeout
+    while sum(len(r) for r in got) < n:
+        assert time.monotonic() < deadline, f"only {sum(len(r) for r in got)} of {n} samples"
+        reading = read()
+        if len(reading):
+            got.append(reading)
+        else:
+            time.sleep(0.01)
+    return got
+
+
+@pytest.mark.parametrize("name", list(SENSORS))
+def test_every_sensor_in_the_original_shapes(server: HubServer, hub: Hub, name: str) -> None:
+    kwargs, hub_name, shape = SENSORS[name]
+    if hub_name not in server.sensors:
+        pytest.skip(f"this hub does not serve {hub_name} yet")
+    hub.subscribe(name, **kwargs)
+    reading = wait_for(lambda: hub.read(name), 2)[0]
+    data, t = reading
+    assert data.shape[:-1] == shape and data.shape[-1] == len(t) == len(reading) >= 1
+    assert np.all(np.diff(t) > 0) and np.isfinite(t).all()
+    assert abs(t[-1] - time.time()) < 5.0  # client clock, acquisition times
+    if name == "imu":
+        assert reading.accel.shape == (3, len(t))
+        assert abs(np.linalg.norm(reading.accel, axis=0).mean() - 1.0) < 0.2  # about 1 g
+    if name == "gps":
+        assert (np.abs(reading.longitude) <= 180).all() and (np.abs(reading.latitude) <= 90).all()
+    if name == "hokuyo":
+        assert reading.info is not None and reading.info.shape == (6,)
+    if name == "kinect":
+        assert reading.depth.shape == (240, 320, len(t)) and reading.depth.dtype == np.uint16
+    hub.unsubscribe(name)
+
+
+def test_pull_is_destructive_and_cursors_independent(server: HubServer) -> None:
+    with Hub.connect("127.0.0.1", server.port) as a, Hub.connect("127.0.0.1", server.port) as b:
+        a.subscribe("adc", 500)
+        b.subscribe("adc")  # silent: joins the current settings
+        first_a = wait_for(lambda: a.read("adc"), 20)
+        time.sleep(0.05)
+        more_a = wait_for(lambda: a.read("adc"), 1)
+        all_b = wait_for(lambda: b.read("adc"), 30)
+        ta = np.concatenate([r.hub_t for r in first_a + more_a])
+        tb = np.concatenate([r.hub_t for r in all_b])
+        assert np.all(np.diff(ta) > 0) and np.all(np.diff(tb) > 0)  # nothing twice for a
+        # b's first pull still had what a had consumed: cursors are per client
+        assert tb[0] <= ta[len(first_a[0].hub_t) - 1]
+
+
+def test_many_clients_at_once(server: HubServer) -> None:
+    n_clients = 12
+    errors: list[BaseException] = []
+    counts = [0] * n_clients
+
+    def client(i: int) -> None:
+        try:
+            with Hub.connect("127.0.0.1", server.port) as h:
+                h.subscribe("imu", 100) if i == 0 else h.subscribe("imu", 100, buffer=500)
+                got = wait_for(lambda: h.read("imu"), 20)
+                counts[i] = sum(len(r) for r in got)
+                t = np.concatenate([r.t for r in got])
+                assert np.all(np.diff(t) > 0)
+        except BaseException as exc:  # noqa: BLE001 - handed to the test thread
+            errors.append(exc)
+
+    threads = [threading.Thread(target=client, args=(i,)) for i in range(n_clients)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(30)
+    assert not errors, errors[0]
+    assert min(counts) >= 20
+
+
+def test_compression_gives_the_same_readings(server: HubServer) -> None:
+    with Hub.connect("127.0.0.1", server.port, compress=True) as h:
+        h.subscribe("adc", 200)
+        frame = b""
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline:
+            frame = h.pull("adc")
+            if frame[6] or frame[7]:  # size > 0
+                break
+            time.sleep(0.02)
+        assert frame[18] == 1  # compressionType zlib
+        reading = wait_for(lambda: h.read("adc"), 5)[0]
+        assert reading.data.shape[0] == 8 and reading.data.dtype == np.float32
+
+
+def test_read_aligned(server: HubServer, hub: Hub) -> None:
+    hub.subscribe("adc", 500)
+    hub.subscribe("imu", 100)
+    time.sleep(0.3)
+    out = hub.read_aligned(["adc", "imu"], rate=50)
+    t = out["t"]
+    assert len(t) >= 5 and np.allclose(np.diff(t), 0.02, atol=1e-6)
+    assert out["adc"].shape == (8, len(t)) and out["imu"].shape == (9, len(t))
+    assert np.isfinite(out["adc"]).all() and np.isfinite(out["imu"]).all()
+    time.sleep(0.2)
+    ref = hub.read_aligned(["adc", "imu"], reference="imu")
+    assert ref["imu"].shape[1] == len(ref["t"]) and ref["adc"].shape == (8, len(ref["t"]))
+    with pytest.raises(InvalidArgument, match="rate or reference"):
+        hub.read_aligned(["adc"], rate=10, reference="adc")
+
+
+def test_clock_offset_within_half_a_millisecond(server: HubServer) -> None:
+    injected = 123.456789  # the client's clock runs this far ahead of the hub's
+    with Hub.connect("127.0.0.1", server.port, clock=lambda: time.time() + injected) as h:
+        h.subscribe("adc", 100)
+        for _ in range(40):
+            h.read("adc")
+        assert h.clock_offset is not None
+        assert abs(h.clock_offset - (-injected)) <= 0.5e-3
+        reading = wait_for(lambda: h.read("adc"), 1)[0]
+        np.testing.assert_allclose(reading.t - reading.hub_t, injected, atol=0.5e-3)
+    with Hub.connect("127.0.0.1", server.port, hub_clock=True) as h:
+        h.subscribe("adc", 100)
+        reading = wait_for(lambda: h.read("adc"), 1)[0]
+        assert (reading.t == reading.hub_t).all()
+
+
+def test_reconnect_keeps_buffers(server: HubServer) -> None:
+    h = Hub.connect("127.0.0.1", server.port)
+    h.subscribe("adc", 200)
+    wait_for(lambda: h.read("adc"), 1)
+    cid = h.client_id
+    h.close(quit=False)
+    time.sleep(0.1)
+    with Hub.connect("127.0.0.1", server.port, client_id=cid) as again:
+        assert again.client_id == cid
+        reading = again.read("adc")  # what accumulated while we were away
+        assert len(reading) >= 5
+
+
+def test_unsubscribe_digital_out_and_refusals(server: HubServer, hub: Hub) -> None:
+    hub.subscribe("adc", 100)
+    hub.digital_out(1, 0, 1, 1)
+    hub.read("adc")  # a round trip after DOUT_CTRL, which has no reply
+    assert server.sensors["adc"]["digital_out"] == [1, 0, 1, 1]
+    hub.unsubscribe("adc")
+    with pytest.raises(DeviceError):
+        hub.read("adc")
+    with pytest.raises(InvalidArgument, match="rate"):
+        hub.subscribe("adc", 0)
+
+
+def test_no_hub_is_a_transport_error() -> None:
+    with pytest.raises(TransportError):
+        Hub.connect("127.0.0.1", 1, timeout=2.0)
