@@ -1,0 +1,470 @@
+"""Industrial arms over ROS-Industrial Simple Message: the ABB IRB120 first.
+
+>>> with Arm.connect("192.168.125.1") as arm:              # doctest: +SKIP
+...     arm.wait_for_state()
+...     arm.download(circle(load_model("irb120")))    # -1, points, -3: the ABB way
+...     arm.wait_until_idle(60)
+
+Two links, each a :class:`~robocli.devices.session.Session`: the **motion** port (11000), where
+each JOINT_TRAJ_PT is a SERVICE_REQUEST whose SERVICE_REPLY is awaited with a timeout, and the
+**state** port (11002), whose JOINT_POSITION / STATUS / JOINT_FEEDBACK messages become
+timestamped :class:`JointSample` and :class:`ArmStatus` values (a bounded history). Either
+port may be used alone. The client never sends PING or GET_VERSION: an ABB motion server
+accepts JOINT_TRAJ_PT only.
+
+Download (:meth:`Arm.download`): sequence -1, the points, -3; the ABB server keeps 100 points
+and silently drops the rest, so longer trajectories are refused before anything is sent
+unless ``split=True``. Streaming (:meth:`Arm.stream`): points 0..N-1 for servers that execute
+as they receive (industrial_robot_client's streamer); an ABB never executes them. A FAILURE
+reply raises :class:`~robocli.errors.DeviceError`. :meth:`Arm.close` sends STOP (-4) when a
+trajectory runs, unless told not to.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from types import TracebackType
+from typing import Any
+
+import numpy.typing as npt
+
+from robocli.core import Framer
+from robocli.devices.arm.state import (
+    ABB_MAX_POINTS,
+    ArmStatus,
+    JointSample,
+    Point,
+    prepare,
+    split_points,
+)
+from robocli.devices.session import FrameListener, Listeners, Session
+from robocli.errors import (
+    ConnectionLost,
+    DeviceError,
+    InvalidArgument,
+    ProtocolError,
+    TimeoutError,
+    TransportError,
+)
+from robocli.io.trajlog import TrajectoryLog
+from robocli.kinematics import load_model
+from robocli.kinematics.model import RobotModel
+from robocli.protocols import simple_message as sm
+from robocli.protocols.common import find_refusal
+from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
+from robocli.transports import SocketTransport
+
+__all__ = ["Arm", "SampleListener"]
+
+log = logging.getLogger("robocli.devices.arm")
+
+#: Called with each decoded joint sample (in the state reader's thread).
+SampleListener = Callable[[JointSample], None]
+
+_POS = sm.ValidFields.POSITION
+_ORDERS = {"little": "<", "big": ">", "<": "<", ">": ">"}
+
+
+class Arm:
+    """A connected arm controller. Make one with :meth:`connect`; use it as a context manager.
+
+    ``robot``: the :class:`~robocli.kinematics.model.RobotModel` limits are checked against.
+    ``history``: joint samples kept (oldest dropped).
+    """
+
+    def __init__(self, motion: Session | None, state: Session | None, *, robot: RobotModel,
+                 byteorder: sm.ByteOrder, real: sm.RealSize, timeout: float,
+                 history: int = 100_000) -> None:  # fmt: skip
+        """Use :meth:`connect`."""
+        self.robot, self.byteorder, self.real, self.timeout = robot, byteorder, real, timeout
+        self._motion, self._state = motion, state
+        self.history: deque[JointSample] = deque(maxlen=history)
+        self.status: ArmStatus | None = None  #: the last STATUS received
+        self.joints: JointSample | None = None  #: the last joint sample received
+        self._cond = threading.Condition()
+        self._statuses = 0
+        stats = (state or motion).stats  # type: ignore[union-attr]
+        self._sample_listeners: Listeners[SampleListener] = Listeners(stats, "arm samples")
+        self._activated_at: float | None = None  # monotonic time of the last activation
+        self._expected_end = 0.0
+        self._stop_frame = self._point_frame(
+            SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * robot.n_joints, 0.0, 0.0))
+        for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
+            if session is not None:
+                session.on_frame = handler
+
+    # ------------------------------------------------------------------ connecting
+
+    @classmethod
+    def connect(cls, host: str, motion_port: int = sm.PORT_MOTION,
+                state_port: int = sm.PORT_STATE, *, byte_order: str = "little",
+                real_size: int = 4, robot: str | RobotModel = "irb120", motion: bool = True,
+                state: bool = True, timeout: float = 5.0, history: int = 100_000,
+                listeners: Iterable[FrameListener] = ()) -> Arm:  # fmt: skip
+        """Open the motion and/or state port of the controller at ``host``.
+
+        ``byte_order``: ``"little"`` (ABB) or ``"big"`` (Fanuc, FS100); ``real_size`` 4 or 8.
+        With ``state``, waits up to ``timeout`` s for the first state message. Raises
+        :class:`TransportError` (unreachable, or a port answering another protocol),
+        :class:`DeviceError` (the controller refused: another client holds the port),
+        :class:`InvalidArgument` (bad option), an unknown-model error (exit 2).
+        """
+        order = _ORDERS.get(byte_order)
+        if order is None:
+            raise InvalidArgument(f"byte_order must be 'little' or 'big', not {byte_order!r}")
+        if real_size not in (4, 8):
+            raise InvalidArgument(f"real_size must be 4 or 8, not {real_size!r}")
+        if not (motion or state):
+            raise InvalidArgument("connect to the motion port, the state port, or both")
+        model = robot if isinstance(robot, RobotModel) else load_model(robot)
+        sessions: list[Session] = []
+        try:
+            links = [None, None]
+            for i, (wanted, port, name) in enumerate(
+                ((motion, motion_port, "motion"), (state, state_port, "state"))
+            ):
+                if wanted:
+                    transport = SocketTransport.connect(host, port, timeout)
+                    framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
+                    s = Session(transport, framer, on_frame=lambda f, t: None,
+                                name_of=_namer(order, real_size), name=f"arm-{name}")  # fmt: skip
+                    sessions.append(s)
+                    links[i] = s
+            arm = cls(links[0], links[1], robot=model, byteorder=order,  # type: ignore[arg-type]
+                      real=real_size, timeout=timeout, history=history)  # type: ignore[arg-type]
+            for listener in listeners:
+                arm.add_listener(listener)
+            if arm._state is not None:
+                arm._first_state(timeout)
+            for s in sessions:
+                s.start()
+            if arm._motion is not None:
+                arm._motion.close_timeout = 2.0
+            return arm
+        except BaseException:
+            for s in sessions:
+                s.close()
+            raise
+
+    def _first_state(self, timeout: float) -> None:
+        """Read until the first valid state message (before the reader starts, so that a
+        refusal line or another protocol is seen)."""
+        s = self._state
+        assert s is not None
+        url = s.transport.url
+        before = s.stats.decode_errors
+        try:
+            s.request(None, lambda f: s.stats.decode_errors == before and
+                      self._statuses + len(self.history) > 0, timeout)  # fmt: skip
+        except ConnectionLost:
+            reason = find_refusal(s.raw_tail())
+            if reason is not None:
+                raise DeviceError(f"{url}: {reason}") from None
+            raise
+        except TimeoutError:
+            if s.raw_tail() or s.stats.decode_errors:
+                raise TransportError(f"{url}: the port answers, but not in Simple Message "
+                                     "(another protocol, or the wrong byte order)") from None
+            raise TimeoutError(f"{url}: no state message within {timeout:g} s") from None
+
+    def close(self, stop: bool = True) -> None:
+        """Close both links. With ``stop`` (the default) a trajectory that may be running is
+        stopped first (STOP, -4); ``stop=False`` leaves it running, as a dropped link does on
+        an ABB. Bounded in time; idempotent."""
+        if self._motion is not None:
+            seq = [self._stop_frame] if stop and self.running() else []
+            self._motion.close(seq)
+        if self._state is not None:
+            self._state.close()
+        with self._cond:
+            self._cond.notify_all()
+
+    def __enter__(self) -> Arm:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:  # fmt: skip
+        self.close()
+
+    # ------------------------------------------------------------------ listeners
+
+    def add_listener(self, listener: FrameListener, ports: str = "both") -> None:
+        """Call ``listener(direction, frame, t)`` for every frame sent ("tx") or received
+        ("rx") on the ``"motion"``, ``"state"`` or ``"both"`` ports. A listener that raises
+        is logged once, counted in ``stats.listener_errors``, and never stops the client."""
+        for s in self._sessions(ports):
+            s.listeners.add(listener)
+
+    def remove_listener(self, listener: FrameListener, ports: str = "both") -> None:
+        for s in self._sessions(ports):
+            s.listeners.remove(listener)
+
+    def add_sample_listener(self, listener: SampleListener) -> None:
+        """Call ``listener(sample)`` for each :class:`JointSample` (isolated like frames)."""
+        self._sample_listeners.add(listener)
+
+    def remove_sample_listener(self, listener: SampleListener) -> None:
+        self._sample_listeners.remove(listener)
+
+    def _sessions(self, ports: str) -> list[Session]:
+        if ports not in ("both", "motion", "state"):
+            raise InvalidArgument(f"ports must be 'motion', 'state' or 'both', not {ports!r}")
+        picked = [(self._motion, "motion"), (self._state, "state")]
+        return [s for s, name in picked if s is not None and ports in ("both", name)]
+
+    @property
+    def stats(self) -> dict[str, Any]:
+        """Counters of both links (JSON-ready)."""
+        return {name: s.stats.as_dict() for s, name in
+                ((self._motion, "motion"), (self._state, "state")) if s is not None}  # fmt: skip
+
+    # ------------------------------------------------------------------ state
+
+    def _on_state_frame(self, frame: bytes, t: float) -> None:
+        msg = sm.decode(frame, byteorder=self.byteorder, real=self.real)
+        body = msg.body
+        if not isinstance(body, dict):
+            return
+        n = self.robot.n_joints
+        sample = None
+        if msg.msg_type == MsgType.JOINT_POSITION:
+            sample = JointSample(t, tuple(body["joints"][:n]))
+        elif msg.msg_type == MsgType.JOINT_FEEDBACK and body["valid_fields"] & _POS:
+            rt = body["time"] if body["valid_fields"] & sm.ValidFields.TIME else None
+            sample = JointSample(t, tuple(body["positions"][:n]), rt, "joint_feedback")
+        elif msg.msg_type == MsgType.STATUS:
+            with self._cond:
+                self.status = ArmStatus.from_body(body, t)
+                self._statuses += 1
+                self._cond.notify_all()
+            return
+        if sample is None:
+            return
+        with self._cond:
+            self.history.append(sample)
+            self.joints = sample
+            self._cond.notify_all()
+        if len(self._sample_listeners):
+            self._sample_listeners.notify(sample)
+
+    def wait_for_state(self, timeout: float | None = None) -> JointSample:
+        """The next joint sample (raises :class:`TimeoutError`, or the link's error)."""
+        s = self._need(self._state, "state")
+        deadline = time.monotonic() + (self.timeout if timeout is None else timeout)
+        with self._cond:
+            count = len(self.history)
+            seen = self.joints
+            while self.joints is seen or (self.joints is None and len(self.history) == count):
+                s.check()
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"{s.transport.url}: no state within the timeout")
+                self._cond.wait(min(left, 0.1))
+            assert self.joints is not None
+            return self.joints
+
+    def running(self) -> bool:
+        """True while a trajectory this client activated may still run: the last STATUS says
+        in motion, or (without state) its nominal end has not passed."""
+        if self._activated_at is None:
+            return False
+        st = self.status
+        if self._state is not None and st is not None and st.t > self._activated_at:
+            return st.in_motion is not False
+        return time.monotonic() < self._expected_end
+
+    def wait_until_idle(self, timeout: float) -> ArmStatus:
+        """Wait until STATUS says the arm is not in motion: after the last activation, in two
+        consecutive statuses, or in one after it was seen moving. Needs the state port."""
+        s = self._need(self._state, "state")
+        since = self._activated_at if self._activated_at is not None else time.monotonic()
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            count, idle, moved = self._statuses, 0, False
+            while True:
+                s.check()
+                st = self.status
+                if self._statuses != count and st is not None and st.t > since:
+                    count = self._statuses
+                    if st.in_motion:
+                        moved, idle = True, 0
+                    else:
+                        idle += 1
+                        if moved or idle >= 2:
+                            return st
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    raise TimeoutError(f"{s.transport.url}: still in motion after {timeout:g} s")
+                self._cond.wait(min(left, 0.1))
+
+    def record(self, max_samples: int = 1_000_000) -> Recorder:
+        """Start recording joint samples (a :class:`Recorder`; stop it for the log)."""
+        return Recorder(self, max_samples)
+
+    # ------------------------------------------------------------------ motion
+
+    def _point_frame(self, seq: int, p: Point) -> bytes:
+        body = {"sequence": int(seq), "joints": list(p.joints), "velocity": p.velocity,
+                "duration": p.duration}  # fmt: skip
+        return sm.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
+                         byteorder=self.byteorder, real=self.real)  # fmt: skip
+
+    def _on_motion_frame(self, frame: bytes, t: float) -> None:
+        sm.decode(frame, byteorder=self.byteorder, real=self.real)  # unsolicited: checked only
+
+    def _send_point(self, seq: int, p: Point, timeout: float) -> None:
+        s = self._need(self._motion, "motion")
+        order, real = self.byteorder, self.real
+
+        def is_reply(frame: bytes) -> bool:
+            try:
+                m = sm.decode(frame, byteorder=order, real=real)
+            except ProtocolError:
+                return False
+            return m.msg_type == MsgType.JOINT_TRAJ_PT and m.comm_type == CommType.SERVICE_REPLY
+
+        before = s.stats.decode_errors
+        try:
+            reply = s.request(self._point_frame(seq, p), is_reply, timeout)
+        except TimeoutError:
+            if s.stats.decode_errors != before:
+                raise TransportError(f"{s.transport.url}: the motion port answers, but not in "
+                                     "Simple Message (another protocol?)") from None
+            raise TimeoutError(f"{s.transport.url}: no reply to point {seq} within "
+                               f"{timeout:g} s") from None
+        except ConnectionLost as exc:
+            reason = find_refusal(s.raw_tail())
+            if reason:
+                raise DeviceError(f"{s.transport.url}: {reason}") from None
+            raise exc from None
+        code = sm.decode(reply, byteorder=order, real=real).reply_code
+        if code != ReplyCode.SUCCESS:
+            raise DeviceError(f"{s.transport.url}: the controller refused point {seq} "
+                              f"(reply code {int(code)}: FAILURE)", code=int(code))  # fmt: skip
+
+    def download(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
+                 split: bool = False, first_duration: float | None = None,
+                 timeout: float | None = None,
+                 progress: Callable[[int, int], None] | None = None) -> int:  # fmt: skip
+        """Upload ``traj`` the ABB way: -1, points, -3 (activates), each acknowledged.
+
+        Checked first against the robot model (finite, increasing times, ranges, speeds) and
+        the 100-point buffer (``split=True`` uploads several trajectories in turn, waiting for
+        each to finish: needs the state port). ``progress(done, total)`` after each ack.
+        Returns the number of points sent. Raises :class:`InvalidArgument` /
+        ``LimitError`` before sending anything, :class:`DeviceError` on a FAILURE reply,
+        :class:`TimeoutError` when a reply does not come within ``timeout`` s.
+        """
+        points = prepare(self.robot, traj, self._q_now(), first_duration)
+        if len(points) > ABB_MAX_POINTS and not split:
+            raise InvalidArgument(
+                f"trajectory has {len(points)} points; the ABB server keeps {ABB_MAX_POINTS} "
+                "and silently drops the rest (use split=True / --split)")
+        chunks = split_points(points)
+        if len(chunks) > 1:
+            self._need(self._state, "state")
+        wait = self.timeout if timeout is None else timeout
+        total, done = sum(len(c) + (len(c) == 1) for c in chunks), 0
+        for k, chunk in enumerate(chunks):
+            if k:
+                self.wait_until_idle(sum(p.duration for p in chunks[k - 1]) * 4 + 30)
+            if len(chunk) == 1:
+                chunk = chunk * 2  # industrial_robot_client duplicates single points
+            for i, p in enumerate(chunk):
+                last = i == len(chunk) - 1
+                seq = SpecialSeq.START_TRAJECTORY_DOWNLOAD if i == 0 else (
+                    SpecialSeq.END_TRAJECTORY if last else i)
+                if last:
+                    self._activated(chunk)
+                self._send_point(seq, p, wait)
+                done += 1
+                if progress is not None:
+                    progress(done, total)
+        return done
+
+    def stream(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
+               first_duration: float | None = None, timeout: float | None = None,
+               progress: Callable[[int, int], None] | None = None) -> int:  # fmt: skip
+        """Send ``traj`` point by point (sequence 0..N-1), each acknowledged before the next,
+        to a streaming server (not an ABB: it never executes points without -3)."""
+        points = prepare(self.robot, traj, self._q_now(), first_duration)
+        wait = self.timeout if timeout is None else timeout
+        self._activated(points)
+        for i, p in enumerate(points):
+            self._send_point(i, p, wait)
+            if progress is not None:
+                progress(i + 1, len(points))
+        return len(points)
+
+    def stop(self, timeout: float | None = None) -> None:
+        """STOP (-4): abort the running trajectory, acknowledged within ``timeout`` s."""
+        self._send_point(SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * self.robot.n_joints, 0, 0),
+                         self.timeout if timeout is None else timeout)  # fmt: skip
+        self._activated_at, self._expected_end = None, 0.0
+
+    def _activated(self, points: list[Point]) -> None:
+        now = time.monotonic()
+        self._activated_at = now
+        self._expected_end = now + sum(p.duration for p in points) + 1.0
+
+    def _q_now(self) -> tuple[float, ...] | None:
+        sample = self.joints
+        return sample.joints if sample is not None else None
+
+    @staticmethod
+    def _need(session: Session | None, name: str) -> Session:
+        if session is None:
+            raise InvalidArgument(f"this Arm was connected without its {name} port")
+        session.check()
+        return session
+
+
+class Recorder:
+    """Joint samples collected from :meth:`Arm.record` until :meth:`stop` (bounded).
+
+    :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock
+    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times.
+    """
+
+    def __init__(self, arm: Arm, max_samples: int) -> None:
+        self._arm = arm
+        self.samples: deque[JointSample] = deque(maxlen=max_samples)
+        arm.add_sample_listener(self.samples.append)
+
+    def stop(self) -> None:
+        self._arm.remove_sample_listener(self.samples.append)
+
+    def log(self) -> TrajectoryLog:
+        from robocli.kinematics.fk import fk_positions
+
+        samples = list(self.samples)
+        timed = [s for s in samples if s.robot_time is not None]
+        if timed:
+            times = [s.robot_time for s in timed]
+            samples = timed
+        else:
+            samples = [s for s in samples if s.source == "joint_position"]
+            times = [s.t for s in samples]
+        if len(samples) < 2:
+            raise TimeoutError("fewer than two joint samples were recorded")
+        q = [s.joints for s in samples]
+        return TrajectoryLog.from_positions(times, q, fk_positions(self._arm.robot, q))
+
+
+def _namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]:
+    import struct
+
+    def name_of(payload: bytes, direction: str) -> str:
+        if len(payload) < 8:
+            return "short"
+        (msg_type,) = struct.unpack_from(order + "i", payload, 4)
+        try:
+            return MsgType(msg_type).name
+        except ValueError:
+            return f"TYPE_{msg_type}"
+
+    return name_of

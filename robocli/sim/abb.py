@@ -1,0 +1,244 @@
+"""Built-in ABB arm simulator: the RAPID ``abb_driver`` servers over Simple Message.
+
+Two TCP servers on the shared serving layer, one client each (a second one is refused), as
+on the IRC5 controller (brief section 4):
+
+* **motion** (11000): JOINT_TRAJ_PT only; each SERVICE_REQUEST acknowledged header-only
+  SUCCESS, even a point dropped because the 100-point buffer is full; ``-1`` starts a
+  download, ``-3`` ends and activates it, ``-4`` stops. Any other message type stops the RAPID
+  task: the link is closed and the server accepts the next client. The points' durations give
+  the timing; a first point within 0.1 deg of the arm is skipped; the velocity field is
+  ignored. A dropped link loses the points not yet activated, but **an activated trajectory
+  runs to its end**: only STOP or a new activation pre-empts it.
+* **state** (11002): JOINT_POSITION (sequence 0) then STATUS every ``state_ms`` (100 ms in
+  the stock RAPID code; the paper saw 20 ms). ``feedback=True`` adds a JOINT_FEEDBACK
+  carrying the controller time (not sent by an ABB; Motoman sends one): a client then stamps
+  samples with robot time, exact to the float.
+
+``profile="generic"`` is an industrial_robot_client-style streaming server instead: points
+``0..N`` execute as they arrive (``0`` starts anew), each SERVICE_REQUEST is answered with an
+echo of the point, FAILURE for a bad point (velocity outside 0..1, negative duration, NaN,
+joint beyond its limit, out of order), PING answered, any other request refused with a
+header-only FAILURE (like ``MessageManager``).
+
+Time: ``time_scale`` simulated seconds run per wall second (tests run faster than real time).
+With :class:`~robocli.sim.abb_session.ControllerModel` all zero (the default) execution is
+exact and states are sampled at their nominal instants ``k * state_ms``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from robocli.errors import TimeoutError, TransportError
+from robocli.kinematics import load_model
+from robocli.kinematics.model import RobotModel
+from robocli.protocols import simple_message as sm
+from robocli.sim.abb_session import (
+    ArmController,
+    ControllerModel,
+    MotionSession,
+    StateSession,
+)
+from robocli.sim.serving import Link, Server
+
+__all__ = ["AbbSim", "ArmSimState", "ControllerModel"]
+
+log = logging.getLogger("robocli.sim.abb")
+
+SEND_TIMEOUT_S = 2.0
+MAX_BURST = 200  #: late state samples sent at once in exact mode (older ones are skipped)
+BYTE_TIMEOUT_S = 0.5
+
+
+@dataclass(frozen=True)
+class ArmSimState:
+    """A copy of the simulator's truth: joints (rad), simulated seconds, counters."""
+
+    joints: tuple[float, ...]
+    sim_time: float
+    in_motion: bool
+    trajectories: int
+    points_received: int
+    dropped_points: int
+    rejected_points: int
+    frames_refused: int
+    stops: int
+    buffered: int
+    motion_clients: int
+    state_clients: int
+    states_sent: int
+
+
+class AbbSim:
+    """A simulated arm controller. Use as a context manager; :meth:`serve_tcp` starts it.
+
+    ``robot``: model name or file. ``state_ms``: state period in simulated ms.
+    ``byteorder``/``real``: wire variant. ``q0``: start joints (rad; default the model's
+    work pose, where ``robocli traj`` starts). ``model``: the real-controller model.
+    """
+
+    def __init__(self, robot: str | RobotModel = "irb120", *, profile: str = "abb",
+                 state_ms: float = 100.0, byteorder: sm.ByteOrder = "<", real: sm.RealSize = 4,
+                 time_scale: float = 1.0, q0: npt.ArrayLike | None = None,
+                 model: ControllerModel | None = None, feedback: bool = False,
+                 seed: int = 0) -> None:  # fmt: skip
+        if not (0.5 <= state_ms <= 10_000):
+            raise ValueError("state_ms must be within 0.5..10000")
+        if not time_scale > 0:
+            raise ValueError("time_scale must be > 0")
+        self.robot = robot if isinstance(robot, RobotModel) else load_model(robot)
+        self.state_ms, self.time_scale, self.feedback = state_ms, time_scale, feedback
+        self.ctl_model = model or ControllerModel()
+        self._t0 = time.monotonic()
+        self.controller = ArmController(
+            self.robot, profile=profile, byteorder=byteorder, real=real, q0=q0,
+            ctl_model=self.ctl_model, clock=self.sim_time, seed=seed,
+        )  # fmt: skip
+        self._rng = np.random.default_rng(seed + 1)
+        self._motion: Server | None = None
+        self._state: Server | None = None
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.states_sent = 0
+        self._closed = False
+
+    # ---------------------------------------------------------------- public API
+
+    def sim_time(self) -> float:
+        """Simulated seconds since the simulator was made."""
+        return (time.monotonic() - self._t0) * self.time_scale
+
+    @property
+    def motion_url(self) -> str | None:
+        return self._motion.url if self._motion else None
+
+    @property
+    def state_url(self) -> str | None:
+        return self._state.url if self._state else None
+
+    def serve_tcp(self, host: str = "127.0.0.1", motion_port: int = sm.PORT_MOTION,
+                  state_port: int = sm.PORT_STATE) -> tuple[str, str]:
+        """Listen on both ports (0: ephemeral); returns their ``tcp://`` URLs."""
+        if self._closed or self._motion is not None:
+            raise TransportError("the simulator is closed or already serving")
+        proto = "sm-le" if self.controller.byteorder == "<" else "sm-be"
+        ctl = self.controller
+
+        def server(name: str, factory: Any) -> Server:
+            return Server(factory, protocol=proto, max_clients=1, max_frame=sm.MAX_FRAME_SIZE,
+                          byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S,
+                          name=name)  # fmt: skip
+
+        self._motion = server("abb-motion", lambda link: MotionSession(ctl, link))
+        self._state = server("abb-state", lambda link: StateSession(ctl, link))
+        try:
+            urls = (self._motion.serve_tcp(host, motion_port),
+                    self._state.serve_tcp(host, state_port))  # fmt: skip
+        except BaseException:
+            self.close()
+            raise
+        self._thread = threading.Thread(target=self._publish, name="abb-state-ticker",
+                                        daemon=True)  # fmt: skip
+        self._thread.start()
+        return urls
+
+    def close(self) -> None:
+        """Stop every thread and close every socket (bounded). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(2.0)
+        for server in (self._motion, self._state):
+            if server is not None:
+                server.close()
+
+    def __enter__(self) -> AbbSim:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:  # fmt: skip
+        self.close()
+
+    def snapshot(self) -> ArmSimState:
+        """A consistent copy of the truth (thread-safe)."""
+        c = self.controller
+        t = self.sim_time()
+        with c.lock:
+            q, moving = c.executor.sample(t), c.executor.moving(t)
+            counters = (c.executor.trajectories, c.points_received, c.dropped_points,
+                        c.rejected_points, c.frames_refused, c.stops, len(c.buffer))  # fmt: skip
+        return ArmSimState(
+            tuple(float(v) for v in q), t, moving, *counters,
+            motion_clients=len(self._motion.links()) if self._motion else 0,
+            state_clients=len(self._state.links()) if self._state else 0,
+            states_sent=self.states_sent,
+        )
+
+    def wait_until(self, predicate: Any, timeout: float) -> ArmSimState:
+        """Poll snapshots until ``predicate(state)`` holds, or raise TimeoutError."""
+        deadline = time.monotonic() + timeout
+        while True:
+            state = self.snapshot()
+            if predicate(state):
+                return state
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f"simulator condition not met within {timeout:g} s")
+            time.sleep(0.005)
+
+    # ---------------------------------------------------------------- state publishing
+
+    def _publish(self) -> None:
+        """State messages on absolute deadlines ``k * period`` (plus the model's period
+        jitter). Exact mode: each sample is taken at its nominal instant, missed ones are sent
+        late rather than skipped (at most :data:`MAX_BURST` at once), and with ``feedback``
+        the instants a motion starts and ends are reported too. Otherwise a sample is taken
+        when sent, and a late publisher skips the missed ones."""
+        period = self.state_ms / 1000.0  # simulated s
+        wall = period / self.time_scale
+        jitter = self.ctl_model.period_jitter_ms / 1000.0 / self.time_scale
+        k = int(self.sim_time() / period) + 1
+        exact = self.ctl_model.exact
+        extra, last_t = 0.0, k * period - period
+        while not self._stop.is_set():
+            due = self._t0 + k * wall + extra
+            delay = due - time.monotonic()
+            if delay > 0 and self._stop.wait(delay):
+                return
+            now_k = int((time.monotonic() - self._t0) / wall)
+            if exact:
+                times = [j * period for j in range(max(k, now_k - MAX_BURST + 1), now_k + 1)]
+                times = times or [k * period]
+                if self.feedback:
+                    times = self._with_events(last_t, times)
+                k = max(k, now_k) + 1
+            else:
+                times = [self.sim_time()]
+                k = max(k, now_k) + 1 if now_k > k else k + 1
+            last_t = times[-1]
+            if jitter:
+                extra = abs(float(self._rng.normal(0.0, jitter)))
+            links: list[Link] = self._state.links() if self._state else []
+            if not links:
+                continue
+            data = b"".join(self.controller.state_messages(t, self.feedback) for t in times)
+            for link in links:
+                if link.send(data):
+                    self.states_sent += len(times)
+
+    def _with_events(self, after: float, times: list[float]) -> list[float]:
+        """``times`` plus the motion's start and end instants within ``(after, times[-1]]``."""
+        with self.controller.lock:
+            events = self.controller.executor.events()
+        extra = [e for e in events if after < e < times[-1] and e not in times]
+        return sorted(times + extra)

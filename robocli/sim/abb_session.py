@@ -1,0 +1,377 @@
+"""The controller side of the simulated ABB arm, without sockets.
+
+:class:`Executor` moves the joints along activated trajectories on the simulator's clock.
+:class:`ArmController` is what the RAPID tasks do (``ROS_motionServer``, ``ROS_motion``,
+``ROS_stateServer``; brief section 4) or, with ``profile="generic"``, what an
+industrial_robot_client streaming server does. :class:`MotionSession` and
+:class:`StateSession` are one link's protocol state (a :class:`~robocli.sim.serving.Session`):
+the serving layer hands them complete frames and writes their replies. Every method that
+touches shared state takes the controller's lock.
+
+Execution model: the points of an activated trajectory are knots of a cubic Hermite curve
+whose knot velocities are finite differences of the points (as in the JSON logs), so the arm
+passes exactly through every point at the time its durations give; a segment whose mean
+speed would exceed a joint's speed limit is stretched to respect it.
+"""
+
+from __future__ import annotations
+
+import bisect
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robocli.errors import ProtocolError
+from robocli.kinematics.model import RobotModel
+from robocli.protocols import simple_message as sm
+from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
+from robocli.sim.serving import Link
+
+__all__ = [
+    "ABB_BUFFER",
+    "PROFILES",
+    "ArmController",
+    "ControllerModel",
+    "Executor",
+    "MotionSession",
+    "StateSession",
+]
+
+log = logging.getLogger("robocli.sim.abb")
+
+FloatArray = npt.NDArray[np.float64]
+
+PROFILES = ("abb", "generic")
+ABB_BUFFER = 100  #: ``MAX_TRAJ_LENGTH`` of ``ROS_common.sys``
+SKIP_TOLERANCE = math.radians(0.1)  #: first point skipped when this close (``ROS_motion.mod``)
+MIN_SEGMENT_S = 1e-3  #: a zero or negative duration becomes the fastest allowed move
+
+
+@dataclass(frozen=True)
+class ControllerModel:
+    """How a real controller differs from ideal execution (all zero: exact).
+
+    ``latency_ms`` (+ ``jitter_ms``, half-normal) delays each motion reply (the paper's RTT);
+    ``noise_rad`` adds Gaussian noise to reported joints; ``period_jitter_ms`` spreads the state
+    period (half-normal, added); ``lag_ms`` delays execution after activation.
+    """
+
+    latency_ms: float = 0.0
+    jitter_ms: float = 0.0
+    noise_rad: float = 0.0
+    period_jitter_ms: float = 0.0
+    lag_ms: float = 0.0
+
+    @property
+    def exact(self) -> bool:
+        return not any((self.latency_ms, self.jitter_ms, self.noise_rad,
+                        self.period_jitter_ms, self.lag_ms))  # fmt: skip
+
+    @classmethod
+    def paper(cls) -> ControllerModel:
+        """Numbers shaped like the IRB120 paper's Table 5 and Table 4."""
+        return cls(latency_ms=28.0, jitter_ms=7.0, noise_rad=0.004, period_jitter_ms=12.0,
+                   lag_ms=30.0)  # fmt: skip
+
+
+class Executor:
+    """Joint motion on the simulator clock (seconds). Not thread-safe: the controller's lock
+    guards it."""
+
+    def __init__(self, model: RobotModel, q0: npt.ArrayLike) -> None:
+        self.model = model
+        self._t: list[float] = [0.0]
+        self._q: FloatArray = np.array([np.asarray(q0, dtype=float)])
+        self._v: FloatArray = np.zeros_like(self._q)
+        self.trajectories = 0
+
+    @property
+    def end_time(self) -> float:
+        return self._t[-1]
+
+    def events(self) -> tuple[float, ...]:
+        """The start and end instants of the current motion (empty when holding)."""
+        return (self._t[0], self._t[-1]) if len(self._t) > 1 else ()
+
+    def moving(self, t: float) -> bool:
+        return t < self._t[-1]
+
+    def sample(self, t: float) -> FloatArray:
+        """Joint positions (rad) at simulator time ``t``."""
+        ts = self._t
+        if t >= ts[-1] or len(ts) == 1:
+            return np.array(self._q[-1])
+        if t <= ts[0]:
+            return np.array(self._q[0])
+        i = bisect.bisect_right(ts, t) - 1
+        h = ts[i + 1] - ts[i]
+        s = (t - ts[i]) / h
+        s2, s3 = s * s, s * s * s
+        h00, h10 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s
+        h01, h11 = -2 * s3 + 3 * s2, s3 - s2
+        q0, q1, v0, v1 = self._q[i], self._q[i + 1], self._v[i], self._v[i + 1]
+        return np.asarray(h00 * q0 + h10 * h * v0 + h01 * q1 + h11 * h * v1, dtype=float)
+
+    def hold(self, t: float) -> None:
+        """Stop where the arm is at ``t`` (STOP, or an empty activation)."""
+        q = self.sample(t)
+        self._t, self._q, self._v = [t], q[None, :], np.zeros((1, q.shape[0]))
+
+    def start(self, points: list[tuple[FloatArray, float]], t: float, skip_first: bool) -> None:
+        """Run ``points`` (joints, duration) from time ``t``, pre-empting any motion. With
+        ``skip_first``, a first point within 0.1 deg of the arm is skipped (RAPID)."""
+        self.hold(t)
+        self.trajectories += 1
+        if skip_first and points and np.all(np.abs(points[0][0] - self._q[0]) <= SKIP_TOLERANCE):
+            points = points[1:]
+        self.extend(points, t)
+
+    def extend(self, points: list[tuple[FloatArray, float]], t: float) -> None:
+        """Append points after the last knot (streaming); an idle arm starts from ``t``."""
+        if not points:
+            return
+        if t >= self._t[-1]:
+            self.hold(t)
+        else:  # keep only the knots from the running segment on
+            i = max(0, bisect.bisect_right(self._t, t) - 1)
+            self._t, self._q, self._v = self._t[i:], self._q[i:], self._v[i:]
+        keep = len(self._t)
+        ts, qs = list(self._t), list(self._q)
+        for q, duration in points:
+            step = np.abs(q - qs[-1]) / self.model.max_speed
+            ts.append(ts[-1] + max(duration, float(step.max()), MIN_SEGMENT_S))
+            qs.append(q)
+        q_all = np.array(qs)
+        v_all = np.gradient(q_all, np.array(ts), axis=0, edge_order=1)
+        if keep > 1:  # the velocities of the knots already running stay as they were
+            v_all[: keep - 1] = self._v[: keep - 1]
+        self._t, self._q, self._v = ts, q_all, v_all
+
+
+@dataclass
+class _Point:
+    sequence: int
+    joints: FloatArray
+    velocity: float
+    duration: float
+
+
+class ArmController:
+    """The controller: trajectory buffer, executor, state messages, one lock.
+
+    ``clock()`` returns simulator seconds. ``byteorder``/``real`` pick the wire variant.
+    """
+
+    def __init__(self, model: RobotModel, *, profile: str = "abb", byteorder: sm.ByteOrder = "<",
+                 real: sm.RealSize = 4, q0: npt.ArrayLike | None = None,
+                 ctl_model: ControllerModel | None = None, clock: Callable[[], float],
+                 seed: int = 0) -> None:  # fmt: skip
+        if profile not in PROFILES:
+            raise ValueError(f"unknown profile {profile!r}; expected one of {PROFILES}")
+        self.model, self.profile, self.byteorder, self.real = model, profile, byteorder, real
+        self.ctl = ctl_model or ControllerModel()
+        self.clock = clock
+        self.lock = threading.Lock()
+        self.executor = Executor(model, model.work if q0 is None else q0)
+        self.rng = np.random.default_rng(seed)
+        self.buffer: list[_Point] = []
+        self.dropped_points = 0
+        self.points_received = 0
+        self.rejected_points = 0
+        self.frames_refused = 0
+        self.stops = 0
+        self.last_seq: int | None = None
+        self._spec = sm.messages(byteorder, real)
+        self._n = model.n_joints
+
+    # ---------------------------------------------------------------- encoding helpers
+
+    def encode(self, msg_type: int, comm: int, reply: int = 0, body: object = None) -> bytes:
+        return sm.encode(msg_type, comm, reply, body,  # type: ignore[arg-type]
+                         byteorder=self.byteorder, real=self.real)  # fmt: skip
+
+    def _ack(self, reply: int = ReplyCode.SUCCESS, body: bytes | None = None) -> bytes:
+        return self.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REPLY, reply, body)
+
+    # ---------------------------------------------------------------- motion port
+
+    def motion_frame(self, link: Link, frame: bytes) -> bytes | None:
+        """One frame on the motion port -> the reply, if any (called from the link thread)."""
+        try:
+            msg = sm.decode(frame, byteorder=self.byteorder, real=self.real)
+        except ProtocolError as exc:
+            log.warning("%s: undecodable frame dropped: %s", link.name, exc)
+            return None
+        if self.profile == "abb":
+            return self._abb(link, msg, frame)
+        return self._generic(msg, frame)
+
+    def _point(self, body: object) -> _Point:
+        assert isinstance(body, dict)
+        q = np.asarray(body["joints"][: self._n], dtype=float)
+        return _Point(int(body["sequence"]), q, float(body["velocity"]), float(body["duration"]))
+
+    def _abb(self, link: Link, msg: sm.Message, frame: bytes) -> bytes | None:
+        size = self._spec.JointTrajPt.sizeof()
+        raw = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE:]
+        if msg.msg_type != MsgType.JOINT_TRAJ_PT or len(raw) < size:
+            # RAPID raises ERR_ARGVALERR / ERR_OUTOFBND: the task restarts, the socket closes
+            self.frames_refused += 1
+            log.warning("%s: ROS_motionServer error on msg_type %s (%d-byte body): the "
+                        "server task restarts", link.name, int(msg.msg_type), len(raw))  # fmt: skip
+            link.close()
+            return None
+        point = self._point(sm.plain(self._spec.JointTrajPt.parse(raw[:size])))
+        with self.lock:
+            self.points_received += 1
+            self._abb_point(point)
+        if msg.comm_type != CommType.SERVICE_REQUEST:
+            return None
+        self._delay()
+        return self._ack()
+
+    def _abb_point(self, p: _Point) -> None:
+        if p.sequence == SpecialSeq.START_TRAJECTORY_DOWNLOAD:
+            self.buffer = []
+        if p.sequence == SpecialSeq.STOP_TRAJECTORY:
+            self.buffer = []
+            self._activate([])
+            self.stops += 1
+            return
+        if len(self.buffer) < ABB_BUFFER:
+            self.buffer.append(p)
+        else:
+            self.dropped_points += 1
+            log.warning("ROS_motionServer: too many points (max %d), point %d dropped",
+                        ABB_BUFFER, p.sequence)  # fmt: skip
+        if p.sequence == SpecialSeq.END_TRAJECTORY:
+            self._activate(self.buffer)
+            self.buffer = []
+
+    def _activate(self, points: list[_Point]) -> None:
+        now = self.clock()
+        log.info("ROS_motionServer: Sending %d points", len(points))
+        if not points:
+            self.executor.hold(now)
+            return
+        start = now + self.ctl.lag_ms / 1000.0 if points else now
+        self.executor.hold(now)
+        self.executor.start([(p.joints, p.duration) for p in points], start, skip_first=True)
+
+    def _generic(self, msg: sm.Message, frame: bytes) -> bytes | None:
+        request = msg.comm_type == CommType.SERVICE_REQUEST
+        if msg.msg_type == MsgType.PING:
+            return self.encode(MsgType.PING, CommType.SERVICE_REPLY, ReplyCode.SUCCESS)
+        if msg.msg_type != MsgType.JOINT_TRAJ_PT or not isinstance(msg.body, dict):
+            if request:  # MessageManager: no handler -> header-only FAILURE of that type
+                return self.encode(msg.msg_type, CommType.SERVICE_REPLY, ReplyCode.FAILURE)
+            return None
+        point = self._point(msg.body)
+        with self.lock:
+            self.points_received += 1
+            ok = self._stream_point(point)
+        if not request:
+            return None
+        self._delay()
+        echo = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE:]
+        return self._ack(ReplyCode.SUCCESS if ok else ReplyCode.FAILURE, echo)
+
+    def _stream_point(self, p: _Point) -> bool:
+        now = self.clock()
+        if p.sequence == SpecialSeq.STOP_TRAJECTORY:
+            self.executor.hold(now)
+            self.stops += 1
+            self.last_seq = None
+            return True
+        lo, hi = self.model.limits[:, 0], self.model.limits[:, 1]
+        bad = (
+            p.sequence < 0
+            or not (0.0 <= p.velocity <= 1.0)
+            or not (math.isfinite(p.duration) and p.duration >= 0.0)
+            or not bool(np.all(np.isfinite(p.joints)))
+            or bool(np.any((p.joints < lo - 1e-6) | (p.joints > hi + 1e-6)))
+        )
+        last = self.last_seq
+        in_order = p.sequence == 0 or (last is not None and p.sequence == last + 1)
+        if bad or not in_order:
+            self.rejected_points += 1
+            if not in_order and not bad:  # REP-I0006: abort on an out-of-order sequence
+                self.executor.hold(now)
+                self.last_seq = None
+            return False
+        self.last_seq = p.sequence
+        if p.sequence == 0:
+            self.executor.start([(p.joints, p.duration)], now, skip_first=False)
+        else:
+            self.executor.extend([(p.joints, p.duration)], now)
+        return True
+
+    def _delay(self) -> None:
+        c = self.ctl
+        if c.latency_ms or c.jitter_ms:
+            extra = abs(float(self.rng.normal(0.0, c.jitter_ms))) if c.jitter_ms else 0.0
+            time.sleep((c.latency_ms + extra) / 1000.0)
+
+    # ---------------------------------------------------------------- state port
+
+    def state_messages(self, t: float, feedback: bool) -> bytes:
+        """JOINT_POSITION then STATUS (then JOINT_FEEDBACK with the controller time when
+        ``feedback``) for simulator time ``t``."""
+        if self.real == 4:  # the time on the wire is a float32: sample at exactly that time
+            t = float(np.float32(t))
+        with self.lock:
+            q = self.executor.sample(t)
+            moving = self.executor.moving(t)
+        if self.ctl.noise_rad:
+            q = q + self.rng.normal(0.0, self.ctl.noise_rad, q.shape)
+        joints = [float(v) for v in q]
+        topic = CommType.TOPIC
+        out = [
+            self.encode(MsgType.JOINT_POSITION, topic, 0, {"sequence": 0, "joints": joints}),
+            self.encode(MsgType.STATUS, topic, 0, {
+                "drives_powered": 1, "e_stopped": 0, "error_code": 0, "in_error": 0,
+                "in_motion": int(moving), "mode": 2, "motion_possible": 1,
+            }),
+        ]  # fmt: skip
+        if feedback:
+            out.append(self.encode(MsgType.JOINT_FEEDBACK, topic, 0, {
+                "robot_id": 0, "valid_fields": 0x03, "time": t, "positions": joints,
+                "velocities": [0.0] * sm.MAX_JOINTS, "accelerations": [0.0] * sm.MAX_JOINTS,
+            }))  # fmt: skip
+        return b"".join(out)
+
+
+class MotionSession:
+    """One motion-port link (serving-layer session)."""
+
+    def __init__(self, controller: ArmController, link: Link) -> None:
+        self.controller, self.link = controller, link
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        return self.controller.motion_frame(self.link, frame)
+
+    def on_close(self) -> None:
+        # the RAPID task re-listens; an activated trajectory keeps running (ROS_motion.mod),
+        # only the points not yet activated are lost
+        with self.controller.lock:
+            self.controller.buffer = []
+        log.info("%s: motion client gone; an activated trajectory runs on", self.link.name)
+
+
+class StateSession:
+    """One state-port link: the state server never reads its socket."""
+
+    def __init__(self, controller: ArmController, link: Link) -> None:
+        self.controller, self.link = controller, link
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        return None
+
+    def on_close(self) -> None:
+        log.info("%s: state client gone", self.link.name)

@@ -1,0 +1,178 @@
+"""The Arm client against the built-in ABB simulator over real sockets: download, streaming,
+limits, STOP, pre-emption, a dropped motion link."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from robocli.errors import DeviceError, InvalidArgument
+from robocli.io.trajlog import TrajectoryLog
+from robocli.kinematics import LimitError, load_model
+from robocli.kinematics.trajectory import circle, ptp_joint
+from robocli.kinematics.validate import validate
+
+IRB = load_model("irb120")
+
+
+def far_move(duration: float = 4.0, n: int = 20) -> TrajectoryLog:
+    goal = IRB.work + np.radians([40, -20, 15, 30, -30, 60])
+    return ptp_joint(IRB, goal, n=n, duration=duration)
+
+
+def test_download_circle_matches_simulation(make_sim, make_arm) -> None:
+    """The issue's 'done when': traj circle -> upload with monitoring -> validate."""
+    sim, mp, sp = make_sim(state_ms=5.0, feedback=True)
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    planned = circle(IRB, 100)
+    acks: list[int] = []
+    rec = arm.record()
+    assert arm.download(planned, progress=lambda done, total: acks.append(done)) == 100
+    arm.wait_until_idle(30)
+    rec.stop()
+    assert acks == list(range(1, 101))
+    result = validate(planned, rec.log(), IRB)
+    assert float(np.max(result.rmse)) <= 1e-6, result.to_dict()
+    assert sim.snapshot().points_received == 100
+    final = np.array(sim.snapshot().joints)
+    assert np.allclose(final, planned.positions[-1], atol=1e-6)
+
+
+def test_noise_model_gives_paper_like_errors(make_sim, make_arm) -> None:
+    from robocli.sim.abb import ControllerModel
+
+    sim, mp, sp = make_sim(state_ms=10.0, feedback=True,
+                           model=ControllerModel(noise_rad=0.004, lag_ms=30))
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    planned = circle(IRB, 100)
+    rec = arm.record()
+    arm.download(planned)
+    arm.wait_until_idle(30)
+    rec.stop()
+    result = validate(planned, rec.log(), IRB)
+    assert 0.001 < float(np.max(result.rmse)) < 0.0075
+    assert float(np.max(result.mae)) < 0.0065
+
+
+def test_more_than_100_points_refused_before_sending(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    with pytest.raises(InvalidArgument, match="101 points"):
+        arm.download(circle(IRB, 101))
+    assert sim.snapshot().points_received == 0
+
+
+def test_split_uploads_consecutive_trajectories(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim(time_scale=8.0)
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    planned = circle(IRB, 150, duration=6.0)
+    assert arm.download(planned, split=True) == 151
+    arm.wait_until_idle(30)
+    snap = sim.snapshot()
+    assert snap.trajectories == 2 and snap.dropped_points == 0
+    assert np.allclose(snap.joints, planned.positions[-1], atol=1e-6)
+
+
+def test_limits_checked_before_sending(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, None, state=False)
+    q = np.repeat(IRB.work[None, :], 3, axis=0)
+    q[2, 2] = math.radians(80)  # joint 3 upper limit is 70 deg
+    with pytest.raises(LimitError, match="joint 3"):
+        arm.download(([0.0, 1.0, 2.0], q))
+    q[2, 2] = IRB.work[2] + 0.5  # in range, but 0.5 rad in 1 ms
+    with pytest.raises(InvalidArgument, match="speed limit"):
+        arm.download(([0.0, 1.0, 1.001], q))
+    q[1, 0] = math.nan
+    with pytest.raises(ValueError):
+        arm.download(([0.0, 1.0, 2.0], q))
+    assert sim.snapshot().points_received == 0
+
+
+def test_stop_in_mid_motion(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    move = far_move()
+    arm.download(move)
+    sim.wait_until(lambda s: s.in_motion and s.sim_time > 1.0, 10)
+    arm.stop()
+    arm.wait_until_idle(10)
+    snap = sim.snapshot()
+    assert snap.stops == 1 and not snap.in_motion
+    travelled = np.abs(np.array(snap.joints) - IRB.work).max()
+    assert 0.0 < travelled < np.abs(move.positions[-1] - IRB.work).max()
+
+
+def test_new_trajectory_preempts_running_one(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    arm.download(far_move(duration=8.0))
+    sim.wait_until(lambda s: s.in_motion, 10)
+    back = ptp_joint(IRB, IRB.home, n=10, q_start=arm.wait_for_state().joints, duration=1.0)
+    arm.download(back)
+    arm.wait_until_idle(20)
+    snap = sim.snapshot()
+    assert snap.trajectories == 2
+    assert np.allclose(snap.joints, IRB.home, atol=1e-6)
+
+
+def test_dropped_motion_link_trajectory_completes(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    move = far_move(duration=3.0)
+    arm.download(move)
+    sim.wait_until(lambda s: s.in_motion, 10)
+    arm.close(stop=False)  # the link drops: no STOP goes out
+    snap = sim.wait_until(lambda s: not s.in_motion, 20)
+    assert snap.stops == 0
+    assert np.allclose(snap.joints, move.positions[-1], atol=1e-6)
+    again = make_arm(mp, sp)  # the server re-listened and accepts the next client
+    again.download(ptp_joint(IRB, IRB.work, n=5, q_start=move.positions[-1], duration=1.0))
+    again.wait_until_idle(10)
+    assert np.allclose(sim.snapshot().joints, IRB.work, atol=1e-6)
+
+
+def test_close_stops_a_running_trajectory(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    arm.download(far_move(duration=8.0))
+    sim.wait_until(lambda s: s.in_motion, 10)
+    arm.close()
+    snap = sim.wait_until(lambda s: not s.in_motion, 5)
+    assert snap.stops == 1
+
+
+def test_streaming_to_a_generic_server(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim(profile="generic")
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    move = far_move(duration=2.0, n=30)
+    assert arm.stream(move, first_duration=0.2) == 30
+    arm.wait_until_idle(20)
+    snap = sim.snapshot()
+    assert snap.rejected_points == 0
+    assert np.allclose(snap.joints, move.positions[-1], atol=1e-6)
+
+
+def test_failure_reply_raises_device_error(make_sim, make_arm) -> None:
+    """The generic server checks its own (IRB120) limits; a client told the arm is a UR3e
+    (wider ranges) sends a point the server refuses: FAILURE -> DeviceError."""
+    sim, mp, sp = make_sim(profile="generic")
+    ur3e = load_model("ur3e")
+    arm = make_arm(mp, None, state=False, robot=ur3e)
+    q = np.zeros((2, 6))
+    q[1, 0] = math.radians(200)  # beyond the IRB120's 165 deg, within the UR3e's 360
+    with pytest.raises(DeviceError, match="FAILURE") as err:
+        arm.stream(([0.0, 2.0], q), first_duration=1.0)
+    assert err.value.code == 2
+    assert sim.snapshot().rejected_points == 1
