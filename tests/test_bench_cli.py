@@ -29,7 +29,7 @@ def _interrupt(proc: subprocess.Popen[str], after: float, sig: int) -> tuple[str
     assert proc.poll() is None, proc.communicate()
     proc.send_signal(sig)
     # "within a second" is the aim; this bound only keeps a broken build from hanging CI
-    out, err = proc.communicate(timeout=15)
+    out, err = proc.communicate(timeout=60)
     return out, err
 
 
