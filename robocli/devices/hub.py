@@ -61,7 +61,7 @@ def parse_hub(address: str, default_port: int = PORT) -> tuple[str, int]:
         number = int(port)
     except ValueError:
         raise InvalidArgument(f"hub: bad port in {address!r}") from None
-    if not 0 < number < 65536:
+    if not 0 <= number < 65536:
         raise InvalidArgument(f"hub: port {number} out of range in {address!r}")
     return host or "127.0.0.1", number
 

@@ -1,0 +1,141 @@
+"""The hub commands as a user runs them: real processes against the built-in hub."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from robocli import Hub
+from robocli.hub import HubServer
+
+
+@pytest.fixture(scope="module")
+def server() -> Iterator[HubServer]:
+    with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:
+        yield srv
+
+
+def cli(*args: str, env: dict[str, str] | None = None) -> subprocess.Popen[str]:
+    return subprocess.Popen(
+        [sys.executable, "-m", "robocli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        env={**os.environ, **(env or {})},
+    )
+
+
+def finish(proc: subprocess.Popen[str], timeout: float = 60) -> tuple[int, str, str]:
+    out, err = proc.communicate(timeout=timeout)
+    return proc.returncode, out, err
+
+
+def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: HubServer) -> None:
+    hub = f"127.0.0.1:{server.port}"
+    args = ("subscribe", "adc", "--rate", "100", "--format", "csv", "--duration", "2")
+    procs = [cli(*args, "--hub", hub), cli(*args, env={"ROBOCLI_HUB": hub})]
+    for proc in procs:
+        code, out, err = finish(proc)
+        assert code == 0, err
+        lines = out.splitlines()
+        assert lines[0] == "t,ch0,ch1,ch2,ch3,ch4,ch5,ch6,ch7"
+        rows = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
+        assert rows.shape[1] == 9
+        # 2 s at 100 Hz (plus what the hub buffered before the first pull), generously
+        assert 120 <= len(rows) <= 320, len(rows)
+        t = rows[:, 0]
+        assert np.all(np.diff(t) > 0)
+        np.testing.assert_allclose(np.median(np.diff(t)), 0.01, rtol=0.05)
+        assert abs(t[-1] - time.time()) < 10
+
+
+def test_count_jsonl_and_channel_mask(server: HubServer) -> None:
+    proc = cli("subscribe", "adc", "--rate", "200", "--hub", f"127.0.0.1:{server.port}",
+               "--count", "25", "--format", "jsonl", "--channels", "0x5")  # fmt: skip
+    code, out, err = finish(proc)
+    assert code == 0, err
+    rows = [json.loads(line) for line in out.splitlines()]
+    assert len(rows) == 25 and set(rows[0]) == {"t", "ch0", "ch2"}
+    assert all(a["t"] < b["t"] for a, b in zip(rows, rows[1:], strict=False))
+
+
+def test_table_without_a_terminal(server: HubServer) -> None:
+    proc = cli("subscribe", "imu", "--rate", "50", "--hub", f"127.0.0.1:{server.port}",
+               "--count", "5", "--format", "table")  # fmt: skip
+    code, out, err = finish(proc)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0].split() == ["t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"]
+    assert len(lines) == 6 and len(lines[1].split()) == 10
+
+
+def test_no_hub_exits_3_with_a_hint() -> None:
+    code, out, err = finish(cli("subscribe", "adc", "--rate", "100", "--hub", "127.0.0.1:1"))
+    assert code == 3 and out == ""
+    assert err.count("\n") == 1 and "robocli serve --sim" in err
+
+
+def test_usage_errors_exit_2(server: HubServer) -> None:
+    hub = f"127.0.0.1:{server.port}"
+    for args in (
+        ("subscribe", "adc", "--rate", "100", "--hub", hub, "--count", "3", "--duration", "1"),
+        ("subscribe", "adc", "--rate", "100", "--hub", hub, "--format", "xml"),
+        ("subscribe", "adc", "--rate", "100", "--hub", hub, "--channels", "0x100"),
+    ):
+        code, _, err = finish(cli(*args))
+        assert code == 2 and err.count("\n") == 1, err
+
+
+def test_ctrl_c_exits_130_with_one_line(server: HubServer) -> None:
+    proc = cli("subscribe", "adc", "--rate", "100", "--hub", f"127.0.0.1:{server.port}")
+    assert proc.stdout is not None
+    assert proc.stdout.readline().startswith("t,")  # streaming (csv: stdout is a pipe)
+    proc.send_signal(signal.SIGINT)
+    code, _, err = finish(proc)
+    assert code == 130 and err.strip() == "robocli: interrupted"
+
+
+def test_connect_hub_once_json(server: HubServer) -> None:
+    with Hub.connect("127.0.0.1", server.port) as other:
+        other.subscribe("imu", 100)
+        code, out, err = finish(cli("connect", "hub", f"127.0.0.1:{server.port}", "--once",
+                                    "--json", "--window", "0.3"))  # fmt: skip
+    assert code == 0, err
+    info = json.loads(out)
+    assert info["protocol_version"] == 3 and info["client_id"] >= 1
+    imu = info["sensors"]["imu"]
+    assert imu["active"] and 50 <= imu["rate_hz"] <= 200
+    assert info["sensors"]["camera_stereo"]["active"] is False
+    assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
+
+
+def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path) -> None:
+    capture = tmp_path / "session.jsonl"
+    proc = cli("dump", "hub", f"127.0.0.1:{server.port}", "--listen", "127.0.0.1:0", "--json",
+               "--count", "6", "--output", str(capture))  # fmt: skip
+    assert proc.stderr is not None
+    line = proc.stderr.readline()
+    port = int(line.split(" connect to ", 1)[1].split(",", 1)[0].rsplit(":", 1)[1])
+    with Hub.connect("127.0.0.1", port) as h:
+        h.subscribe("adc", 100)
+        time.sleep(0.3)
+        assert len(h.read("adc"))  # the 6th message: the proxy stops after it
+    code, out, err = finish(proc)
+    assert code == 0, err
+    msgs = [json.loads(x) for x in out.splitlines()]
+    names = [(m["dir"], m["name"]) for m in msgs]
+    assert names[:4] == [("c2s", "CONNECT"), ("s2c", "CONNECT_ACK"), ("c2s", "SUBSCRIBE"),
+                         ("s2c", "SUBSCRIBE_ACK")]  # fmt: skip
+    assert msgs[2]["params"]["freq_acquisition"] == 100
+    assert ("c2s", "ADC") in names[4:] and ("s2c", "ADC") in names[4:]
+    assert len(capture.read_text().splitlines()) >= 6
