@@ -81,7 +81,7 @@ class PacketView:
         if self.writer is not None:
             self.writer.write(t or 0.0, direction, arcos.frame(payload))
         if self.json_out:
-            record = {"t": t, "dir": direction, "type": payload[0], "name": name, **fields}
+            record = {"t": t, "dir": direction, "type": payload[0], "name": name, "fields": fields}
             sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
         else:
             sys.stdout.write(self._text(direction, name, fields, t) + "\n")

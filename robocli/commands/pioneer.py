@@ -272,7 +272,7 @@ def simulate(
 
     if subtype not in ROBOT_PARAMS:
         raise typer.BadParameter(f"unknown subtype {subtype!r}; known: {', '.join(ROBOT_PARAMS)}")
-    world = World.load(map_file) if map_file else None
+    world = _load_map(World, map_file) if map_file else None
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():
         try:
@@ -290,6 +290,20 @@ def simulate(
         finally:
             for simulator in sims:
                 simulator.close()
+
+
+def _load_map(world_type: Any, path: Path) -> Any:
+    """``World.load(path)``; a file that is not UTF-8 text is a usage error naming it."""
+    try:
+        return world_type.load(path)
+    except UnicodeDecodeError as exc:
+        raise typer.BadParameter(
+            f"{path} is not a map: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at "
+            f"offset {exc.start}); give JSON or text walls 'x1 y1 x2 y2'",
+            param_hint="'--map'",
+        ) from None
+    except OSError as exc:
+        raise typer.BadParameter(f"cannot read {path}: {exc.strerror or exc}") from None
 
 
 # ---------------------------------------------------------------------- rendering

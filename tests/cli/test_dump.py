@@ -1,0 +1,156 @@
+"""``robocli dump pioneer``: captures streamed in bounded memory, time order, short lines,
+handshake names by phase, JSON Lines, recording, a closed pipe, Ctrl-C (issue 7: 9, 15)."""
+
+from __future__ import annotations
+
+import json
+import random
+import re
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from cli.helpers import DATA, bytes_read, one_line_error, peak_rss_kib, run, running
+from robocli.io.capture import CaptureStats, read_capture
+
+STAMP = re.compile(r"^\s*(\d+\.\d+) (->|<-)\s+(\S+)")
+
+
+def packet_lines(stdout: str) -> list[tuple[float, str, str]]:
+    """(t, arrow, name) of each packet line of a text dump."""
+    return [(float(m[1]), m[2], m[3]) for m in map(STAMP.match, stdout.splitlines()) if m]
+
+
+def raw_capture(tmp_path: Path, trace: str, direction: str | None) -> Path:
+    """The bytes of a .jsonl trace as a raw capture: one direction, or both in time order."""
+    data = b""
+    for line in (DATA / trace).read_text().splitlines():
+        record = json.loads(line)
+        if "hex" in record and direction in (None, record["dir"]):
+            data += bytes.fromhex(record["hex"])
+    path = tmp_path / f"{trace}.{direction or 'both'}.bin"
+    path.write_bytes(data)
+    return path
+
+
+def test_dev_zero_streams_in_bounded_memory_and_stops_on_ctrl_c() -> None:
+    with running("dump", "pioneer", "--file", "/dev/zero") as proc:
+        deadline = time.monotonic() + 30
+        while bytes_read(proc.pid) < 200_000_000 and time.monotonic() < deadline:
+            assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
+            time.sleep(0.05)
+        read = bytes_read(proc.pid)
+        peak = peak_rss_kib(proc.pid)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=10)
+    assert read >= 50_000_000, f"only {read} bytes read in 30 s"
+    assert peak < 150_000, f"peak RSS {peak} KiB after reading {read} bytes"
+    assert proc.returncode == 130 and err.strip() == "robocli: interrupted", err
+
+
+@pytest.mark.parametrize("kind", ["empty", "random", "broken-jsonl"])
+def test_a_capture_without_packets_exits_1_saying_what_was_dropped(
+    tmp_path: Path, kind: str
+) -> None:
+    rng = random.Random(7)
+    if kind == "empty":
+        path, dropped = tmp_path / "empty.bin", 0
+        path.write_bytes(b"")
+    elif kind == "random":
+        data = bytes(b for b in rng.randbytes(5000) if b != 0xFA)  # no frame can start
+        path, dropped = tmp_path / "random.bin", len(data)
+        path.write_bytes(data)
+    else:
+        lines = ["not json", '{"t": 0, "dir": "s2c", "hex": "zz"}', "[1, 2]", '{"hex": "fafb03"}']
+        path = tmp_path / "broken.jsonl"
+        path.write_text("\n".join(lines) + "\n")
+        dropped = sum(len(line) for line in lines[:3]) + 3  # the last one: a partial frame
+    line = one_line_error(run("dump", "pioneer", "--file", str(path)), 1)
+    assert line.endswith(f": 0 packets decoded, {dropped} bytes dropped"), line
+
+
+def test_capture_reader_counts_what_it_dropped(tmp_path: Path) -> None:
+    good = raw_capture(tmp_path, "a_simpleConnect.jsonl", "s2c").read_bytes()
+    path = tmp_path / "noisy.bin"
+    path.write_bytes(b"\x01\x02\x03" + good + b"\xfa\xfb\x10")  # garbage, frames, a stub
+    stats = CaptureStats()
+    frames = list(read_capture(path, stats=stats))
+    assert stats.frames == len(frames) > 30 and stats.bytes_read == len(good) + 6
+    assert stats.dropped_bytes == 6
+
+
+def test_recorded_trace_in_time_order_with_short_lines() -> None:
+    proc = run("dump", "pioneer", "--file", str(DATA / "c2_wander.jsonl"))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    packets = packet_lines(proc.stdout)
+    assert len(packets) > 100
+    times = [t for t, _, _ in packets]
+    assert times == sorted(times)
+    lines = proc.stdout.splitlines()
+    assert max(map(len, lines)) <= 160 and "=None" not in proc.stdout
+    full = run("-v", "dump", "pioneer", "--file", str(DATA / "c2_wander.jsonl"), "-n", "12")
+    assert max(map(len, full.stdout.splitlines())) > 160  # -v: every field, uncut
+
+
+def test_raw_robot_side_names_the_sync2_reply_not_close(tmp_path: Path) -> None:
+    path = raw_capture(tmp_path, "a_simpleConnect.jsonl", "s2c")
+    proc = run("dump", "pioneer", "--file", str(path), "-n", "4")
+    assert proc.returncode == 0, proc.stderr
+    names = [
+        line.split()[1 if line.startswith(("->", "<-")) else 0] for line in proc.stdout.splitlines()
+    ]
+    assert names[:3] == ["SYNC0", "SYNC1", "SYNC2-reply"], proc.stdout
+    assert "CLOSE" not in proc.stdout and "name=AMRISim" in proc.stdout
+    assert names[3] == "CONFIG"
+
+
+def test_raw_capture_of_both_sides_decodes_batteryinfo(tmp_path: Path) -> None:
+    path = raw_capture(tmp_path, "a_simpleConnect.jsonl", None)
+    proc = run("dump", "pioneer", "--file", str(path))
+    assert proc.returncode == 0, proc.stderr
+    assert "error" not in proc.stdout and "unpack_from" not in proc.stdout
+    assert re.search(r"^-> BATTERYINFO\s+arg=1$", proc.stdout, re.M), proc.stdout
+    assert "SYNC2-reply" in proc.stdout and "CLOSE" not in proc.stdout.split("OPEN")[0]
+
+
+def test_json_lines_rounded() -> None:
+    proc = run("dump", "pioneer", "--file", str(DATA / "a_simpleConnect.jsonl"), "--json")
+    assert proc.returncode == 0, proc.stderr
+    records = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert [r["name"] for r in records[:6]] == [
+        "SYNC0", "SYNC0-reply", "SYNC1", "SYNC1-reply", "SYNC2", "SYNC2-reply",
+    ]  # fmt: skip
+    assert records[5]["fields"]["subtype"] == "p3dx" and records[5]["dir"] == "rx"
+    sip = next(r["fields"] for r in records if r["name"] == "SIP")
+    assert sip["battery"] == 130 and len(sip["sonar"]) == 16
+    assert all(len(str(r["t"]).split(".")[-1]) <= 6 for r in records)
+
+
+def test_live_session_recorded_then_replayed_the_same(tmp_path: Path) -> None:
+    record = tmp_path / "session.jsonl"
+    live = run("dump", "pioneer", "sim", "-n", "30", "--output", str(record), timeout=30)
+    assert live.returncode == 0, live.stderr
+    packets = packet_lines(live.stdout)
+    assert len(packets) == 30 and [t for t, _, _ in packets] == sorted(t for t, _, _ in packets)
+    replay = run("dump", "pioneer", "--file", str(record))
+    assert replay.returncode == 0, replay.stderr
+    assert [(a, n) for _, a, n in packet_lines(replay.stdout)] == [(a, n) for _, a, n in packets]
+    first = json.loads(record.read_text().splitlines()[0])
+    assert set(first) == {"t", "dir", "hex"} and first["dir"] == "c2s"
+
+
+def test_output_needs_a_jsonl_name(tmp_path: Path) -> None:
+    line = one_line_error(run("dump", "pioneer", "sim", "-o", str(tmp_path / "x.txt")), 2)
+    assert ".jsonl" in line and "x.txt" in line
+
+
+def test_a_closed_pipe_ends_quietly() -> None:
+    with running("dump", "pioneer", "sim") as proc:
+        assert proc.stdout is not None
+        for _ in range(3):
+            assert "SYNC" in proc.stdout.readline()
+        proc.stdout.close()
+        assert proc.wait(timeout=20) == 0
+        assert proc.stderr is not None and proc.stderr.read() == ""
