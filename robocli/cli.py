@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     except TyperException as exc:  # usage errors (bad option, missing argument: code 2)
         if type(exc).__name__ == "NoArgsIsHelpError":
             return 0
-        message = exc.format_message().rstrip(".")
+        message = exc.format_message().rstrip(".") + _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
 
@@ -132,6 +132,17 @@ def _command_of(args: list[str]) -> str:
     words = [a for a in args if not a.startswith("-")]
     groups = {info.name or info.typer_instance.info.name for info in app.registered_groups}
     return " ".join(words[:2] if words[:1] and words[0] in groups else words[:1])
+
+
+def _given_value(exc: Exception, args: list[str]) -> str:
+    """`` (got 'fast')``: the value a rejected option was given, when its message omits it."""
+    opts = getattr(getattr(exc, "param", None), "opts", None) or []
+    for i, arg in enumerate(args):
+        name, eq, value = arg.partition("=")
+        if name in opts and (eq or i + 1 < len(args)):
+            value = value if eq else args[i + 1]
+            return "" if value in exc.format_message() else f" (got {value!r})"  # type: ignore[attr-defined]
+    return ""
 
 
 def _help_hint(exc: Exception) -> str:

@@ -1,0 +1,83 @@
+"""Usage errors: exit 2, one line naming the bad value, a hint to -h; help without value
+placeholders; -v after the subcommand (issue 7: 10, 12, 19)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from cli.helpers import one_line_error, run
+
+
+@pytest.mark.parametrize(
+    ("port", "named"),
+    [
+        ("tcp://host:notaport", "tcp://host:notaport"),
+        ("tcp://127.0.0.1:99999", "99999"),
+        ("tcp://127.0.0.1:", "tcp://127.0.0.1:"),
+        ("robot:", "robot:"),
+        ("ftp://x", "ftp"),
+        ("loop://", "loop://"),
+    ],
+)
+def test_malformed_urls(port: str, named: str) -> None:
+    line = one_line_error(run("connect", "pioneer", port, "--timeout", "1"), 2)
+    assert named in line and line.endswith("Try 'robocli connect pioneer -h'."), line
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (("dump", "pioneer"), "give PORT or --file"),
+        (("dump", "pioneer", "sim", "--file", "x.jsonl"), "x.jsonl"),
+        (("dump", "pioneer", "--file", "/nonexistent/capture.jsonl"), "capture.jsonl"),
+        (("connect", "pioneer", "sim", "--subtype", "box"), "'box'"),
+        (("dump", "pioneer", "sim", "--subtype", "p3xd"), "'p3xd'"),
+        (("connect", "pioneer"), "PORT"),
+        (("connect", "pioneer", "sim", "--baud", "fast"), "fast"),
+    ],
+)
+def test_usage_errors_name_the_value(args: tuple[str, ...], named: str) -> None:
+    line = one_line_error(run(*args), 2)
+    assert named in line and line.endswith(f"Try 'robocli {args[0]} pioneer -h'."), line
+
+
+def test_both_port_and_file(tmp_path: Path) -> None:
+    capture = tmp_path / "c.jsonl"
+    capture.write_text("")
+    line = one_line_error(run("dump", "pioneer", "sim", "--file", str(capture)), 2)
+    assert "give PORT or --file, not both" in line
+
+
+@pytest.mark.parametrize(
+    ("content", "named"),
+    [
+        (b"\xff\xfe{\x00w\x00", "not UTF-8"),  # UTF-16 with its byte order mark
+        (b'{"walls": [[0, 0, 1, 1]', "not valid JSON"),
+        (b"0 0 1\n", "'0 0 1'"),
+    ],
+)
+def test_sim_rejects_a_bad_map(tmp_path: Path, content: bytes, named: str) -> None:
+    path = tmp_path / ("lab.txt" if content.startswith(b"0") else "lab.json")
+    path.write_bytes(content)
+    line = one_line_error(run("sim", "pioneer", "--port", "0", "--map", str(path)), 2)
+    assert named in line and path.name in line, line
+
+
+@pytest.mark.parametrize("command", [("connect", "pioneer"), ("dump", "pioneer"), ("ports",)])
+def test_help_shows_no_value_placeholders(command: tuple[str, ...]) -> None:
+    proc = run(*command, "-h")
+    assert proc.returncode == 0 and proc.stderr == ""
+    assert not any(p in proc.stdout for p in ("<bool>", "<str>", "<int>", "{port}", "{PORT}"))
+    if command[0] != "ports":
+        assert f"Usage: robocli {' '.join(command)} [OPTIONS]" in proc.stdout
+        assert proc.stdout.splitlines()[0].endswith(("] PORT", "[PORT]"))
+    assert "╭" not in proc.stdout  # plain text, whatever the terminal
+
+
+def test_verbose_after_the_subcommand() -> None:
+    proc = run("connect", "pioneer", "sim", "--once", "-v")
+    assert proc.returncode == 0, proc.stderr
+    assert "INFO" in proc.stderr and "pose" in proc.stdout
+    assert run("connect", "pioneer", "sim", "--once", "-vv").returncode == 0
