@@ -38,6 +38,8 @@ from robocli.protocols.arcos import (
     frame,
     split_two_bytes,
 )
+from robocli.sim.arcos_simext import Georef, SimExtensions
+from robocli.sim.laser import LaserSpec
 from robocli.sim.pioneer_model import NUM_BUMPERS, TICKS_PER_MM, PioneerModel, clamp
 from robocli.sim.serving import Link
 
@@ -91,12 +93,14 @@ class ArcosController:
 
     ``name``/``subtype``: what SYNC2 and CONFIG report. ``sip_ms``: SIP cycle (simulated ms);
     ``period``: wall seconds between ticks. ``watchdog_s``: wall seconds without a valid
-    packet after which the session's robot is stopped (0 disables).
+    packet after which the session's robot is stopped (0 disables). ``laser``, ``georef``:
+    the simulated laser and the world's georeference (:mod:`robocli.sim.arcos_simext`).
     """
 
     def __init__(
         self, model: PioneerModel, *, name: str, subtype: str, sip_ms: float,
-        period: float, watchdog_s: float,
+        period: float, watchdog_s: float, laser: LaserSpec | None = None,
+        georef: Georef | None = None, seed: int = 0,
     ) -> None:  # fmt: skip
         self.model, self.params = model, model.params
         self.name, self.subtype = name, subtype
@@ -112,7 +116,10 @@ class ArcosController:
         self._sonar_cursor = 0
         self._digin, self.digout, self._anport = 0xFF, 0xFF, 0
         self.last_say: tuple[tuple[int, int], ...] = ()
-        self._handlers = self._make_handlers()
+        self.ext = SimExtensions(
+            model, laser=laser, georef=georef, sip_ms=sip_ms, period=period, seed=seed
+        )
+        self._handlers = {**self._make_handlers(), **self.ext.handlers()}
         self._config_cache: tuple[tuple[float, ...], bytes] | None = None
         head = ("x", "y", "th", "lvel", "rvel", "battery", "stall_bumpers", "control", "flags")
         empty: dict[str, Any] = {**dict.fromkeys(head, 0), "compass": 0, "sonar": ()}
@@ -187,6 +194,9 @@ class ArcosController:
             return None
         if link.sync_state == IN_SESSION:
             self.commands[cmd.name] += 1
+            if cmd.command == Command.SETO:  # its data is not an ordinary argument
+                self.ext.seto(payload)
+                return None
             handler = self._handlers.get(cmd.command)
             if handler is None:
                 log.debug("%s: ignoring command %s", link.name, cmd.name)
@@ -235,6 +245,7 @@ class ArcosController:
         link.sip_due = time.monotonic() + self._period / 2.0  # first SIP ~ one period after OPEN
         self.sessions += 1
         self.model.reset_session()
+        self.ext.open_session()
         self.sonar_on, self._sonar_cursor = True, 0
         log.info("%s: session %d open", link.name, self.sessions)
 
@@ -244,13 +255,14 @@ class ArcosController:
             return
         self.holder = None
         self.model.reset_session()
+        self.ext.open_session()
         self.sonar_on = False
         log.info("%s: session ended (%s)", link.name, why)
 
     def _session_packets(self, link: ArcosSession, now: float) -> bytes:
         if now < link.sip_due:
             return b""
-        packets = [self._sip()]
+        packets = [self.ext.before_sip(self.sips, now), self._sip()]
         self.sips += 1
         for kind, build in (
             ("encoder", self._encoder_packet),
@@ -262,6 +274,7 @@ class ArcosController:
                 packets.append(build())
                 if mode == 1:
                     link.requests[kind] = 0
+        packets.append(self.ext.after_sip(self.sips))
         return b"".join(packets)
 
     # ---------------------------------------------------------------- server packets
@@ -361,7 +374,6 @@ class ArcosController:
             Command.ENABLE: self._cmd_enable,
             Command.SETA: self._cmd_seta,
             Command.SETV: self._cmd_setv,
-            Command.SETO: lambda link, arg: self.model.reset_odometry(),
             Command.MOVE: self._motion(lambda a: self.model.move(a / 1000.0)),
             Command.ROTATE: self._motion(lambda a: self.model.set_rot(math.radians(a))),
             Command.SETRV: self._cmd_setrv,
@@ -383,8 +395,6 @@ class ArcosController:
             Command.BUMPSTALL: self._cmd_bumpstall,
             Command.ESTOP: lambda link, arg: self.model.emergency_stop(),
             Command.BATTERYINFO: self._request("battery"),
-            Command.SIM_SET_POSE: self._cmd_sim_set_pose,
-            Command.SIM_RESET: self._cmd_sim_reset,
             Command.BATTEST: self._cmd_battest,
         }
 
@@ -428,10 +438,12 @@ class ArcosController:
             self.model.limits.rot_decel = -a
 
     def _cmd_setv(self, link: ArcosSession, arg: Any) -> None:
-        self.model.limits.trans_vel_max = abs(_int_arg(arg)) / 1000.0
+        top = self.params.max_velocity  # as ARCOS: never above CONFIG's transvel_top
+        self.model.limits.trans_vel_max = min(top, abs(_int_arg(arg)) / 1000.0)
 
     def _cmd_setrv(self, link: ArcosSession, arg: Any) -> None:
-        self.model.limits.rot_vel_max = math.radians(abs(_int_arg(arg)))
+        top = self.params.max_rot_velocity
+        self.model.limits.rot_vel_max = min(top, math.radians(abs(_int_arg(arg))))
 
     def _dhead(self, deg: int) -> None:
         self.model.head(self.model.odom[2] + math.radians(deg))
@@ -467,15 +479,6 @@ class ArcosController:
     def _cmd_battest(self, link: ArcosSession, arg: Any) -> None:
         dv = _int_arg(arg)
         self.model.battery_override = dv / 10.0 if dv > 0 else None
-
-    def _cmd_sim_set_pose(self, link: ArcosSession, arg: Any) -> None:
-        if isinstance(arg, tuple):
-            x, y, th = arg
-            self.model.teleport(x / 1000.0, y / 1000.0, math.radians(th))
-
-    def _cmd_sim_reset(self, link: ArcosSession, arg: Any) -> None:
-        self.model.teleport(*self.model.start)
-        self.model.reset_odometry()
 
 
 _CONFIG_FIELDS = [str(sc.name) for sc in CONFIG.subcons]

@@ -9,7 +9,14 @@ differences where the real robot behaves better than MobileSim:
   ``watchdog_s`` wall seconds without a valid packet, and obeys the next command;
 * ``CLOSE`` ends the session but keeps the link usable, so a client can re-sync on it, and a
   TCP client disconnect frees the **same** port for the next client (no port hopping);
-* the battery drains and ``state_of_charge`` is reported; IO, encoder and battery packets exist.
+* the battery drains and ``state_of_charge`` is reported; IO, encoder and battery packets exist;
+* a laser enable shows from the next SIP (AMRISim: the third), MobileSim's commands 35-38
+  are laser commands only on a robot with a laser (``laser=None`` keeps ADSEL & co.).
+
+As MobileSim/AMRISim it reports itself as a simulator (CONFIG serial ``SIM``) and serves the
+simulated laser (0x60/0x61 after every SIP), SIMSTAT (0x62) with the true pose and, with a
+georeference, a GPS fix, SIM_SET_POSE and SIM_RESET (``robocli.sim.arcos_simext``); SETO shows
+in the second SIP after it, as in AMRISim.
 
 The simulator glues three parts: the robot model (``robocli.sim.pioneer_model``: physics,
 odometry, collisions, battery, sonar in a ``World``), the ARCOS firmware
@@ -34,6 +41,8 @@ from typing import Any
 from robocli.errors import TimeoutError, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.arcos_session import PRE_SYNC, ArcosController, sonar_batch
+from robocli.sim.arcos_simext import Georef
+from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer_model import PioneerModel, Pose
 from robocli.sim.serving import Server, Ticker
 from robocli.sim.world import World
@@ -91,6 +100,10 @@ class SimState:
     last_say: tuple[tuple[int, int], ...]
     digout: int
     encoder_ticks: tuple[int, int]
+    laser_mode: int = 0  #: 0 off, 1 plain scans (0x60), 2 extended scans (0x61)
+    laser_scans: int = 0  #: complete scans sent
+    laser_ranges: tuple[float, ...] = ()  #: the last scan's ranges (m; inf: no return)
+    simstat_mode: int = 0  #: 0 off, 2 a SIMSTAT before every SIP
 
 
 class PioneerSim:
@@ -100,7 +113,9 @@ class PioneerSim:
     second (physics and SIPs run that much faster). ``watchdog_s``: **wall** seconds without a
     valid packet after which a session's robot is stopped (0 disables). ``start_pose``: m, m,
     rad (default: the world's start). ``odom_noise``: relative standard deviation of odometry
-    per step (0 = odometry equals the true motion), drawn from ``seed``.
+    per step (0 = odometry equals the true motion), drawn from ``seed``. ``laser``: the
+    simulated laser (SICK LMS200 by default; None: no laser). ``georef``: latitude, longitude
+    (deg) and altitude (m) of the world origin, for SIMSTAT's GPS fix (None: no georeference).
     """
 
     def __init__(
@@ -115,6 +130,8 @@ class PioneerSim:
         start_pose: Pose | None = None,
         seed: int = 0,
         odom_noise: float = 0.0,
+        laser: LaserSpec | None = LMS200,
+        georef: Georef | None = None,
     ) -> None:
         if subtype not in ROBOT_PARAMS:
             known = ", ".join(sorted(ROBOT_PARAMS))
@@ -132,7 +149,7 @@ class PioneerSim:
         self._model = PioneerModel(self.params, self.world, start, odom_noise, seed)
         self._ctl = ArcosController(
             self._model, name=name, subtype=subtype, sip_ms=sip_ms, period=period,
-            watchdog_s=watchdog_s,
+            watchdog_s=watchdog_s, laser=laser, georef=georef, seed=seed,
         )  # fmt: skip
         self._ticker = Ticker(period, self._tick, "pioneer-sim-ticker")
         self._tcp: Server | None = None
@@ -265,6 +282,8 @@ class PioneerSim:
             bad_checksums=bad_checksums, dropped_bytes=dropped_bytes,
             sim_time=r.sim_time, sips_sent=c.sips, last_say=c.last_say,
             digout=c.digout, encoder_ticks=r.encoder_ticks(),
+            laser_mode=c.ext.laser_mode, laser_scans=c.ext.scans, laser_ranges=c.ext.last_scan,
+            simstat_mode=c.ext.simstat_mode,
         )  # fmt: skip
 
 

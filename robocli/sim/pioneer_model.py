@@ -52,7 +52,11 @@ def _approach(cur: float, goal: float, accel: float, decel: float, dt: float) ->
 
 @dataclass
 class Limits:
-    """Per-session operating parameters (MobileSim's defaults), SI units."""
+    """Per-session operating parameters (MobileSim's defaults), SI units.
+
+    MobileSim's own ``trans_vel_max`` default is 3.0 m/s, above the p3dx's top speed (2.2),
+    so the vendor SDK warns twice on every connect; :meth:`for_robot` keeps it within the top.
+    """
 
     trans_vel_max: float = 3.0
     trans_accel: float = 0.3
@@ -60,6 +64,15 @@ class Limits:
     rot_vel_max: float = math.radians(150.0)
     rot_accel: float = math.radians(100.0)
     rot_decel: float = math.radians(100.0)
+
+    @classmethod
+    def for_robot(cls, params: RobotParams) -> Limits:
+        """The defaults, the maximum velocities capped at the robot's top speeds (CONFIG's
+        ``transvel_top``/``rotvel_top``)."""
+        lim = cls()
+        lim.trans_vel_max = min(lim.trans_vel_max, params.max_velocity)
+        lim.rot_vel_max = min(lim.rot_vel_max, params.max_rot_velocity)
+        return lim
 
 
 class PioneerModel:
@@ -78,9 +91,10 @@ class PioneerModel:
         self.rng = np.random.default_rng(seed)
         self.half_track = 1.0 / (params.diff_conv * 1000.0)  # m: w = (r - l) / (2 * half_track)
         self.sensors = np.array([(s.x, s.y, s.th) for s in params.sonar], dtype=np.float64)
-        self.limits = Limits()
+        self.limits = Limits.for_robot(self.params)
         self.x, self.y, self.th = start
         self.odom = [0.0, 0.0, 0.0]
+        self.odom_error = (0.0, 0.0)  #: last relative odometry error drawn (distance, rotation)
         self.v = self.w = 0.0
         self.v_goal = self.w_goal = 0.0
         self.trans_mode = "vel"  # "vel" | "move"
@@ -145,9 +159,13 @@ class PioneerModel:
 
     def reset_odometry(self) -> None:
         """Odometry back to (0, 0, 0); a heading goal follows it."""
-        self.odom = [0.0, 0.0, 0.0]
+        self.set_odometry(0.0, 0.0, 0.0)
+
+    def set_odometry(self, x: float, y: float, th: float) -> None:
+        """Odometry set to (m, m, rad) (SETO); a heading goal becomes the new heading."""
+        self.odom = [x, y, wrap_pi(th)]
         if self.rot_mode == "head":
-            self.head_set = 0.0
+            self.head_set = self.odom[2]
 
     def teleport(self, x: float, y: float, th: float) -> None:
         """Move the true pose (m, m, rad); odometry is unchanged."""
@@ -157,7 +175,7 @@ class PioneerModel:
     def reset_session(self) -> None:
         """State at OPEN and after a session: stopped, motors off, defaults, odometry zero."""
         self.set_motors(False)
-        self.limits = Limits()
+        self.limits = Limits.for_robot(self.params)
         self.bump_stall = 0
         self.reset_odometry()
         self.wheel_travel = [0.0, 0.0]
@@ -264,8 +282,12 @@ class PioneerModel:
 
     def _odometry(self, ds: float, dth: float) -> None:
         if self.noise > 0.0 and (ds or dth):
-            ds *= 1.0 + self.noise * float(self.rng.standard_normal())
-            dth *= 1.0 + self.noise * float(self.rng.standard_normal())
+            self.odom_error = (
+                self.noise * float(self.rng.standard_normal()),
+                self.noise * float(self.rng.standard_normal()),
+            )
+            ds *= 1.0 + self.odom_error[0]
+            dth *= 1.0 + self.odom_error[1]
         ox, oy, oth = self.odom
         mid = oth + dth / 2.0
         self.odom = [ox + ds * math.cos(mid), oy + ds * math.sin(mid), wrap_pi(oth + dth)]

@@ -139,9 +139,14 @@ def test_replay_trace_answers_like_amrisim(name: str, make_sim: MakeSim, connect
     our_cfg = arcos.CONFIG.parse(ours[3][1][1:])
     their_cfg = arcos.CONFIG.parse(theirs[3][1][1:])
     for key in ("robot_type", "subtype", "serial", "name", "sip_cycle", "watchdog",
-                "transvel_max", "trans_accel", "trans_decel", "rotvel_max", "rot_accel",
+                "trans_accel", "trans_decel", "rotvel_max", "rot_accel",
                 "rot_decel", "reset_baud", "front_sonar", "rear_sonar"):  # fmt: skip
         assert our_cfg[key] == their_cfg[key], key
+    # maxima within the tops, as ARIA checks (else it warns); deliberate: our p3dx's top is its
+    # real 2200 mm/s, not AMRISim's 9999, so transvel_max is 2200, not AMRISim's 3000
+    for cfg in (our_cfg, their_cfg):
+        assert cfg.transvel_max <= cfg.transvel_top and cfg.rotvel_max <= cfg.rotvel_top
+    assert our_cfg.transvel_max == our_cfg.transvel_top == 2200
 
     # SIP cadence (in trace time) and count; SIPs stop after CLOSE
     our_sips, their_sips = _sips(ours), _sips(theirs)
@@ -284,7 +289,7 @@ def test_close_then_resync_on_same_connection(make_sim: MakeSim, connect: Connec
     assert state.session_open and state.sessions == 2 and not state.motors_enabled
     client.send(Command.CONFIG, 1)
     cfg = arcos.CONFIG.parse(client.expect(PacketType.CONFIG)[1:])
-    assert cfg.transvel_max == 3000  # per-session settings reverted
+    assert cfg.transvel_max == 2200  # per-session settings reverted (capped at transvel_top)
 
 
 def test_second_client_refused_with_a_reason(make_sim: MakeSim, connect: Connect) -> None:

@@ -1,0 +1,124 @@
+"""Simulated laser range finders: a vectorised ray caster and the scan geometry of MobileSim.
+
+:func:`cast` is the sensor-independent part (any simulator can use it): ranges from a pose
+along a set of bearings in a :class:`~robocli.sim.world.World`, all rays at once with NumPy.
+:class:`LaserGeometry` is the configuration a client changes with the simulated-laser
+commands (field of view, resolution in hundredths of a degree) and the rules of AMRISim's
+Stage model (``shared/protocols/arcos_sim_laser.md`` section 1):
+
+* the field of view is ``| |end + 360| - |start + 360| |`` degrees and the scan is always
+  symmetric about the laser's heading; ``end < start`` reverses the reading order;
+* the number of readings is recomputed only when a resolution arrives:
+  ``N = ceil(ceil(FOV) / res) + 1`` (180 deg at 1 deg: 181; 90 deg at 0.5 deg: 181); a later
+  field-of-view change keeps ``N`` and changes the spacing; resolution 0 gives no readings;
+* reading ``i`` is at ``start + i * res`` (what clients assume), so the last one lands on the
+  end of the field of view.
+
+:class:`LaserSpec` holds a model's fixed data (SICK LMS200 defaults for the Pioneers).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from robocli.sim.world import World
+
+__all__ = ["LMS200", "LaserGeometry", "LaserSpec", "cast"]
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def cast(
+    world: World,
+    pose: tuple[float, float, float],
+    angles: npt.ArrayLike,
+    max_range: float,
+    *,
+    min_range: float = 0.0,
+) -> FloatArray:
+    """Ranges (m) from ``pose`` (x, y m; th rad) along ``angles`` (rad, relative to ``th``).
+
+    One ray per angle, all walls at once. A ray that hits nothing within ``max_range`` gives
+    ``inf`` (no return); a hit closer than ``min_range`` gives ``min_range``.
+    """
+    x, y, th = pose
+    rel = np.asarray(angles, dtype=np.float64).ravel()
+    n = len(rel)
+    hit = world.cast(np.full(n, x), np.full(n, y), rel + th, math.inf)
+    ranges: FloatArray = np.where(hit <= max_range, np.maximum(hit, min_range), math.inf)
+    return ranges
+
+
+@dataclass(frozen=True)
+class LaserSpec:
+    """A laser model's fixed data: ranges (m), noise, mounting on the robot, defaults.
+
+    ``no_return_mm``: what the wire carries for a ray without a hit (the model's maximum
+    range in mm, exactly). ``noise``: uniform range noise +-``noise`` m, on hits only.
+    ``mount``: x, y (m), th (rad) in the robot frame. ``fov_deg``/``res_cdeg``: the field of
+    view and resolution (hundredths of a degree) before any client command.
+    """
+
+    name: str = "lms200"
+    max_range: float = 32.767
+    min_range: float = 0.0
+    no_return_mm: int = 32767
+    noise: float = 0.005
+    mount: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    fov_deg: tuple[float, float] = (-90.0, 90.0)
+    res_cdeg: int = 100
+
+
+#: The p3dx's SICK LMS200 in MobileSim/AMRISim (``sicklms200``): 181 readings over 180 deg.
+LMS200 = LaserSpec()
+
+
+class LaserGeometry:
+    """Field of view and resolution as the simulated-laser commands set them (see the module
+    docstring for the rules). Angles in degrees; :meth:`bearings` in radians."""
+
+    def __init__(self, spec: LaserSpec = LMS200) -> None:
+        self.start, self.end = spec.fov_deg
+        self.res_cdeg = spec.res_cdeg
+        self.count = self._count()
+
+    @property
+    def fov(self) -> float:
+        """Width of the field of view, degrees."""
+        return abs(abs(self.end + 360.0) - abs(self.start + 360.0))
+
+    def _count(self) -> int:
+        if self.res_cdeg <= 0:
+            return 0
+        return math.ceil(math.ceil(self.fov) * 100 / self.res_cdeg) + 1
+
+    def set_start(self, deg: float) -> None:
+        """Start angle (OLD_LRF_CFG_START / SIM_LRF_SET_FOV_START); keeps the count."""
+        self.start = float(deg)
+
+    def set_end(self, deg: float) -> None:
+        """End angle (OLD_LRF_CFG_END / SIM_LRF_SET_FOV_END); keeps the count."""
+        self.end = float(deg)
+
+    def set_resolution(self, cdeg: int) -> None:
+        """Resolution in hundredths of a degree (sign ignored); recomputes the count."""
+        self.res_cdeg = abs(int(cdeg))
+        self.count = self._count()
+
+    def bearings(self) -> FloatArray:
+        """Bearing of each reading (rad, laser frame, in the order sent)."""
+        n = self.count
+        if n == 0:
+            return np.zeros(0)
+        res = self.res_cdeg / 100.0
+        # the count and the resolution agree unless the field of view changed after it
+        step = res if self._count() == n else self.fov / max(1, n - 1)
+        deg = -self.fov / 2.0 + step * np.arange(n)
+        if self.end < self.start:
+            deg = deg[::-1]
+        out: FloatArray = np.radians(deg)
+        return out
