@@ -296,3 +296,119 @@ def serial(
             stop_bits=stop_bits,
         )  # fmt: skip
     typer.echo(reply.hex(" ") if hex_io else reply.decode("latin-1"))
+
+
+def _bench_address(url: str | None) -> Any:
+    """The hub to measure: ``url`` as given (pid None), or a simulated hub process."""
+    import contextlib
+
+    from robocli.hub_bench import hub_process
+
+    if url is not None:
+        return contextlib.nullcontext((url, None))
+    return hub_process()
+
+
+def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
+    """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
+    from robocli import benchmarks as b
+    from robocli import hub_bench
+
+    run = b.Run("hub empty pull", n)
+    interrupted = False
+    with sigterm_as_interrupt():
+        try:
+            with _bench_address(url) as (where, _pid):
+                run.where = f"hub {where}" + ("" if url else " (simulated, own process)")
+                hub_bench.rtt(where.removeprefix("tcp://"), run)
+        except KeyboardInterrupt:
+            interrupted = True
+    if run.count:
+        result = b.report(run.name, run.values, where=run.where)
+        if json_out:
+            print_json([result])
+        else:
+            keys = ("mean", "median", "p90", "p99", "max")
+            typer.echo(f"{'measurement (us)':<22}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
+            typer.echo(
+                f"{run.name:<22}{result['n']:>7}" + "".join(f"{result[k]:>9.1f}" for k in keys)
+            )
+            typer.echo(f"  {run.where}")
+    if interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+def throughput(
+    target: str = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
+    url: str | None = typer.Option(  # noqa: UP007
+        None, "--url", help="A running hub HOST[:PORT] (default: a simulated hub process)."
+    ),
+    clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
+    sensors: str = typer.Option(
+        "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
+    ),
+    seconds: float = typer.Option(10.0, "--seconds", min=0.5, max=3600, help="Measured time."),
+    pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
+    workers: int = typer.Option(2, "--workers", min=1, max=64, help="Client processes."),
+    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+) -> None:
+    """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
+    lost samples, and the hub's CPU and peak memory (when it runs here)."""
+    from robocli import hub_bench
+
+    if target != "hub":
+        raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")
+    names = tuple(s.strip() for s in sensors.split(",") if s.strip())
+    unknown = [s for s in names if s not in hub_bench.BENCH_SENSORS]
+    if unknown or not names:
+        raise typer.BadParameter(
+            f"--sensors: {unknown[0] if unknown else sensors!r} unknown; choose from "
+            + ", ".join(hub_bench.BENCH_SENSORS)
+        )
+    with sigterm_as_interrupt():
+        try:
+            with _bench_address(url) as (where, pid):
+                address = where.removeprefix("tcp://")
+                report = hub_bench.throughput(
+                    address, clients=clients, sensors=names, seconds=seconds, pull_hz=pull_hz,
+                    workers=workers, hub_pid=pid, served=hub_bench.served_sensors(address),
+                )  # fmt: skip
+        except KeyboardInterrupt:
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+    if json_out:
+        print_json(report)
+        return
+    _print_throughput(report)
+
+
+def _print_throughput(r: dict[str, Any]) -> None:
+    typer.echo(
+        f"{r['clients']} clients x {', '.join(r['sensors'])}, pulling each at "
+        f"{r['pull_hz']:g} Hz for {r['seconds']:g} s"
+    )
+    if r["not_served"]:
+        typer.echo(f"  not served by this hub: {', '.join(r['not_served'])}")
+    typer.echo(
+        f"  pulls/s {r['pulls_per_s']:.0f}   samples/s {r['samples_per_s']:.0f}   "
+        f"MB/s {r['bytes_per_s'] / 1e6:.1f}   lost samples {r['lost_samples']}"
+    )
+    if "pull_p99_ms" in r:
+        typer.echo(
+            f"  pull latency ms: median {r['pull_p50_ms']:.2f}  p99 {r['pull_p99_ms']:.2f}  "
+            f"max {r['pull_max_ms']:.2f}"
+        )
+    if "hub_cpu_cores" in r:
+        typer.echo(
+            f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB"
+        )
+    for s, p in r["per_sensor"].items():
+        typer.echo(
+            f"  {s:<8} pulls {p['pulls']:>7}  samples {p['samples']:>8}  "
+            f"MB {p['bytes'] / 1e6:>8.1f}  lost {p['lost']}"
+        )
+    for e in sorted(set(r["errors"]))[:5]:
+        typer.echo(f"  error: {e}")
+    typer.echo(
+        "  target (p99 <= 5 ms, no loss, hub <= 1 core): "
+        + ("met" if r["targets_met"] else "NOT met")
+    )

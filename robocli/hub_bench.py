@@ -1,0 +1,320 @@
+"""Benchmarks of the sensor hub through the real client: empty-pull round trips and the
+many-client throughput target.
+
+The hub runs in its own process (:func:`hub_process`) so that its CPU time and peak memory
+are its own (``/proc/PID/stat`` and ``VmHWM``); clients run in worker processes, each with
+a thread per client, so that the client side does not fight over one interpreter.
+
+Throughput target (issue 9): 40 clients, each subscribed to IMU 200 Hz, ADC 1 kHz, a
+1081-beam laser at 40 Hz and a 320x240 camera at 30 Hz, each pulling every sensor at 20 Hz:
+no sample lost within buffer capacity, p99 pull <= 5 ms, the hub <= 1 core.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import random
+import selectors
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from robocli.benchmarks import Run
+from robocli.errors import RobocliError, TransportError
+
+#: Sensor (as the bench names it) -> (ros4mat name, subscribe arguments).
+BENCH_SENSORS: dict[str, tuple[str, dict[str, Any]]] = {
+    "imu": ("imu", {"rate": 200}),
+    "adc": ("adc", {"rate": 1000}),
+    "laser": ("hokuyo", {"rate": 40}),
+    "camera": ("camera", {"rate": 30, "resolution": "320x240"}),
+    "gps": ("gps", {"rate": 5}),
+    "battery": ("battery", {"rate": 10}),
+    "sysinfo": ("computer", {"rate": 10}),
+}
+TARGET_P99_S = 5e-3
+TARGET_CORES = 1.0
+
+
+@contextlib.contextmanager
+def hub_process(timeout: float = 20.0) -> Iterator[tuple[str, int]]:
+    """A simulated hub in a child process: yields (``tcp://HOST:PORT``, its pid). It stops
+    at the end of its stdin (then SIGTERM, then SIGKILL, each bounded)."""
+    code = "from robocli.hub_bench import _hub_child; _hub_child()"
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    assert proc.stdin is not None and proc.stdout is not None
+    try:
+        line = _readline(proc, timeout)
+        if not line.startswith("tcp://"):
+            raise TransportError(f"the hub process did not start within {timeout:g} s {line}")
+        yield line, proc.pid
+    finally:
+        _stop(proc)
+
+
+def _readline(proc: subprocess.Popen[str], timeout: float) -> str:
+    assert proc.stdout is not None
+    with selectors.DefaultSelector() as sel:
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        ready = sel.select(timeout)
+    return proc.stdout.readline().strip() if ready else ""
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    with contextlib.suppress(OSError):
+        if proc.stdin is not None:
+            proc.stdin.close()
+    try:
+        proc.wait(2.0)
+    except subprocess.TimeoutExpired:
+        proc.terminate()
+        try:
+            proc.wait(2.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(2.0)
+    if proc.stdout is not None:
+        proc.stdout.close()
+
+
+def _hub_child() -> None:
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops us
+    from robocli.hub import HubServer
+
+    with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:
+        print(srv.url, flush=True)
+        sys.stdin.read()
+
+
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU seconds of a process so far (Linux ``/proc``)."""
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def peak_rss(pid: int) -> int:
+    """Peak resident memory of a process in bytes (``VmHWM``)."""
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith("VmHWM:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+def rtt(address: str, run: Run, warmup: int = 20) -> Run:
+    """Round trips of empty pulls (a GPS subscribed at 1 Hz: nearly every pull is empty)."""
+    from robocli.devices.hub import Hub
+
+    with Hub.connect(address) as hub:
+        hub.subscribe("gps", 1)
+        for _ in range(warmup):
+            hub.pull("gps")
+        clock = time.perf_counter
+        while run.count < run.n:
+            t0 = clock()
+            hub.pull("gps")
+            run.samples[run.count] = clock() - t0
+            run.count += 1
+    return run
+
+
+@dataclass
+class _Tally:
+    pulls: int = 0
+    samples: int = 0
+    nbytes: int = 0
+    lost: int = 0
+
+
+def _client(
+    address: str, sensors: list[str], pull_hz: float, start: float, end: float,
+    out: dict[str, Any], lock: threading.Lock,
+) -> None:  # fmt: skip
+    from robocli.devices.hub import Hub
+
+    lat: list[float] = []
+    tally = {s: _Tally() for s in sensors}
+    last: dict[str, float] = {}
+    try:
+        with Hub.connect(address, timeout=10.0) as hub:
+            for s in sensors:
+                name, args = BENCH_SENSORS[s]
+                hub.subscribe(name, **args)
+            period = 1.0 / pull_hz
+            due = start + random.random() * period  # spread the clients over a period
+            time.sleep(max(0.0, start - time.time()))
+            for s in sensors:  # what piled up while everybody subscribed
+                r = hub.read(BENCH_SENSORS[s][0])
+                if len(r):
+                    last[s] = float(r.hub_t[-1])
+            while due < end:
+                time.sleep(max(0.0, due - time.time()))
+                for s in sensors:
+                    name, args = BENCH_SENSORS[s]
+                    t0 = time.perf_counter()
+                    r = hub.read(name)
+                    lat.append(time.perf_counter() - t0)
+                    tk = tally[s]
+                    tk.pulls += 1
+                    tk.samples += len(r)
+                    tk.nbytes += r.nbytes
+                    if len(r):
+                        ts = np.asarray(r.hub_t, dtype=np.float64)
+                        if s in last:
+                            ts = np.concatenate([[last[s]], ts])
+                        gaps = np.diff(ts) * args["rate"]
+                        tk.lost += int(np.sum(np.maximum(np.rint(gaps) - 1, 0)))
+                        last[s] = float(r.hub_t[-1])
+                due += period
+    except RobocliError as exc:
+        with lock:
+            out.setdefault("errors", []).append(str(exc))
+    with lock:
+        out["latency"].extend(lat)
+        for s, tk in tally.items():
+            agg = out["sensors"].setdefault(s, {"pulls": 0, "samples": 0, "bytes": 0, "lost": 0})
+            agg["pulls"] += tk.pulls
+            agg["samples"] += tk.samples
+            agg["bytes"] += tk.nbytes
+            agg["lost"] += tk.lost
+
+
+def _worker_main() -> None:
+    """A worker process: argv[1] is a JSON job; prints its results as one JSON line."""
+    job = json.loads(sys.argv[1])
+    out: dict[str, Any] = {"latency": [], "sensors": {}}
+    lock = threading.Lock()
+    threads = [
+        threading.Thread(
+            target=_client,
+            args=(
+                job["address"],
+                job["sensors"],
+                job["pull_hz"],
+                job["start"],
+                job["end"],
+                out,
+                lock,
+            ),
+            daemon=True,
+        )  # fmt: skip
+        for _ in range(job["clients"])
+    ]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join(max(1.0, job["end"] - time.time() + 15))
+    print(json.dumps(out), flush=True)
+
+
+def throughput(
+    address: str,
+    *,
+    clients: int = 40,
+    sensors: tuple[str, ...] = ("imu", "adc", "laser", "camera"),
+    seconds: float = 10.0,
+    pull_hz: float = 20.0,
+    workers: int = 2,
+    hub_pid: int | None = None,
+    served: tuple[str, ...] | None = None,
+) -> dict[str, Any]:
+    """Run ``clients`` clients (in ``workers`` processes) pulling ``sensors`` at ``pull_hz``
+    for ``seconds``; with ``hub_pid``, the hub's CPU (cores) and peak memory too. Sensors
+    the hub does not serve (``served``: the ros4mat names it serves) are left out and
+    listed."""
+    unknown = [s for s in sensors if s not in BENCH_SENSORS]
+    if unknown:
+        raise RobocliError(f"bench: unknown sensor {unknown[0]!r}; from {sorted(BENCH_SENSORS)}")
+    used = [s for s in sensors if served is None or BENCH_SENSORS[s][0] in served]
+    skipped = [s for s in sensors if s not in used]
+    workers = max(1, min(workers, clients))
+    start = time.time() + 2.0 + 0.05 * clients
+    end = start + seconds
+    procs = []
+    for w in range(workers):
+        n = clients // workers + (1 if w < clients % workers else 0)
+        job = {"address": address, "sensors": used, "pull_hz": pull_hz, "start": start,
+               "end": end, "clients": n}  # fmt: skip
+        code = "from robocli.hub_bench import _worker_main; _worker_main()"
+        procs.append(subprocess.Popen(
+            [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
+        ))  # fmt: skip
+    cpu0 = rss = 0.0
+    if hub_pid is not None:
+        time.sleep(max(0.0, start - time.time()))
+        cpu0 = cpu_seconds(hub_pid)
+        time.sleep(max(0.0, end - time.time()))
+        cpu1 = cpu_seconds(hub_pid)
+        rss = peak_rss(hub_pid)
+    results = []
+    for proc in procs:
+        out, _ = proc.communicate(timeout=seconds + 60)
+        results.append(json.loads(out.strip().splitlines()[-1]))
+    lat = np.concatenate([np.asarray(r["latency"], dtype=np.float64) for r in results])
+    per: dict[str, dict[str, int]] = {}
+    for r in results:
+        for s, agg in r["sensors"].items():
+            dst = per.setdefault(s, dict.fromkeys(agg, 0))
+            for k, v in agg.items():
+                dst[k] += v
+    total = {k: sum(p[k] for p in per.values()) for k in ("pulls", "samples", "bytes", "lost")}
+    report: dict[str, Any] = {
+        "clients": clients, "sensors": used, "not_served": skipped, "seconds": seconds,
+        "pull_hz": pull_hz, "pulls_per_s": total["pulls"] / seconds,
+        "samples_per_s": total["samples"] / seconds, "bytes_per_s": total["bytes"] / seconds,
+        "lost_samples": total["lost"], "per_sensor": per,
+        "errors": [e for r in results for e in r.get("errors", [])],
+    }  # fmt: skip
+    if lat.size:
+        p50, p99 = np.percentile(lat, [50, 99])
+        report.update(pull_p50_ms=p50 * 1e3, pull_p99_ms=p99 * 1e3, pull_max_ms=lat.max() * 1e3)
+    if hub_pid is not None:
+        report["hub_cpu_cores"] = (cpu1 - cpu0) / seconds
+        report["hub_peak_rss_mb"] = rss / 2**20
+    report["targets_met"] = bool(
+        not report["errors"] and total["lost"] == 0
+        and report.get("pull_p99_ms", 1e9) <= TARGET_P99_S * 1e3
+        and report.get("hub_cpu_cores", 0.0) <= TARGET_CORES
+    )  # fmt: skip
+    return report
+
+
+def served_sensors(address: str) -> tuple[str, ...]:
+    """The ros4mat names of the sensors a hub accepts a subscription to (probed)."""
+    from robocli.devices.hub import Hub
+    from robocli.errors import DeviceError
+
+    names = []
+    with Hub.connect(address) as hub:
+        for name, args in BENCH_SENSORS.values():
+            try:
+                hub.subscribe(name, **args)
+            except DeviceError:
+                continue
+            names.append(name)
+    return tuple(names)
+
+
+__all__ = [
+    "BENCH_SENSORS",
+    "cpu_seconds",
+    "hub_process",
+    "peak_rss",
+    "rtt",
+    "served_sensors",
+    "throughput",
+]
