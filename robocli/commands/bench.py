@@ -114,6 +114,10 @@ def rtt(
     """
     from robocli import benchmarks as b
 
+    if target == "hub":  # the sensor hub's bench lives with its commands
+        from robocli.commands.hub import bench_rtt
+
+        return bench_rtt(url, n, json_out)
     _check_target(target)
     same, other = _cpus(cpu)
     at = b.cpu_label
