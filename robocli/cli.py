@@ -12,7 +12,7 @@ import sys
 import typer
 
 from robocli._version import __version__
-from robocli.commands import bench, kinematics, pioneer, ports
+from robocli.commands import arm, bench, kinematics, pioneer, ports
 from robocli.commands import hub as hub_commands
 from robocli.commands._common import PlainCommand
 
@@ -79,10 +79,18 @@ traj.command("ptp-cartesian")(kinematics.ptp_cartesian)
 traj.command("file")(kinematics.file)
 app.command("validate")(kinematics.validate)
 
+upload = _group("upload", "Upload a trajectory to a robot.")
+monitor = _group("monitor", "Record a robot's state stream to a log.")
+sim.command("abb", cls=PlainCommand)(arm.simulate)
+upload.command("arm", cls=PlainCommand)(arm.upload)
+monitor.command("arm", cls=PlainCommand)(arm.monitor)
+connect.command("arm", cls=PlainCommand)(arm.connect)
+
 app.command("subscribe")(hub_commands.subscribe)
 app.command("serial")(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(hub_commands.dump)
+bench_group.command("throughput")(hub_commands.throughput)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:
