@@ -47,7 +47,7 @@ TARGET_CORES = 1.0
 @contextlib.contextmanager
 def hub_process(timeout: float = 20.0) -> Iterator[tuple[str, int]]:
     """A simulated hub in a child process: yields (``tcp://HOST:PORT``, its pid). It stops
-    at the end of its stdin (then SIGTERM, then SIGKILL, each bounded)."""
+    at the end of its stdin (else SIGKILL after 2 s)."""
     code = "from robocli.hub_bench import _hub_child; _hub_child()"
     proc = subprocess.Popen(
         [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
@@ -72,18 +72,15 @@ def _readline(proc: subprocess.Popen[str], timeout: float) -> str:
 
 
 def _stop(proc: subprocess.Popen[str]) -> None:
+    """End of stdin stops the hub at once; one that does not within 2 s is killed."""
     with contextlib.suppress(OSError):
         if proc.stdin is not None:
             proc.stdin.close()
     try:
         proc.wait(2.0)
     except subprocess.TimeoutExpired:
-        proc.terminate()
-        try:
-            proc.wait(2.0)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(2.0)
+        proc.kill()
+        proc.wait(2.0)
     if proc.stdout is not None:
         proc.stdout.close()
 
