@@ -9,7 +9,7 @@ from robocli.errors import InvalidArgument
 from robocli.hub.registry import ClientInfo, Hub
 from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.server import Ros4matSession
-from robocli.hub.sources import Source, simulated_sources
+from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link
 from robocli.sim.serving import Server
@@ -62,10 +62,10 @@ class HubServer:
         if token is not None and not token:
             raise InvalidArgument("token must not be empty")
         self._token = token
-        all_sources = self._sources(sim)
+        all_sources = hub_sources(sim, gpsd)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget)
-        self._serial: Any = None
+        self._serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         self._server = Server(
             self._session,
             protocol="ros4mat",
@@ -79,9 +79,6 @@ class HubServer:
         )
         self._url: str | None = None
         self.warnings: list[str] = []
-
-    def _sources(self, sim: bool) -> dict[str, Source]:
-        return simulated_sources() if sim else {}
 
     def _session(self, link: Link) -> Ros4matSession:
         return Ros4matSession(link, self.hub, link.name, self._token, self._serial)

@@ -84,6 +84,7 @@ class Channel:
     def __init__(self, source: Source, clock: Callable[[], float], budget: int) -> None:
         self.source = source
         self.name = source.name
+        source.clock = clock
         self._clock = clock
         self._budget = budget
         self.ring: SensorRing | None = None
@@ -94,9 +95,10 @@ class Channel:
     def active(self) -> bool:
         return self.ring is not None and self.ring.cursors > 0
 
-    def configure(self, params: Mapping[str, Any] | None, buffer: int) -> None:
-        """Apply ``params`` (None: keep the current settings) and make sure the driver runs
-        with a ring of at least ``buffer`` records (within the byte budget)."""
+    def configure(self, params: Mapping[str, Any] | None, buffer: int) -> bool:
+        """Apply ``params`` (None: keep the current settings) with a ring of at least
+        ``buffer`` records (within the byte budget). Returns whether the driver must
+        (re)start: call :meth:`restart` once the new subscriber's cursor is attached."""
         src = self.source
         old_dtype = src.dtype()
         old = (dict(src.params), src.rate, src.batch_rate)
@@ -110,10 +112,10 @@ class Channel:
             self.ring = SensorRing(self.name, dtype, capacity)
         elif dtype != old_dtype or capacity > self.ring.capacity:
             self.ring.reshape(dtype, capacity)
-        if changed or self._ticker is None:
-            self._restart()
+        return changed or self._ticker is None
 
-    def _restart(self) -> None:
+    def restart(self) -> None:
+        """(Re)start the driver with the source's current settings."""
         self._stop_driver()
         src = self.source
         src.start(self._clock())
@@ -234,7 +236,7 @@ class Hub:
             if params is None and not buffer:
                 buffer = max((c.limit for c in self._cursors_of(name)), default=1)
             try:
-                ch.configure(params, buffer)
+                restart = ch.configure(params, buffer)
             except InvalidArgument as exc:
                 raise DeviceError(f"{name}: {exc}") from exc
             ring = ch.ring
@@ -245,6 +247,8 @@ class Hub:
                 state.cursors[name] = cursor = ring.attach(buffer)
             else:
                 ring.set_limit(cursor, buffer)
+            if restart:  # after the cursor exists: it sees the very first samples
+                ch.restart()
             how = "silent" if params is None else ch.source.settings()
             log.info(
                 "client %d subscribed to %s (%s, buffer %d)", state.id, name, how, cursor.limit

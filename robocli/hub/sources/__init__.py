@@ -3,21 +3,37 @@
 from __future__ import annotations
 
 from robocli.hub.sources.base import Batch, PeriodicSource, Source
+from robocli.hub.sources.imaging import CameraSource, DepthSource, LaserSource, StereoSource
+from robocli.hub.sources.real import GpsdSource, SerialPorts, SysinfoSource, parse_host_port
 from robocli.hub.sources.sim import AdcSource, BatterySource, GpsSource, ImuSource
 
 __all__ = [
     "AdcSource",
     "Batch",
     "BatterySource",
+    "CameraSource",
+    "DepthSource",
     "GpsSource",
+    "GpsdSource",
     "ImuSource",
+    "LaserSource",
     "PeriodicSource",
+    "SerialPorts",
     "Source",
-    "simulated_sources",
+    "StereoSource",
+    "SysinfoSource",
+    "hub_sources",
+    "parse_host_port",
 ]
 
 
-def simulated_sources() -> dict[str, Source]:
-    """One simulated source per sensor kind, by the hub's sensor names."""
-    sources: list[Source] = [AdcSource(), ImuSource(), GpsSource(), BatterySource()]
+def hub_sources(sim: bool = True, gpsd: str | None = None) -> dict[str, Source]:
+    """The sources of a hub by sensor name: every simulated sensor when ``sim``; this
+    machine's system info always; the GPS from gpsd (``"HOST[:PORT]"``) when given."""
+    sources: list[Source] = [SysinfoSource()]
+    if sim:
+        sources += [AdcSource(), ImuSource(), GpsSource(), BatterySource(), CameraSource(),
+                    StereoSource(), DepthSource(), LaserSource()]  # fmt: skip
+    if gpsd:
+        sources.append(GpsdSource(*parse_host_port(gpsd, 2947)))
     return {s.name: s for s in sources}

@@ -13,7 +13,8 @@ of each blob with :meth:`Source.blob_sizes`; the rest of each blob field is padd
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
@@ -53,6 +54,7 @@ class Source:
 
     def __init__(self) -> None:
         self.params: dict[str, Any] = {}
+        self.clock: Callable[[], float] = time.time  #: the hub's clock (set by the hub)
         self.rate = 1.0  #: samples per second
         self.batch_rate = 1.0  #: polls per second
         self.configure({})
