@@ -34,12 +34,12 @@ def _interrupt(proc: subprocess.Popen[str], after: float, sig: int) -> tuple[str
 
 
 def _counts(out: str) -> dict[str, int]:
-    """measurement name -> n, from the text table."""
+    """measurement name -> n, from the text table (name, unit, n, seven statistics)."""
     rows = {}
     for line in out.splitlines():
-        parts = line.rsplit(None, 8)
-        if len(parts) == 9 and parts[1].isdigit():
-            rows[parts[0].strip()] = int(parts[1])
+        parts = line.rsplit(None, 9)
+        if len(parts) == 10 and parts[2].isdigit():
+            rows[parts[0].strip()] = int(parts[2])
     return rows
 
 

@@ -220,7 +220,7 @@ def jitter(
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")
     if period is not None and period.size:
-        _show([b.report("SIP period", period)], {"period": period}, json_out, 1e-3, "ms")
+        _show([b.report("SIP period", period)], {"period": period}, json_out)
     _finish(interrupted)
 
 
@@ -247,23 +247,34 @@ def sip(
     _finish(interrupted)
 
 
+def _unit(median_us: float) -> tuple[float, str]:
+    """The display unit of a measurement: (its size in seconds, label); ms from 10 ms up,
+    so that a 100 ms period reads ``100.0 ms``, not ``100013.6`` us."""
+    return (1e-3, "ms") if median_us >= 10_000 else (1e-6, "us")
+
+
 def _show(
     results: list[dict[str, Any]],
     hist: dict[str, Any],
     json_out: bool,
-    unit: float = 1e-6,
-    label: str = "us",
     floor_note: str = "",
 ) -> None:
+    """A table (each row in its own unit, named in the unit column) and histograms of
+    ``hist`` in the unit of their samples; or JSON (microseconds, to the nanosecond)."""
+    import numpy as np
+
     from robocli import benchmarks as b
+    from robocli.commands._common import rounded
 
     if json_out:
-        print_json(results)
+        print_json(rounded(results, 3, {}))
         return
     keys = ("mean", "median", "std", "min", "max", "p90", "p99")
-    typer.echo(f"{'measurement (' + label + ')':<30}{'n':>8}" + "".join(f"{k:>9}" for k in keys))
+    typer.echo(f"{'measurement':<28}{'unit':>5}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
     for r in results:
-        typer.echo(f"{r['name']:<30}{r['n']:>8}" + "".join(f"{r[k]:>9.1f}" for k in keys))
+        unit, label = _unit(r["median"])
+        values = "".join(f"{r[k] * 1e-6 / unit:>9.1f}" for k in keys)
+        typer.echo(f"{r['name']:<28}{label:>5}{r['n']:>7}" + values)
         notes = [r["where"]] if "where" in r else []
         if "x_floor_median" in r:
             notes.append(
@@ -279,6 +290,7 @@ def _show(
     if floor_note:
         typer.echo(floor_note)
     for name, samples in hist.items():
-        typer.echo(f"histogram: {name}")
+        unit, label = _unit(float(np.median(samples)) * 1e6)
+        typer.echo(f"histogram: {name} ({label})")
         for line in b.histogram(samples, unit=unit, label=label):
             typer.echo(line)
