@@ -125,11 +125,20 @@ class PacketView:
 def _short(value: Any, full: bool) -> str:
     if isinstance(value, float):
         return f"{value:.4g}"
-    if isinstance(value, list) and value and isinstance(value[0], tuple):
+    if isinstance(value, list) and value and isinstance(value[0], (tuple, dict)):
+        # sonar (number, range) pairs, laser readings {range, reflectance...}
         if full:
-            return "[" + ",".join(f"{n}:{r}" for n, r in value) + "]"
-        ranges = [r for _, r in value]
-        return f"{len(value)}(min {min(ranges)})"  # sonar: how many, the nearest
+            return "[" + ",".join(_short(v, full) for v in value) + "]"
+        ranges = [v["range"] if isinstance(v, dict) else v[-1] for v in value]
+        return f"{len(value)}(min {min(ranges)})"  # how many, the nearest
+    if isinstance(value, tuple):
+        return ":".join(map(str, value))
+    if isinstance(value, list) and len(value) > 8 and not full:
+        return f"{len(value)}(min {min(value)})"  # laser ranges: how many, the nearest
     if isinstance(value, dict):
-        return "{" + ",".join(f"{k}={v}" for k, v in value.items() if v is not None) + "}"
+        return (
+            "{"
+            + ",".join(f"{k}={_short(v, full)}" for k, v in value.items() if v is not None)
+            + "}"
+        )
     return str(value)

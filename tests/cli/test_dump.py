@@ -154,3 +154,19 @@ def test_a_closed_pipe_ends_quietly() -> None:
         proc.stdout.close()
         assert proc.wait(timeout=20) == 0
         assert proc.stderr is not None and proc.stderr.read() == ""
+
+
+@pytest.mark.parametrize(
+    ("trace", "name", "field"),
+    [
+        ("h_laser_wander.jsonl", "SIM_LASER", "readings=32(min "),
+        ("k_laser_newcmds.jsonl", "SIM_LASER_A", "ranges=32(min "),
+        ("i_simstat.jsonl", "SIM_STAT", "latitude="),
+    ],
+)
+def test_simulator_laser_and_simstat_decoded(trace: str, name: str, field: str) -> None:
+    proc = run("dump", "pioneer", "--file", str(DATA / trace))
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    lines = [line for line in proc.stdout.splitlines() if f"<- {name} " in line]
+    assert lines and all(field in line and len(line) <= 160 for line in lines), lines[:2]
+    assert "error=" not in proc.stdout
