@@ -159,14 +159,14 @@ def test_a_closed_pipe_ends_quietly() -> None:
 @pytest.mark.parametrize(
     ("trace", "name", "field"),
     [
-        ("h_laser_wander.jsonl", "SIM_LASER", "readings=32(min "),
-        ("k_laser_newcmds.jsonl", "SIM_LASER_A", "ranges=32(min "),
-        ("i_simstat.jsonl", "SIM_STAT", "latitude="),
+        ("h_laser_wander.jsonl", "SIM_LASER", r"readings=(32|21)\(min \d+\)"),
+        ("k_laser_newcmds.jsonl", "SIM_LASER_A", r"ranges=(32|21)\(min \d+\)"),
+        ("i_simstat.jsonl", "SIM_STAT", r"latitude=-?\d+"),
     ],
 )
 def test_simulator_laser_and_simstat_decoded(trace: str, name: str, field: str) -> None:
     proc = run("dump", "pioneer", "--file", str(DATA / trace))
     assert proc.returncode == 0 and proc.stderr == "", proc.stderr
     lines = [line for line in proc.stdout.splitlines() if f"<- {name} " in line]
-    assert lines and all(field in line and len(line) <= 160 for line in lines), lines[:2]
+    assert lines and all(re.search(field, line) and len(line) <= 160 for line in lines), lines[:2]
     assert "error=" not in proc.stdout
