@@ -193,3 +193,11 @@ def test_unsubscribe_digital_out_and_refusals(server: HubServer, hub: Hub) -> No
 def test_no_hub_is_a_transport_error() -> None:
     with pytest.raises(TransportError):
         Hub.connect("127.0.0.1", 1, timeout=2.0)
+
+
+def test_a_full_hub_says_so() -> None:
+    with HubServer(bind="127.0.0.1", port=0, sim=True, max_clients=1) as srv:
+        with Hub.connect("127.0.0.1", srv.port) as first:
+            with pytest.raises(DeviceError, match="too many clients"):
+                Hub.connect("127.0.0.1", srv.port)
+            first.subscribe("adc", 100)  # the first client is not disturbed
