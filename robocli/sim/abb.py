@@ -55,7 +55,7 @@ __all__ = ["AbbSim", "ArmSimState", "ControllerModel"]
 log = logging.getLogger("robocli.sim.abb")
 
 SEND_TIMEOUT_S = 2.0
-MAX_BURST = 200  #: late state samples sent at once in exact mode (older ones are skipped)
+MAX_CATCH_UP_S = 5.0  #: exact mode sends samples this many wall seconds late; older are skipped
 BYTE_TIMEOUT_S = 0.5
 
 
@@ -201,7 +201,7 @@ class AbbSim:
     def _publish(self) -> None:
         """State messages on absolute deadlines ``k * period`` (plus the model's period
         jitter). Exact mode: each sample is taken at its nominal instant, missed ones are sent
-        late rather than skipped (at most :data:`MAX_BURST` at once), and with ``feedback``
+        late rather than skipped (up to :data:`MAX_CATCH_UP_S` late), and with ``feedback``
         the instants a motion starts and ends are reported too. Otherwise a sample is taken
         when sent, and a late publisher skips the missed ones."""
         period = self.state_ms / 1000.0  # simulated s
@@ -210,6 +210,7 @@ class AbbSim:
         k = int(self.sim_time() / period) + 1
         exact = self.ctl_model.exact
         extra, last_t = 0.0, k * period - period
+        burst = max(1, int(MAX_CATCH_UP_S / wall))
         while not self._stop.is_set():
             due = self._t0 + k * wall + extra
             delay = due - time.monotonic()
@@ -217,7 +218,7 @@ class AbbSim:
                 return
             now_k = int((time.monotonic() - self._t0) / wall)
             if exact:
-                times = [j * period for j in range(max(k, now_k - MAX_BURST + 1), now_k + 1)]
+                times = [j * period for j in range(max(k, now_k - burst + 1), now_k + 1)]
                 times = times or [k * period]
                 if self.feedback:
                     times = self._with_events(last_t, times)

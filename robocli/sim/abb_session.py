@@ -82,13 +82,21 @@ class ControllerModel:
 
 class Executor:
     """Joint motion on the simulator clock (seconds). Not thread-safe: the controller's lock
-    guards it."""
+    guards it.
+
+    Knots ``(t, q)`` joined by cubic Hermite segments with their own start and end velocities.
+    A trajectory whose first point is not skipped begins with an approach segment from rest to
+    rest; the following points form one piece whose knot velocities are finite differences.
+    """
 
     def __init__(self, model: RobotModel, q0: npt.ArrayLike) -> None:
         self.model = model
+        q = np.asarray(q0, dtype=float)
         self._t: list[float] = [0.0]
-        self._q: FloatArray = np.array([np.asarray(q0, dtype=float)])
-        self._v: FloatArray = np.zeros_like(self._q)
+        self._q: list[FloatArray] = [q]
+        self._vs: list[FloatArray] = []  # start velocity of each segment
+        self._ve: list[FloatArray] = []  # end velocity of each segment
+        self._brk = 0  # index of the knot where the current piece starts
         self.trajectories = 0
 
     @property
@@ -96,8 +104,10 @@ class Executor:
         return self._t[-1]
 
     def events(self) -> tuple[float, ...]:
-        """The start and end instants of the current motion (empty when holding)."""
-        return (self._t[0], self._t[-1]) if len(self._t) > 1 else ()
+        """The instants the current motion starts, reaches its first point, and ends."""
+        if len(self._t) == 1:
+            return ()
+        return (self._t[0], self._t[self._brk], self._t[-1])
 
     def moving(self, t: float) -> bool:
         return t < self._t[-1]
@@ -115,43 +125,58 @@ class Executor:
         s2, s3 = s * s, s * s * s
         h00, h10 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s
         h01, h11 = -2 * s3 + 3 * s2, s3 - s2
-        q0, q1, v0, v1 = self._q[i], self._q[i + 1], self._v[i], self._v[i + 1]
+        q0, q1, v0, v1 = self._q[i], self._q[i + 1], self._vs[i], self._ve[i]
         return np.asarray(h00 * q0 + h10 * h * v0 + h01 * q1 + h11 * h * v1, dtype=float)
 
     def hold(self, t: float) -> None:
         """Stop where the arm is at ``t`` (STOP, or an empty activation)."""
-        q = self.sample(t)
-        self._t, self._q, self._v = [t], q[None, :], np.zeros((1, q.shape[0]))
+        self._t, self._q, self._vs, self._ve, self._brk = [t], [self.sample(t)], [], [], 0
+
+    def _duration(self, q: FloatArray, duration: float) -> float:
+        step = float(np.max(np.abs(q - self._q[-1]) / self.model.max_speed))
+        return max(duration, step, MIN_SEGMENT_S)
 
     def start(self, points: list[tuple[FloatArray, float]], t: float, skip_first: bool) -> None:
         """Run ``points`` (joints, duration) from time ``t``, pre-empting any motion. With
         ``skip_first``, a first point within 0.1 deg of the arm is skipped (RAPID)."""
         self.hold(t)
         self.trajectories += 1
-        if skip_first and points and np.all(np.abs(points[0][0] - self._q[0]) <= SKIP_TOLERANCE):
-            points = points[1:]
-        self.extend(points, t)
+        if not points:
+            return
+        q0, d0 = points[0]
+        if not (skip_first and np.all(np.abs(q0 - self._q[0]) <= SKIP_TOLERANCE)):
+            zero = np.zeros_like(q0)
+            self._t.append(t + self._duration(q0, d0))
+            self._q.append(np.asarray(q0, dtype=float))
+            self._vs.append(zero)
+            self._ve.append(zero)
+            self._brk = 1
+        self._append(points[1:])
 
     def extend(self, points: list[tuple[FloatArray, float]], t: float) -> None:
         """Append points after the last knot (streaming); an idle arm starts from ``t``."""
-        if not points:
-            return
         if t >= self._t[-1]:
             self.hold(t)
         else:  # keep only the knots from the running segment on
             i = max(0, bisect.bisect_right(self._t, t) - 1)
-            self._t, self._q, self._v = self._t[i:], self._q[i:], self._v[i:]
-        keep = len(self._t)
-        ts, qs = list(self._t), list(self._q)
+            self._t, self._q = self._t[i:], self._q[i:]
+            self._vs, self._ve = self._vs[i:], self._ve[i:]
+            self._brk = max(0, self._brk - i)
+        self._append(points)
+
+    def _append(self, points: list[tuple[FloatArray, float]]) -> None:
+        if not points:
+            return
+        old = len(self._t)
         for q, duration in points:
-            step = np.abs(q - qs[-1]) / self.model.max_speed
-            ts.append(ts[-1] + max(duration, float(step.max()), MIN_SEGMENT_S))
-            qs.append(q)
-        q_all = np.array(qs)
-        v_all = np.gradient(q_all, np.array(ts), axis=0, edge_order=1)
-        if keep > 1:  # the velocities of the knots already running stay as they were
-            v_all[: keep - 1] = self._v[: keep - 1]
-        self._t, self._q, self._v = ts, q_all, v_all
+            self._t.append(self._t[-1] + self._duration(q, duration))
+            self._q.append(np.asarray(q, dtype=float))
+        b = self._brk
+        v = np.gradient(np.array(self._q[b:]), np.array(self._t[b:]), axis=0, edge_order=1)
+        for k in range(old - 1, len(self._t) - 1):  # the new segments, knot k -> k + 1
+            start = self._ve[k - 1] if k > b else v[k - b]
+            self._vs.append(start)
+            self._ve.append(v[k + 1 - b])
 
 
 @dataclass

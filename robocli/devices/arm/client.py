@@ -277,25 +277,26 @@ class Arm:
             return st.in_motion is not False
         return time.monotonic() < self._expected_end
 
-    def wait_until_idle(self, timeout: float) -> ArmStatus:
-        """Wait until STATUS says the arm is not in motion: after the last activation, in two
-        consecutive statuses, or in one after it was seen moving. Needs the state port."""
+    def wait_until_idle(self, timeout: float, settle: float = 0.5) -> ArmStatus:
+        """Wait until STATUS says the arm is not in motion: after it was seen moving since the
+        last activation, or, if it never was, in every status for ``settle`` seconds after
+        the activation (a state sent before it may arrive after it). Needs the state port."""
         s = self._need(self._state, "state")
         since = self._activated_at if self._activated_at is not None else time.monotonic()
         deadline = time.monotonic() + timeout
         with self._cond:
-            count, idle, moved = self._statuses, 0, False
+            count, moved = self._statuses, False
             while True:
                 s.check()
                 st = self.status
                 if self._statuses != count and st is not None and st.t > since:
                     count = self._statuses
                     if st.in_motion:
-                        moved, idle = True, 0
-                    else:
-                        idle += 1
-                        if moved or idle >= 2:
-                            return st
+                        moved = True
+                    elif moved or self._activated_at is None:
+                        return st
+                    elif st.t - since >= settle:
+                        return st
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise TimeoutError(f"{s.transport.url}: still in motion after {timeout:g} s")
