@@ -1,0 +1,299 @@
+"""``robocli sim abb``, ``upload arm``, ``monitor arm``, ``connect arm``: thin layers over
+:class:`robocli.devices.arm.Arm` and :class:`robocli.sim.abb.AbbSim`.
+
+``HOST`` may be ``sim``: an embedded simulator in exact mode, reporting the controller time
+(JOINT_FEEDBACK) every 5 ms, so that a monitored run validates to the float.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import SIM, print_json, print_json_line, sigterm_as_interrupt
+
+if TYPE_CHECKING:
+    from robocli.devices.arm import Arm
+    from robocli.io.trajlog import TrajectoryLog
+
+HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.")
+MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
+StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
+OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
+RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
+RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
+TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
+
+EMBEDDED_STATE_MS = 5.0
+
+
+@contextlib.contextmanager
+def arm_host(host: str, motion_port: int, state_port: int, byte_order: str = "little",
+             real_size: int = 4, robot: str = "irb120") -> Iterator[tuple[str, int, int]]:
+    """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
+    ephemeral loopback ports, closed afterwards."""
+    if host != SIM:
+        yield host, motion_port, state_port
+        return
+    from robocli.sim.abb import AbbSim
+
+    with AbbSim(robot, state_ms=EMBEDDED_STATE_MS, feedback=True, real=real_size,  # type: ignore[arg-type]
+                byteorder=">" if byte_order == "big" else "<") as simulator:  # fmt: skip
+        motion, state = simulator.serve_tcp("127.0.0.1", 0, 0)
+        yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
+
+
+def _check_wire(byte_order: str, real_size: int) -> None:
+    if byte_order not in ("little", "big"):
+        raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
+    if real_size not in (4, 8):
+        raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
+
+
+# ------------------------------------------------------------------------------ sim abb
+
+
+def simulate(
+    motion_port: int = typer.Option(11000, "--motion-port", min=0, max=65535),
+    state_port: int = typer.Option(11002, "--state-port", min=0, max=65535),
+    state_ms: float = typer.Option(100.0, "--state-ms", min=0.5, max=10_000.0,
+                                   help="State period, ms (ABB stock 100; the paper saw 20)."),
+    byte_order: str = OrderOpt, real_size: int = RealOpt,
+    profile: str = typer.Option("abb", "--profile",
+                                help="abb (RAPID servers) or generic (streaming server)."),
+    robot: str = RobotOpt,
+    latency_ms: float = typer.Option(0.0, "--latency-ms", min=0.0, max=10_000.0,
+                                     help="Motion reply delay, ms."),
+    jitter_ms: float = typer.Option(0.0, "--jitter-ms", min=0.0, max=10_000.0,
+                                    help="Motion reply jitter (half-normal sigma), ms."),
+    noise_rad: float = typer.Option(0.0, "--noise-rad", min=0.0, max=1.0,
+                                    help="Gaussian noise on reported joints, rad."),
+    period_jitter_ms: float = typer.Option(0.0, "--period-jitter-ms", min=0.0, max=10_000.0,
+                                           help="State period jitter, ms."),
+    lag_ms: float = typer.Option(0.0, "--lag-ms", min=0.0, max=10_000.0,
+                                 help="Execution delay after activation, ms."),
+    paper: bool = typer.Option(False, "--paper", help="The paper-like controller model."),
+    feedback: bool = typer.Option(False, "--feedback",
+                                  help="Also send JOINT_FEEDBACK with the controller time."),
+    time_scale: float = typer.Option(1.0, "--time-scale", min=0.1, max=100.0),
+    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
+) -> None:
+    """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
+    from robocli.sim.abb import PROFILES, AbbSim, ControllerModel
+
+    _check_wire(byte_order, real_size)
+    if profile not in PROFILES:
+        raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
+    model = ControllerModel.paper() if paper else ControllerModel(
+        latency_ms, jitter_ms, noise_rad, period_jitter_ms, lag_ms)
+    with sigterm_as_interrupt(), AbbSim(
+        robot, profile=profile, state_ms=state_ms, byteorder=">" if byte_order == "big" else "<",
+        real=real_size, time_scale=time_scale, model=model, feedback=feedback,  # type: ignore[arg-type]
+    ) as simulator:
+        try:
+            motion, state = simulator.serve_tcp(bind, motion_port, state_port)
+            typer.echo(f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
+                       f"state every {state_ms:g} ms" + ("" if model.exact else ", model on"))
+            sys.stdout.flush()
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            typer.echo("simulator stopped", err=True)
+
+
+# ------------------------------------------------------------------------------ upload arm
+
+
+def _trajectory(robot: str, shape: str | None, points: int, file: Path | None,
+                duration: float | None) -> TrajectoryLog:
+    from robocli.kinematics import load_model
+    from robocli.kinematics import trajectory as tr
+
+    if (shape is None) == (file is None):
+        raise typer.BadParameter("give --shape or --file")
+    if file is not None:
+        from robocli.io.trajlog import read_log
+
+        return read_log(file)
+    makers = {"circle": tr.circle, "rectangle": tr.rectangle}
+    if shape not in makers:
+        raise typer.BadParameter(f"--shape is circle or rectangle, not {shape!r}")
+    return makers[shape](load_model(robot), points, duration=duration)
+
+
+class _Progress:
+    """A Rich bar on a terminal, plain lines otherwise."""
+
+    def __init__(self) -> None:
+        self.tty = sys.stdout.isatty()
+        self._bar: Any = None
+        self._task: Any = None
+        self._last = 0
+
+    def __enter__(self) -> _Progress:
+        if self.tty:
+            from rich.progress import Progress
+
+            self._bar = Progress()
+            self._bar.start()
+            self._task = self._bar.add_task("points acknowledged", total=None)
+        return self
+
+    def __call__(self, done: int, total: int) -> None:
+        if self._bar is not None:
+            self._bar.update(self._task, completed=done, total=total)
+        elif done == total or done - self._last >= 10:
+            self._last = done
+            typer.echo(f"acknowledged {done}/{total}")
+
+    def __exit__(self, *exc: object) -> None:
+        if self._bar is not None:
+            self._bar.stop()
+
+
+def upload(
+    host: str = HostArg,
+    shape: str | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
+    points: int = typer.Option(100, "--points", "-n", min=1, max=100_000),
+    file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
+    duration: float | None = typer.Option(None, "--duration", help="Shape duration, s."),  # noqa: UP007
+    monitor: Path | None = typer.Option(None, "--monitor", help="Record the run to this log."),  # noqa: UP007
+    split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
+    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
+    motion_port: int = MotionPortOpt, state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt, real_size: int = RealOpt, robot: str = RobotOpt,
+    timeout: float = TimeoutOpt,
+    wait: float = typer.Option(600.0, "--wait", min=0.0, help="Seconds to wait for the end."),
+) -> None:
+    """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
+    from robocli.devices.arm import Arm
+    from robocli.io.trajlog import write_log
+
+    _check_wire(byte_order, real_size)
+    traj = _trajectory(robot, shape, points, file, duration)
+    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order,
+                                          real_size, robot) as (h, mp, sp):  # fmt: skip
+        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
+                         timeout=timeout) as arm:  # fmt: skip
+            arm.wait_for_state()
+            rec = arm.record() if monitor is not None else None
+            with _Progress() as progress:
+                send = arm.stream if stream else arm.download
+                kw: dict[str, Any] = {} if stream else {"split": split}
+                sent = send(traj, progress=progress, **kw)
+            status = arm.wait_until_idle(wait) if wait > 0 else arm.status
+            if rec is not None and monitor is not None:
+                rec.stop()
+                log = rec.log()
+                write_log(log, monitor)
+                typer.echo(f"recorded {len(log)} samples -> {monitor}")
+    moving = status is None or status.in_motion
+    typer.echo(f"uploaded {sent} points; arm {'moving' if moving else 'idle'}")
+
+
+# ------------------------------------------------------------------------------ monitor, connect
+
+
+def monitor(
+    host: str = HostArg,
+    out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
+    samples: int | None = typer.Option(None, "--samples", min=2, max=10_000_000),  # noqa: UP007
+    duration: float | None = typer.Option(None, "--duration", min=0.01),  # noqa: UP007
+    state_port: int = StatePortOpt, byte_order: str = OrderOpt, real_size: int = RealOpt,
+    robot: str = RobotOpt, timeout: float = TimeoutOpt,
+) -> None:
+    """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
+    from robocli.devices.arm import Arm
+    from robocli.io.trajlog import write_log
+
+    _check_wire(byte_order, real_size)
+    if (samples is None) == (duration is None):
+        raise typer.BadParameter("give --samples or --duration")
+    with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
+                                          robot) as (h, _, sp):  # fmt: skip
+        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
+                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
+            rec = arm.record()
+            end = time.monotonic() + (duration if duration is not None else math.inf)
+            try:
+                while time.monotonic() < end and (samples is None or _count(rec) < samples):
+                    arm.wait_for_state(timeout)
+            except KeyboardInterrupt:
+                pass  # keep what was recorded
+            rec.stop()
+            log = rec.log()
+    write_log(log, out)
+    typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
+
+
+def _count(rec: Any) -> int:
+    timed = sum(1 for s in rec.samples if s.robot_time is not None)
+    return timed or len(rec.samples)
+
+
+def describe(arm: Arm) -> dict[str, Any]:
+    """Joints (deg and rad), TCP position (m) and status of the last state."""
+    from robocli.kinematics.fk import fk_positions
+
+    sample = arm.joints
+    assert sample is not None
+    tcp = fk_positions(arm.robot, list(sample.joints))[0]
+    st = arm.status
+    return {
+        "t": sample.t, "robot_time": sample.robot_time, "joints_rad": list(sample.joints),
+        "joints_deg": sample.degrees(), "tcp_m": [float(v) for v in tcp],
+        "status": st.as_dict() if st is not None else None,
+    }  # fmt: skip
+
+
+def _line(d: dict[str, Any]) -> str:
+    deg = " ".join(f"{v:8.3f}" for v in d["joints_deg"])
+    rad = " ".join(f"{v:8.5f}" for v in d["joints_rad"])
+    x, y, z = d["tcp_m"]
+    st = d["status"] or {}
+    flags = " ".join(f"{k}={v}" for k, v in st.items())
+    return f"joints deg [{deg}]  rad [{rad}]  tcp ({x:.4f}, {y:.4f}, {z:.4f}) m  {flags}"
+
+
+def connect(
+    host: str = HostArg,
+    once: bool = typer.Option(False, "--once", help="Print one state and exit."),
+    json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
+    count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
+    state_port: int = StatePortOpt, byte_order: str = OrderOpt, real_size: int = RealOpt,
+    robot: str = RobotOpt, timeout: float = TimeoutOpt,
+) -> None:
+    """Show the arm's live joints (deg, rad), TCP position and status."""
+    from robocli.devices.arm import Arm
+
+    _check_wire(byte_order, real_size)
+    with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
+                                          robot) as (h, _, sp):  # fmt: skip
+        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
+                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
+            arm.wait_for_state()
+            shown, last = 0, 0.0
+            try:
+                while True:
+                    d = describe(arm)
+                    if once:
+                        print_json(d) if json_out else typer.echo(_line(d))
+                        return
+                    if json_out:
+                        print_json_line(d)
+                        shown += 1
+                    elif d["t"] - last >= 0.1:
+                        typer.echo(_line(d))
+                        shown, last = shown + 1, d["t"]
+                    if count is not None and shown >= count:
+                        return
+                    arm.wait_for_state(timeout)
+            except KeyboardInterrupt:
+                return
