@@ -12,7 +12,7 @@ import sys
 import typer
 
 from robocli._version import __version__
-from robocli.commands import bench, kinematics, pioneer, ports
+from robocli.commands import arm, bench, kinematics, pioneer, ports
 from robocli.commands import hub as hub_commands
 from robocli.commands._common import PlainCommand
 
@@ -78,6 +78,13 @@ traj.command("ptp-joint")(kinematics.ptp_joint)
 traj.command("ptp-cartesian")(kinematics.ptp_cartesian)
 traj.command("file")(kinematics.file)
 app.command("validate")(kinematics.validate)
+
+upload = _group("upload", "Upload a trajectory to a robot.")
+monitor = _group("monitor", "Record a robot's state stream to a log.")
+sim.command("abb", cls=PlainCommand)(arm.simulate)
+upload.command("arm", cls=PlainCommand)(arm.upload)
+monitor.command("arm", cls=PlainCommand)(arm.monitor)
+connect.command("arm", cls=PlainCommand)(arm.connect)
 
 app.command("subscribe")(hub_commands.subscribe)
 app.command("serial")(hub_commands.serial)
