@@ -11,7 +11,7 @@ from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.server import Ros4matSession
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
-from robocli.sim.links import Link
+from robocli.sim.links import Link, LinkStats
 from robocli.sim.serving import Server
 
 __all__ = ["HubServer", "PORT"]
@@ -32,6 +32,8 @@ class HubServer:
     ``pioneer``: URL of a Pioneer robot (reserved). ``token``: shared secret required for
     the commands that change settings or write to a serial port (None: open, as ros4mat).
     ``max_clients``: connections at once; ``max_body``: largest request body (bytes).
+    ``ring_budget``: bytes one sensor's ring may hold (also bounds one reply).
+    ``send_timeout``: seconds a client may leave a reply unread before it is dropped.
     ``sources``: extra or replacement sources by sensor name.
     """
 
@@ -48,6 +50,7 @@ class HubServer:
         max_clients: int = 64,
         max_body: int = MAX_BODY,
         ring_budget: int = DEFAULT_BUDGET,
+        send_timeout: float = SEND_TIMEOUT_S,
         sources: dict[str, Source] | None = None,
     ) -> None:
         if max_clients < 1:
@@ -72,7 +75,7 @@ class HubServer:
             max_clients=max_clients,
             max_frame=HEADER_SIZE + max_body,
             byte_timeout=1.0,
-            send_timeout=SEND_TIMEOUT_S,
+            send_timeout=send_timeout,
             max_backlog=ring_budget + (1 << 20),
             name="hub",
             busy_reason="hub full: too many clients",
@@ -127,6 +130,11 @@ class HubServer:
     def sensors(self) -> dict[str, dict[str, Any]]:
         """Sensor name -> its settings, rate, ring and subscriber count."""
         return self.hub.sensors()
+
+    @property
+    def link_stats(self) -> LinkStats:
+        """Byte and frame counters summed over every connection, past and present."""
+        return self._server.stats()
 
     def close(self) -> None:
         """Close every connection, stop every sensor (bounded). Idempotent."""
