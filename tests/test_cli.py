@@ -116,8 +116,8 @@ def test_bench_rtt_json_reports_floor_multiples() -> None:
     floor, client = stages["C floor, same CPU"], stages["client vs C responder"]
     assert floor["n"] == 200 and client["n"] == 30
     assert 0 < floor["median"] and client["x_floor_median"] == pytest.approx(
-        client["median"] / floor["median"]
-    )
+        client["median"] / floor["median"], rel=2e-3
+    )  # JSON is rounded to 3 decimals
 
 
 def test_sim_server_serves_until_sigterm() -> None:
