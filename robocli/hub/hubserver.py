@@ -68,7 +68,8 @@ class HubServer:
         all_sources = hub_sources(sim, gpsd)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget)
-        self._serial = SerialPorts(self.serial_ports) if self.serial_ports else None
+        self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
+        """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
             self._session,
             protocol="ros4mat",
@@ -84,7 +85,7 @@ class HubServer:
         self.warnings: list[str] = []
 
     def _session(self, link: Link) -> Ros4matSession:
-        return Ros4matSession(link, self.hub, link.name, self._token, self._serial)
+        return Ros4matSession(link, self.hub, link.name, self._token, self.serial)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -140,8 +141,8 @@ class HubServer:
         """Close every connection, stop every sensor (bounded). Idempotent."""
         self._server.close()
         self.hub.close()
-        if self._serial is not None:
-            self._serial.close()
+        if self.serial is not None:
+            self.serial.close()
 
     def __enter__(self) -> HubServer:
         if self._url is None:

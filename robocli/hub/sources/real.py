@@ -275,6 +275,12 @@ class SerialPorts:
         self._open: dict[str, Any] = {}
         self._lock = threading.Lock()
 
+    @property
+    def open_ports(self) -> list[str]:
+        """The ports open now."""
+        with self._lock:
+            return list(self._open)
+
     def command(self, req: Mapping[str, Any]) -> tuple[int, bytes]:
         """Run one SERIAL_CMD (decoded ``SerialCmdRequest``): (status, bytes read)."""
         cmd = req["cmd"]
