@@ -233,3 +233,38 @@ def test_closed_client_socket_leaves_server_serving(hub: HubServer, raw: Any) ->
     c = raw(hub.port)
     assert c.connect() >= 1
     c.close()
+
+
+SUBSCRIBES = {
+    "subscribe_imu": ("imu", {"rate": 50, "batch_rate": 22}),
+    "subscribe_gps": ("gps", {"rate": 1, "batch_rate": 1}),
+    "subscribe_ordinateur": ("sysinfo", {"rate": 2}),
+    "subscribe_hokuyo": ("laser", {"rate": 10}),
+    "subscribe_camera": ("camera", {"rate": 15, "width": 640, "height": 480, "quality": 0}),
+    "subscribe_kinect": ("depth", {"rate": 30, "width": 640, "height": 480}),
+    "subscribe_camera_stereo": ("stereo", {"rate": 15, "width": 320, "height": 240}),
+}
+
+
+@pytest.mark.parametrize("vector", sorted(SUBSCRIBES))
+def test_original_client_subscribes_to_every_sensor(
+    hub: HubServer, client_factory: Any, wait: Any, vector: str
+) -> None:
+    name, settings = SUBSCRIBES[vector]
+    c = client_factory()
+    c.send(ORIGINAL["connect_zlib"])
+    assert c.recv().msg_type == r4m.MsgType.CONNECT_ACK
+    c.send(ORIGINAL[vector])
+    ack = c.recv()
+    assert (ack.msg_type, ack.error) == (r4m.MsgType.SUBSCRIBE_ACK, 0), ack
+    got = hub.sensors[name]
+    assert {k: got[k] for k in settings} == settings
+    buffer = r4m.SubscribeRequest.parse(ORIGINAL[vector][r4m.HEADER_SIZE :]).buffer_size
+    assert hub.clients[0].subscriptions == {name: buffer}
+    kind = ORIGINAL[vector][r4m.HEADER_SIZE]
+    pull = r4m.encode_request(kind)  # client id 0: the connection names the client
+    c.send(pull)
+    reply = c.recv()
+    assert reply.msg_type == kind and reply.error == 0
+    if reply.size:
+        assert reply.compression_type == 1  # zlib asked at CONNECT
