@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from robocli.protocols.arcos import laser_bearings, laser_count, laser_fov
 from robocli.sim.world import World
 
 __all__ = ["LMS200", "LaserGeometry", "LaserSpec", "cast"]
@@ -79,22 +80,18 @@ LMS200 = LaserSpec()
 
 class LaserGeometry:
     """Field of view and resolution as the simulated-laser commands set them (see the module
-    docstring for the rules). Angles in degrees; :meth:`bearings` in radians."""
+    docstring; the rules are :func:`robocli.protocols.arcos.laser_count` and
+    :func:`~robocli.protocols.arcos.laser_bearings`). Angles in degrees."""
 
     def __init__(self, spec: LaserSpec = LMS200) -> None:
         self.start, self.end = spec.fov_deg
         self.res_cdeg = spec.res_cdeg
-        self.count = self._count()
+        self.count = laser_count(self.start, self.end, self.res_cdeg)
 
     @property
     def fov(self) -> float:
         """Width of the field of view, degrees."""
-        return abs(abs(self.end + 360.0) - abs(self.start + 360.0))
-
-    def _count(self) -> int:
-        if self.res_cdeg <= 0:
-            return 0
-        return math.ceil(math.ceil(self.fov) * 100 / self.res_cdeg) + 1
+        return laser_fov(self.start, self.end)
 
     def set_start(self, deg: float) -> None:
         """Start angle (OLD_LRF_CFG_START / SIM_LRF_SET_FOV_START); keeps the count."""
@@ -107,18 +104,10 @@ class LaserGeometry:
     def set_resolution(self, cdeg: int) -> None:
         """Resolution in hundredths of a degree (sign ignored); recomputes the count."""
         self.res_cdeg = abs(int(cdeg))
-        self.count = self._count()
+        self.count = laser_count(self.start, self.end, self.res_cdeg)
 
     def bearings(self) -> FloatArray:
         """Bearing of each reading (rad, laser frame, in the order sent)."""
-        n = self.count
-        if n == 0:
-            return np.zeros(0)
-        res = self.res_cdeg / 100.0
-        # the count and the resolution agree unless the field of view changed after it
-        step = res if self._count() == n else self.fov / max(1, n - 1)
-        deg = -self.fov / 2.0 + step * np.arange(n)
-        if self.end < self.start:
-            deg = deg[::-1]
-        out: FloatArray = np.radians(deg)
+        deg = laser_bearings(self.start, self.end, self.res_cdeg, self.count)
+        out: FloatArray = np.radians(np.array(deg, dtype=np.float64))
         return out

@@ -118,7 +118,7 @@ def test_vendor_sdk_laser_sequence_is_served_like_amrisim(
     the second SIP after the laser request, shaped exactly as AMRISim's."""
     sent = trace_frames("h_laser_wander", "tx")
     enable_at = next(i for i, (_, p) in enumerate(sent) if p[0] == Command.ADSEL)
-    sim = make_sim(name="AMRISim", world=laser_room(), time_scale=2.0)
+    sim = make_sim(name="AMRISim", world=laser_room(), time_scale=1.0)  # 100 ms, as ARIA
     client = connect(sim)
     replies = {0: 0, 1: 1, 2: 2}  # SYNC n -> reply n, then OPEN, CONFIG -> 0x20
     for _, payload in sent[:3]:
@@ -210,8 +210,8 @@ def test_new_commands_plain_then_extended_moved_flag_and_off(
     sim.wait_until(lambda s: s.trans_vel == 0.0, 10.0)
     client.flush()
     got = client.collect(0.5)
-    sip = arcos.decode_sip(next(p for p in reversed(got) if p[0] == PacketType.SIP)[1:])
-    plain = scans(got)[-1]
+    sip = arcos.decode_sip(next(p for p in got if p[0] == PacketType.SIP)[1:])
+    plain = scans(got)[1]  # a whole scan sent after that SIP (the robot stands still)
     theirs = scans([p for _, p in trace_frames("k_laser_newcmds", "rx")])
     theirs_plain = [s for s in theirs if s[0].pose is not None]
     assert len(theirs_plain) == 26
@@ -237,10 +237,9 @@ def test_new_commands_plain_then_extended_moved_flag_and_off(
     assert [p.flags for p in flagged[0][1:]] == [0] * 5
 
     client.send(Command.SIM_LRF_ENABLE, 0)
-    client.sip()
-    client.sip()
-    assert not [p for p in client.collect(0.4) if p[0] in LASER_TYPES]
-    assert sim.snapshot().laser_mode == 0
+    sent = sim.wait_until(lambda s: s.laser_mode == 0, 5.0).laser_scans
+    client.sips(3)
+    assert sim.snapshot().laser_scans == sent  # no scan after "off"
 
 
 def test_laser_is_off_at_each_session_start_and_absent_without_a_laser(

@@ -29,6 +29,7 @@ from typing import Any
 
 from robocli.core import Framer
 from robocli.devices.pioneer import link
+from robocli.devices.pioneer.simulated import SimulatorFeatures
 from robocli.devices.pioneer.state import (
     Odometry,
     PioneerState,
@@ -56,15 +57,21 @@ _PULSE = arcos.encode_command(Command.PULSE)
 
 class PioneerStats(LinkStats):
     """Link counters (see :class:`~robocli.devices.session.LinkStats`) plus the Pioneer's:
-    SIPs received, keep-alives sent, dead-man stops, and bounded timing histories."""
+    SIPs received, keep-alives sent, dead-man stops, laser scans completed and dropped
+    (incomplete or garbled), and bounded timing histories."""
 
-    _COUNTERS: tuple[str, ...] = (*LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops")
+    _COUNTERS: tuple[str, ...] = (
+        *LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops", "laser_scans",
+        "laser_dropped",
+    )  # fmt: skip
 
     def __init__(self) -> None:
         super().__init__()
         self.sips = 0
         self.keepalives = 0
         self.deadman_stops = 0
+        self.laser_scans = 0
+        self.laser_dropped = 0
         #: reader CPU seconds per SIP (decode + state update; thread CPU time, so waiting
         #: for the GIL is not counted), most recent last
         self.sip_work: deque[float] = deque(maxlen=_HISTORY)
@@ -76,8 +83,11 @@ class PioneerStats(LinkStats):
         self.sip_times: deque[float] = deque(maxlen=_HISTORY)
 
 
-class Pioneer:
-    """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager."""
+class Pioneer(SimulatorFeatures):
+    """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
+
+    With a simulator also: its laser (:meth:`start_laser`, :attr:`laser`, :meth:`on_laser`)
+    and its status (:meth:`sim_status`), from :class:`SimulatorFeatures`."""
 
     def __init__(
         self,
@@ -120,6 +130,7 @@ class Pioneer:
         self._clamp_warned: set[str] = set()
         self._motors_off_warned = False
         self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
+        self._init_simulated()
         session.on_frame = self._on_frame
         session.listeners.add(self._count_tx)
         session.add_task("keepalive", self._keepalive_step)
@@ -143,6 +154,7 @@ class Pioneer:
         deadman: float | None = None,
         require_config: bool = False,
         listeners: Iterable[PacketListener] = (),
+        laser: bool = False,
     ) -> Pioneer:
         """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs),
         run the ARCOS handshake and start the reader and keep-alive threads.
@@ -155,7 +167,8 @@ class Pioneer:
         the robot allows it. Raises :class:`TransportError` (unreachable),
         :class:`TimeoutError` (no robot answering), :class:`DeviceError` (the robot
         refused: busy with another client), :class:`UnknownRobotError` (no parameters for
-        its subtype).
+        its subtype). ``laser=True`` starts a simulator's laser with the vendor SDK's
+        defaults (:meth:`start_laser`; a :class:`DeviceError` on a real robot).
         """
         transport = open_transport(url, baudrate=baud, timeout=timeout)
         return cls.from_transport(
@@ -169,6 +182,7 @@ class Pioneer:
             deadman=deadman,
             require_config=require_config,
             listeners=listeners,
+            laser=laser,
         )
 
     @classmethod
@@ -185,6 +199,7 @@ class Pioneer:
         deadman: float | None = None,
         require_config: bool = False,
         listeners: Iterable[PacketListener] = (),
+        laser: bool = False,
     ) -> Pioneer:
         """Like :meth:`connect` over an already open transport (a pipe, a wrapped or
         fault-injecting stream). The Pioneer owns it from now on and closes it."""
@@ -232,6 +247,8 @@ class Pioneer:
                 robot._on_frame(frame, t)
             if robot.stats.sips == 0:
                 robot.wait_for_sip(timeout=max(sip_timeout, 1.0))
+            if laser:
+                robot.start_laser()
         except BaseException:
             robot.close()
             raise
@@ -562,6 +579,8 @@ class Pioneer:
             self.encoders = (int(enc["left"]), int(enc["right"]))
         elif ptype == PacketType.BATTERY:
             self.battery_info = link.parse_body(arcos.BATTERY, link.payload_of(frame), "BATTERY")
+        elif ptype in (PacketType.SIM_LASER, PacketType.SIM_LASER_A):
+            self._on_laser(ptype, frame[4:-2], now)
 
     def _store_config(self, payload: bytes) -> None:
         if payload != self._config_raw:  # construct is slow; CONFIG rarely changes

@@ -65,6 +65,9 @@ from robocli.protocols.arcos.simext import (
     decode_simstat,
     encode_laser_scan,
     encode_simstat,
+    laser_bearings,
+    laser_count,
+    laser_fov,
 )
 from robocli.protocols.arcos.wire import (
     ARG_INT,
@@ -152,6 +155,9 @@ __all__ = [
     "encode_sip_body",
     "encode_two_bytes",
     "frame",
+    "laser_bearings",
+    "laser_count",
+    "laser_fov",
     "packet_name",
     "parse_battery",
     "parse_config",

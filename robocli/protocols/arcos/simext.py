@@ -11,6 +11,7 @@ NumPy here, so the client's import stays light.
 
 from __future__ import annotations
 
+import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -40,6 +41,9 @@ __all__ = [
     "decode_simstat",
     "encode_laser_scan",
     "encode_simstat",
+    "laser_bearings",
+    "laser_count",
+    "laser_fov",
 ]
 
 LASER_MAX_READINGS = 32  #: readings per laser packet at most
@@ -192,6 +196,35 @@ def encode_laser_scan(
             body = struct.pack(f"<{len(part)}{_RANGE_CODE}", *part)
             out.append(frame(bytes((PacketType.SIM_LASER_A,)) + head + body))
     return b"".join(out)
+
+
+def laser_fov(start_deg: float, end_deg: float) -> float:
+    """Width (deg) of the field of view a client set: ``| |end + 360| - |start + 360| |``
+    (AMRISim's Stage model; only the width matters, the scan is symmetric about the heading)."""
+    return abs(abs(end_deg + 360.0) - abs(start_deg + 360.0))
+
+
+def laser_count(start_deg: float, end_deg: float, res_cdeg: int) -> int:
+    """Readings per scan after a resolution command (hundredths of a degree):
+    ``ceil(ceil(FOV) / res) + 1``; 0 for resolution 0. 180 deg at 100: 181; 90 at 50: 181."""
+    res = abs(int(res_cdeg))
+    if res == 0:
+        return 0
+    return math.ceil(math.ceil(laser_fov(start_deg, end_deg)) * 100 / res) + 1
+
+
+def laser_bearings(start_deg: float, end_deg: float, res_cdeg: int, count: int) -> list[float]:
+    """Bearing (deg, laser frame, CCW positive) of each of ``count`` readings, in the order
+    sent: ``-FOV/2 + i * res``, reversed when ``end < start``. When the count does not follow
+    from the resolution (the field of view changed after it), the readings span the field of
+    view evenly, as the Stage model keeps the count and changes the spacing."""
+    if count <= 0:
+        return []
+    fov = laser_fov(start_deg, end_deg)
+    res = abs(int(res_cdeg)) / 100.0
+    step = res if laser_count(start_deg, end_deg, res_cdeg) == count else fov / max(1, count - 1)
+    out = [-fov / 2.0 + i * step for i in range(count)]
+    return out[::-1] if end_deg < start_deg else out
 
 
 def decode_simstat(body: bytes | bytearray | memoryview) -> dict[str, int]:

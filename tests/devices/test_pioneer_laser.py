@@ -1,0 +1,257 @@
+"""The client's simulated laser and simulator status: scans reassembled from recorded AMRISim
+packets (trace h, k) and against the built-in simulator over TCP, SIMSTAT (trace i)."""
+
+from __future__ import annotations
+
+import math
+import re
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from robocli import Pioneer
+from robocli.devices.pioneer import LaserScan
+from robocli.devices.pioneer.laser import (
+    MAX_READINGS,
+    LaserSettings,
+    ScanAssembler,
+    parse_simstatus,
+)
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.io.capture import read_capture
+from robocli.protocols import arcos
+from robocli.sim.pioneer import PioneerSim
+from robocli.sim.world import World
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
+WALL_X = 2.0  #: m: a wall across the robot's path, from y = -5 to 5
+BOSTON = (42.3601, -71.0589, 10.0)
+
+
+def recorded_rx(stem: str) -> list[tuple[float, bytes]]:
+    return [
+        (f.t or 0.0, arcos.unframe(f.frame))
+        for f in read_capture(DATA / f"{stem}.jsonl")
+        if f.direction == "rx"
+    ]
+
+
+def assemble(packets: list[bytes], settings: LaserSettings) -> tuple[list[LaserScan], dict]:
+    counts: dict[str, int] = {"laser_scans": 0, "laser_dropped": 0}
+    asm = ScanAssembler(lambda name: counts.__setitem__(name, counts[name] + 1))
+    out = []
+    for p in packets:
+        if p[0] not in (arcos.PacketType.SIM_LASER, arcos.PacketType.SIM_LASER_A):
+            continue
+        scan = asm.feed(p[0], p[1:], 0.0, (0.0, 0.0, 0.0), settings)
+        if scan is not None:
+            out.append(scan)
+    return out, counts
+
+
+def expected_wall(angle: float, x: float = 0.0) -> float:
+    """Range from (x, 0) heading +x to the wall x = WALL_X (|y| <= 5), inf if missed."""
+    if math.cos(angle) <= 1e-9:
+        return math.inf
+    r = (WALL_X - x) / math.cos(angle)
+    return r if abs(r * math.sin(angle)) <= 5.0 else math.inf
+
+
+@pytest.fixture
+def wall_sim() -> Iterator[PioneerSim]:
+    world = World.from_segments([(WALL_X, -5.0, WALL_X, 5.0)])
+    with PioneerSim("p3dx", time_scale=5.0, world=world, georef=BOSTON) as sim:
+        sim.serve_tcp("127.0.0.1", 0)
+        yield sim
+
+
+# ============================================================================ recorded packets
+
+
+def test_trace_h_scans_reassemble_field_by_field() -> None:
+    """Every 0x61 packet of the vendor SDK session: 111 complete scans, none dropped, ranges
+    and reflectance equal to the recording's own decoded listing."""
+    rx = recorded_rx("h_laser_wander")
+    scans, counts = assemble([p for _, p in rx], LaserSettings())
+    assert len(scans) == counts["laser_scans"] == 111 and counts["laser_dropped"] == 0
+    listing = (DATA / "h_laser_wander.txt").read_text()
+    checked = 0
+    for m in re.finditer(
+        r"#   scan (\d+) ranges: ([\d ]+)\n#   scan \1 reflectance: ([\d ]+)", listing
+    ):
+        scan = scans[int(m.group(1)) - 1]
+        want = [int(v) for v in m.group(2).split()]
+        assert [round(r * 1000) for r in scan.ranges] == want
+        assert list(scan.reflectance or ()) == [int(v) for v in m.group(3).split()]
+        checked += 1
+    assert checked >= 5
+    first = scans[0]
+    assert len(first) == 181 and first.angles[0] == pytest.approx(-math.pi / 2)
+    assert first.angles[90] == pytest.approx(0.0) and first.angles[-1] == pytest.approx(math.pi / 2)
+    assert set(first.reflectance[78:105]) == {32}  # the map's reflector [h]
+    assert not any(s.moved for s in scans)
+
+
+def test_trace_k_plain_and_extended_scans_and_the_moved_flag() -> None:
+    rx = [p for _, p in recorded_rx("k_laser_newcmds")]
+    scans, counts = assemble(rx, LaserSettings(-45, 45, 50))
+    assert counts == {"laser_scans": 46, "laser_dropped": 0}  # 26 plain + 20 extended [k]
+    plain = [s for s in scans if s.reflectance is None]
+    assert len(plain) == 26 and len(plain[0]) == 181
+    assert [math.degrees(a) for a in plain[0].angles[:3]] == pytest.approx([-45.0, -44.5, -44.0])
+    assert sum(s.moved for s in scans) == 1
+
+
+def test_garbled_and_incomplete_scans_are_dropped_and_counted() -> None:
+    rx = [p for _, p in recorded_rx("h_laser_wander") if p[0] == arcos.PacketType.SIM_LASER]
+    one = rx[:6]
+    settings = LaserSettings()
+    _, c = assemble(one[:3] + one, settings)  # a scan abandoned half-way, then a whole one
+    assert c == {"laser_scans": 1, "laser_dropped": 1}
+    _, c = assemble(one[:2] + one[3:] + one, settings)  # a packet lost mid-scan
+    assert c == {"laser_scans": 1, "laser_dropped": 1}
+    _, c = assemble(one[1:] + one, settings)  # joined mid-scan: the tail belongs to no scan
+    assert c == {"laser_scans": 1, "laser_dropped": 1}
+    huge = arcos.unframe(arcos.encode_laser_scan([1000] * 32, extended=True))
+    huge = huge[:1] + (MAX_READINGS + 1).to_bytes(2, "little") + huge[3:]  # total too large
+    _, c = assemble([huge, *one], settings)
+    assert c == {"laser_scans": 1, "laser_dropped": 1}
+    asm = ScanAssembler()
+    asm.feed(one[0][0], one[0][1:], 0.0, (0.0, 0.0, 0.0), settings)
+    with pytest.raises(ProtocolError):
+        asm.feed(one[1][0], one[1][1:-3], 0.0, (0.0, 0.0, 0.0), settings)  # truncated
+
+
+def test_simstatus_of_trace_i_in_si_units() -> None:
+    body = next(p for _, p in recorded_rx("i_simstat") if p[0] == arcos.PacketType.SIM_STAT)
+    status = parse_simstatus(body[1:], 1.0)
+    assert status.true_pose == (0.0, 0.0, 0.0)
+    assert (status.sim_interval, status.real_interval) == (0.1, 0.1)
+    assert status.gps is not None and status.gps.dop == 1.0
+    assert status.gps.latitude == pytest.approx(42.3589333) and status.gps.altitude == -108.14
+    assert status.odometry_error is not None and abs(status.odometry_error[0]) < 0.0075
+    with pytest.raises(ProtocolError):
+        parse_simstatus(body[1:-1], 1.0)
+
+
+# ============================================================================ built-in simulator
+
+
+def test_laser_scan_sees_the_wall_at_its_distance(wall_sim: PioneerSim) -> None:
+    assert wall_sim.url is not None
+    with Pioneer.connect(wall_sim.url, laser=True) as robot:
+        assert robot.is_simulator
+        scan = robot.wait_for_laser(timeout=5.0)
+        assert robot.laser is scan and len(scan) == 181
+        assert [math.degrees(a) for a in scan.angles] == pytest.approx(list(range(-90, 91)))
+        for a, r in zip(scan.angles, scan.ranges, strict=True):
+            want = expected_wall(a)
+            assert r == pytest.approx(want, abs=0.006) if math.isfinite(want) else math.isinf(r)
+        nearest = scan.nearest()
+        assert nearest is not None and nearest[0] == pytest.approx(WALL_X, abs=0.006)
+        assert abs(nearest[1]) <= math.radians(3)
+        assert scan.reflectance == (0,) * 181 and scan.pose == pytest.approx((0.0, 0.0, 0.0))
+        assert all(x == pytest.approx(WALL_X, abs=0.006) for x, _ in scan.points())
+
+
+def test_scan_pose_follows_the_robot_and_teleports_are_flagged(wall_sim: PioneerSim) -> None:
+    assert wall_sim.url is not None
+    with Pioneer.connect(wall_sim.url, laser=True) as robot:
+        robot.enable_motors()
+        robot.move(0.5)
+        wall_sim.wait_until(lambda s: s.odom_x > 0.49 and s.trans_vel == 0.0, timeout=10)
+        robot.wait_for_sip()
+        scan = robot.wait_for_laser()
+        assert scan.pose == pytest.approx(robot.pose, abs=0.002)
+        assert scan.pose[0] == pytest.approx(0.5, abs=0.01)
+        assert scan.ranges[90] == pytest.approx(WALL_X - 0.5, abs=0.01)
+        seen: list[LaserScan] = []
+        robot.on_laser(seen.append)
+        robot.set_simulator_pose(1.0, 0.0, 0.0)  # the true pose only: odometry stays at 0.5
+        while not any(s.moved for s in seen):
+            robot.wait_for_laser()
+        moved = next(s for s in seen if s.moved)
+        assert moved.ranges[90] == pytest.approx(WALL_X - 1.0, abs=0.01)
+        assert moved.pose[0] == pytest.approx(0.5, abs=0.01)
+        robot.wait_for_laser()
+        assert sum(s.moved for s in seen) == 1
+
+
+def test_plain_scans_with_the_new_commands_then_off(wall_sim: PioneerSim) -> None:
+    assert wall_sim.url is not None
+    with Pioneer.connect(wall_sim.url) as robot:
+        assert robot.laser is None
+        robot.start_laser(-math.pi / 4, math.pi / 4, math.radians(0.5), extended=False,
+                          new_commands=True)  # fmt: skip
+        scan = robot.wait_for_laser(timeout=5.0)
+        assert len(scan) == 181 and scan.reflectance is None
+        assert math.degrees(scan.angles[1] - scan.angles[0]) == pytest.approx(0.5)
+        assert wall_sim.snapshot().laser_mode == 1
+        robot.stop_laser(new_commands=True)
+        wall_sim.wait_until(lambda s: s.laser_mode == 0, timeout=5)
+        n = robot.stats.laser_scans
+        for _ in range(3):
+            robot.wait_for_sip()
+        assert robot.stats.laser_scans <= n + 1
+        with pytest.raises(InvalidArgument):
+            robot.start_laser(resolution=0.0)
+        with pytest.raises(InvalidArgument):
+            robot.start_laser(start=math.nan)
+
+
+def test_a_raising_laser_listener_is_isolated(wall_sim: PioneerSim) -> None:
+    assert wall_sim.url is not None
+    with Pioneer.connect(wall_sim.url, laser=True) as robot:
+        got: list[LaserScan] = []
+        done = threading.Event()
+
+        def bad(scan: LaserScan) -> None:
+            raise RuntimeError("listener bug")
+
+        def good(scan: LaserScan) -> None:
+            got.append(scan)
+            if len(got) >= 3:
+                done.set()
+
+        robot.on_laser(bad)
+        robot.on_laser(good)
+        assert done.wait(5.0)
+        assert robot.stats.listener_errors >= 3 and robot.connected
+        robot.remove_laser_listener(bad)
+        errors = robot.stats.listener_errors
+        robot.wait_for_laser()
+        robot.wait_for_laser()
+        assert robot.stats.listener_errors == errors
+        assert robot.stats.laser_dropped == 0 and robot.stats.laser_scans >= 5
+
+
+def test_sim_status_true_pose_and_gps(wall_sim: PioneerSim) -> None:
+    assert wall_sim.url is not None
+    with Pioneer.connect(wall_sim.url) as robot:
+        robot.set_simulator_pose(1.0, -0.5, math.pi / 2)
+        wall_sim.wait_until(lambda s: s.x == 1.0, timeout=5)
+        status = robot.sim_status()
+        assert status.true_pose == pytest.approx((1.0, -0.5, math.pi / 2))
+        assert robot.pose == pytest.approx((0.0, 0.0, 0.0))  # odometry unchanged
+        assert status.gps is not None
+        assert status.gps.longitude - BOSTON[1] == pytest.approx(122e-7, abs=2e-7)
+        assert status.gps.latitude - BOSTON[0] == pytest.approx(-45e-7, abs=2e-7)
+        assert status.sim_interval == 0.1 and status.real_interval == pytest.approx(0.02)
+        robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
+        robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
+        assert not robot.is_simulator
+        with pytest.raises(DeviceError):
+            robot.sim_status()
+        with pytest.raises(DeviceError):
+            robot.start_laser()
+
+
+def test_without_georeference_there_is_no_gps(empty_sim: PioneerSim) -> None:
+    assert empty_sim.url is not None
+    with Pioneer.connect(empty_sim.url) as robot:
+        status = robot.sim_status()
+        assert status.gps is None and status.fields["gps_dop"] == -1
+        with pytest.raises(TimeoutError):
+            robot.wait_for_laser(timeout=0.3)  # laser not started
