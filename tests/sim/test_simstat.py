@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import pytest
 
+from robocli import Pioneer
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
@@ -186,3 +187,36 @@ def test_setv_and_config_stay_within_the_robots_top_speed(
     client.send(Command.CONFIG, 1)
     cfg = arcos.parse_config(client.expect(PacketType.CONFIG)[1:])
     assert cfg["transvel_max"] == cfg["transvel_top"] == 2200
+
+
+def test_client_reset_odometry_reads_zero_although_the_first_sip_is_old(
+    make_sim: MakeSim,
+) -> None:
+    """The +15.9 m bug: a robot at negative x, SETO; the simulator's first SIP after it still
+    carries the old (negative, i.e. near 0x7FFF) counters, as AMRISim's; the client's pose
+    must read ~0 throughout, never 15.9 m (32768 x 0.485 mm)."""
+    sim = make_sim(world=World.empty(), time_scale=10.0)
+    assert sim.url is not None
+    raw_x: list[int] = []
+
+    def sips(direction: str, payload: bytes, t: float) -> None:
+        if direction == "rx" and payload[0] == PacketType.SIP:
+            raw_x.append(arcos.decode_sip(payload[1:])["x"])
+
+    with Pioneer.connect(sim.url, listeners=[sips]) as robot:
+        robot.enable_motors()
+        robot.set_velocity(-0.3, 0.0)
+        sim.wait_until(lambda s: s.odom_x < -0.3, timeout=5)
+        robot.stop()
+        sim.wait_until(lambda s: s.trans_vel == 0.0, timeout=5)
+        robot.wait_for_sip()
+        assert robot.pose[0] < -0.3
+        before = len(raw_x)
+        robot.reset_odometry()
+        for _ in range(6):
+            x, y, _th = robot.wait_for_sip().pose
+            assert abs(x) < 0.005 and abs(y) < 0.005
+        after = raw_x[before:]
+        assert after[0] > 0x4000  # the first SIP after SETO: old negative counters
+        assert 0 in after[1:3]  # then the reset
+        assert robot.pose == pytest.approx((0.0, 0.0, 0.0), abs=0.005)
