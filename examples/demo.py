@@ -56,6 +56,10 @@ def run() -> int:
                 f"simulator truth:  x {truth.x:+.3f} m  y {truth.y:+.3f} m  "
                 f"th {math.degrees(truth.th):+6.1f} deg"
             )
+            robot.start_laser()  # the simulated SICK LMS200: a 181-reading scan every SIP
+            near = robot.wait_for_laser(timeout=5).nearest()
+            print(f"laser: nearest return {near[0]:.2f} m at {math.degrees(near[1]):+.0f} deg"
+                  if near else "laser: no return within 32 m")  # fmt: skip
 
             step("examples/wander.py: potential-field wander for 20 s of simulated time")
             result = wander(robot, 200)
