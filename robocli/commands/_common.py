@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import re
 import signal
 import sys
@@ -186,9 +187,9 @@ RESOLUTION = {
 
 def rounded(data: Any, digits: int = 6, resolution: dict[str, int] = RESOLUTION) -> Any:
     """``data`` with every float rounded to its field's decimals in ``resolution`` (else
-    ``digits``): no ``0.9590000000000001`` noise in JSON. NaN becomes None."""
+    ``digits``): no ``0.9590000000000001`` noise in JSON. NaN and infinities become None."""
     if isinstance(data, float):
-        return None if data != data else round(data, digits)
+        return round(data, digits) if math.isfinite(data) else None
     if isinstance(data, dict):
         return {k: rounded(v, resolution.get(str(k), digits), resolution) for k, v in data.items()}
     if isinstance(data, (list, tuple)):

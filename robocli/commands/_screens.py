@@ -45,18 +45,16 @@ def sonar_text(ranges: Any) -> list[str]:
 
 
 def laser_text(robot: Any) -> str | None:
-    """A one-line summary of the latest laser scan (nearest range and its bearing, number
-    of readings), or None when the robot has no laser (``robot.laser`` absent or empty)."""
+    """A one-line summary of the latest laser scan (nearest return and its bearing, number
+    of readings), or None when the robot has no laser scan."""
     scan = getattr(robot, "laser", None)
     if scan is None:
         return None
-    ranges = list(getattr(scan, "ranges", ()) or ())
-    angles = list(getattr(scan, "angles", ()) or ())
-    valid = [(r, a) for r, a in zip(ranges, angles, strict=False) if r == r and r > 0]
-    if not valid:
-        return f"{len(ranges)} readings, none in range"
-    rng, bearing = min(valid)
-    return f"nearest {rng:.2f} m at {math.degrees(bearing):+.0f} deg  ({len(ranges)} readings)"
+    nearest = scan.nearest()
+    if nearest is None:
+        return f"nothing in range  ({len(scan)} readings)"
+    rng, bearing = nearest
+    return f"nearest {rng:.2f} m at {math.degrees(bearing):+.0f} deg  ({len(scan)} readings)"
 
 
 def render(robot: Pioneer) -> RenderableType:

@@ -6,6 +6,8 @@ rounded to the protocol's resolution.
 
 from __future__ import annotations
 
+import contextlib
+import math
 import queue
 import sys
 import time
@@ -71,6 +73,9 @@ def connect(
     json_out: bool = typer.Option(
         False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
     ),
+    laser: bool = typer.Option(
+        True, "--laser/--no-laser", help="Start a simulator's laser and show it (simulators only)."
+    ),
     subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -80,6 +85,8 @@ def connect(
     from robocli.commands._screens import live_view
 
     with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+        if laser:
+            _start_laser(robot, wait=once)
         if once:
             if json_out:
                 print_json(rounded(_snapshot(robot)))
@@ -93,13 +100,33 @@ def connect(
             live_view(robot)
 
 
+def _start_laser(robot: Pioneer, wait: bool) -> None:
+    """On a simulator (MobileSim, robocli sim), ask for its laser; with ``wait``, wait up
+    to a second for the first scan. Real robots are left alone (their laser has its own
+    port)."""
+    from robocli.errors import TimeoutError
+
+    start = getattr(robot, "start_laser", None)
+    if start is None or not getattr(robot, "is_simulator", False):
+        return
+    start()
+    if wait:
+        with contextlib.suppress(TimeoutError):
+            robot.wait_for_laser(1.0)  # type: ignore[attr-defined]
+
+
 def _snapshot(robot: Pioneer) -> dict[str, Any]:
-    """The robot's snapshot, with the latest laser scan when it has one."""
+    """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
+    where nothing was seen; angles in rad)."""
     data = robot.snapshot()
     scan = getattr(robot, "laser", None)
     if scan is not None and "laser" not in data:
-        fields = getattr(scan, "__dataclass_fields__", None)
-        data["laser"] = {k: getattr(scan, k) for k in fields} if fields else str(scan)
+        data["laser"] = {
+            "t": scan.t,
+            "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
+            "angles": list(scan.angles),
+            "ranges": [None if math.isinf(r) else r for r in scan.ranges],
+        }
     return data
 
 

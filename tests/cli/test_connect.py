@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import signal
 import socket
 import struct
@@ -113,3 +114,24 @@ def test_ports_lists_serial_ports() -> None:
     assert isinstance(listed, list)
     assert all(set(p) == {"device", "description", "hwid"} for p in listed)
     assert all(p["device"] in proc.stdout for p in listed)
+
+
+needs_laser = pytest.mark.skipif(
+    not hasattr(Pioneer, "start_laser"), reason="the client has no simulated laser yet"
+)
+
+
+@needs_laser
+def test_connect_shows_a_simulators_laser() -> None:
+    proc = run("connect", "pioneer", "sim", "--once")
+    assert proc.returncode == 0, proc.stderr
+    line = next(line for line in proc.stdout.splitlines() if line.startswith("laser"))
+    assert re.fullmatch(r"laser\s+nearest \d+\.\d\d m at [+-]\d+ deg  \(181 readings\)", line)
+    data = json.loads(run("connect", "pioneer", "sim", "--once", "--json").stdout)
+    scan = data["laser"]
+    assert len(scan["ranges"]) == len(scan["angles"]) == 181
+    assert scan["angles"][0] == pytest.approx(-math.pi / 2, abs=1e-4)
+    assert all(r is None or 0 < r < 33 for r in scan["ranges"])
+    _check_rounded(data)
+    plain = run("connect", "pioneer", "sim", "--once", "--no-laser")
+    assert plain.returncode == 0 and "laser" not in plain.stdout
