@@ -138,7 +138,10 @@ def main(argv: list[str] | None = None) -> int:
 def _command_of(args: list[str]) -> str:
     """The command words of ``args`` (``connect pioneer``): the leading non-options."""
     words = [a for a in args if not a.startswith("-")]
-    groups = {info.name or info.typer_instance.info.name for info in app.registered_groups}
+    groups = {
+        info.name or (info.typer_instance.info.name if info.typer_instance else None)
+        for info in app.registered_groups
+    }
     return " ".join(words[:2] if words[:1] and words[0] in groups else words[:1])
 
 
