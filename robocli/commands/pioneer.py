@@ -112,7 +112,7 @@ def _start_laser(robot: Pioneer, wait: bool) -> None:
     start()
     if wait:
         with contextlib.suppress(TimeoutError):
-            robot.wait_for_laser(1.0)  # type: ignore[attr-defined]
+            robot.wait_for_laser(1.0)
 
 
 def _snapshot(robot: Pioneer) -> dict[str, Any]:
