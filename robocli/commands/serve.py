@@ -1,0 +1,138 @@
+"""``robocli serve``: the sensor hub (ros4mat v3 on TCP 1500), a thin layer over
+:class:`robocli.hub.HubServer`.
+
+On a terminal: a live Rich table with a line per sensor and per client. Otherwise: plain
+log lines, one per change (a client connects, subscribes, leaves), so that logs stay small.
+Ctrl-C or SIGTERM closes every connection and stops every sensor.
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import sigterm_as_interrupt
+
+if TYPE_CHECKING:
+    from robocli.hub import HubServer
+
+STATUS_PERIOD_S = 0.5
+
+
+def _token(path: Path | None) -> bytes | None:
+    if path is None:
+        return None
+    try:
+        token = path.read_bytes().strip()
+    except OSError as exc:
+        raise typer.BadParameter(f"cannot read {path}: {exc.strerror or exc}") from None
+    if not token:
+        raise typer.BadParameter(f"{path} is empty", param_hint="'--token-file'")
+    return token
+
+
+def serve(
+    sim: bool = typer.Option(False, "--sim", help="Serve every simulated sensor."),
+    port: int = typer.Option(1500, "--port", "-p", min=0, max=65535, help="TCP port (0: any)."),
+    bind: str = typer.Option(
+        "127.0.0.1", "--bind", help="Address to listen on (0.0.0.0 exposes the hub: warned)."
+    ),
+    pioneer: str | None = typer.Option(None, "--pioneer", metavar="URL", help="Pioneer robot."),
+    gpsd: str | None = typer.Option(
+        None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
+    ),
+    serial: list[str] = typer.Option(  # noqa: B008
+        [], "--serial", metavar="PORT", help="A serial port clients may use (repeatable)."
+    ),
+    token_file: Path | None = typer.Option(  # noqa: UP007
+        None,
+        "--token-file",
+        dir_okay=False,
+        metavar="FILE",
+        help="Require this file's token to change settings or write to a serial port.",
+    ),  # fmt: skip
+    max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
+) -> None:
+    """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
+    from robocli.hub import HubServer
+
+    if pioneer is not None:
+        raise typer.BadParameter(
+            "Pioneer sources are not available in this version of the hub", param_hint="'--pioneer'"
+        )
+    srv = HubServer(
+        bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd,
+        token=_token(token_file), max_clients=max_clients,
+    )  # fmt: skip
+    with sigterm_as_interrupt():
+        try:
+            srv.start()
+            for warning in srv.warnings:
+                typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
+            typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
+            sys.stdout.flush()
+            if sys.stdout.isatty():
+                _live(srv)
+            else:
+                _log(srv)
+        except KeyboardInterrupt:
+            typer.echo("hub stopped", err=True)
+        finally:
+            srv.close()
+
+
+def status_lines(srv: HubServer) -> list[str]:
+    """One line per active sensor and per known client (what the log prints on change)."""
+    lines = []
+    for name, s in srv.sensors.items():
+        if s["active"]:
+            lines.append(f"sensor {name}: {s['rate']:g} Hz, {s['subscribers']} subscriber(s)")
+    for c in srv.clients:
+        state = "connected" if c.connected else "detached"
+        subs = ", ".join(f"{n}[{b}]" for n, b in c.subscriptions.items()) or "nothing"
+        lines.append(f"client {c.id} {c.peer} {state}: {subs}")
+    return lines
+
+
+def _log(srv: HubServer) -> None:
+    """Plain lines: what changed, every :data:`STATUS_PERIOD_S`."""
+    shown: set[str] = set()
+    while True:
+        lines = status_lines(srv)
+        for line in lines:
+            if line not in shown:
+                typer.echo(line)
+        for line in shown - set(lines):
+            typer.echo(f"gone: {line}")
+        sys.stdout.flush()
+        shown = set(lines)
+        time.sleep(STATUS_PERIOD_S)
+
+
+def _table(srv: HubServer) -> Any:
+    from rich.table import Table
+
+    table = Table(title=f"robocli hub on {srv.url}", expand=False)
+    for col in ("what", "rate / peer", "subscribers / subscriptions", "pulls", "samples", "lost"):
+        table.add_column(col)
+    for name, s in srv.sensors.items():
+        state = f"{s['rate']:g} Hz" if s["active"] else "idle"
+        table.add_row(f"sensor {name}", state, str(s["subscribers"]), "", "", "")
+    for c in srv.clients:
+        subs = ", ".join(f"{n}[{b}]" for n, b in c.subscriptions.items()) or "-"
+        who = c.peer if c.connected else f"{c.peer} (detached)"
+        table.add_row(f"client {c.id}", who, subs, str(c.pulls), str(c.samples), str(c.dropped))
+    return table
+
+
+def _live(srv: HubServer) -> None:
+    from rich.live import Live
+
+    with Live(_table(srv), refresh_per_second=4, transient=False) as live:
+        while True:
+            time.sleep(STATUS_PERIOD_S)
+            live.update(_table(srv))

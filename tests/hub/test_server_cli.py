@@ -1,0 +1,86 @@
+"""``robocli serve``: a real process, a raw client, Ctrl-C; usage errors exit 2."""
+
+from __future__ import annotations
+
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from robocli.cli import main
+
+TIMEOUT = 10.0
+
+
+class Lines:
+    """The lines a process prints, read by a thread (no buffering surprises)."""
+
+    def __init__(self, proc: subprocess.Popen[str]) -> None:
+        self._queue: queue.Queue[str] = queue.Queue()
+        self.seen: list[str] = []
+        assert proc.stdout is not None
+        stream = proc.stdout
+        threading.Thread(target=lambda: [self._queue.put(x) for x in stream], daemon=True).start()
+
+    def until(self, needle: str, timeout: float = TIMEOUT) -> str:
+        """The first line (printed so far or within ``timeout``) containing ``needle``."""
+        for line in self.seen:
+            if needle in line:
+                return line
+        end = time.monotonic() + timeout
+        while (left := end - time.monotonic()) > 0:
+            try:
+                line = self._queue.get(timeout=left)
+            except queue.Empty:
+                break
+            self.seen.append(line)
+            if needle in line:
+                return line
+        raise AssertionError(f"{needle!r} not in {self.seen}")
+
+
+def test_serve_sim_logs_clients_and_stops_on_ctrl_c(raw: Any) -> None:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "serve", "--sim", "--port", "0"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+    )  # fmt: skip
+    try:
+        lines = Lines(proc)
+        first = lines.until("hub serving ", 30.0)  # interpreter start-up under load
+        assert "adc" in first, first
+        port = int(first.rsplit(":", 1)[1])
+        c = raw(port)
+        cid = c.connect()
+        params = {"freq_acquisition": 100, "freq_send": 35, "channels": 255}
+        assert c.subscribe("adc", params, buffer=100).error == 0
+        assert "adc[100]" in lines.until(f"client {cid} ")
+        lines.until("sensor adc: 100 Hz")
+        c.close()
+        lines.until("detached")
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(TIMEOUT)
+    assert proc.returncode == 0 and "hub stopped" in err
+
+
+def test_serve_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    empty = tmp_path / "token"
+    empty.write_text("\n")
+    assert main(["serve", "--port", "0", "--token-file", str(empty)]) == 2
+    assert "empty" in capsys.readouterr().err
+    assert main(["serve", "--port", "0", "--gpsd", "host:notaport"]) == 2
+    assert "port" in capsys.readouterr().err
+    assert main(["serve", "--port", "0", "--pioneer", "tcp://127.0.0.1:8101"]) == 2
+    err = capsys.readouterr().err
+    assert len(err.strip().splitlines()) == 1 and "Pioneer" in err
