@@ -35,8 +35,14 @@ EMBEDDED_STATE_MS = 5.0
 
 
 @contextlib.contextmanager
-def arm_host(host: str, motion_port: int, state_port: int, byte_order: str = "little",
-             real_size: int = 4, robot: str = "irb120") -> Iterator[tuple[str, int, int]]:
+def arm_host(
+    host: str,
+    motion_port: int,
+    state_port: int,
+    byte_order: str = "little",
+    real_size: int = 4,
+    robot: str = "irb120",
+) -> Iterator[tuple[str, int, int]]:
     """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
     ephemeral loopback ports, closed afterwards."""
     if host != SIM:
@@ -63,25 +69,42 @@ def _check_wire(byte_order: str, real_size: int) -> None:
 def simulate(
     motion_port: int = typer.Option(11000, "--motion-port", min=0, max=65535),
     state_port: int = typer.Option(11002, "--state-port", min=0, max=65535),
-    state_ms: float = typer.Option(100.0, "--state-ms", min=0.5, max=10_000.0,
-                                   help="State period, ms (ABB stock 100; the paper saw 20)."),
-    byte_order: str = OrderOpt, real_size: int = RealOpt,
-    profile: str = typer.Option("abb", "--profile",
-                                help="abb (RAPID servers) or generic (streaming server)."),
+    state_ms: float = typer.Option(
+        100.0,
+        "--state-ms",
+        min=0.5,
+        max=10_000.0,
+        help="State period, ms (ABB stock 100; the paper saw 20).",
+    ),
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    profile: str = typer.Option(
+        "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
+    ),
     robot: str = RobotOpt,
-    latency_ms: float = typer.Option(0.0, "--latency-ms", min=0.0, max=10_000.0,
-                                     help="Motion reply delay, ms."),
-    jitter_ms: float = typer.Option(0.0, "--jitter-ms", min=0.0, max=10_000.0,
-                                    help="Motion reply jitter (half-normal sigma), ms."),
-    noise_rad: float = typer.Option(0.0, "--noise-rad", min=0.0, max=1.0,
-                                    help="Gaussian noise on reported joints, rad."),
-    period_jitter_ms: float = typer.Option(0.0, "--period-jitter-ms", min=0.0, max=10_000.0,
-                                           help="State period jitter, ms."),
-    lag_ms: float = typer.Option(0.0, "--lag-ms", min=0.0, max=10_000.0,
-                                 help="Execution delay after activation, ms."),
+    latency_ms: float = typer.Option(
+        0.0, "--latency-ms", min=0.0, max=10_000.0, help="Motion reply delay, ms."
+    ),
+    jitter_ms: float = typer.Option(
+        0.0,
+        "--jitter-ms",
+        min=0.0,
+        max=10_000.0,
+        help="Motion reply jitter (half-normal sigma), ms.",
+    ),
+    noise_rad: float = typer.Option(
+        0.0, "--noise-rad", min=0.0, max=1.0, help="Gaussian noise on reported joints, rad."
+    ),
+    period_jitter_ms: float = typer.Option(
+        0.0, "--period-jitter-ms", min=0.0, max=10_000.0, help="State period jitter, ms."
+    ),
+    lag_ms: float = typer.Option(
+        0.0, "--lag-ms", min=0.0, max=10_000.0, help="Execution delay after activation, ms."
+    ),
     paper: bool = typer.Option(False, "--paper", help="The paper-like controller model."),
-    feedback: bool = typer.Option(False, "--feedback",
-                                  help="Also send JOINT_FEEDBACK with the controller time."),
+    feedback: bool = typer.Option(
+        False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
+    ),
     time_scale: float = typer.Option(1.0, "--time-scale", min=0.1, max=100.0),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
 ) -> None:
@@ -91,16 +114,30 @@ def simulate(
     _check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
-    model = ControllerModel.paper() if paper else ControllerModel(
-        latency_ms, jitter_ms, noise_rad, period_jitter_ms, lag_ms)
-    with sigterm_as_interrupt(), AbbSim(
-        robot, profile=profile, state_ms=state_ms, byteorder=">" if byte_order == "big" else "<",
-        real=real_size, time_scale=time_scale, model=model, feedback=feedback,  # type: ignore[arg-type]
-    ) as simulator:
+    model = (
+        ControllerModel.paper()
+        if paper
+        else ControllerModel(latency_ms, jitter_ms, noise_rad, period_jitter_ms, lag_ms)
+    )
+    with (
+        sigterm_as_interrupt(),
+        AbbSim(
+            robot,
+            profile=profile,
+            state_ms=state_ms,
+            byteorder=">" if byte_order == "big" else "<",
+            real=real_size,
+            time_scale=time_scale,
+            model=model,
+            feedback=feedback,  # type: ignore[arg-type]
+        ) as simulator,
+    ):
         try:
             motion, state = simulator.serve_tcp(bind, motion_port, state_port)
-            typer.echo(f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
-                       f"state every {state_ms:g} ms" + ("" if model.exact else ", model on"))
+            typer.echo(
+                f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
+                f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
+            )
             sys.stdout.flush()
             while True:
                 time.sleep(3600)
@@ -111,8 +148,15 @@ def simulate(
 # ------------------------------------------------------------------------------ upload arm
 
 
-def _trajectory(robot: str, shape: str | None, points: int, file: Path | None,
-                duration: float | None) -> TrajectoryLog:
+def _trajectory(
+    robot: str,
+    shape: str | None,
+    points: int,
+    file: Path | None,
+    duration: float | None,
+    radius: float,
+    center: str | None,
+) -> TrajectoryLog:
     from robocli.kinematics import load_model
     from robocli.kinematics import trajectory as tr
 
@@ -122,10 +166,15 @@ def _trajectory(robot: str, shape: str | None, points: int, file: Path | None,
         from robocli.io.trajlog import read_log
 
         return read_log(file)
-    makers = {"circle": tr.circle, "rectangle": tr.rectangle}
-    if shape not in makers:
-        raise typer.BadParameter(f"--shape is circle or rectangle, not {shape!r}")
-    return makers[shape](load_model(robot), points, duration=duration)
+    from robocli.commands.kinematics import _floats
+
+    c = _floats(center, 3, "--center")
+    model = load_model(robot)
+    if shape == "circle":
+        return tr.circle(model, points, radius, c, duration=duration)
+    if shape == "rectangle":
+        return tr.rectangle(model, points, 2 * radius, 1.2 * radius, c, duration=duration)
+    raise typer.BadParameter(f"--shape is circle or rectangle, not {shape!r}")
 
 
 class _Progress:
@@ -164,11 +213,16 @@ def upload(
     points: int = typer.Option(100, "--points", "-n", min=1, max=100_000),
     file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
     duration: float | None = typer.Option(None, "--duration", help="Shape duration, s."),  # noqa: UP007
+    radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
+    center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),  # noqa: UP007
     monitor: Path | None = typer.Option(None, "--monitor", help="Record the run to this log."),  # noqa: UP007
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    motion_port: int = MotionPortOpt, state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt, real_size: int = RealOpt, robot: str = RobotOpt,
+    motion_port: int = MotionPortOpt,
+    state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
     wait: float = typer.Option(600.0, "--wait", min=0.0, help="Seconds to wait for the end."),
 ) -> None:
@@ -177,12 +231,17 @@ def upload(
     from robocli.io.trajlog import write_log
 
     _check_wire(byte_order, real_size)
-    traj = _trajectory(robot, shape, points, file, duration)
+    traj = _trajectory(robot, shape, points, file, duration, radius, center)
     with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order,
                                           real_size, robot) as (h, mp, sp):  # fmt: skip
         with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
                          timeout=timeout) as arm:  # fmt: skip
-            arm.wait_for_state()
+            here = arm.wait_for_state().joints
+            gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
+            if not stream and gap > 1e-3:
+                typer.echo("moving to the first point")
+                arm.move_to(traj.positions[0])
+                arm.wait_until_idle(wait or 600.0)
             rec = arm.record() if monitor is not None else None
             with _Progress() as progress:
                 send = arm.stream if stream else arm.download
@@ -206,8 +265,11 @@ def monitor(
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
     samples: int | None = typer.Option(None, "--samples", min=2, max=10_000_000),  # noqa: UP007
     duration: float | None = typer.Option(None, "--duration", min=0.01),  # noqa: UP007
-    state_port: int = StatePortOpt, byte_order: str = OrderOpt, real_size: int = RealOpt,
-    robot: str = RobotOpt, timeout: float = TimeoutOpt,
+    state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    robot: str = RobotOpt,
+    timeout: float = TimeoutOpt,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
     from robocli.devices.arm import Arm
@@ -267,8 +329,11 @@ def connect(
     once: bool = typer.Option(False, "--once", help="Print one state and exit."),
     json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
-    state_port: int = StatePortOpt, byte_order: str = OrderOpt, real_size: int = RealOpt,
-    robot: str = RobotOpt, timeout: float = TimeoutOpt,
+    state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    robot: str = RobotOpt,
+    timeout: float = TimeoutOpt,
 ) -> None:
     """Show the arm's live joints (deg, rad), TCP position and status."""
     from robocli.devices.arm import Arm

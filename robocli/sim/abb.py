@@ -43,6 +43,7 @@ from robocli.kinematics import load_model
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.sim.abb_session import (
+    PROFILES,
     ArmController,
     ControllerModel,
     MotionSession,
@@ -50,7 +51,7 @@ from robocli.sim.abb_session import (
 )
 from robocli.sim.serving import Link, Server
 
-__all__ = ["AbbSim", "ArmSimState", "ControllerModel"]
+__all__ = ["PROFILES", "AbbSim", "ArmSimState", "ControllerModel"]
 
 log = logging.getLogger("robocli.sim.abb")
 
@@ -241,5 +242,10 @@ class AbbSim:
         """``times`` plus the motion's start and end instants within ``(after, times[-1]]``."""
         with self.controller.lock:
             events = self.controller.executor.events()
-        extra = [e for e in events if after < e < times[-1] and e not in times]
-        return sorted(times + extra)
+        wire = np.float32 if self.controller.real == 4 else np.float64
+        seen = {wire(t) for t in times}
+        for e in sorted(set(events)):
+            if after < e < times[-1] and wire(e) not in seen:
+                seen.add(wire(e))
+                times.append(e)
+        return sorted(times)

@@ -23,6 +23,7 @@ trajectory runs, unless told not to.
 from __future__ import annotations
 
 import logging
+import math
 import threading
 import time
 from collections import deque
@@ -30,6 +31,7 @@ from collections.abc import Callable, Iterable
 from types import TracebackType
 from typing import Any
 
+import numpy as np
 import numpy.typing as npt
 
 from robocli.core import Framer
@@ -387,6 +389,19 @@ class Arm:
                     progress(done, total)
         return done
 
+    def move_to(self, joints: npt.ArrayLike, duration: float | None = None,
+                timeout: float | None = None) -> int:
+        """Download a move from where the arm is (needs the state port) to ``joints`` (rad),
+        taking ``duration`` s (default: a quarter of the speed limits, at least 0.5 s)."""
+        self._need(self._state, "state")
+        here = self.wait_for_state(timeout).joints
+        goal = np.asarray(joints, dtype=float)
+        if duration is None:
+            gap = np.abs(goal - np.asarray(here)) / (0.25 * self.robot.max_speed)
+            duration = max(0.5, float(np.max(gap)))
+        return self.download(([0.0, duration], [here, goal]), first_duration=0.1,
+                             timeout=timeout)  # fmt: skip
+
     def stream(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
                first_duration: float | None = None, timeout: float | None = None,
                progress: Callable[[int, int], None] | None = None) -> int:  # fmt: skip
@@ -444,9 +459,14 @@ class Recorder:
 
         samples = list(self.samples)
         timed = [s for s in samples if s.robot_time is not None]
-        if timed:
-            times = [s.robot_time for s in timed]
-            samples = timed
+        if timed:  # on the controller's clock: keep it strictly increasing
+            samples, last = [], -math.inf
+            for s in timed:
+                assert s.robot_time is not None
+                if s.robot_time > last:
+                    samples.append(s)
+                    last = s.robot_time
+            times = [s.robot_time for s in samples]
         else:
             samples = [s for s in samples if s.source == "joint_position"]
             times = [s.t for s in samples]
