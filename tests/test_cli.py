@@ -12,27 +12,11 @@ import threading
 from pathlib import Path
 
 import pytest
+from cli.helpers import one_line_error, run
 
 from robocli.devices.pioneer import Pioneer
 
 DATA = Path(__file__).resolve().parent / "data" / "arcos"
-
-
-def run(*args: str, timeout: float = 60) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "robocli", *args],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
-
-
-def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
-    assert proc.returncode == code, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("robocli: "), proc.stderr
-    return lines[0]
 
 
 def test_help_and_version() -> None:

@@ -170,3 +170,16 @@ def test_simulator_laser_and_simstat_decoded(trace: str, name: str, field: str) 
     lines = [line for line in proc.stdout.splitlines() if f"<- {name} " in line]
     assert lines and all(re.search(field, line) and len(line) <= 160 for line in lines), lines[:2]
     assert "error=" not in proc.stdout
+
+
+def test_an_overlong_jsonl_line_is_dropped_and_reading_goes_on(tmp_path: Path) -> None:
+    from robocli.io import capture
+
+    good = (DATA / "a_simpleConnect.jsonl").read_text()
+    huge = '{"t": 0, "dir": "s2c", "hex": "' + "00" * capture.MAX_LINE + '"}\n'
+    path = tmp_path / "huge.jsonl"
+    path.write_text(huge + good)
+    stats = CaptureStats()
+    frames = list(read_capture(path, stats=stats))
+    expected = list(read_capture(DATA / "a_simpleConnect.jsonl"))
+    assert frames == expected and stats.dropped_bytes == len(huge)
