@@ -18,7 +18,7 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from construct import ConstructError
@@ -93,14 +93,16 @@ class ArcosController:
 
     ``name``/``subtype``: what SYNC2 and CONFIG report. ``sip_ms``: SIP cycle (simulated ms);
     ``period``: wall seconds between ticks. ``watchdog_s``: wall seconds without a valid
-    packet after which the session's robot is stopped (0 disables). ``laser``, ``georef``:
-    the simulated laser and the world's georeference (:mod:`robocli.sim.arcos_simext`).
+    packet after which the session's robot is stopped (0 disables). ``laser``, ``georef``,
+    ``reflectors``: the simulated laser, the world's georeference and its reflective wall
+    segments (:mod:`robocli.sim.arcos_simext`).
     """
 
     def __init__(
         self, model: PioneerModel, *, name: str, subtype: str, sip_ms: float,
         period: float, watchdog_s: float, laser: LaserSpec | None = None,
         georef: Georef | None = None, seed: int = 0,
+        reflectors: Sequence[Sequence[float]] = (),
     ) -> None:  # fmt: skip
         self.model, self.params = model, model.params
         self.name, self.subtype = name, subtype
@@ -117,8 +119,9 @@ class ArcosController:
         self._digin, self.digout, self._anport = 0xFF, 0xFF, 0
         self.last_say: tuple[tuple[int, int], ...] = ()
         self.ext = SimExtensions(
-            model, laser=laser, georef=georef, sip_ms=sip_ms, period=period, seed=seed
-        )
+            model, laser=laser, georef=georef, sip_ms=sip_ms, period=period, seed=seed,
+            reflectors=reflectors,
+        )  # fmt: skip
         self._handlers = {**self._make_handlers(), **self.ext.handlers()}
         self._config_cache: tuple[tuple[float, ...], bytes] | None = None
         head = ("x", "y", "th", "lvel", "rvel", "battery", "stall_bumpers", "control", "flags")

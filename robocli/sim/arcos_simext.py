@@ -17,7 +17,7 @@ SIP (AMRISim needs one more Stage update: its first scan comes with the third SI
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -31,7 +31,7 @@ from robocli.protocols.arcos import (
     encode_laser_scan,
     encode_simstat,
 )
-from robocli.sim.laser import LaserGeometry, LaserSpec, cast
+from robocli.sim.laser import LaserGeometry, LaserSpec, cast, reflectance
 from robocli.sim.pioneer_model import PioneerModel
 
 __all__ = ["Georef", "SimExtensions", "lat_lon"]
@@ -68,15 +68,19 @@ class SimExtensions:
 
     ``laser``: the laser model (None: a robot without a laser, whose commands 35-38 keep
     their ARCOS meanings). ``georef``: the world origin's latitude, longitude, altitude for
-    the SIMSTAT GPS fields (None: no georeference). ``sip_ms``/``period``: simulated ms and
-    wall seconds per cycle. Not thread-safe: the controller holds its lock around every call.
+    the SIMSTAT GPS fields (None: no georeference). ``reflectors``: segments (m) of walls
+    that give the laser a reflectance (extended scans). ``sip_ms``/``period``: simulated ms
+    and wall seconds per cycle. Not thread-safe: the controller holds its lock around every
+    call.
     """
 
     def __init__(
         self, model: PioneerModel, *, laser: LaserSpec | None, georef: Georef | None,
         sip_ms: float, period: float, seed: int,
+        reflectors: Sequence[Sequence[float]] = (),
     ) -> None:  # fmt: skip
         self.model, self.spec, self.georef = model, laser, georef
+        self.reflectors = np.array(reflectors, dtype=np.float64).reshape(-1, 4)
         self.sip_ms, self.period = sip_ms, period
         self.geometry = LaserGeometry(laser) if laser is not None else None
         self.laser_mode = LASER_OFF
@@ -182,7 +186,12 @@ class SimExtensions:
         mx, my, mth = spec.mount
         c, s = math.cos(r.th), math.sin(r.th)
         pose = (r.x + c * mx - s * my, r.y + s * mx + c * my, r.th + mth)
-        ranges = cast(r.world, pose, geo.bearings(), spec.max_range, min_range=spec.min_range)
+        bearings = geo.bearings()
+        ranges = cast(r.world, pose, bearings, spec.max_range, min_range=spec.min_range)
+        extended = self.laser_mode == LASER_EXTENDED
+        refl = None
+        if extended and len(self.reflectors):
+            refl = reflectance(self.reflectors, pose, bearings, ranges).tolist()
         hits = np.isfinite(ranges)
         if spec.noise > 0:
             noise = self._rng.uniform(-spec.noise, spec.noise, len(ranges))
@@ -190,13 +199,12 @@ class SimExtensions:
         mm = np.where(hits, np.round(np.where(hits, ranges, 0.0) * 1000.0), spec.no_return_mm)
         self.last_scan = tuple(float(v) for v in ranges)
         self.scans += 1
-        extended = self.laser_mode == LASER_EXTENDED
         flags = SIM_LASER_MOVED if self.moved else 0
         self.moved = False
         ox, oy, oth = r.odom
         odom = (round(ox * 1000.0), round(oy * 1000.0), round(math.degrees(oth)))
         return encode_laser_scan(mm.astype(int).tolist(), extended=extended, pose=odom,
-                                 flags=flags)  # fmt: skip
+                                 flags=flags, reflectance=refl)  # fmt: skip
 
     def simstat_packet(self) -> bytes:
         """One 0x62: intervals, true pose, GPS (with a georeference), odometry error."""

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import collections
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
@@ -116,6 +116,8 @@ class PioneerSim:
     per step (0 = odometry equals the true motion), drawn from ``seed``. ``laser``: the
     simulated laser (SICK LMS200 by default; None: no laser). ``georef``: latitude, longitude
     (deg) and altitude (m) of the world origin, for SIMSTAT's GPS fix (None: no georeference).
+    ``reflectors``: wall segments ``(x1, y1, x2, y2)`` (m) covered with reflective tape: the
+    laser reports reflectance 32 on them, as MobileSim for a map's ``Reflector`` lines.
     """
 
     def __init__(
@@ -132,6 +134,7 @@ class PioneerSim:
         odom_noise: float = 0.0,
         laser: LaserSpec | None = LMS200,
         georef: Georef | None = None,
+        reflectors: Sequence[Sequence[float]] = (),
     ) -> None:
         if subtype not in ROBOT_PARAMS:
             known = ", ".join(sorted(ROBOT_PARAMS))
@@ -149,7 +152,7 @@ class PioneerSim:
         self._model = PioneerModel(self.params, self.world, start, odom_noise, seed)
         self._ctl = ArcosController(
             self._model, name=name, subtype=subtype, sip_ms=sip_ms, period=period,
-            watchdog_s=watchdog_s, laser=laser, georef=georef, seed=seed,
+            watchdog_s=watchdog_s, laser=laser, georef=georef, seed=seed, reflectors=reflectors,
         )  # fmt: skip
         self._ticker = Ticker(period, self._tick, "pioneer-sim-ticker")
         self._tcp: Server | None = None

@@ -10,6 +10,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from robocli import Pioneer
 from robocli.devices.pioneer import LaserScan
@@ -255,3 +257,22 @@ def test_without_georeference_there_is_no_gps(empty_sim: PioneerSim) -> None:
         assert status.gps is None and status.fields["gps_dop"] == -1
         with pytest.raises(TimeoutError):
             robot.wait_for_laser(timeout=0.3)  # laser not started
+
+
+@settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow], deadline=None)
+@given(st.sampled_from([0x60, 0x61]), st.binary(max_size=260), st.binary(max_size=60))
+def test_decoders_and_assembler_raise_only_protocol_errors(
+    ptype: int, body: bytes, stat: bytes
+) -> None:
+    asm = ScanAssembler()
+    for decode in (
+        lambda: arcos.decode_laser(ptype, body),
+        lambda: asm.feed(ptype, body, 0.0, (0.0, 0.0, 0.0), LaserSettings()),
+        lambda: parse_simstatus(stat, 0.0),
+        lambda: arcos.decode_seto(bytes((7,)) + stat),
+        lambda: arcos.decode_body(ptype, body),
+    ):
+        try:
+            decode()
+        except ProtocolError:
+            pass

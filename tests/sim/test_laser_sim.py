@@ -14,7 +14,7 @@ import pytest
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
-from robocli.sim.laser import LMS200, LaserGeometry, LaserSpec, cast
+from robocli.sim.laser import LMS200, LaserGeometry, LaserSpec, cast, reflectance
 from robocli.sim.pioneer import PioneerSim
 from robocli.sim.world import World
 
@@ -27,15 +27,21 @@ Connect = Callable[[PioneerSim], "RawClient"]
 LASER_TYPES = (PacketType.SIM_LASER_A, PacketType.SIM_LASER)
 
 
+MAP = (DATA / "laser_room.map").read_text().splitlines()
+
+
+def reflector() -> list[float]:
+    """The map's ``Reflector`` line (m)."""
+    line = next(line for line in MAP if line.startswith("Cairn: Reflector"))
+    return [float(v) / 1000.0 for v in line.split()[-4:]]
+
+
 def laser_room() -> World:
     """The map of traces h-k (a MobileSim ``.map``: the LINES section, mm), with its
     ``Reflector`` line, which Stage treats as an obstacle too."""
-    lines = (DATA / "laser_room.map").read_text().splitlines()
-    start, end = lines.index("LINES") + 1, lines.index("DATA")
-    segs = [[float(v) / 1000.0 for v in line.split()] for line in lines[start:end]]
-    reflector = next(line for line in lines if line.startswith("Cairn: Reflector"))
-    segs.append([float(v) / 1000.0 for v in reflector.split()[-4:]])
-    return World.from_segments(segs, name="laser_room")
+    start, end = MAP.index("LINES") + 1, MAP.index("DATA")
+    segs = [[float(v) / 1000.0 for v in line.split()] for line in MAP[start:end]]
+    return World.from_segments([*segs, reflector()], name="laser_room")
 
 
 def trace_frames(stem: str, direction: str) -> list[tuple[float, bytes]]:
@@ -107,6 +113,19 @@ def test_cast_hits_a_wall_at_its_distance_and_inf_beyond_range() -> None:
     assert len(cast(World.empty(), (0.0, 0.0, 0.0), [0.0, 1.0], 32.0)) == 2
 
 
+def test_reflectors_follow_the_lms200_rules() -> None:
+    tape = [2.0, -10.0, 2.0, 10.0]
+    world = World.from_segments([tape, (40.0, -1.0, 40.0, 1.0), (0.0, 3.0, 5.0, 3.0)])
+    angles = np.radians([0.0, 40.0, 50.0, -40.0, 90.0, 180.0])
+    r = cast(world, (0.0, 0.0, 0.0), angles, 32.0)
+    # dead ahead and 40 deg off the normal: 32; 50 deg: 0; a wall that is not tape: 0
+    assert reflectance([tape], (0.0, 0.0, 0.0), angles, r).tolist() == [32, 32, 0, 32, 0, 0]
+    far = [40.0, -1.0, 40.0, 1.0]
+    for x, want in ((5.0, 0), (15.0, 32)):  # 35 m away: too far (> 30 m); 25 m: seen
+        r = cast(world, (x, 0.0, 0.0), [0.0], 40.0)
+        assert reflectance([far], (x, 0.0, 0.0), [0.0], r).tolist() == [want]
+
+
 # ============================================================================ vendor SDK (h)
 
 
@@ -118,7 +137,8 @@ def test_vendor_sdk_laser_sequence_is_served_like_amrisim(
     the second SIP after the laser request, shaped exactly as AMRISim's."""
     sent = trace_frames("h_laser_wander", "tx")
     enable_at = next(i for i, (_, p) in enumerate(sent) if p[0] == Command.ADSEL)
-    sim = make_sim(name="AMRISim", world=laser_room(), time_scale=1.0)  # 100 ms, as ARIA
+    sim = make_sim(name="AMRISim", world=laser_room(), time_scale=1.0,  # 100 ms, as ARIA
+                   reflectors=[reflector()])  # fmt: skip
     client = connect(sim)
     replies = {0: 0, 1: 1, 2: 2}  # SYNC n -> reply n, then OPEN, CONFIG -> 0x20
     for _, payload in sent[:3]:
@@ -160,6 +180,12 @@ def test_vendor_sdk_laser_sequence_is_served_like_amrisim(
     smooth = np.abs(np.diff(b, prepend=b[0])) < 50
     assert 0 < np.median((a - b)[smooth]) < 35
     assert np.mean(np.abs(a - b)[smooth] < 60) > 0.9
+    # reflectance 32 on the reflector, 0 elsewhere; the edges may move by one reading
+    ra = [r for p in ours[0] for r in p.reflectance or ()]
+    rb = [r for p in theirs[0] for r in p.reflectance or ()]
+    assert set(ra) == set(rb) == {0, 32}
+    on_a, on_b = [i for i, v in enumerate(ra) if v], [i for i, v in enumerate(rb) if v]
+    assert abs(on_a[0] - on_b[0]) <= 1 and abs(on_a[-1] - on_b[-1]) <= 1
 
 
 def test_every_cycle_has_one_complete_scan_after_its_sip(
