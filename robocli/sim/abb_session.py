@@ -57,9 +57,12 @@ MIN_SEGMENT_S = 1e-3  #: a zero or negative duration becomes the fastest allowed
 class ControllerModel:
     """How a real controller differs from ideal execution (all zero: exact).
 
-    ``latency_ms`` (+ ``jitter_ms``, half-normal) delays each motion reply (the paper's RTT);
-    ``noise_rad`` adds Gaussian noise to reported joints; ``period_jitter_ms`` spreads the state
-    period (half-normal, added); ``lag_ms`` delays execution after activation.
+    Each motion reply waits ``latency_ms`` plus a gamma-distributed extra (shape 4) whose
+    standard deviation is ``jitter_ms`` (mean twice that): a skewed round trip with a floor,
+    like the paper's Table 5. ``noise_rad`` adds Gaussian noise to reported joints;
+    ``period_jitter_ms`` delays each state message by a half-normal amount of that sigma
+    (absolute deadlines, so periods spread both ways); ``lag_ms`` delays execution after an
+    activation.
     """
 
     latency_ms: float = 0.0
@@ -75,8 +78,9 @@ class ControllerModel:
 
     @classmethod
     def paper(cls) -> ControllerModel:
-        """Numbers shaped like the IRB120 paper's Table 5 and Table 4."""
-        return cls(latency_ms=28.0, jitter_ms=7.0, noise_rad=0.004, period_jitter_ms=12.0,
+        """Numbers shaped like the IRB120 paper's Table 5 (RTT 20..66 ms, mean 34; use a
+        20 ms state period) and Table 4 (joint RMSE a few mrad)."""
+        return cls(latency_ms=20.0, jitter_ms=6.8, noise_rad=0.004, period_jitter_ms=14.0,
                    lag_ms=30.0)  # fmt: skip
 
 
@@ -340,7 +344,7 @@ class ArmController:
     def _delay(self) -> None:
         c = self.ctl
         if c.latency_ms or c.jitter_ms:
-            extra = abs(float(self.rng.normal(0.0, c.jitter_ms))) if c.jitter_ms else 0.0
+            extra = float(self.rng.gamma(4.0, c.jitter_ms / 2.0)) if c.jitter_ms else 0.0
             time.sleep((c.latency_ms + extra) / 1000.0)
 
     # ---------------------------------------------------------------- state port
