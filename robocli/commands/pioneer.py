@@ -194,6 +194,9 @@ def dump(
         dir_okay=False,
         help="Also record the packets to a .jsonl capture (what --file reads).",
     ),  # fmt: skip
+    laser: bool = typer.Option(
+        False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
+    ),
     file: Path | None = typer.Option(  # noqa: UP007
         None,
         "--file",
@@ -226,7 +229,7 @@ def dump(
             _dump_file(view, file)
         else:
             assert port is not None
-            _dump_live(view, port, subtype=subtype, baud=baud, timeout=timeout)
+            _dump_live(view, port, laser, subtype=subtype, baud=baud, timeout=timeout)
     finally:
         if writer is not None:
             writer.close()
@@ -254,7 +257,7 @@ def _dump_file(view: Any, file: Path) -> None:
 _REORDER = 0.05
 
 
-def _dump_live(view: Any, port: str, **options: Any) -> None:
+def _dump_live(view: Any, port: str, laser: bool, **options: Any) -> None:
     """Show a live session's packets in time order (sent and received ones come from
     different threads), until Ctrl-C or ``--count``."""
     start = time.monotonic()
@@ -264,6 +267,8 @@ def _dump_live(view: Any, port: str, **options: Any) -> None:
         seen.put((direction, payload, t - start))
 
     with _connected(port, listeners=[listener], **options) as robot:
+        if laser:
+            _start_laser(robot, wait=False)
         while not view.done:
             try:
                 view.add(*seen.get(timeout=_REORDER))

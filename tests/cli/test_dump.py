@@ -183,3 +183,12 @@ def test_an_overlong_jsonl_line_is_dropped_and_reading_goes_on(tmp_path: Path) -
     frames = list(read_capture(path, stats=stats))
     expected = list(read_capture(DATA / "a_simpleConnect.jsonl"))
     assert frames == expected and stats.dropped_bytes == len(huge)
+
+
+def test_live_dump_of_a_simulators_laser() -> None:
+    proc = run("dump", "pioneer", "sim", "--laser", "-n", "40", timeout=30)
+    assert proc.returncode == 0, proc.stderr
+    lasers = [line for line in proc.stdout.splitlines() if "<- SIM_LASER " in line]
+    assert lasers and all(
+        re.search(r"total=181 first=\d+ readings=\d+\(min \d+\)", x) for x in lasers
+    )
