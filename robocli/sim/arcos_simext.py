@@ -88,6 +88,7 @@ class SimExtensions:
         self.simstat_once = False
         self.moved = False  #: SIM_SET_POSE since the last scan (the 0x61 flag)
         self.scans = 0  #: complete scans sent
+        self.enabled_at_sip = 0  #: SIPs sent when the laser was last switched on
         self.last_scan: tuple[float, ...] = ()  #: ranges (m, inf = no return) of the last scan
         self._deferred: list[tuple[int, Callable[[], None]]] = []
         self._sips = 0  # SIPs sent so far, as the controller counts them
@@ -127,6 +128,8 @@ class SimExtensions:
 
     def _laser_enable(self, link: Any, arg: Any) -> None:
         value = abs(_int_arg(arg))  # 0 off, 2 extended, any other value plain
+        if value and not self.laser_mode:
+            self.enabled_at_sip = self._sips
         self.laser_mode = LASER_OFF if value == 0 else LASER_EXTENDED if value == 2 else LASER_PLAIN
 
     def _sim_set_pose(self, link: Any, arg: Any) -> None:

@@ -104,6 +104,7 @@ class SimState:
     laser_scans: int = 0  #: complete scans sent
     laser_ranges: tuple[float, ...] = ()  #: the last scan's ranges (m; inf: no return)
     simstat_mode: int = 0  #: 0 off, 2 a SIMSTAT before every SIP
+    laser_enabled_at_sip: int = 0  #: ``sips_sent`` when the laser was last switched on
 
 
 class PioneerSim:
@@ -286,7 +287,7 @@ class PioneerSim:
             sim_time=r.sim_time, sips_sent=c.sips, last_say=c.last_say,
             digout=c.digout, encoder_ticks=r.encoder_ticks(),
             laser_mode=c.ext.laser_mode, laser_scans=c.ext.scans, laser_ranges=c.ext.last_scan,
-            simstat_mode=c.ext.simstat_mode,
+            simstat_mode=c.ext.simstat_mode, laser_enabled_at_sip=c.ext.enabled_at_sip,
         )  # fmt: skip
 
 

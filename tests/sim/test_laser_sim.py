@@ -154,14 +154,15 @@ def test_vendor_sdk_laser_sequence_is_served_like_amrisim(
     laser_cmds = [p for _, p in sent[enable_at - 3 : enable_at + 1]]
     assert [p[0] for p in laser_cmds] == [36, 37, 38, 35]
     client.send_raw(b"".join(arcos.frame(p) for p in laser_cmds))  # one chunk, as ARIA
-    got: list[bytes] = []
-    while sum(1 for p in got if p[0] == PacketType.SIP) < 2:
-        p = client.next(5.0)
-        assert p is not None, "the simulator went silent"
-        got.append(p)
-    first_sip = next(i for i, p in enumerate(got) if p[0] == PacketType.SIP)
-    second_sip = max(i for i, p in enumerate(got) if p[0] == PacketType.SIP)
-    ours = scans(got[first_sip:second_sip])
+    # the simulator's n-th SIP is the n-th this client received (one fresh session)
+    at = sim.wait_until(lambda s: s.laser_mode == 2, 5.0).laser_enabled_at_sip
+    while sum(1 for _, p in client.log if p[0] == PacketType.SIP) < at + 2:
+        assert client.next(5.0) is not None, "the simulator went silent"
+    log = [p for _, p in client.log]
+    sip_at = [i for i, p in enumerate(log) if p[0] == PacketType.SIP]
+    first_laser = next(i for i, p in enumerate(log) if p[0] in LASER_TYPES)
+    assert sip_at[at] < first_laser < sip_at[at + 1]  # before the 2nd SIP after the request
+    ours = scans(log[sip_at[at] : sip_at[at + 1]])
     assert len(ours) == 1, "one complete scan after the first SIP, before the second"
     state = sim.snapshot()
     assert state.laser_mode == 2 and state.commands["ADSEL"] == 1  # 35 = laser enable here
@@ -285,8 +286,8 @@ def test_laser_is_off_at_each_session_start_and_absent_without_a_laser(
     client = connect(bare)
     client.open_session()
     client.send(Command.ADSEL, 2)
-    client.sip()
-    assert client.sip()["io"]["anport"] == 2
+    bare.wait_until(lambda s: s.commands["ADSEL"] == 1, 5.0)
+    assert client.latest_sip()["io"]["anport"] == 2
     assert not [p for p in client.collect(0.3) if p[0] in LASER_TYPES]
 
 
