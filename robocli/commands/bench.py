@@ -270,11 +270,12 @@ def _show(
         print_json(rounded(results, 3, {}))
         return
     keys = ("mean", "median", "std", "min", "max", "p90", "p99")
-    typer.echo(f"{'measurement':<28}{'unit':>5}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
+    width = max([28, *(len(r["name"]) + 1 for r in results)])
+    typer.echo(f"{'measurement':<{width}}{'unit':>5}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
     for r in results:
         unit, label = _unit(r["median"])
         values = "".join(f"{r[k] * 1e-6 / unit:>9.1f}" for k in keys)
-        typer.echo(f"{r['name']:<28}{label:>5}{r['n']:>7}" + values)
+        typer.echo(f"{r['name']:<{width}}{label:>5}{r['n']:>7}" + values)
         notes = [r["where"]] if "where" in r else []
         if "x_floor_median" in r:
             notes.append(
