@@ -474,7 +474,8 @@ class Pioneer(SimulatorFeatures):
         self.send_command(Command.DIGOUT, value)
 
     def select_analog(self, port: int) -> None:
-        """Choose the analog port reported in every SIP (``state.analog``)."""
+        """Choose the analog port reported in every SIP (``state.analog``). Not on a
+        simulator with a laser: there ADSEL's number (35) switches the laser."""
         self.send_command(Command.ADSEL, port)
 
     def request_io(self, mode: int = 1) -> None:
