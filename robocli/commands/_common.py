@@ -159,18 +159,24 @@ def reader_may_leave() -> Iterator[None]:
 
 @contextlib.contextmanager
 def explain_refusal(url: str) -> Iterator[None]:
-    """Around connecting: a link reset by the peer during the handshake (a real robot, or
-    its serial-to-network bridge, holding another client) becomes a :class:`DeviceError`
-    that says what this usually means. Refusals with a reason already are DeviceErrors."""
+    """Around connecting: a link reset or closed by the peer during the handshake (a real
+    robot, or its serial-to-network bridge, holding another client) becomes a
+    :class:`DeviceError` that says what this usually means. Refusals with a reason already
+    are DeviceErrors."""
     from robocli.errors import ConnectionLost, DeviceError
 
     try:
         yield
     except ConnectionLost as exc:
-        if "reset" not in str(exc).lower():
+        text = str(exc).lower()
+        if "reset" in text:
+            how = "reset"
+        elif "closed by the peer" in text:
+            how = "closed"
+        else:
             raise
         raise DeviceError(
-            f"{url}: the connection was reset during the handshake; this usually means the "
+            f"{url}: the connection was {how} during the handshake; this usually means the "
             "robot is busy: another client holds it (close that program, or wait 2 s for "
             "the robot's watchdog to end its session, then retry)"
         ) from None
