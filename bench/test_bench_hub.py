@@ -17,9 +17,9 @@ from robocli.protocols import ros4mat as r4m
 
 
 @pytest.fixture(scope="module")
-def hub_proc() -> Iterator[tuple[str, int]]:
-    with hub_bench.hub_process() as (url, pid):
-        yield url.removeprefix("tcp://"), pid
+def hub_proc() -> Iterator[hub_bench.HubProcess]:
+    with hub_bench.hub_process() as proc:
+        yield proc
 
 
 def _adc_reply(n: int) -> bytes:
@@ -41,8 +41,28 @@ def test_decode_adc_50_construct(benchmark: pytest.FixtureRequest) -> None:
     assert len(msg.body) == 50
 
 
-def test_empty_pull_rtt(benchmark: pytest.FixtureRequest, hub_proc: tuple[str, int]) -> None:
-    with Hub.connect(hub_proc[0]) as hub:
+def test_empty_pull_rtt(benchmark: pytest.FixtureRequest, hub_proc: hub_bench.HubProcess) -> None:
+    with Hub.connect(hub_proc.address) as hub:
         hub.subscribe("gps", 1)
         frame = benchmark(hub.pull, "gps")
         assert frame[0] == r4m.MsgType.GPS
+
+
+def test_throughput_target(
+    benchmark: pytest.FixtureRequest, hub_proc: hub_bench.HubProcess
+) -> None:
+    """The issue's figure, recorded in extra_info; asserts what this machine can hold (see
+    the README: the raw camera saturates a 2-core VM), the full target is in the report."""
+    served = hub_bench.served_sensors(hub_proc.address)
+    report = benchmark.pedantic(
+        hub_bench.throughput,
+        args=(hub_proc.address,),
+        kwargs={"clients": 40, "seconds": 10.0, "hub": hub_proc, "served": served},
+        rounds=1,
+        iterations=1,
+    )
+    benchmark.extra_info.update({k: v for k, v in report.items() if k != "per_sensor"})
+    assert not report["errors"], report["errors"][:3]
+    assert report["not_served"] == []
+    assert report["pulls_per_s"] >= 0.9 * 40 * 4 * 20
+    assert report["hub_cpu_cores"] <= 1.0

@@ -44,10 +44,35 @@ TARGET_P99_S = 5e-3
 TARGET_CORES = 1.0
 
 
+@dataclass
+class HubProcess:
+    """A simulated hub running in a child process (see :func:`hub_process`)."""
+
+    url: str
+    pid: int
+    proc: subprocess.Popen[str]
+
+    @property
+    def address(self) -> str:
+        return self.url.removeprefix("tcp://")
+
+    def dropped(self, timeout: float = 5.0) -> int | None:
+        """Samples the hub dropped for its clients so far because their buffers overflowed
+        (clients that sent QUIT are forgotten), or None when it does not answer."""
+        assert self.proc.stdin is not None
+        try:
+            self.proc.stdin.write("stats\n")
+            self.proc.stdin.flush()
+        except OSError:
+            return None
+        line = _readline(self.proc, timeout)
+        return int(json.loads(line)["dropped"]) if line.startswith("{") else None
+
+
 @contextlib.contextmanager
-def hub_process(timeout: float = 20.0) -> Iterator[tuple[str, int]]:
-    """A simulated hub in a child process: yields (``tcp://HOST:PORT``, its pid). It stops
-    at the end of its stdin (else SIGKILL after 2 s)."""
+def hub_process(timeout: float = 20.0) -> Iterator[HubProcess]:
+    """A simulated hub in a child process, stopped at the end of its stdin (else SIGKILL
+    after 2 s)."""
     code = "from robocli.hub_bench import _hub_child; _hub_child()"
     proc = subprocess.Popen(
         [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
@@ -58,7 +83,7 @@ def hub_process(timeout: float = 20.0) -> Iterator[tuple[str, int]]:
         line = _readline(proc, timeout)
         if not line.startswith("tcp://"):
             raise TransportError(f"the hub process did not start within {timeout:g} s {line}")
-        yield line, proc.pid
+        yield HubProcess(line, proc.pid, proc)
     finally:
         _stop(proc)
 
@@ -93,7 +118,9 @@ def _hub_child() -> None:
 
     with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:
         print(srv.url, flush=True)
-        sys.stdin.read()
+        for line in sys.stdin:  # until the parent closes the pipe (or dies)
+            if line.strip() == "stats":
+                print(json.dumps({"dropped": sum(c.dropped for c in srv.clients)}), flush=True)
 
 
 def cpu_seconds(pid: int) -> float:
@@ -139,7 +166,7 @@ class _Tally:
 
 def _client(
     address: str, sensors: list[str], pull_hz: float, start: float, end: float,
-    out: dict[str, Any], lock: threading.Lock,
+    out: dict[str, Any], lock: threading.Lock, quit_at_end: bool,
 ) -> None:  # fmt: skip
     from robocli.devices.hub import Hub
 
@@ -147,14 +174,20 @@ def _client(
     tally = {s: _Tally() for s in sensors}
     last: dict[str, float] = {}
     try:
-        with Hub.connect(address, timeout=10.0) as hub:
+        hub = Hub.connect(address, timeout=10.0)
+        try:
             for s in sensors:
                 name, args = BENCH_SENSORS[s]
                 hub.subscribe(name, **args)
             period = 1.0 / pull_hz
             due = start + random.random() * period  # spread the clients over a period
+            # what piled up while everybody subscribed, read before the measured window (a
+            # hub counts what it dropped for a client when that client next pulls)
+            time.sleep(max(0.0, start - 0.5 - time.time()))
+            for s in sensors:
+                hub.read(BENCH_SENSORS[s][0])
             time.sleep(max(0.0, start - time.time()))
-            for s in sensors:  # what piled up while everybody subscribed
+            for s in sensors:
                 r = hub.read(BENCH_SENSORS[s][0])
                 if len(r):
                     last[s] = float(r.hub_t[-1])
@@ -177,6 +210,8 @@ def _client(
                         tk.lost += int(np.sum(np.maximum(np.rint(gaps) - 1, 0)))
                         last[s] = float(r.hub_t[-1])
                 due += period
+        finally:  # our own hub keeps detached clients: it can tell what it dropped for them
+            hub.close(quit=quit_at_end)
     except RobocliError as exc:
         with lock:
             out.setdefault("errors", []).append(str(exc))
@@ -195,21 +230,10 @@ def _worker_main() -> None:
     job = json.loads(sys.argv[1])
     out: dict[str, Any] = {"latency": [], "sensors": {}}
     lock = threading.Lock()
+    keys = ("address", "sensors", "pull_hz", "start", "end")
+    args = (*(job[k] for k in keys), out, lock, job["quit"])
     threads = [
-        threading.Thread(
-            target=_client,
-            args=(
-                job["address"],
-                job["sensors"],
-                job["pull_hz"],
-                job["start"],
-                job["end"],
-                out,
-                lock,
-            ),
-            daemon=True,
-        )  # fmt: skip
-        for _ in range(job["clients"])
+        threading.Thread(target=_client, args=args, daemon=True) for _ in range(job["clients"])
     ]
     for th in threads:
         th.start()
@@ -226,11 +250,12 @@ def throughput(
     seconds: float = 10.0,
     pull_hz: float = 20.0,
     workers: int = 2,
-    hub_pid: int | None = None,
+    hub: HubProcess | None = None,
     served: tuple[str, ...] | None = None,
 ) -> dict[str, Any]:
     """Run ``clients`` clients (in ``workers`` processes) pulling ``sensors`` at ``pull_hz``
-    for ``seconds``; with ``hub_pid``, the hub's CPU (cores) and peak memory too. Sensors
+    for ``seconds``; with ``hub`` (ours, in its own process), the hub's CPU (cores), peak
+    memory and the samples it dropped for overflowing buffers too. Sensors
     the hub does not serve (``served``: the ros4mat names it serves) are left out and
     listed."""
     unknown = [s for s in sensors if s not in BENCH_SENSORS]
@@ -242,25 +267,29 @@ def throughput(
     start = time.time() + 2.0 + 0.05 * clients
     end = start + seconds
     procs = []
+    before = _children_cpu()
+    spawned = time.time()
     for w in range(workers):
         n = clients // workers + (1 if w < clients % workers else 0)
         job = {"address": address, "sensors": used, "pull_hz": pull_hz, "start": start,
-               "end": end, "clients": n}  # fmt: skip
+               "end": end, "clients": n, "quit": hub is None}  # fmt: skip
         code = "from robocli.hub_bench import _worker_main; _worker_main()"
         procs.append(subprocess.Popen(
             [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
         ))  # fmt: skip
     cpu0 = rss = 0.0
-    if hub_pid is not None:
+    dropped0 = dropped1 = None
+    if hub is not None:
         time.sleep(max(0.0, start - time.time()))
-        cpu0 = cpu_seconds(hub_pid)
+        cpu0, dropped0 = cpu_seconds(hub.pid), hub.dropped()
         time.sleep(max(0.0, end - time.time()))
-        cpu1 = cpu_seconds(hub_pid)
-        rss = peak_rss(hub_pid)
+        cpu1, dropped1 = cpu_seconds(hub.pid), hub.dropped()
+        rss = peak_rss(hub.pid)
     results = []
     for proc in procs:
         out, _ = proc.communicate(timeout=seconds + 60)
         results.append(json.loads(out.strip().splitlines()[-1]))
+    client_cores = (_children_cpu() - before) / max(time.time() - spawned, 1e-9)
     lat = np.concatenate([np.asarray(r["latency"], dtype=np.float64) for r in results])
     per: dict[str, dict[str, int]] = {}
     for r in results:
@@ -274,20 +303,30 @@ def throughput(
         "pull_hz": pull_hz, "pulls_per_s": total["pulls"] / seconds,
         "samples_per_s": total["samples"] / seconds, "bytes_per_s": total["bytes"] / seconds,
         "lost_samples": total["lost"], "per_sensor": per,
+        "client_cpu_cores": client_cores,
         "errors": [e for r in results for e in r.get("errors", [])],
     }  # fmt: skip
     if lat.size:
         p50, p99 = np.percentile(lat, [50, 99])
         report.update(pull_p50_ms=p50 * 1e3, pull_p99_ms=p99 * 1e3, pull_max_ms=lat.max() * 1e3)
-    if hub_pid is not None:
+    if hub is not None:
         report["hub_cpu_cores"] = (cpu1 - cpu0) / seconds
         report["hub_peak_rss_mb"] = rss / 2**20
+        if dropped0 is not None and dropped1 is not None:
+            report["hub_dropped"] = dropped1 - dropped0
     report["targets_met"] = bool(
-        not report["errors"] and total["lost"] == 0
+        not report["errors"] and total["lost"] == 0 and not report.get("hub_dropped")
         and report.get("pull_p99_ms", 1e9) <= TARGET_P99_S * 1e3
         and report.get("hub_cpu_cores", 0.0) <= TARGET_CORES
     )  # fmt: skip
     return report
+
+
+def _children_cpu() -> float:
+    import resource
+
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
 
 
 def served_sensors(address: str) -> tuple[str, ...]:
@@ -308,6 +347,7 @@ def served_sensors(address: str) -> tuple[str, ...]:
 
 __all__ = [
     "BENCH_SENSORS",
+    "HubProcess",
     "cpu_seconds",
     "hub_process",
     "peak_rss",

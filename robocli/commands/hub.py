@@ -3,12 +3,14 @@ thin layers over :mod:`robocli.devices.hub` and :mod:`robocli.hub_bench`."""
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import os
 import sys
 import time
 from collections import deque
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,6 +22,7 @@ if TYPE_CHECKING:
     import numpy as np
 
     from robocli.devices.hub import Hub
+    from robocli.hub_bench import HubProcess
 
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default $ROBOCLI_HUB, else 127.0.0.1; port 1500)."
@@ -298,15 +301,16 @@ def serial(
     typer.echo(reply.hex(" ") if hex_io else reply.decode("latin-1"))
 
 
-def _bench_address(url: str | None) -> Any:
-    """The hub to measure: ``url`` as given (pid None), or a simulated hub process."""
-    import contextlib
-
+@contextlib.contextmanager
+def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
+    """(address, None) for ``url``, else a simulated hub in its own process."""
     from robocli.hub_bench import hub_process
 
     if url is not None:
-        return contextlib.nullcontext((url, None))
-    return hub_process()
+        yield url.removeprefix("tcp://"), None
+        return
+    with hub_process() as proc:
+        yield proc.address, proc
 
 
 def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
@@ -318,9 +322,9 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
     interrupted = False
     with sigterm_as_interrupt():
         try:
-            with _bench_address(url) as (where, _pid):
-                run.where = f"hub {where}" + ("" if url else " (simulated, own process)")
-                hub_bench.rtt(where.removeprefix("tcp://"), run)
+            with _bench_hub(url) as (address, _proc):
+                run.where = f"hub {address}" + ("" if url else " (simulated, own process)")
+                hub_bench.rtt(address, run)
         except KeyboardInterrupt:
             interrupted = True
     if run.count:
@@ -367,11 +371,10 @@ def throughput(
         )
     with sigterm_as_interrupt():
         try:
-            with _bench_address(url) as (where, pid):
-                address = where.removeprefix("tcp://")
+            with _bench_hub(url) as (address, proc):
                 report = hub_bench.throughput(
                     address, clients=clients, sensors=names, seconds=seconds, pull_hz=pull_hz,
-                    workers=workers, hub_pid=pid, served=hub_bench.served_sensors(address),
+                    workers=workers, hub=proc, served=hub_bench.served_sensors(address),
                 )  # fmt: skip
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
@@ -390,7 +393,7 @@ def _print_throughput(r: dict[str, Any]) -> None:
         typer.echo(f"  not served by this hub: {', '.join(r['not_served'])}")
     typer.echo(
         f"  pulls/s {r['pulls_per_s']:.0f}   samples/s {r['samples_per_s']:.0f}   "
-        f"MB/s {r['bytes_per_s'] / 1e6:.1f}   lost samples {r['lost_samples']}"
+        f"MB/s {r['bytes_per_s'] / 1e6:.1f}   gaps in sample times {r['lost_samples']}"
     )
     if "pull_p99_ms" in r:
         typer.echo(
@@ -399,8 +402,10 @@ def _print_throughput(r: dict[str, Any]) -> None:
         )
     if "hub_cpu_cores" in r:
         typer.echo(
-            f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB"
+            f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB;"
+            f" clients: {r['client_cpu_cores']:.2f} cores (whole run, {os.cpu_count()} CPUs here)"
         )
+        typer.echo(f"  samples the hub dropped for full buffers: {r.get('hub_dropped', '?')}")
     for s, p in r["per_sensor"].items():
         typer.echo(
             f"  {s:<8} pulls {p['pulls']:>7}  samples {p['samples']:>8}  "
