@@ -44,10 +44,10 @@ def sonar_text(ranges: Any) -> list[str]:
     return [" ".join(cells[i : i + 8]) for i in range(0, len(cells), 8)]
 
 
-def laser_text(robot: Any) -> str | None:
+def laser_text(robot: Pioneer) -> str | None:
     """A one-line summary of the latest laser scan (nearest return and its bearing, number
     of readings), or None when the robot has no laser scan."""
-    scan = getattr(robot, "laser", None)
+    scan = robot.laser
     if scan is None:
         return None
     nearest = scan.nearest()

@@ -12,7 +12,6 @@ import queue
 import sys
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -54,7 +53,7 @@ TimeoutOpt = typer.Option(
 )
 
 
-@contextmanager
+@contextlib.contextmanager
 def _connected(port: str, **options: Any) -> Iterator[Pioneer]:
     """A connected Pioneer on ``port`` (``sim``: an embedded simulator), Ctrl-C and SIGTERM
     stopping it; a reset during the handshake is explained as a busy robot."""
@@ -106,10 +105,9 @@ def _start_laser(robot: Pioneer, wait: bool) -> None:
     port)."""
     from robocli.errors import TimeoutError
 
-    start = getattr(robot, "start_laser", None)
-    if start is None or not getattr(robot, "is_simulator", False):
+    if not robot.is_simulator:
         return
-    start()
+    robot.start_laser()
     if wait:
         with contextlib.suppress(TimeoutError):
             robot.wait_for_laser(1.0)
@@ -119,7 +117,7 @@ def _snapshot(robot: Pioneer) -> dict[str, Any]:
     """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
     where nothing was seen; angles in rad)."""
     data = robot.snapshot()
-    scan = getattr(robot, "laser", None)
+    scan = robot.laser
     if scan is not None and "laser" not in data:
         data["laser"] = {
             "t": scan.t,

@@ -120,12 +120,6 @@ def test_ports_lists_serial_ports() -> None:
     assert all(p["device"] in proc.stdout for p in listed)
 
 
-needs_laser = pytest.mark.skipif(
-    not hasattr(Pioneer, "start_laser"), reason="the client has no simulated laser yet"
-)
-
-
-@needs_laser
 def test_connect_shows_a_simulators_laser() -> None:
     proc = run("connect", "pioneer", "sim", "--once")
     assert proc.returncode == 0, proc.stderr
