@@ -74,7 +74,7 @@ def reflectance(
     segs = np.asarray(reflectors, dtype=np.float64).reshape(-1, 4)
     dx, dy = np.cos(rel + pose[2]), np.sin(rel + pose[2])
     for seg in segs:  # a map has few reflectors: one vectorised cast per segment
-        r = cast(World.from_segments([seg]), pose, rel, max_range)
+        r = cast(World.from_segments([seg.tolist()]), pose, rel, max_range)
         ex, ey = seg[2] - seg[0], seg[3] - seg[1]
         cos_inc = np.abs(dx * ey - dy * ex) / max(math.hypot(ex, ey), 1e-12)
         with np.errstate(invalid="ignore"):  # inf - inf where neither ray hit

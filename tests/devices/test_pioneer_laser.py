@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 import re
 import threading
+import tracemalloc
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -277,3 +278,34 @@ def test_decoders_and_assembler_raise_only_protocol_errors(
             decode()
         except ProtocolError:
             pass
+
+
+def test_assembler_memory_stays_bounded_under_a_garbled_flood() -> None:
+    """Scans that never end, restart, or jump around: what is held stays one scan at most."""
+
+    def packet(total: int, first: int) -> bytes:
+        body = arcos.unframe(arcos.encode_laser_scan([1234] * 32, extended=True))
+        return body[:1] + total.to_bytes(2, "little") + first.to_bytes(2, "little") + body[5:]
+
+    dropped = []
+    asm = ScanAssembler(dropped.append)
+    settings = LaserSettings()
+    tracemalloc.start()
+    try:
+        for round_ in range(3):
+            for first in range(0, MAX_READINGS - 32, 32):  # the largest scan, never ended
+                p = packet(MAX_READINGS, first)
+                assert asm.feed(p[0], p[1:], 0.0, (0.0, 0.0, 0.0), settings) is None
+            p = packet(MAX_READINGS + 1, 0)  # too large: refused, with all its packets
+            for first in range(0, 20 * 32, 32):
+                p = packet(MAX_READINGS + 1, first)
+                assert asm.feed(p[0], p[1:], 0.0, (0.0, 0.0, 0.0), settings) is None
+            for first in (0, 64, 32, 0, 96):  # out of order and restarts
+                p = packet(4000 + round_, first)
+                asm.feed(p[0], p[1:], 0.0, (0.0, 0.0, 0.0), settings)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 2 * 1024 * 1024  # one 8192-reading scan of packets (~0.5 MiB), no backlog
+    # per round: the unfinished scan, the refused one, the 0-64 jump and the 0-96 jump
+    assert dropped.count("laser_dropped") == 3 * 4 and "laser_scans" not in dropped
