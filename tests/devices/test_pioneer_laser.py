@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import math
 import re
+import socket
 import threading
+import time
 import tracemalloc
 from collections.abc import Iterator
 from pathlib import Path
@@ -15,6 +17,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robocli import Pioneer
+from robocli.core import Framer
 from robocli.devices.pioneer import LaserScan
 from robocli.devices.pioneer.laser import (
     MAX_READINGS,
@@ -309,3 +312,55 @@ def test_assembler_memory_stays_bounded_under_a_garbled_flood() -> None:
     assert peak < 2 * 1024 * 1024  # one 8192-reading scan of packets (~0.5 MiB), no backlog
     # per round: the unfinished scan, the refused one, the 0-64 jump and the 0-96 jump
     assert dropped.count("laser_dropped") == 3 * 4 and "laser_scans" not in dropped
+
+
+def test_client_against_amrisims_recorded_stream() -> None:
+    """A scripted server answers the handshake and CONFIG with trace h's replies, then sends
+    everything AMRISim sent after them (SIPs, each followed by its six 0x61 packets) over a
+    real socket: the client completes every scan, drops none, and gives each the odometric
+    pose of the SIP before it."""
+    frames = [f.frame for f in read_capture(DATA / "h_laser_wander.jsonl") if f.direction == "rx"]
+    at = next(i for i, f in enumerate(frames) if f[3] == arcos.PacketType.CONFIG) + 1
+    replies, stream = frames[:at], frames[at:]
+    srv = socket.create_server(("127.0.0.1", 0))
+
+    def serve() -> None:
+        conn, _ = srv.accept()
+        framer, pending = Framer("arcos"), list(replies)
+        with conn:
+            while pending:
+                data = conn.recv(4096)
+                if not data:
+                    return
+                for frame in framer.feed(data):
+                    if frame[3] in (0, 1, 2, arcos.Command.CONFIG) and pending:
+                        conn.sendall(pending.pop(0))
+            for frame in stream:
+                if frame[3] == arcos.PacketType.SIP:
+                    time.sleep(0.002)
+                conn.sendall(frame)
+            conn.recv(4096)  # until the client closes
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    poses: list[tuple[float, float]] = []
+    with Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", subtype="p3dx") as robot:
+        assert robot.is_simulator  # serial SIM, name AMRISim
+        robot.on_laser(lambda scan: poses.append(scan.pose[:2]))
+        deadline = time.monotonic() + 10.0
+        while robot.stats.laser_scans < 111 and time.monotonic() < deadline:
+            robot.wait_for_sip(timeout=5.0)
+        assert robot.stats.laser_scans == 111 and robot.stats.laser_dropped == 0
+        assert robot.stats.decode_errors == 0
+    thread.join(5.0)
+    srv.close()
+    sip_x = []  # the odometric x of the SIP before each scan, in metres
+    last = 0.0
+    for f in stream:
+        if f[3] == arcos.PacketType.SIP:
+            last = arcos.decode_sip(f[4:-2])["x"] * 0.485 / 1000.0
+        elif f[3] == arcos.PacketType.SIM_LASER and f[6:8] == b"\x00\x00":  # first = 0
+            sip_x.append(last)
+    assert len(poses) == len(sip_x) == 111
+    assert [x for x, _ in poses] == pytest.approx(sip_x, abs=0.001)
+    assert max(sip_x) > 1.0  # the robot wandered
