@@ -40,6 +40,7 @@ from robocli.errors import (
 )
 from robocli.protocols.common import find_refusal
 from robocli.protocols.ros4mat import (
+    MAX_BODY_SIZE,
     PARAMS,
     PORT,
     PROTOCOL_VERSION,
@@ -179,6 +180,22 @@ def subscribe_body(
     return {"sensor": kind, "silent": 0, "buffer_size": size, "params": values}
 
 
+def raw_frame_bytes(body: Mapping[str, Any]) -> int:
+    """Bytes one raw camera sample takes in a reply (0: not a raw camera subscription)."""
+    p = body.get("params")
+    kind = body["sensor"]
+    if not isinstance(p, Mapping) or kind not in _CAMERAS:
+        return 0
+    if kind == MsgType.KINECT or kind == MsgType.KINECT_DEPTH:
+        if p["compression_rgb"]:
+            return 0
+        return int(p["width_rgb"]) * int(p["height_rgb"]) * 5 + 44
+    if p["compression"]:
+        return 0
+    one = int(p["width"]) * int(p["height"]) * 3 + 22
+    return 2 * one if kind == MsgType.WEBCAM_STEREO else one
+
+
 class ClockSync:
     """NTP-style offset of the hub's clock from the client's (min-RTT filter)."""
 
@@ -310,7 +327,20 @@ class Hub:
     # ------------------------------------------------------------------ requests
 
     def _request(self, packet: bytes, reply: MsgType) -> bytes:
-        return self.session.request(packet, _is(reply), self.timeout)
+        framer = self.session.framer
+        refused = framer.stats.bad_lengths
+        try:
+            return self.session.request(packet, _is(reply), self.timeout)
+        except TimeoutError:
+            if framer.stats.bad_lengths == refused:
+                raise
+        # the reply was longer than any frame we accept: the rest of it cannot be framed
+        exc = ProtocolError(
+            f"{self.url}: the hub's {reply.name} reply exceeds {MAX_BODY_SIZE >> 20} MiB "
+            "(pull more often or subscribe with a smaller buffer); link closed"
+        )
+        self.session.fail(exc)
+        raise exc
 
     def subscribe(
         self,
@@ -326,6 +356,15 @@ class Hub:
         silent subscribe. See :func:`subscribe_body` for the settings. Raises
         :class:`DeviceError` when the hub refuses."""
         body = subscribe_body(name, rate, buffer=buffer, poll=poll, **params)
+        frame = raw_frame_bytes(body)
+        if frame and frame * body["buffer_size"] > MAX_BODY_SIZE:
+            fits = max(1, MAX_BODY_SIZE // frame)
+            if buffer is not None:
+                raise InvalidArgument(
+                    f"buffer: {buffer} raw frames of {frame} bytes exceed one reply's "
+                    f"{MAX_BODY_SIZE >> 20} MiB; at most {fits}"
+                )
+            body["buffer_size"] = fits  # the default (1 s) would not fit in one reply
         packet = encode_request(MsgType.SUBSCRIBE, body, client_id=self.client_id)
         body_of(self._request(packet, MsgType.SUBSCRIBE_ACK))  # an error reply raises
         self._subscribed[name.lower()] = sensor_type(name)
@@ -508,6 +547,7 @@ __all__ = [
     "Reading",
     "align_readings",
     "parse_hub",
+    "raw_frame_bytes",
     "resolution",
     "subscribe_body",
 ]

@@ -190,3 +190,19 @@ def test_clock_sync_min_rtt() -> None:
     assert sync.offset == pytest.approx(100.0) and sync.rtt == pytest.approx(0.0002)
     sync.add(3.0, 3.0, 0.0)  # packet without a send time: ignored
     assert sync.rtt == pytest.approx(0.0002)
+
+
+def test_decoding_a_camera_reply_copies_no_image() -> None:
+    import tracemalloc
+
+    w, h, n = 320, 240, 8
+    body = b"".join(_cam(w, h, 3, w * h * 3, float(i)) for i in range(n)) + bytes(w * h * 3 * n)
+    frame = _reply(r4m.MsgType.WEBCAM, body, n)
+    tracemalloc.start()
+    try:
+        reading = decode_reading(frame, "camera", offset=0.5)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert reading.data.shape == (h, w, 3, n)
+    assert peak < 64 * 1024 < len(frame) // 20  # 1.8 MB of frames, views only

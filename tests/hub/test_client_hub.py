@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from robocli import Hub
-from robocli.errors import DeviceError, InvalidArgument, TransportError
+from robocli.devices.hub import subscribe_body
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
+from robocli.protocols.ros4mat import MsgType, encode_request
 
 # sensor -> (subscribe arguments, the hub's name, expected data shape without N)
 SENSORS: dict[str, tuple[dict[str, Any], str, tuple[int, ...]]] = {
@@ -201,3 +203,25 @@ def test_a_full_hub_says_so() -> None:
             with pytest.raises(DeviceError, match="too many clients"):
                 Hub.connect("127.0.0.1", srv.port)
             first.subscribe("adc", 100)  # the first client is not disturbed
+
+
+def test_raw_camera_buffers_fit_one_reply(server: HubServer) -> None:
+    with Hub.connect("127.0.0.1", server.port, timeout=2.0) as h:
+        h.subscribe("camera", rate=30, resolution="640x480")  # 1 s would be 27 MB: 18 frames
+        with pytest.raises(InvalidArgument, match="at most 18"):
+            h.subscribe("camera", rate=30, resolution="640x480", buffer=30)
+        # a hub that sends more than a reply may carry: one typed error, the link is closed
+        body = subscribe_body("camera", 30, resolution="640x480")  # buffer 30, bytes as sent
+        ack = h.session.request(
+            encode_request(MsgType.SUBSCRIBE, body, client_id=h.client_id),
+            lambda f: f[0] == MsgType.SUBSCRIBE_ACK,
+            5.0,
+        )
+        assert ack[1] == 0
+        got = wait_for(lambda: h.read("camera"), 1)  # drain, then let 30 frames pile up
+        assert got[0].data.shape[:3] == (480, 640, 3)
+        time.sleep(1.3)
+        with pytest.raises(ProtocolError, match="exceeds 16 MiB"):
+            h.read("camera")
+        with pytest.raises(ProtocolError):
+            h.read("adc")
