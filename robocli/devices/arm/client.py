@@ -23,7 +23,6 @@ trajectory runs, unless told not to.
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from collections import deque
@@ -459,17 +458,18 @@ class Recorder:
 
         samples = list(self.samples)
         timed = [s for s in samples if s.robot_time is not None]
-        if timed:  # on the controller's clock: keep it strictly increasing
-            samples, last = [], -math.inf
-            for s in timed:
-                assert s.robot_time is not None
-                if s.robot_time > last:
-                    samples.append(s)
-                    last = s.robot_time
-            times = [s.robot_time for s in samples]
-        else:
-            samples = [s for s in samples if s.source == "joint_position"]
-            times = [s.t for s in samples]
+        if timed:  # on the controller's clock
+            pairs = [(float(s.robot_time), s) for s in timed]  # type: ignore[arg-type]
+        else:  # on this computer's receive times (one read may bring several: keep the last)
+            pairs = [(s.t, s) for s in samples if s.source == "joint_position"]
+        kept: list[tuple[float, JointSample]] = []
+        for t, s in pairs:  # strictly increasing times
+            if not kept or t > kept[-1][0]:
+                kept.append((t, s))
+            elif t == kept[-1][0]:
+                kept[-1] = (t, s)
+        times = [t for t, _ in kept]
+        samples = [s for _, s in kept]
         if len(samples) < 2:
             raise TimeoutError("fewer than two joint samples were recorded")
         q = [s.joints for s in samples]

@@ -1,0 +1,81 @@
+"""The Arm client's guarantees: listeners that raise are isolated, history and recordings are
+bounded, every wait has a timeout, close is bounded, bad options are refused."""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from robocli.devices.arm import Arm
+from robocli.errors import InvalidArgument, TimeoutError
+from robocli.kinematics import load_model
+from robocli.kinematics.trajectory import circle
+
+IRB = load_model("irb120")
+
+
+def test_raising_listeners_do_not_stop_the_state_stream(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim(state_ms=5.0)
+    arm = make_arm(mp, sp, motion=False)
+
+    def bad_frame(direction: str, frame: bytes, t: float) -> None:
+        raise RuntimeError("printing listener whose pipe closed")
+
+    def bad_sample(sample: object) -> None:
+        raise ValueError("broken consumer")
+
+    arm.add_listener(bad_frame)
+    arm.add_sample_listener(bad_sample)
+    first = arm.wait_for_state()
+    for _ in range(20):
+        last = arm.wait_for_state()
+    assert last.t > first.t
+    assert arm.stats["state"]["listener_errors"] >= 40
+
+
+def test_history_and_recording_are_bounded(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim(state_ms=2.0, time_scale=2.0)
+    arm = make_arm(mp, sp, motion=False, history=50)
+    rec = arm.record(max_samples=30)
+    deadline = time.monotonic() + 10
+    received = 0
+    while received < 200 and time.monotonic() < deadline:
+        arm.wait_for_state()
+        received += 1
+    rec.stop()
+    assert len(arm.history) == 50 and len(rec.samples) == 30
+    assert 2 <= len(rec.log()) <= 30
+
+
+def test_motion_reply_timeout_and_bounded_close(talking_server) -> None:
+    silent = talking_server(b"")  # accepts, never answers
+    arm = Arm.connect("127.0.0.1", silent.port, state=False, timeout=2.0)
+    start = time.monotonic()
+    with pytest.raises(TimeoutError, match="no reply to point -1"):
+        arm.download(circle(IRB, 10, duration=1.0), timeout=0.3)
+    assert time.monotonic() - start < 2.0
+    start = time.monotonic()
+    arm.close()  # sends STOP (the download may have activated nothing, but may run)
+    assert time.monotonic() - start < 3.0
+
+
+def test_state_port_silence_times_out(talking_server) -> None:
+    silent = talking_server(b"")
+    with pytest.raises(TimeoutError, match="no state message"):
+        Arm.connect("127.0.0.1", state_port=silent.port, motion=False, timeout=0.3)
+
+
+@pytest.mark.parametrize("kw", [{"byte_order": "middle"}, {"real_size": 2},
+                                {"motion": False, "state": False}])  # fmt: skip
+def test_bad_options(kw) -> None:
+    with pytest.raises(InvalidArgument):
+        Arm.connect("127.0.0.1", **kw)
+
+
+def test_state_only_arm_refuses_motion(make_sim, make_arm) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp, motion=False)
+    with pytest.raises(InvalidArgument, match="motion port"):
+        arm.stop()
+    assert sim.snapshot().points_received == 0
