@@ -11,7 +11,10 @@ differences where the real robot behaves better than MobileSim:
   TCP client disconnect frees the **same** port for the next client (no port hopping);
 * the battery drains and ``state_of_charge`` is reported; IO, encoder and battery packets exist;
 * a laser enable shows from the next SIP (AMRISim: the third), MobileSim's commands 35-38
-  are laser commands only on a robot with a laser (``laser=None`` keeps ADSEL & co.).
+  are laser commands only on a robot with a laser (``laser=None`` keeps ADSEL & co.);
+* CONFIG's tops are the robot's real ones (p3dx: 2200 mm/s, not AMRISim's 9999) and its
+  maxima stay within them, as does SETV (AMRISim: TransVelMax 3000); SIMSTAT's GPS fix has
+  no AMRISim bias, and the ranges are exact to the walls (Stage's raster reads ~2 cm short).
 
 As MobileSim/AMRISim it reports itself as a simulator (CONFIG serial ``SIM``) and serves the
 simulated laser (0x60/0x61 after every SIP), SIMSTAT (0x62) with the true pose and, with a
