@@ -257,28 +257,34 @@ _REORDER = 0.05
 
 def _dump_live(view: Any, port: str, laser: bool, **options: Any) -> None:
     """Show a live session's packets in time order (sent and received ones come from
-    different threads), until Ctrl-C or ``--count``."""
+    different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
+    stop the robot and close the session."""
     start = time.monotonic()
     seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
 
     def listener(direction: str, payload: bytes, t: float) -> None:
         seen.put((direction, payload, t - start))
 
-    with _connected(port, listeners=[listener], **options) as robot:
-        if laser:
-            _start_laser(robot, wait=False)
-        while not view.done:
-            try:
-                view.add(*seen.get(timeout=_REORDER))
-                while True:
-                    view.add(*seen.get_nowait())
-            except queue.Empty:
-                pass
-            view.flush(before=time.monotonic() - start - _REORDER)
-            if not robot.connected:
-                robot.wait_for_sip(0)  # raises the reason the session ended
-        return
-    view.flush()
+    def take(timeout: float = 0.0) -> None:
+        with contextlib.suppress(queue.Empty):
+            if timeout:
+                view.add(*seen.get(timeout=timeout))
+            while True:
+                view.add(*seen.get_nowait())
+
+    try:
+        with _connected(port, listeners=[listener], **options) as robot:
+            if laser:
+                _start_laser(robot, wait=False)
+            while not view.done:
+                take(_REORDER)
+                view.flush(before=time.monotonic() - start - _REORDER)
+                if not robot.connected:
+                    robot.wait_for_sip(0)  # raises the reason the session ended
+    finally:
+        with reader_may_leave():
+            take()  # what was still queued, and the close sequence
+            view.flush()
 
 
 def simulate(

@@ -192,3 +192,15 @@ def test_live_dump_of_a_simulators_laser() -> None:
     assert lasers and all(
         re.search(r"total=181 first=\d+ readings=\d+\(min \d+\)", x) for x in lasers
     )
+
+
+def test_ctrl_c_shows_the_close_sequence_last() -> None:
+    with running("dump", "pioneer", "sim") as proc:
+        assert proc.stdout is not None
+        while "<- SIP" not in proc.stdout.readline():
+            pass
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130 and err.strip() == "robocli: interrupted", err
+    tail = [name for _, _, name in packet_lines(out)][-4:]
+    assert tail == ["VEL", "RVEL", "ENABLE", "CLOSE"], out[-400:]
