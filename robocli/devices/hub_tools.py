@@ -236,6 +236,8 @@ class DumpProxy:
         self._listener.settimeout(0.25)
         self.port = self._listener.getsockname()[1]
         self._closing = threading.Event()
+        self._idle = threading.Condition()
+        self._in_flight = 0
         self._socks: list[socket.socket] = []
         self._max = max_clients
         self._start = time.monotonic()
@@ -277,12 +279,20 @@ class DumpProxy:
                 data = src.recv(65536)
                 if not data:
                     break
-                dst.sendall(data)
                 now = time.monotonic() - self._start
-                for frame in framer.feed(data):
-                    name, fields = describe(frame)
-                    with self._lock:
-                        self.on_message(Message(now, direction, name, frame, fields))
+                with self._idle:
+                    self._in_flight += 1
+                try:
+                    # shown before it is passed on: a reply is never shown before its request
+                    for frame in framer.feed(data):
+                        name, fields = describe(frame)
+                        with self._lock:
+                            self.on_message(Message(now, direction, name, frame, fields))
+                    dst.sendall(data)
+                finally:
+                    with self._idle:
+                        self._in_flight -= 1
+                        self._idle.notify_all()
         except OSError:
             pass
         finally:
@@ -290,9 +300,12 @@ class DumpProxy:
                 with contextlib.suppress(OSError):
                     s.shutdown(socket.SHUT_RDWR)
 
-    def close(self) -> None:
-        """Stop accepting and cut every proxied session."""
+    def close(self, grace: float = 1.0) -> None:
+        """Stop accepting, let bytes already read reach their side (``grace`` s at most),
+        then cut every proxied session."""
         self._closing.set()
+        with self._idle:
+            self._idle.wait_for(lambda: self._in_flight == 0, grace)
         self._listener.close()
         with self._lock:
             socks, self._socks = self._socks, []
