@@ -19,18 +19,21 @@ Stage model (``shared/protocols/arcos_sim_laser.md`` section 1):
 
 from __future__ import annotations
 
+import logging
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 
-from robocli.protocols.arcos import laser_bearings, laser_count, laser_fov
+from robocli.protocols.arcos import LASER_MAX_TOTAL, laser_bearings, laser_count, laser_fov
 from robocli.sim.world import World
 
 __all__ = ["LMS200", "LaserGeometry", "LaserSpec", "cast", "reflectance"]
 
 FloatArray = npt.NDArray[np.float64]
+
+log = logging.getLogger("robocli.sim.pioneer")
 
 
 def cast(
@@ -132,9 +135,15 @@ class LaserGeometry:
         self.end = float(deg)
 
     def set_resolution(self, cdeg: int) -> None:
-        """Resolution in hundredths of a degree (sign ignored); recomputes the count."""
+        """Resolution in hundredths of a degree (sign ignored); recomputes the count, which
+        is capped at :data:`~robocli.protocols.arcos.LASER_MAX_TOTAL` readings (a bound on
+        the work one command can ask for: beyond it the spacing widens)."""
         self.res_cdeg = abs(int(cdeg))
-        self.count = laser_count(self.start, self.end, self.res_cdeg)
+        count = laser_count(self.start, self.end, self.res_cdeg)
+        if count > LASER_MAX_TOTAL:
+            log.warning("laser resolution %.2f deg gives %d readings: capped at %d",
+                        self.res_cdeg / 100.0, count, LASER_MAX_TOTAL)  # fmt: skip
+        self.count = min(count, LASER_MAX_TOTAL)
 
     def bearings(self) -> FloatArray:
         """Bearing of each reading (rad, laser frame, in the order sent)."""

@@ -95,6 +95,9 @@ def test_geometry_follows_the_stage_rules() -> None:
     g.set_start(90)
     g.set_end(-90)  # end < start: reversed order
     assert np.degrees(g.bearings())[[0, -1]] == pytest.approx([90.0, -90.0])
+    g.set_resolution(1)  # 0.01 deg over 180 deg: 18001 readings, capped
+    assert g.count == arcos.LASER_MAX_TOTAL == len(g.bearings())
+    assert np.degrees(g.bearings())[[0, -1]] == pytest.approx([90.0, -90.0])  # spacing widens
     g.set_resolution(0)
     assert g.count == 0 and len(g.bearings()) == 0
 

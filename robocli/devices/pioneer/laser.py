@@ -29,7 +29,7 @@ __all__ = [
     "parse_simstatus",
 ]
 
-MAX_READINGS = 8192  #: largest scan accepted (0.05 deg over 360 deg is 7201 readings)
+MAX_READINGS = arcos.LASER_MAX_TOTAL  #: largest scan accepted (0.05 deg over 360 deg: 7201)
 DEFAULT_MAX_RANGE = 32.0  #: m: the vendor SDK's LMS2xx limit; longer readings are no return
 
 

@@ -49,6 +49,7 @@ from robocli.protocols.arcos.packets import (
 )
 from robocli.protocols.arcos.simext import (
     LASER_MAX_READINGS,
+    LASER_MAX_TOTAL,
     LASER_NO_RETURN_MM,
     SIM_LASER_MOVED,
     SIMSTAT_FLAG_GEOREF,
@@ -114,6 +115,7 @@ __all__ = [
     "IO",
     "IntArg",
     "LASER_MAX_READINGS",
+    "LASER_MAX_TOTAL",
     "LASER_NO_RETURN_MM",
     "LaserPacket",
     "LaserRange",

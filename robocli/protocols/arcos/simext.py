@@ -25,6 +25,7 @@ from robocli.protocols.layout import struct_codes, struct_of
 
 __all__ = [
     "LASER_MAX_READINGS",
+    "LASER_MAX_TOTAL",
     "LASER_NO_RETURN_MM",
     "SIMSTAT_FLAG_GEOREF",
     "SIMSTAT_FLAG_ODOM_ERROR",
@@ -47,6 +48,7 @@ __all__ = [
 ]
 
 LASER_MAX_READINGS = 32  #: readings per laser packet at most
+LASER_MAX_TOTAL = 8192  #: readings per scan at most (robocli's bound; 0.05 deg over 360: 7201)
 LASER_NO_RETURN_MM = 32767  #: "no return" of the p3dx's LMS200 model: its maximum range, mm
 SIM_LASER_MOVED = 0x01  #: 0x61 flags bit0: moved by SIM_SET_POSE since the last scan
 SIMSTAT_FLAG_GEOREF = 0x02  #: the map is georeferenced: latitude/longitude/altitude valid
