@@ -286,11 +286,18 @@ class ArmController:
     def _activate(self, points: list[_Point]) -> None:
         now = self.clock()
         log.info("ROS_motionServer: Sending %d points", len(points))
-        if not points:
-            self.executor.hold(now)
-            return
-        start = now + self.ctl.lag_ms / 1000.0 if points else now
         self.executor.hold(now)
+        if not points:
+            return
+        lo, hi = self.model.limits[:, 0] - 1e-6, self.model.limits[:, 1] + 1e-6
+        for p in points:  # MoveAbsJ fails: ROS_motion.mod warns, aborts and restarts
+            if not (np.all(np.isfinite(p.joints)) and np.all((p.joints >= lo) & (p.joints <= hi))
+                    and math.isfinite(p.duration)):
+                self.rejected_points += 1
+                log.warning("ROS_motion: point %d cannot be reached; trajectory aborted",
+                            p.sequence)  # fmt: skip
+                return
+        start = now + self.ctl.lag_ms / 1000.0
         self.executor.start([(p.joints, p.duration) for p in points], start, skip_first=True)
 
     def _generic(self, msg: sm.Message, frame: bytes) -> bytes | None:

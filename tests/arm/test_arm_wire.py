@@ -195,3 +195,18 @@ def test_state_decoding_from_simulator(make_sim, make_arm) -> None:
     st = arm.status
     assert st is not None and st.drives_powered and st.motion_possible and st.mode == "AUTO"
     assert st.in_motion is False and st.e_stopped is False and st.error_code == 0
+
+
+def test_abb_aborts_a_trajectory_it_cannot_reach(make_sim) -> None:
+    """A point beyond a joint limit (or NaN) makes MoveAbsJ fail: acked, never executed."""
+    sim, mp, _ = make_sim()
+    raw = RawSM(mp)
+    q = [float(v) for v in IRB.work]
+    far = [*q[:2], math.radians(90), *q[3:]]  # joint 3 stops at 70 deg
+    for seq, joints in ((-1, q), (1, far), (2, [math.nan] * 6), (-3, q)):
+        body = {"sequence": seq, "joints": joints, "velocity": 0.0, "duration": 0.5}
+        raw.send(sm.encode(11, sm.CommType.SERVICE_REQUEST, 0, body))
+    assert all(sm.decode(f).reply_code == sm.ReplyCode.SUCCESS for f in _frames(raw, 4))
+    snap = sim.wait_until(lambda s: s.rejected_points == 1, 5)
+    assert not snap.in_motion and np.allclose(snap.joints, IRB.work)
+    raw.close()
