@@ -59,9 +59,9 @@ def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: Hu
         assert abs(t[-1] - time.time()) < 10
 
 
-def test_count_jsonl_and_channel_mask(server: HubServer) -> None:
+def test_count_jsonl_channel_mask_compressed(server: HubServer) -> None:
     proc = cli("subscribe", "adc", "--rate", "200", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "25", "--format", "jsonl", "--channels", "0x5")  # fmt: skip
+               "--count", "25", "--format", "jsonl", "--channels", "0x5", "--compress")  # fmt: skip
     code, out, err = finish(proc)
     assert code == 0, err
     rows = [json.loads(line) for line in out.splitlines()]
@@ -139,3 +139,29 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path)
     assert msgs[2]["params"]["freq_acquisition"] == 100
     assert ("c2s", "ADC") in names[4:] and ("s2c", "ADC") in names[4:]
     assert len(capture.read_text().splitlines()) >= 6
+
+
+def test_laser_rows_summarise_each_scan(server: HubServer) -> None:
+    proc = cli("subscribe", "hokuyo", "--rate", "40", "--hub", f"127.0.0.1:{server.port}",
+               "--count", "3", "--format", "csv")  # fmt: skip
+    code, out, err = finish(proc)
+    assert code == 0, err
+    lines = out.splitlines()
+    assert lines[0] == "t,beams,min,max,mean" and len(lines) == 4
+    beams, low, high = (float(x) for x in lines[1].split(",")[1:4])
+    assert beams == 1081 and 0 <= low <= high
+
+
+def test_bench_commands_against_a_hub_process() -> None:
+    code, out, err = finish(cli("bench", "rtt", "--target", "hub", "-n", "50", "--json"))
+    assert code == 0, err
+    (rtt,) = json.loads(out)
+    assert rtt["n"] == 50 and 0 < rtt["median"] < 1e6
+    code, out, err = finish(cli("bench", "throughput", "--clients", "2", "--seconds", "1",
+                                "--sensors", "imu,adc", "--json"))  # fmt: skip
+    assert code == 0, err
+    report = json.loads(out)
+    assert report["clients"] == 2 and report["pulls_per_s"] > 0 and not report["errors"]
+    assert report["per_sensor"]["adc"]["samples"] > 0 and report["hub_peak_rss_mb"] > 0
+    code, _, err = finish(cli("bench", "throughput", "--sensors", "lidar"))
+    assert code == 2 and "lidar" in err
