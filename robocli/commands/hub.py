@@ -252,7 +252,11 @@ def dump(
             line = f"{msg.t:10.6f} {arrow} {msg.name:<14} {text}"
             if hex_out:
                 line += "\n" + " " * 14 + msg.frame[:256].hex(" ")
-        typer.echo(line)
+        try:
+            typer.echo(line)
+        except BrokenPipeError:  # `dump hub ... | head`: stop quietly, the main thread exits
+            done.set()
+            return
         printed += 1
         if count and printed >= count:
             done.set()
