@@ -22,24 +22,32 @@ PORT_HELP = (
 )
 
 
-_TYPE_HINT = re.compile(r"(?<=\w) <(?:str|int|float|bool|path|file|text|[a-z]+ range)>")
+_TYPE_HINT = re.compile(r"(?<=\S) <(str|int|float|bool|path|file|text|int range|float range)>")
+#: What an option's value is called instead of Typer's ``<int range>``-style placeholder.
+_VALUE_NAMES = {"int": "INTEGER", "float": "NUMBER", "int range": "INTEGER", "path": "PATH",
+                "float range": "NUMBER", "file": "FILE", "str": "TEXT", "text": "TEXT"}  # fmt: skip
+
+
+def _plain_type(match: re.Match[str]) -> str:
+    """A placeholder as plain help shows it, in the same width (columns stay aligned):
+    nothing after a flag or an argument's name, ``INTEGER``-style after an option."""
+    kind, before = match.group(1), match.string[match.start() - 1]
+    if kind == "bool" or before.isupper() or before == "]":
+        return " " * len(match.group())
+    return f" {_VALUE_NAMES[kind]}".ljust(len(match.group()))
 
 
 class PlainCommand(TyperCommand):
     """A command whose help reads like a man page: ``PORT`` (not ``{port}``) in the usage
-    line and no ``<str>``-style type placeholders after argument names."""
+    line, flags without ``<bool>``, option values named ``INTEGER``/``NUMBER``/``TEXT``."""
 
     def collect_usage_pieces(self, ctx: Any) -> list[str]:
-        return [
-            piece.replace("{", "").replace("}", "") for piece in super().collect_usage_pieces(ctx)
-        ]
+        pieces = super().collect_usage_pieces(ctx)
+        return [piece.replace("{", "").replace("}", "") for piece in pieces]
 
     def format_help(self, ctx: Any, formatter: Any) -> None:
         super().format_help(ctx, formatter)
-        # blank the placeholders (same width, so that the help column stays aligned)
-        formatter.buffer[:] = [
-            _TYPE_HINT.sub(lambda m: " " * len(m.group()), part) for part in formatter.buffer
-        ]
+        formatter.buffer[:] = [_TYPE_HINT.sub(_plain_type, part) for part in formatter.buffer]
 
 
 @contextlib.contextmanager

@@ -3,6 +3,7 @@ placeholders; -v after the subcommand (issue 7: 10, 12, 19)."""
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -65,12 +66,19 @@ def test_sim_rejects_a_bad_map(tmp_path: Path, content: bytes, named: str) -> No
     assert named in line and path.name in line, line
 
 
-@pytest.mark.parametrize("command", [("connect", "pioneer"), ("dump", "pioneer"), ("ports",)])
+@pytest.mark.parametrize(
+    "command",
+    [("connect", "pioneer"), ("dump", "pioneer"), ("ports",), ("sim", "pioneer"), ("bench", "sip")],
+)
 def test_help_shows_no_value_placeholders(command: tuple[str, ...]) -> None:
     proc = run(*command, "-h")
     assert proc.returncode == 0 and proc.stderr == ""
-    assert not any(p in proc.stdout for p in ("<bool>", "<str>", "<int>", "{port}", "{PORT}"))
-    if command[0] != "ports":
+    assert not re.search(r"<[a-z ]+>|\{\w+\}", proc.stdout), proc.stdout
+    options = {m[1]: m[2] for m in re.finditer(r"(--[\w-]+)(?: ([A-Z][\w/.]*))?", proc.stdout)}
+    assert options.get("--json", "") is None or "--json" not in options  # a flag: no value
+    if command[0] == "sim":
+        assert options["--port"] == "INTEGER" and options["--pty"] is None
+    if command[0] in ("connect", "dump"):
         assert f"Usage: robocli {' '.join(command)} [OPTIONS]" in proc.stdout
         assert proc.stdout.splitlines()[0].endswith(("] PORT", "[PORT]"))
     assert "╭" not in proc.stdout  # plain text, whatever the terminal
