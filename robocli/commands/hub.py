@@ -157,11 +157,17 @@ class _Output:
         from rich.table import Table
 
         span = max(time.monotonic() - self.start, 1e-9)
-        table = Table(title=f"{self.rows} samples, {self.rows / span:.1f}/s")
+        table = Table(
+            title=f"{self.rows} samples, {self.rows / span:.1f}/s (Ctrl-C stops)",
+            box=None, padding=(0, 1), collapse_padding=True, pad_edge=False,
+            title_justify="left",
+        )  # fmt: skip
         for c in self.cols:
-            table.add_column(c, justify="right")
-        for row in self.recent:
-            table.add_row(f"{row[0]:.6f}", *(f"{v:.5g}" for v in row[1:]))
+            table.add_column(c, justify="right", no_wrap=True)
+        rows = list(self.recent)[-max(3, self.live.console.height - 4) :]
+        for row in rows:
+            clock = time.strftime("%M:%S", time.localtime(row[0])) + f"{row[0] % 1:.3f}"[1:]
+            table.add_row(clock, *(f"{v:.3f}" if abs(v) < 1000 else f"{v:.4g}" for v in row[1:]))
         self.live.update(table, refresh=True)
 
     def close(self) -> None:

@@ -165,3 +165,33 @@ def test_bench_commands_against_a_hub_process() -> None:
     assert report["per_sensor"]["adc"]["samples"] > 0 and report["hub_peak_rss_mb"] > 0
     code, _, err = finish(cli("bench", "throughput", "--sensors", "lidar"))
     assert code == 2 and "lidar" in err
+
+
+def test_live_table_on_a_terminal(server: HubServer) -> None:
+    import pty
+    import re
+    import select
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "subscribe", "adc", "--rate", "50", "--hub",
+         f"127.0.0.1:{server.port}", "--count", "20"],
+        stdout=slave, stderr=slave, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    os.close(slave)
+    out = b""
+    try:
+        while select.select([master], [], [], 30)[0]:
+            try:
+                chunk = os.read(master, 65536)
+            except OSError:  # the child closed its side
+                break
+            if not chunk:
+                break
+            out += chunk
+    finally:
+        os.close(master)
+    assert proc.wait(30) == 0
+    text = out.decode(errors="replace")
+    assert re.search(r"20 samples, [\d.]+/s", text)
+    assert re.search(r"\d\d:\d\d\.\d{3}( +-?\d+\.\d{3}){8}", text)  # time, then 8 channels
