@@ -176,3 +176,13 @@ def test_failure_reply_raises_device_error(make_sim, make_arm) -> None:
         arm.stream(([0.0, 2.0], q), first_duration=1.0)
     assert err.value.code == 2
     assert sim.snapshot().rejected_points == 1
+
+
+def test_send_point_returns_the_round_trip(make_sim, make_arm) -> None:
+    """One request/reply as Table 5 measured it; the ABB enqueues the point."""
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, None, state=False)
+    rtts = [arm.send_point(-1 if i == 0 else i, IRB.work, duration=0.1) for i in range(5)]
+    assert all(0 < r < 5 for r in rtts)
+    snap = sim.snapshot()
+    assert snap.buffered == 5 and snap.trajectories == 0

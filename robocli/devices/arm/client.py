@@ -92,8 +92,7 @@ class Arm:
         self._sample_listeners: Listeners[SampleListener] = Listeners(stats, "arm samples")
         self._activated_at: float | None = None  # monotonic time of the last activation
         self._expected_end = 0.0
-        self._stop_frame = self._point_frame(
-            SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * robot.n_joints, 0.0, 0.0))
+        self._stop_frame = _stop_frame(robot, byteorder, real)
         for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
             if session is not None:
                 session.on_frame = handler
@@ -124,19 +123,18 @@ class Arm:
         model = robot if isinstance(robot, RobotModel) else load_model(robot)
         sessions: list[Session] = []
         try:
-            links = [None, None]
-            for i, (wanted, port, name) in enumerate(
-                ((motion, motion_port, "motion"), (state, state_port, "state"))
-            ):
-                if wanted:
-                    transport = SocketTransport.connect(host, port, timeout)
-                    framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
-                    s = Session(transport, framer, on_frame=lambda f, t: None,
-                                name_of=_namer(order, real_size), name=f"arm-{name}")  # fmt: skip
-                    sessions.append(s)
-                    links[i] = s
-            arm = cls(links[0], links[1], robot=model, byteorder=order,  # type: ignore[arg-type]
-                      real=real_size, timeout=timeout, history=history)  # type: ignore[arg-type]
+            links: list[Session | None] = []
+            real: sm.RealSize = real_size  # type: ignore[assignment]
+            wire: sm.ByteOrder = order  # type: ignore[assignment]
+            stop = [_stop_frame(model, wire, real)]
+            ports = ((motion, motion_port, "motion"), (state, state_port, "state"))
+            for wanted, port, name in ports:
+                link = _open(host, port, name, wire, real, timeout,
+                             stop if name == "motion" else []) if wanted else None  # fmt: skip
+                links.append(link)
+                sessions += [link] if link is not None else []
+            arm = cls(links[0], links[1], robot=model, byteorder=wire, real=real, timeout=timeout,
+                      history=history)  # fmt: skip
             for listener in listeners:
                 arm.add_listener(listener)
             if arm._state is not None:
@@ -310,13 +308,22 @@ class Arm:
     # ------------------------------------------------------------------ motion
 
     def _point_frame(self, seq: int, p: Point) -> bytes:
-        body = {"sequence": int(seq), "joints": list(p.joints), "velocity": p.velocity,
-                "duration": p.duration}  # fmt: skip
-        return sm.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
-                         byteorder=self.byteorder, real=self.real)  # fmt: skip
+        return _point_frame(seq, p, self.byteorder, self.real)
 
     def _on_motion_frame(self, frame: bytes, t: float) -> None:
         sm.decode(frame, byteorder=self.byteorder, real=self.real)  # unsolicited: checked only
+
+    def send_point(self, sequence: int, joints: npt.ArrayLike, *, velocity: float = 0.0,
+                   duration: float = 0.0, timeout: float | None = None) -> float:
+        """Send one JOINT_TRAJ_PT as a SERVICE_REQUEST and wait for its SERVICE_REPLY; returns
+        the round trip in seconds (what the paper's Table 5 measured). No model check: an
+        ABB enqueues the point (``sequence`` -1 resets its buffer, -3 activates, -4 stops).
+        Raises :class:`DeviceError` on FAILURE, :class:`TimeoutError` after ``timeout``."""
+        q = tuple(float(v) for v in np.asarray(joints, dtype=float).ravel())
+        start = time.perf_counter()
+        self._send_point(int(sequence), Point(q, float(velocity), float(duration)),
+                         self.timeout if timeout is None else timeout)  # fmt: skip
+        return time.perf_counter() - start
 
     def _send_point(self, seq: int, p: Point, timeout: float) -> None:
         s = self._need(self._motion, "motion")
@@ -417,8 +424,8 @@ class Arm:
 
     def stop(self, timeout: float | None = None) -> None:
         """STOP (-4): abort the running trajectory, acknowledged within ``timeout`` s."""
-        self._send_point(SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * self.robot.n_joints, 0, 0),
-                         self.timeout if timeout is None else timeout)  # fmt: skip
+        self.send_point(SpecialSeq.STOP_TRAJECTORY, (0.0,) * self.robot.n_joints,
+                        timeout=timeout)
         self._activated_at, self._expected_end = None, 0.0
 
     def _activated(self, points: list[Point]) -> None:
@@ -474,6 +481,28 @@ class Recorder:
             raise TimeoutError("fewer than two joint samples were recorded")
         q = [s.joints for s in samples]
         return TrajectoryLog.from_positions(times, q, fk_positions(self._arm.robot, q))
+
+
+def _open(host: str, port: int, name: str, order: sm.ByteOrder, real: sm.RealSize,
+          timeout: float, stop: list[bytes]) -> Session:
+    """One port's session (not started); its emergency stop is ``stop``."""
+    transport = SocketTransport.connect(host, port, timeout)
+    framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
+    return Session(transport, framer, on_frame=lambda f, t: None, name_of=_namer(order, real),
+                   emergency_stop=lambda: stop, name=f"arm-{name}")  # fmt: skip
+
+
+def _point_frame(seq: int, p: Point, order: sm.ByteOrder, real: sm.RealSize) -> bytes:
+    body = {"sequence": int(seq), "joints": list(p.joints), "velocity": p.velocity,
+            "duration": p.duration}  # fmt: skip
+    return sm.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
+                     byteorder=order, real=real)  # fmt: skip
+
+
+def _stop_frame(robot: RobotModel, order: sm.ByteOrder, real: sm.RealSize) -> bytes:
+    """STOP (-4) with an all-zero point, as industrial_robot_client sends it."""
+    return _point_frame(SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * robot.n_joints, 0.0, 0.0),
+                        order, real)  # fmt: skip
 
 
 def _namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]:
