@@ -16,6 +16,7 @@ SIP (AMRISim needs one more Stage update: its first scan comes with the third SI
 
 from __future__ import annotations
 
+import logging
 import math
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -35,6 +36,8 @@ from robocli.sim.laser import LaserGeometry, LaserSpec, cast, reflectance
 from robocli.sim.pioneer_model import PioneerModel
 
 __all__ = ["Georef", "SimExtensions", "lat_lon"]
+
+log = logging.getLogger("robocli.sim.pioneer")
 
 #: A map's georeference: latitude, longitude (degrees) and altitude (m) of the world origin.
 Georef = tuple[float, float, float]
@@ -148,6 +151,8 @@ class SimExtensions:
             self.simstat_once = True
         elif mode in (0, 2):
             self._defer(lambda: setattr(self, "simstat_mode", mode))
+        else:
+            log.warning("SIM_STAT %d: not a mode (0 stop, 1 once, 2 every cycle); ignored", mode)
 
     # ---------------------------------------------------------------- session and cycle
 
