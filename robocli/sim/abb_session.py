@@ -302,6 +302,8 @@ class ArmController:
 
     def _generic(self, msg: sm.Message, frame: bytes) -> bytes | None:
         request = msg.comm_type == CommType.SERVICE_REQUEST
+        if msg.comm_type == CommType.SERVICE_REPLY:
+            return None  # REP-I0006: unsolicited replies are ignored
         if msg.msg_type == MsgType.PING:
             return self.encode(MsgType.PING, CommType.SERVICE_REPLY, ReplyCode.SUCCESS)
         if msg.msg_type != MsgType.JOINT_TRAJ_PT or not isinstance(msg.body, dict):

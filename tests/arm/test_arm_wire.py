@@ -210,3 +210,50 @@ def test_abb_aborts_a_trajectory_it_cannot_reach(make_sim) -> None:
     snap = sim.wait_until(lambda s: s.rejected_points == 1, 5)
     assert not snap.in_motion and np.allclose(snap.joints, IRB.work)
     raw.close()
+
+
+def _connect_motion(sim, port: int, order: str) -> RawSM:
+    sim.wait_until(lambda s: s.motion_clients == 0, 5)
+    return RawSM(port, order)
+
+
+@pytest.mark.parametrize("variant", sorted(VARIANTS))
+def test_every_library_vector_against_both_profiles(variant, make_sim) -> None:
+    """Each of the library's 25 vectors on the motion port, by the rules of each server:
+    ABB: a JOINT_TRAJ_PT with a whole point is taken (acked if a request), anything else
+    stops the RAPID task (link closed); generic: PING answered, requests answered (echo or
+    header-only FAILURE), topics and replies ignored. A trailing STOP request proves that
+    nothing else was sent back."""
+    order, real = VARIANTS[variant]
+    vec = vectors(variant)
+    stop = bytes.fromhex(vec["joint_traj_pt_request_seq_m4_stop"]["hex"])
+    point_size = sm.messages(order, real).JointTrajPt.sizeof()  # type: ignore[arg-type]
+    for profile in ("abb", "generic"):
+        sim, mp, _ = make_sim(profile=profile, byteorder=order, real=real)
+        raw = RawSM(mp, order)
+        for name, v in vec.items():
+            frame = bytes.fromhex(v["hex"])
+            body = len(frame) - 16
+            mt, comm = v["msg_type"], v["comm_type"]
+            request = comm == sm.CommType.SERVICE_REQUEST
+            raw.send(frame + stop)
+            got = raw.frame()
+            if profile == "abb":
+                if mt != 11 or body < point_size:
+                    assert raw.closed_by_peer(), name
+                    raw.close()
+                    raw = _connect_motion(sim, mp, order)
+                    continue
+                if request:
+                    assert sm.decode(got, byteorder=order, real=real).comm_type == 3, name
+                    got = raw.frame()
+            elif comm != sm.CommType.SERVICE_REPLY and (mt == 1 or request):
+                reply = sm.decode(got, byteorder=order, real=real)
+                assert reply.msg_type == mt and reply.comm_type == 3, name
+                assert reply.reply_code in (1, 2), name
+                if mt == 11 and body:
+                    assert got[16:] == frame[16:], name  # echo of the point
+                got = raw.frame()
+            ack = sm.decode(got, byteorder=order, real=real)  # the STOP's reply, nothing else
+            assert (ack.msg_type, ack.comm_type, ack.reply_code) == (11, 3, 1), name
+        raw.close()
