@@ -8,7 +8,7 @@ from typing import Any
 from robocli.errors import InvalidArgument
 from robocli.hub.registry import ClientInfo, Hub
 from robocli.hub.rings import DEFAULT_BUDGET
-from robocli.hub.server import Ros4matSession
+from robocli.hub.server import PullTimes, Ros4matSession
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
@@ -83,9 +83,11 @@ class HubServer:
         )
         self._url: str | None = None
         self.warnings: list[str] = []
+        self.pull_times = PullTimes()
+        """Server-side pull durations (request framed -> reply built): percentiles."""
 
     def _session(self, link: Link) -> Ros4matSession:
-        return Ros4matSession(link, self.hub, link.name, self._token, self.serial)
+        return Ros4matSession(link, self.hub, link.name, self._token, self.serial, self.pull_times)
 
     # ------------------------------------------------------------------ lifecycle
 

@@ -23,6 +23,8 @@ from __future__ import annotations
 import hmac
 import logging
 import struct
+import threading
+import time
 import zlib
 from collections.abc import Mapping
 from typing import Any
@@ -46,7 +48,7 @@ from robocli.protocols.ros4mat import (
 )
 from robocli.sim.links import Link
 
-__all__ = ["SENSOR_IDS", "Ros4matSession", "pull_body"]
+__all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "pull_body"]
 
 log = logging.getLogger("robocli.hub")
 
@@ -73,32 +75,81 @@ _REPLY_TYPES = {
 _HEADER: struct.Struct = layout.struct_of(Header, "msgHeader")
 
 
-def pull_body(pulled: Pulled) -> bytes:
-    """The body of a data reply: the records, or their info records then their blobs."""
+def pull_body(pulled: Pulled, offset: int = 0) -> bytearray:
+    """The body of a data reply after ``offset`` spare bytes (room for the header): the
+    records, or their info records then their blobs. One copy out of the records."""
     rec, src = pulled.records, pulled.source
-    if not src.blobs:
-        return rec.tobytes()
     n = len(rec)
-    parts = [rec["info"].tobytes()]
+    if not src.blobs:
+        out = bytearray(offset + rec.nbytes)
+        np.frombuffer(out, np.uint8, offset=offset)[:] = rec.view(np.uint8).reshape(-1)
+        return out
+    infos = rec["info"]
     sizes = src.blob_sizes(rec)
-    widths = np.array([rec.dtype[b].itemsize for b in src.blobs])
-    if n and (sizes == widths).all():
-        # every blob full: frame 0 blobs, frame 1 blobs, ... in one copy
-        parts.append(np.concatenate([rec[b].reshape(n, -1) for b in src.blobs], axis=1).tobytes())
-    else:
-        for i in range(n):
-            for j, b in enumerate(src.blobs):
-                parts.append(rec[b][i, : sizes[i, j]].tobytes())
-    return b"".join(parts)
+    info_bytes = infos.size * infos.dtype.itemsize  # stereo: two infos per frame
+    out = bytearray(offset + info_bytes + int(sizes.sum()))
+    np.frombuffer(out, infos.dtype, count=infos.size, offset=offset)[:] = infos.reshape(-1)
+    widths = [rec.dtype[b].itemsize for b in src.blobs]
+    start = offset + info_bytes
+    if n and (sizes == np.array(widths)).all():  # every blob full: one strided copy each
+        frames = np.frombuffer(out, np.uint8, offset=start).reshape(n, sum(widths))
+        col = 0
+        for b, w in zip(src.blobs, widths, strict=True):
+            frames[:, col : col + w] = rec[b]
+            col += w
+        return out
+    view = memoryview(out)
+    for i in range(n):
+        for j, b in enumerate(src.blobs):
+            size = int(sizes[i, j])
+            view[start : start + size] = rec[b][i, :size].tobytes()
+            start += size
+    return out
+
+
+class PullTimes:
+    """The server-side duration of the last :data:`SIZE` pulls (request framed -> reply
+    built), for percentiles. Thread-safe, fixed memory."""
+
+    SIZE = 1 << 16
+
+    def __init__(self) -> None:
+        self._d = np.zeros(self.SIZE, dtype=np.float64)
+        self._n = 0
+        self._lock = threading.Lock()
+
+    def add(self, seconds: float) -> None:
+        with self._lock:
+            self._d[self._n % self.SIZE] = seconds
+            self._n += 1
+
+    def percentiles(self, qs: tuple[float, ...] = (50, 99, 100)) -> dict[str, float]:
+        """``{"count": n, "p50": s, "p99": s, "p100": s}`` over the pulls kept."""
+        with self._lock:
+            d = self._d[: min(self._n, self.SIZE)].copy()
+            n = self._n
+        out: dict[str, float] = {"count": float(n)}
+        for q in qs:
+            out[f"p{q:g}"] = float(np.percentile(d, q)) if len(d) else 0.0
+        return out
 
 
 class Ros4matSession:
     """One ros4mat connection (its link's thread calls :meth:`on_frame` in order)."""
 
-    def __init__(self, link: Link, hub: Hub, peer: str, token: bytes | None, serial: Any) -> None:
+    def __init__(
+        self,
+        link: Link,
+        hub: Hub,
+        peer: str,
+        token: bytes | None,
+        serial: Any,
+        times: PullTimes | None = None,
+    ) -> None:
         self.link, self.hub, self.peer = link, hub, peer
         self._token = token
         self._serial = serial
+        self._times = times or PullTimes()
         self.state: ClientState | None = None
 
     # ---------------------------------------------------------------- replies
@@ -115,16 +166,25 @@ class Ros4matSession:
         compress = bool(payload) and self.state is not None and self.state.compress
         wire = zlib.compress(payload) if compress else payload
         kind = Compression.ZLIB if compress else Compression.NONE
-        return (
-            _HEADER.pack(
-                msg_type, 0, self._cid(), size, len(payload), len(wire), kind, self.hub.clock()
-            )
-            + wire
+        head = _HEADER.pack(
+            msg_type, 0, self._cid(), size, len(payload), len(wire), kind, self.hub.clock()
         )
+        return head + wire
+
+    def _data(self, msg_type: int, pulled: Pulled) -> bytes | bytearray:
+        """A data reply: built in place after room for its header unless compressed."""
+        n = len(pulled.t)
+        assert self.state is not None
+        if self.state.compress and n:
+            return self._packet(msg_type, bytes(pull_body(pulled)), n)
+        out = pull_body(pulled, HEADER_SIZE)
+        body = len(out) - HEADER_SIZE
+        _HEADER.pack_into(out, 0, msg_type, 0, self.state.id, n, body, body, 0, self.hub.clock())
+        return out
 
     # ---------------------------------------------------------------- session protocol
 
-    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+    def on_frame(self, frame: bytes, now: float) -> bytes | bytearray | None:
         try:
             return self._handle(frame)
         except (ProtocolError, DeviceError, InvalidArgument) as exc:
@@ -138,7 +198,7 @@ class Ros4matSession:
 
     # ---------------------------------------------------------------- dispatch
 
-    def _handle(self, frame: bytes) -> bytes | None:
+    def _handle(self, frame: bytes) -> bytes | bytearray | None:
         kind, error, cid, size, usize, csize, ctype, _ts = _HEADER.unpack_from(frame)
         body = frame[HEADER_SIZE:]
         if error or ctype != Compression.NONE or (size and usize != len(body)):
@@ -154,8 +214,10 @@ class Ros4matSession:
             name = SENSOR_IDS[kind]
             if body:
                 return self._error(kind, "a data pull has no body")
-            pulled = self.hub.pull(state, name)
-            return self._packet(kind, pull_body(pulled), len(pulled.t))
+            start = time.perf_counter()
+            reply = self._data(kind, self.hub.pull(state, name))
+            self._times.add(time.perf_counter() - start)
+            return reply
         if kind == MsgType.SUBSCRIBE:
             return self._subscribe(body)
         if kind == MsgType.UNSUBSCRIBE:

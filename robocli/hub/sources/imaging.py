@@ -70,19 +70,32 @@ def robot_pose(t: float) -> tuple[float, float, float]:
     return 2.0 + 1.5 * math.cos(phase), 1.5 * math.sin(phase), phase + math.pi / 2
 
 
+_BASES: dict[tuple[int, int], npt.NDArray[np.uint8]] = {}
+
+
 def scene(width: int, height: int, t: float, shift: int = 0) -> npt.NDArray[np.uint8]:
     """The synthetic scene at time ``t``: RGB (height, width, 3); ``shift`` moves the
-    viewpoint right by that many pixels (a stereo pair's disparity)."""
-    xs = np.arange(width, dtype=np.float32)[None, :] + shift
-    ys = np.arange(height, dtype=np.float32)[:, None]
-    img = np.empty((height, width, 3), dtype=np.uint8)
-    img[..., 0] = ((xs + 40.0 * t) % 256).astype(np.uint8)
-    img[..., 1] = (ys * 255.0 / max(1, height - 1)).astype(np.uint8)
-    img[..., 2] = 96
-    cx = (0.5 + 0.4 * math.sin(0.7 * t)) * width - shift * 2
+    viewpoint right by that many pixels (a stereo pair's disparity). A red ramp scrolling
+    right, a green vertical ramp, and a yellow disc moving on a Lissajous curve."""
+    base = _BASES.get((width, height))
+    if base is None:
+        base = np.empty((height, width, 3), dtype=np.uint8)
+        base[..., 1] = (np.arange(height) * 255.0 / max(1, height - 1)).astype(np.uint8)[:, None]
+        base[..., 2] = 96
+        if len(_BASES) > 16:
+            _BASES.clear()
+        _BASES[(width, height)] = base
+    img = base.copy()
+    img[..., 0] = ((np.arange(width) + shift + 40.0 * t) % 256).astype(np.uint8)[None, :]
+    r = min(width, height) / 8
+    cx = (0.5 + 0.4 * math.sin(0.7 * t)) * width - shift
     cy = (0.5 + 0.4 * math.cos(0.9 * t)) * height
-    disc = (xs - shift - cx) ** 2 + (ys - cy) ** 2 < (min(width, height) / 8) ** 2
-    img[disc] = (250, 250, 40)
+    x0, x1 = max(0, int(cx - r)), min(width, int(cx + r) + 1)
+    y0, y1 = max(0, int(cy - r)), min(height, int(cy + r) + 1)
+    if x0 < x1 and y0 < y1:
+        xs = np.arange(x0, x1)[None, :]
+        ys = np.arange(y0, y1)[:, None]
+        img[y0:y1, x0:x1][(xs - cx) ** 2 + (ys - cy) ** 2 < r * r] = (250, 250, 40)
     return img
 
 
