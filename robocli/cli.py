@@ -8,6 +8,7 @@ Errors become one line on stderr and an exit code (see :mod:`robocli.errors`).
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 import typer
 
@@ -17,7 +18,16 @@ from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands._common import PlainCommand
 
-app = typer.Typer(
+
+class _Typer(typer.Typer):
+    """Commands default to :class:`PlainCommand`: man-page help, no ``<bool>`` placeholders."""
+
+    def command(self, *args: Any, **kwargs: Any) -> Any:
+        kwargs["cls"] = kwargs.get("cls") or PlainCommand
+        return super().command(*args, **kwargs)
+
+
+app = _Typer(
     name="robocli",
     help="Drive robots and read their sensors from a laptop: Pioneer (ARCOS), built-in simulators.",
     no_args_is_help=True,
@@ -52,7 +62,7 @@ def _root(
 
 
 def _group(name: str, help_text: str) -> typer.Typer:
-    group = typer.Typer(name=name, help=help_text, no_args_is_help=True, rich_markup_mode=None)
+    group = _Typer(name=name, help=help_text, no_args_is_help=True, rich_markup_mode=None)
     app.add_typer(group)
     return group
 

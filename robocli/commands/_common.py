@@ -31,8 +31,9 @@ _VALUE_NAMES = {"int": "INTEGER", "float": "NUMBER", "int range": "INTEGER", "pa
 def _plain_type(match: re.Match[str]) -> str:
     """A placeholder as plain help shows it, in the same width (columns stay aligned):
     nothing after a flag or an argument's name, ``INTEGER``-style after an option."""
-    kind, before = match.group(1), match.string[match.start() - 1]
-    if kind == "bool" or before.isupper() or before == "]":
+    kind = match.group(1)
+    name = match.string[: match.start()].rsplit(None, 1)[-1]  # `--port`, or `PORT`
+    if kind == "bool" or not name.startswith("-"):
         return " " * len(match.group())
     return f" {_VALUE_NAMES[kind]}".ljust(len(match.group()))
 
@@ -43,7 +44,7 @@ class PlainCommand(TyperCommand):
 
     def collect_usage_pieces(self, ctx: Any) -> list[str]:
         pieces = super().collect_usage_pieces(ctx)
-        return [piece.replace("{", "").replace("}", "") for piece in pieces]
+        return [piece.replace("{", "").replace("}", "").upper() for piece in pieces]
 
     def format_help(self, ctx: Any, formatter: Any) -> None:
         super().format_help(ctx, formatter)
