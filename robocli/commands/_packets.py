@@ -10,10 +10,11 @@ import sys
 from typing import Any
 
 from robocli.commands._common import rounded
+from robocli.devices.pioneer.simulated import SIMULATOR_NAMES
 from robocli.errors import ProtocolError
 from robocli.io.capture import CaptureWriter
 from robocli.protocols import arcos
-from robocli.protocols.arcos import Command
+from robocli.protocols.arcos import Command, PacketType
 
 #: Longest text line of a packet unless ``-v`` (the rest is cut with an ellipsis).
 LINE_MAX = 160
@@ -21,6 +22,11 @@ LINE_MAX = 160
 _ARG_MARKS = (0x3B, 0x1B)
 _STRING_MARK = 0x2B
 _ARROWS = {"tx": "->", "rx": "<-"}
+#: What commands 35-38 mean to a simulator (MobileSim/AMRISim's SRISim laser compatibility,
+#: shared/protocols/arcos_sim_laser.md section 1); a real robot reads them as ADSEL, ...
+_SIM_COMMANDS = {
+    35: "OLD_LRF_ENABLE", 36: "OLD_LRF_CFG_START", 37: "OLD_LRF_CFG_END", 38: "OLD_LRF_CFG_INC",
+}  # fmt: skip
 
 
 def guess_direction(payload: bytes, in_session: bool) -> str:
@@ -54,6 +60,7 @@ class PacketView:
         self.writer = writer
         self.printed = 0
         self.in_session = False
+        self.simulator = False  #: the robot said it is a simulator (name, CONFIG serial)
         self._heap: list[tuple[float, int, str, bytes]] = []
         self._seq = itertools.count()
 
@@ -101,10 +108,15 @@ class PacketView:
                     name, kind, subtype = arcos.parse_sync_reply(payload[1:])
                 except ProtocolError as exc:
                     return "SYNC2-reply", {"raw": payload[1:].hex(), "error": str(exc)}
+                self.simulator = name in SIMULATOR_NAMES
                 return "SYNC2-reply", {"name": name, "type": kind, "subtype": subtype}
             return (f"SYNC{ptype}-reply" if direction == "rx" else f"SYNC{ptype}"), {}
         from_client = direction == "tx"
         name, fields = arcos.describe(payload, from_client=from_client, in_session=True)
+        if from_client and self.simulator and ptype in _SIM_COMMANDS:
+            name = f"{name}|sim:{_SIM_COMMANDS[ptype]}"  # as the traces' decoder names them
+        elif not from_client and ptype == PacketType.CONFIG and fields.get("serial") == "SIM":
+            self.simulator = True
         if handshake and len(payload) == 1:
             name = f"SYNC{ptype}"
         if (from_client and ptype == Command.OPEN and len(payload) > 1) or (

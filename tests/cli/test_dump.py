@@ -204,3 +204,16 @@ def test_ctrl_c_shows_the_close_sequence_last() -> None:
     assert proc.returncode == 130 and err.strip() == "robocli: interrupted", err
     tail = [name for _, _, name in packet_lines(out)][-4:]
     assert tail == ["VEL", "RVEL", "ENABLE", "CLOSE"], out[-400:]
+
+
+def test_laser_commands_named_for_a_simulator_as_the_trace_decoder_does() -> None:
+    proc = run("dump", "pioneer", "--file", str(DATA / "h_laser_wander.jsonl"))
+    assert proc.returncode == 0, proc.stderr
+    expected = {  # the names and arguments in h_laser_wander.txt
+        "GRIPPERVAL|sim:OLD_LRF_CFG_START": "-90", "GRIPREQUEST|sim:OLD_LRF_CFG_END": "90",
+        "GYROCALCW|sim:OLD_LRF_CFG_INC": "100", "ADSEL|sim:OLD_LRF_ENABLE": "2",
+    }  # fmt: skip
+    for name, arg in expected.items():
+        assert re.search(rf"-> {re.escape(name)} arg={arg}$", proc.stdout, re.M), name
+    plain = run("dump", "pioneer", "--file", str(DATA / "a_simpleConnect.jsonl"))
+    assert "sim:" not in plain.stdout  # AMRISim, but no laser commands were sent
