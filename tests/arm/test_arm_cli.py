@@ -29,7 +29,7 @@ def sim_process():
     """``robocli sim abb`` on ephemeral ports in a child process; yields (motion, state)."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "robocli", "sim", "abb", "--motion-port", "0", "--state-port",
-         "0", "--state-ms", "2", "--feedback"],
+         "0", "--state-ms", "2", "--feedback", "--time-scale", "3"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
     )  # fmt: skip
     try:
@@ -106,5 +106,5 @@ def test_bad_input_one_line_exit_2(case: str, tmp_path: Path, capsys) -> None:
 def test_port_with_another_protocol_exit_3(talking_server, capsys) -> None:
     server = talking_server(b"robocli-less chatter that is not Simple Message\n" * 4)
     code, _, err = run(capsys, "connect", "arm", "127.0.0.1", "--state-port", str(server.port),
-                       "--timeout", "1")  # fmt: skip
+                       "--timeout", "0.5")  # fmt: skip
     assert code == 3 and "not in Simple Message" in err

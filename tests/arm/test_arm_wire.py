@@ -155,7 +155,7 @@ def test_garbage_on_both_ports_while_another_client_monitors(make_sim, make_arm)
     monitor = make_arm(mp, sp, motion=False)
     monitor.wait_for_state()
     rng = np.random.default_rng(7)
-    for _ in range(3):
+    for _ in range(2):
         bad = RawSM(mp)
         bad.send(rng.integers(0, 256, 4096, dtype=np.uint8).tobytes())
         bad.close()
@@ -166,7 +166,7 @@ def test_garbage_on_both_ports_while_another_client_monitors(make_sim, make_arm)
         busy.close()
     before = len(monitor.history)
     worker = make_arm(mp, None, state=False)
-    worker.download(circle(IRB, 10, duration=1.0))
+    worker.download(circle(IRB, 10, duration=1.0), first_duration=1.0)
     monitor.wait_until_idle(10)
     assert len(monitor.history) > before and monitor.stats["state"]["decode_errors"] == 0
     assert sim.snapshot().trajectories == 1
@@ -182,7 +182,7 @@ def test_second_state_client_is_refused(make_sim, make_arm) -> None:
 def test_port_answering_another_protocol(talking_server) -> None:
     server = talking_server(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 3)
     with pytest.raises(TransportError, match="not in Simple Message"):
-        Arm.connect("127.0.0.1", state_port=server.port, motion=False, timeout=1.0)
+        Arm.connect("127.0.0.1", state_port=server.port, motion=False, timeout=0.5)
 
 
 def test_state_decoding_from_simulator(make_sim, make_arm) -> None:
