@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from robocli.core import Framer, align_linear, align_nearest
-from robocli.devices.hub_decode import HEADER, Reading, body_of, decode_reading
+from robocli.core import Framer
+from robocli.devices.hub_decode import HEADER, Reading, align_readings, body_of, decode_reading
 from robocli.devices.session import LinkStats, Session
 from robocli.errors import (
     ConnectionLost,
@@ -480,48 +480,6 @@ class Hub:
 
     def __repr__(self) -> str:
         return f"<Hub {self.url} client {self.client_id}>"
-
-
-def align_readings(
-    readings: Mapping[str, Reading],
-    *,
-    rate: float | None = None,
-    reference: str | None = None,
-    tolerance: float | None = None,
-) -> dict[str, Any]:
-    """Put readings on one time base (see :meth:`Hub.read_aligned`)."""
-    empty = [name for name, r in readings.items() if len(r) == 0]
-    if empty:
-        raise TimeoutError(f"read_aligned: no samples yet from {', '.join(empty)}")
-    if reference is not None:
-        ref = np.ascontiguousarray(readings[reference].t, dtype=np.float64)
-    else:
-        if rate is None or not rate > 0:
-            raise InvalidArgument(f"rate must be positive, not {rate!r}")
-        start = max(float(r.t[0]) for r in readings.values())
-        end = min(float(r.t[-1]) for r in readings.values())
-        ref = start + np.arange(max(0, int(math.floor((end - start) * rate)) + 1)) / rate
-    step = (1.0 / rate) if rate else float(np.median(np.diff(ref))) if len(ref) > 1 else 1.0
-    tol = step if tolerance is None else tolerance
-    out: dict[str, Any] = {"t": ref}
-    for name, r in readings.items():
-        data = r.data
-        if data.ndim == 2 and data.dtype.kind == "f":
-            idx, w = align_linear(r.t, ref)
-            ok = idx >= 0
-            j = np.where(ok, idx, 0)
-            j1 = np.minimum(j + 1, data.shape[1] - 1)
-            vals = (1 - w) * data[:, j] + w * data[:, j1]
-            out[name] = np.where(ok, vals, np.nan)
-        else:
-            idx = align_nearest(r.t, ref, tol)
-            picked = np.take(data, np.where(idx >= 0, idx, 0), axis=data.ndim - 1)
-            missing = idx < 0
-            if missing.any():
-                picked = picked.astype(np.float64) if data.dtype.kind == "f" else picked.copy()
-                picked[..., missing] = np.nan if data.dtype.kind == "f" else 0
-            out[name] = picked
-    return out
 
 
 def _ignore(frame: bytes, t: float) -> None:

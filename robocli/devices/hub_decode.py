@@ -1,4 +1,5 @@
-"""Zero-copy decoding of ros4mat data replies into :class:`Reading` objects.
+"""Zero-copy decoding of ros4mat data replies into :class:`Reading` objects, and their
+alignment on one time base.
 
 Part of :mod:`robocli.devices.hub` (import from there). A data reply's body is viewed in
 place with :func:`numpy.frombuffer` and structured dtypes: the matrices the original MATLAB
@@ -10,13 +11,16 @@ one frame at a time (Pillow, optional).
 
 from __future__ import annotations
 
+import math
 import struct
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
-from robocli.errors import DeviceError, ProtocolError
+from robocli.core import align_linear, align_nearest
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
 from robocli.protocols.ros4mat import (
     HEADER_SIZE,
     Compression,
@@ -285,4 +289,46 @@ def decode_reading(frame: bytes, sensor: str, offset: float | None = None) -> Re
     return Reading(sensor, data, t, hub_t, header[7], info, named, len(frame))
 
 
-__all__ = ["HEADER", "Reading", "body_of", "decode_jpeg", "decode_reading"]
+def align_readings(
+    readings: Mapping[str, Reading],
+    *,
+    rate: float | None = None,
+    reference: str | None = None,
+    tolerance: float | None = None,
+) -> dict[str, Any]:
+    """Put readings on one time base (see :meth:`Hub.read_aligned`)."""
+    empty = [name for name, r in readings.items() if len(r) == 0]
+    if empty:
+        raise TimeoutError(f"read_aligned: no samples yet from {', '.join(empty)}")
+    if reference is not None:
+        ref = np.ascontiguousarray(readings[reference].t, dtype=np.float64)
+    else:
+        if rate is None or not rate > 0:
+            raise InvalidArgument(f"rate must be positive, not {rate!r}")
+        start = max(float(r.t[0]) for r in readings.values())
+        end = min(float(r.t[-1]) for r in readings.values())
+        ref = start + np.arange(max(0, int(math.floor((end - start) * rate)) + 1)) / rate
+    step = (1.0 / rate) if rate else float(np.median(np.diff(ref))) if len(ref) > 1 else 1.0
+    tol = step if tolerance is None else tolerance
+    out: dict[str, Any] = {"t": ref}
+    for name, r in readings.items():
+        data = r.data
+        if data.ndim == 2 and data.dtype.kind == "f":
+            idx, w = align_linear(r.t, ref)
+            ok = idx >= 0
+            j = np.where(ok, idx, 0)
+            j1 = np.minimum(j + 1, data.shape[1] - 1)
+            vals = (1 - w) * data[:, j] + w * data[:, j1]
+            out[name] = np.where(ok, vals, np.nan)
+        else:
+            idx = align_nearest(r.t, ref, tol)
+            picked = np.take(data, np.where(idx >= 0, idx, 0), axis=data.ndim - 1)
+            missing = idx < 0
+            if missing.any():
+                picked = picked.astype(np.float64) if data.dtype.kind == "f" else picked.copy()
+                picked[..., missing] = np.nan if data.dtype.kind == "f" else 0
+            out[name] = picked
+    return out
+
+
+__all__ = ["HEADER", "Reading", "align_readings", "body_of", "decode_jpeg", "decode_reading"]
