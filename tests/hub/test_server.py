@@ -268,3 +268,26 @@ def test_original_client_subscribes_to_every_sensor(
     assert reply.msg_type == kind and reply.error == 0
     if reply.size:
         assert reply.compression_type == 1  # zlib asked at CONNECT
+
+
+def test_reply_with_partly_filled_blobs_decodes() -> None:
+    """JPEG frames fill only part of their slot: the reply carries each at its own size."""
+    from robocli.hub.registry import Pulled
+    from robocli.hub.server import pull_body
+    from robocli.hub.sources import StereoSource
+
+    src = StereoSource()
+    src.configure({"fps": 10, "width": 32, "height": 24})
+    t = np.array([1.0, 2.0])
+    rec = src.sample(t)
+    sizes = [[100, 7], [2304, 1]]
+    for i in range(2):
+        for j in range(2):
+            rec["info"][i, j]["size_data"] = sizes[i][j]
+    body = pull_body(Pulled(t, rec, src))
+    msg = r4m.decode(r4m.encode_packet(r4m.MsgType.WEBCAM_STEREO, bytes(body), size=2))
+    images = msg.body["images"]
+    assert [len(x) for x in images] == [100, 7, 2304, 1]
+    assert images[0] == rec["blob0"][0, :100].tobytes()
+    assert images[3] == rec["blob1"][1, :1].tobytes()
+    assert [i["t"] for i in msg.body["infos"]] == [1.0, 1.0, 2.0, 2.0]
