@@ -1,7 +1,7 @@
 """Industrial arms over ROS-Industrial Simple Message: :class:`Arm` (the client), its state."""
 
-from robocli.devices.arm.client import Arm, Recorder, SampleListener
-from robocli.devices.arm.state import ABB_MAX_POINTS, ArmStatus, JointSample, Point
+from robocli.devices.arm.client import Arm, SampleListener
+from robocli.devices.arm.state import ABB_MAX_POINTS, ArmStatus, JointSample, Point, Recorder
 
 __all__ = ["ABB_MAX_POINTS", "Arm", "ArmStatus", "JointSample", "Point", "Recorder",
            "SampleListener"]

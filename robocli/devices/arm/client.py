@@ -33,12 +33,13 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.core import Framer
+from robocli.devices.arm.link import open_session, point_frame, stop_frame
 from robocli.devices.arm.state import (
     ABB_MAX_POINTS,
     ArmStatus,
     JointSample,
     Point,
+    Recorder,
     prepare,
     split_points,
 )
@@ -57,7 +58,6 @@ from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import find_refusal
 from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
-from robocli.transports import SocketTransport
 
 __all__ = ["Arm", "SampleListener"]
 
@@ -92,7 +92,7 @@ class Arm:
         self._sample_listeners: Listeners[SampleListener] = Listeners(stats, "arm samples")
         self._activated_at: float | None = None  # monotonic time of the last activation
         self._expected_end = 0.0
-        self._stop_frame = _stop_frame(robot, byteorder, real)
+        self._stop_frame = stop_frame(robot, byteorder, real)
         for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
             if session is not None:
                 session.on_frame = handler
@@ -126,10 +126,10 @@ class Arm:
             links: list[Session | None] = []
             real: sm.RealSize = real_size  # type: ignore[assignment]
             wire: sm.ByteOrder = order  # type: ignore[assignment]
-            stop = [_stop_frame(model, wire, real)]
+            stop = [stop_frame(model, wire, real)]
             ports = ((motion, motion_port, "motion"), (state, state_port, "state"))
             for wanted, port, name in ports:
-                link = _open(host, port, name, wire, real, timeout,
+                link = open_session(host, port, name, wire, real, timeout,
                              stop if name == "motion" else []) if wanted else None  # fmt: skip
                 links.append(link)
                 sessions += [link] if link is not None else []
@@ -308,7 +308,7 @@ class Arm:
     # ------------------------------------------------------------------ motion
 
     def _point_frame(self, seq: int, p: Point) -> bytes:
-        return _point_frame(seq, p, self.byteorder, self.real)
+        return point_frame(seq, p, self.byteorder, self.real)
 
     def _on_motion_frame(self, frame: bytes, t: float) -> None:
         sm.decode(frame, byteorder=self.byteorder, real=self.real)  # unsolicited: checked only
@@ -443,78 +443,3 @@ class Arm:
             raise InvalidArgument(f"this Arm was connected without its {name} port")
         session.check()
         return session
-
-
-class Recorder:
-    """Joint samples collected from :meth:`Arm.record` until :meth:`stop` (bounded).
-
-    :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock
-    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times.
-    """
-
-    def __init__(self, arm: Arm, max_samples: int) -> None:
-        self._arm = arm
-        self.samples: deque[JointSample] = deque(maxlen=max_samples)
-        arm.add_sample_listener(self.samples.append)
-
-    def stop(self) -> None:
-        self._arm.remove_sample_listener(self.samples.append)
-
-    def log(self) -> TrajectoryLog:
-        from robocli.kinematics.fk import fk_positions
-
-        samples = list(self.samples)
-        timed = [s for s in samples if s.robot_time is not None]
-        if timed:  # on the controller's clock
-            pairs = [(float(s.robot_time), s) for s in timed]  # type: ignore[arg-type]
-        else:  # on this computer's receive times (one read may bring several: keep the last)
-            pairs = [(s.t, s) for s in samples if s.source == "joint_position"]
-        kept: list[tuple[float, JointSample]] = []
-        for t, s in pairs:  # strictly increasing times
-            if not kept or t > kept[-1][0]:
-                kept.append((t, s))
-            elif t == kept[-1][0]:
-                kept[-1] = (t, s)
-        times = [t for t, _ in kept]
-        samples = [s for _, s in kept]
-        if len(samples) < 2:
-            raise TimeoutError("fewer than two joint samples were recorded")
-        q = [s.joints for s in samples]
-        return TrajectoryLog.from_positions(times, q, fk_positions(self._arm.robot, q))
-
-
-def _open(host: str, port: int, name: str, order: sm.ByteOrder, real: sm.RealSize,
-          timeout: float, stop: list[bytes]) -> Session:
-    """One port's session (not started); its emergency stop is ``stop``."""
-    transport = SocketTransport.connect(host, port, timeout)
-    framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
-    return Session(transport, framer, on_frame=lambda f, t: None, name_of=_namer(order, real),
-                   emergency_stop=lambda: stop, name=f"arm-{name}")  # fmt: skip
-
-
-def _point_frame(seq: int, p: Point, order: sm.ByteOrder, real: sm.RealSize) -> bytes:
-    body = {"sequence": int(seq), "joints": list(p.joints), "velocity": p.velocity,
-            "duration": p.duration}  # fmt: skip
-    return sm.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
-                     byteorder=order, real=real)  # fmt: skip
-
-
-def _stop_frame(robot: RobotModel, order: sm.ByteOrder, real: sm.RealSize) -> bytes:
-    """STOP (-4) with an all-zero point, as industrial_robot_client sends it."""
-    return _point_frame(SpecialSeq.STOP_TRAJECTORY, Point((0.0,) * robot.n_joints, 0.0, 0.0),
-                        order, real)  # fmt: skip
-
-
-def _namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]:
-    import struct
-
-    def name_of(payload: bytes, direction: str) -> str:
-        if len(payload) < 8:
-            return "short"
-        (msg_type,) = struct.unpack_from(order + "i", payload, 4)
-        try:
-            return MsgType(msg_type).name
-        except ValueError:
-            return f"TYPE_{msg_type}"
-
-    return name_of

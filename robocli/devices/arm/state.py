@@ -8,18 +8,22 @@ anything is sent.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from robocli.errors import InvalidArgument
+from robocli.errors import InvalidArgument, TimeoutError
 from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import check_limits
 
-__all__ = ["ABB_MAX_POINTS", "ArmStatus", "JointSample", "Point", "prepare", "split_points"]
+__all__ = [
+    "ABB_MAX_POINTS", "ArmStatus", "JointSample", "Point", "Recorder", "prepare",
+    "split_points",
+]  # fmt: skip
 
 ABB_MAX_POINTS = 100  #: the ABB RAPID server's buffer; it drops the rest silently
 DEFAULT_FIRST_DURATION = 10.0  #: industrial_robot_client's first-point duration (s)
@@ -146,3 +150,41 @@ def split_points(points: list[Point], size: int = ABB_MAX_POINTS) -> list[list[P
         out.append(chunk)
         i += size - 1
     return out
+
+
+class Recorder:
+    """Joint samples collected from ``Arm.record()`` until :meth:`stop` (bounded).
+
+    :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock
+    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times.
+    """
+
+    def __init__(self, arm: Any, max_samples: int) -> None:
+        self._arm = arm
+        self.samples: deque[JointSample] = deque(maxlen=max_samples)
+        arm.add_sample_listener(self.samples.append)
+
+    def stop(self) -> None:
+        self._arm.remove_sample_listener(self.samples.append)
+
+    def log(self) -> TrajectoryLog:
+        from robocli.kinematics.fk import fk_positions
+
+        samples = list(self.samples)
+        timed = [s for s in samples if s.robot_time is not None]
+        if timed:  # on the controller's clock
+            pairs = [(float(s.robot_time), s) for s in timed]  # type: ignore[arg-type]
+        else:  # on this computer's receive times (one read may bring several: keep the last)
+            pairs = [(s.t, s) for s in samples if s.source == "joint_position"]
+        kept: list[tuple[float, JointSample]] = []
+        for t, s in pairs:  # strictly increasing times
+            if not kept or t > kept[-1][0]:
+                kept.append((t, s))
+            elif t == kept[-1][0]:
+                kept[-1] = (t, s)
+        times = [t for t, _ in kept]
+        samples = [s for _, s in kept]
+        if len(samples) < 2:
+            raise TimeoutError("fewer than two joint samples were recorded")
+        q = [s.joints for s in samples]
+        return TrajectoryLog.from_positions(times, q, fk_positions(self._arm.robot, q))
