@@ -108,6 +108,14 @@ class _ImageSource(PeriodicSource):
 
     MAX_RATE = 60.0
     DEFAULT_SIZE = (320, 240)
+    KEYS = ("fps", "width", "height", "compression")  #: the params' names of these four
+
+    def configure(self, params: Mapping[str, Any]) -> None:
+        fps, width, height, quality = self.KEYS
+        self.rate = rate_param(params, fps, 15.0, self.MAX_RATE)
+        self.batch_rate = self.rate
+        w, h = self._size(params.get(width), params.get(height))
+        self.params = {"width": w, "height": h, "quality": self._quality(params.get(quality))}
 
     def _size(self, width: Any, height: Any) -> tuple[int, int]:
         w = int(width or self.DEFAULT_SIZE[0])
@@ -148,12 +156,6 @@ class CameraSource(_ImageSource):
     name = "camera"
     blobs = ("blob0",)
 
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "fps", 15.0, self.MAX_RATE)
-        self.batch_rate = self.rate
-        w, h = self._size(params.get("width"), params.get("height"))
-        self.params = {"width": w, "height": h, "quality": self._quality(params.get("compression"))}
-
     def dtype(self) -> np.dtype[Any]:
         n = self.params["width"] * self.params["height"] * 3
         return np.dtype([("info", _cam_dtype()), ("blob0", np.uint8, (n,))])
@@ -180,12 +182,6 @@ class StereoSource(_ImageSource):
     blobs = ("blob0", "blob1")
     DISPARITY = 8
 
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "fps", 15.0, self.MAX_RATE)
-        self.batch_rate = self.rate
-        w, h = self._size(params.get("width"), params.get("height"))
-        self.params = {"width": w, "height": h, "quality": self._quality(params.get("compression"))}
-
     def dtype(self) -> np.dtype[Any]:
         n = self.params["width"] * self.params["height"] * 3
         return np.dtype(
@@ -211,6 +207,7 @@ class DepthSource(_ImageSource):
     is planar (mm along the optical axis); walls fill the upper rows, the floor the lower."""
 
     name = "depth"
+    KEYS = ("fps_rgb", "width_rgb", "height_rgb", "compression_rgb")
     blobs = ("blob0", "blob1")
     MAX_RATE = 30.0
     HFOV = math.radians(57.0)
@@ -220,13 +217,6 @@ class DepthSource(_ImageSource):
     def __init__(self) -> None:
         self._world = World.default()
         super().__init__()
-
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "fps_rgb", 15.0, self.MAX_RATE)
-        self.batch_rate = self.rate
-        w, h = self._size(params.get("width_rgb"), params.get("height_rgb"))
-        self.params = {"width": w, "height": h,
-                       "quality": self._quality(params.get("compression_rgb"))}  # fmt: skip
 
     def dtype(self) -> np.dtype[Any]:
         n = self.params["width"] * self.params["height"]

@@ -29,7 +29,29 @@ def batch_rate(params: Mapping[str, Any], rate: float, key: str = "freq_send") -
     return max(1.0, min(wanted, rate, MAX_BATCH_HZ))
 
 
-class AdcSource(PeriodicSource):
+class _RecordSource(PeriodicSource):
+    """A simulated sensor with a fixed ros4mat record and ``freq_acquisition``/``freq_send``
+    parameters; subclasses set :attr:`RECORD`, the rates and a seed for their noise."""
+
+    RECORD = ""
+    DEFAULT_RATE = 100.0
+    MAX_RATE = 1000.0
+    SEED = 0
+
+    def __init__(self, seed: int | None = None) -> None:
+        self._rng = np.random.default_rng(self.SEED if seed is None else seed)
+        super().__init__()
+
+    def configure(self, params: Mapping[str, Any]) -> None:
+        self.rate = rate_param(params, "freq_acquisition", self.DEFAULT_RATE, self.MAX_RATE)
+        self.batch_rate = batch_rate(params, self.rate)
+        self.params = {}
+
+    def dtype(self) -> np.dtype[Any]:
+        return record_dtype(self.RECORD)
+
+
+class AdcSource(_RecordSource):
     """An 8-channel ADC (DATAQ DI-149-like, volts) set up as the ros4mat paper's polar-map
     experiment: a platform turning at :attr:`OMEGA_DEG` deg/s in a corner of the Pioneer
     simulator's default room carries an infrared range sensor (channel 0, Sharp-like
@@ -39,26 +61,23 @@ class AdcSource(PeriodicSource):
     """
 
     name = "adc"
+    RECORD = "adc"
     MAX_RATE = 10000.0
+    SEED = 1
     OMEGA_DEG = 30.0
     POSITION = (-3.0, 3.8)
     IR_A, IR_B = 0.632, 0.0798
     GYRO_ZERO, GYRO_GAIN = 2.5, 0.0125
 
-    def __init__(self, seed: int = 1) -> None:
-        self._rng = np.random.default_rng(seed)
+    def __init__(self, seed: int | None = None) -> None:
         self._world = World.default()
         self.digital = [0, 0, 0, 0]
-        super().__init__()
+        super().__init__(seed)
 
     def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "freq_acquisition", 100.0, self.MAX_RATE)
-        self.batch_rate = batch_rate(params, self.rate)
+        super().configure(params)
         mask = int(params.get("channels", 0xFF)) & 0xFF
         self.params = {"channels": mask or 0xFF}
-
-    def dtype(self) -> np.dtype[Any]:
-        return record_dtype("adc")
 
     def heading(self, t: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The platform's true heading (rad) at times ``t``."""
@@ -90,27 +109,16 @@ class AdcSource(PeriodicSource):
         return {**super().settings(), "digital_out": list(self.digital)}
 
 
-class ImuSource(PeriodicSource):
+class ImuSource(_RecordSource):
     """A 9-axis IMU (Phidgets-like): accelerometer (g), gyro (deg/s), magnetometer (uT), each
     with a constant bias and white noise, on a platform that sways and turns slowly."""
 
     name = "imu"
-    MAX_RATE = 1000.0
+    RECORD = "imu"
+    SEED = 2
     ACC_BIAS = np.array([0.01, -0.02, 0.005])
     GYRO_BIAS = np.array([0.3, -0.2, 0.5])
     MAG_FIELD = np.array([18.0, 0.0, -48.0])  # uT, Quebec City: north and down
-
-    def __init__(self, seed: int = 2) -> None:
-        self._rng = np.random.default_rng(seed)
-        super().__init__()
-
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "freq_acquisition", 100.0, self.MAX_RATE)
-        self.batch_rate = batch_rate(params, self.rate)
-        self.params = {}
-
-    def dtype(self) -> np.dtype[Any]:
-        return record_dtype("imu")
 
     def sample(self, t: npt.NDArray[np.float64]) -> npt.NDArray[Any]:
         n, rng = len(t), self._rng
@@ -131,25 +139,15 @@ class ImuSource(PeriodicSource):
         return rec
 
 
-class GpsSource(PeriodicSource):
+class GpsSource(_RecordSource):
     """A 3-D GPS fix walking a 50 m circle at 1.4 m/s around Universite Laval."""
 
     name = "gps"
-    MAX_RATE = 20.0
+    RECORD = "gps"
+    DEFAULT_RATE, MAX_RATE = 1.0, 20.0
+    SEED = 3
     ORIGIN = (46.7817, -71.2747, 90.0)
     RADIUS, SPEED = 50.0, 1.4
-
-    def __init__(self, seed: int = 3) -> None:
-        self._rng = np.random.default_rng(seed)
-        super().__init__()
-
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "freq_acquisition", 1.0, self.MAX_RATE)
-        self.batch_rate = batch_rate(params, self.rate)
-        self.params = {}
-
-    def dtype(self) -> np.dtype[Any]:
-        return record_dtype("gps")
 
     def sample(self, t: npt.NDArray[np.float64]) -> npt.NDArray[Any]:
         n = len(t)
@@ -169,25 +167,15 @@ class GpsSource(PeriodicSource):
         return rec
 
 
-class BatterySource(PeriodicSource):
+class BatterySource(_RecordSource):
     """A 3-cell LiPo pack discharging at 2 A (state of charge falling 1 %/min, recharged at
     20 %), robocli's BATTERY record (0x22)."""
 
     name = "battery"
-    MAX_RATE = 100.0
+    RECORD = "battery"
+    DEFAULT_RATE, MAX_RATE = 1.0, 100.0
+    SEED = 4
     CELLS = 3
-
-    def __init__(self, seed: int = 4) -> None:
-        self._rng = np.random.default_rng(seed)
-        super().__init__()
-
-    def configure(self, params: Mapping[str, Any]) -> None:
-        self.rate = rate_param(params, "freq_acquisition", 1.0, self.MAX_RATE)
-        self.batch_rate = batch_rate(params, self.rate)
-        self.params = {}
-
-    def dtype(self) -> np.dtype[Any]:
-        return record_dtype("battery")
 
     def sample(self, t: npt.NDArray[np.float64]) -> npt.NDArray[Any]:
         n, k = len(t), self.CELLS
