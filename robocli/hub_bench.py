@@ -264,7 +264,7 @@ def throughput(
     used = [s for s in sensors if served is None or BENCH_SENSORS[s][0] in served]
     skipped = [s for s in sensors if s not in used]
     workers = max(1, min(workers, clients))
-    start = time.time() + 2.0 + 0.05 * clients
+    start = time.time() + 1.5 + 0.05 * clients
     end = start + seconds
     procs = []
     before = _children_cpu()

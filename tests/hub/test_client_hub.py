@@ -206,7 +206,7 @@ def test_a_full_hub_says_so() -> None:
 
 
 def test_raw_camera_buffers_fit_one_reply(server: HubServer) -> None:
-    with Hub.connect("127.0.0.1", server.port, timeout=2.0) as h:
+    with Hub.connect("127.0.0.1", server.port, timeout=1.0) as h:
         h.subscribe("camera", rate=30, resolution="640x480")  # 1 s would be 27 MB: 18 frames
         with pytest.raises(InvalidArgument, match="at most 18"):
             h.subscribe("camera", rate=30, resolution="640x480", buffer=30)
