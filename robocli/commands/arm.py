@@ -50,7 +50,7 @@ def arm_host(
         return
     from robocli.sim.abb import AbbSim
 
-    with AbbSim(robot, state_ms=EMBEDDED_STATE_MS, feedback=True, real=real_size,  # type: ignore[arg-type]
+    with AbbSim(robot, state_ms=EMBEDDED_STATE_MS, feedback=True, real=8 if real_size == 8 else 4,
                 byteorder=">" if byte_order == "big" else "<") as simulator:  # fmt: skip
         motion, state = simulator.serve_tcp("127.0.0.1", 0, 0)
         yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
@@ -126,10 +126,10 @@ def simulate(
             profile=profile,
             state_ms=state_ms,
             byteorder=">" if byte_order == "big" else "<",
-            real=real_size,
+            real=8 if real_size == 8 else 4,
             time_scale=time_scale,
             model=model,
-            feedback=feedback,  # type: ignore[arg-type]
+            feedback=feedback,
         ) as simulator,
     ):
         try:

@@ -405,7 +405,8 @@ class Arm:
         if duration is None:
             gap = np.abs(goal - np.asarray(here)) / (0.25 * self.robot.max_speed)
             duration = max(0.5, float(np.max(gap)))
-        return self.download(([0.0, duration], [here, goal]), first_duration=0.1,
+        path = (np.array([0.0, duration]), np.array([here, goal]))
+        return self.download(path, first_duration=0.1,
                              timeout=timeout)  # fmt: skip
 
     def stream(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
