@@ -79,3 +79,20 @@ def test_state_only_arm_refuses_motion(make_sim, make_arm) -> None:
     with pytest.raises(InvalidArgument, match="motion port"):
         arm.stop()
     assert sim.snapshot().points_received == 0
+
+
+def test_controller_gone_fails_closed(make_sim, make_arm) -> None:
+    """The controller disappears mid-motion: the next call raises ConnectionLost, close()
+    still finishes within its bound."""
+    from robocli.errors import ConnectionLost
+
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.download(circle(IRB, 20, duration=8.0), first_duration=1.0)
+    sim.close()
+    with pytest.raises(ConnectionLost):
+        for _ in range(100):
+            arm.wait_for_state(1.0)
+    start = time.monotonic()
+    arm.close()
+    assert time.monotonic() - start < 3.0
