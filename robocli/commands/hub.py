@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import print_json, sigterm_as_interrupt
+from robocli.commands._common import print_json, reader_may_leave, sigterm_as_interrupt
 
 if TYPE_CHECKING:
     import numpy as np
@@ -98,7 +98,7 @@ def subscribe(
     params: dict[str, Any] = {"channels": mask} if kind == 0x20 else {}
     pulls = poll or min(float(adc_freq_send_default(rate)), float(rate))
     out: _Output | None = None
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt(), reader_may_leave():
         try:
             with open_hub(_address(hub), compress=compress) as client:
                 client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
@@ -186,7 +186,7 @@ def connect(
     the client id it gave us (clients seen). Repeats every window until Ctrl-C."""
     from robocli.devices.hub_tools import survey
 
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt(), reader_may_leave():
         try:
             with open_hub(host) as client:
                 while True:
@@ -238,6 +238,7 @@ def dump(
     check_upstream(*upstream)
     bind, port = parse_hub(listen, 1501)
     done = threading.Event()
+    broken = threading.Event()
     printed = 0
     writer = CaptureWriter(output) if output is not None else None
 
@@ -260,14 +261,15 @@ def dump(
                 line += "\n" + " " * 14 + msg.frame[:256].hex(" ")
         try:
             typer.echo(line)
-        except BrokenPipeError:  # `dump hub ... | head`: stop quietly, the main thread exits
+        except BrokenPipeError:  # `dump hub ... | head`: the main thread stops quietly
+            broken.set()
             done.set()
             return
         printed += 1
         if count and printed >= count:
             done.set()
 
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt(), reader_may_leave():
         try:
             with DumpProxy(upstream, show, bind=bind, port=port).start() as proxy:
                 typer.echo(
@@ -277,6 +279,8 @@ def dump(
                 )
                 while not done.wait(0.25):
                     pass
+            if broken.is_set():
+                raise BrokenPipeError
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:

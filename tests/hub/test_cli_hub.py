@@ -195,3 +195,11 @@ def test_live_table_on_a_terminal(server: HubServer) -> None:
     text = out.decode(errors="replace")
     assert re.search(r"20 samples, [\d.]+/s", text)
     assert re.search(r"\d\d:\d\d\.\d{3}( +-?\d+\.\d{3}){8}", text)  # time, then 8 channels
+
+
+def test_a_reader_that_leaves_ends_subscribe_quietly(server: HubServer) -> None:
+    line = (f"{sys.executable} -m robocli subscribe adc --rate 100 --hub 127.0.0.1:{server.port}"
+            " | head -3; exit ${PIPESTATUS[0]}")  # fmt: skip
+    proc = subprocess.run(["bash", "-c", line], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0 and proc.stderr == ""
+    assert len(proc.stdout.splitlines()) == 3
