@@ -41,7 +41,12 @@ def serve(
     bind: str = typer.Option(
         "127.0.0.1", "--bind", help="Address to listen on (0.0.0.0 exposes the hub: warned)."
     ),
-    pioneer: str | None = typer.Option(None, "--pioneer", metavar="URL", help="Pioneer robot."),
+    pioneer: str | None = typer.Option(
+        None,
+        "--pioneer",
+        metavar="URL",
+        help="A Pioneer (or 'robocli sim pioneer') for the battery and ADC.",
+    ),
     gpsd: str | None = typer.Option(
         None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
     ),
@@ -60,12 +65,8 @@ def serve(
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
     from robocli.hub import HubServer
 
-    if pioneer is not None:
-        raise typer.BadParameter(
-            "Pioneer sources are not available in this version of the hub", param_hint="'--pioneer'"
-        )
     srv = HubServer(
-        bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd,
+        bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
         token=_token(token_file), max_clients=max_clients,
     )  # fmt: skip
     with sigterm_as_interrupt():

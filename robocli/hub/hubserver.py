@@ -29,8 +29,9 @@ class HubServer:
     ``bind``/``port``: where to listen (port 0: ephemeral; ros4mat's is 1500). ``sim``: serve
     the simulated sensors. ``serial_ports``: local serial ports a client may use through
     SERIAL_CMD (no other). ``gpsd``: ``"HOST:PORT"`` of a gpsd daemon for the GPS.
-    ``pioneer``: URL of a Pioneer robot (reserved). ``token``: shared secret required for
-    the commands that change settings or write to a serial port (None: open, as ros4mat).
+    ``pioneer``: URL of a Pioneer robot (or simulator) for the battery and ADC.
+    ``token``: shared secret required for the commands that change settings or write to a
+    serial port (None: open, as ros4mat).
     ``max_clients``: connections at once; ``max_body``: largest request body (bytes).
     ``ring_budget``: bytes one sensor's ring may hold (also bounds one reply).
     ``send_timeout``: seconds a client may leave a reply unread before it is dropped.
@@ -65,7 +66,7 @@ class HubServer:
         if token is not None and not token:
             raise InvalidArgument("token must not be empty")
         self._token = token
-        all_sources = hub_sources(sim, gpsd)
+        all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget)
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None

@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.errors import DeviceError, InvalidArgument
+from robocli.errors import DeviceError, InvalidArgument, RobocliError
 from robocli.hub.rings import Cursor, SensorRing, ring_capacity
 from robocli.hub.sources.base import Source
 from robocli.sim.serving import Ticker
@@ -90,6 +90,7 @@ class Channel:
         self.ring: SensorRing | None = None
         self._ticker: Ticker | None = None
         self.lock = threading.Lock()
+        self.poll_errors = 0  #: polls a real source failed (robot or daemon away)
 
     @property
     def active(self) -> bool:
@@ -124,7 +125,13 @@ class Channel:
         ticker.start()
 
     def _tick(self, _now: float) -> None:
-        t, records = self.source.poll(self._clock())
+        try:
+            t, records = self.source.poll(self._clock())
+        except RobocliError as exc:  # a real source failing (robot gone): keep trying, quietly
+            self.poll_errors += 1
+            if self.poll_errors % 100 == 1:
+                log.warning("%s: %s (%d poll errors)", self.name, exc, self.poll_errors)
+            return
         ring = self.ring
         if len(t) and ring is not None and records.dtype == ring.dtype:
             ring.push(t, records)
@@ -142,7 +149,8 @@ class Channel:
 
     @property
     def errors(self) -> int:
-        return self._ticker.errors if self._ticker is not None else 0
+        """Failed polls: source errors plus unexpected exceptions (logged by the ticker)."""
+        return self.poll_errors + (self._ticker.errors if self._ticker is not None else 0)
 
 
 class Hub:
@@ -248,7 +256,14 @@ class Hub:
             else:
                 ring.set_limit(cursor, buffer)
             if restart:  # after the cursor exists: it sees the very first samples
-                ch.restart()
+                try:
+                    ch.restart()
+                except RobocliError as exc:  # the source could not start (a robot away)
+                    ring.detach(cursor)
+                    del state.cursors[name]
+                    if ring.cursors == 0:
+                        ch.stop()
+                    raise DeviceError(f"{name}: {exc}") from exc
             how = "silent" if params is None else ch.source.settings()
             log.info(
                 "client %d subscribed to %s (%s, buffer %d)", state.id, name, how, cursor.limit

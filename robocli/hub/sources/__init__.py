@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from robocli.hub.sources.base import Batch, PeriodicSource, Source
 from robocli.hub.sources.imaging import CameraSource, DepthSource, LaserSource, StereoSource
+from robocli.hub.sources.pioneer import PioneerAdcSource, PioneerBatterySource, PioneerLink
 from robocli.hub.sources.real import GpsdSource, SerialPorts, SysinfoSource, parse_host_port
 from robocli.hub.sources.sim import AdcSource, BatterySource, GpsSource, ImuSource
 
@@ -18,6 +19,9 @@ __all__ = [
     "ImuSource",
     "LaserSource",
     "PeriodicSource",
+    "PioneerAdcSource",
+    "PioneerBatterySource",
+    "PioneerLink",
     "SerialPorts",
     "Source",
     "StereoSource",
@@ -27,13 +31,19 @@ __all__ = [
 ]
 
 
-def hub_sources(sim: bool = True, gpsd: str | None = None) -> dict[str, Source]:
+def hub_sources(
+    sim: bool = True, gpsd: str | None = None, pioneer: str | None = None
+) -> dict[str, Source]:
     """The sources of a hub by sensor name: every simulated sensor when ``sim``; this
-    machine's system info always; the GPS from gpsd (``"HOST[:PORT]"``) when given."""
+    machine's system info always; the GPS from gpsd (``"HOST[:PORT]"``) and the battery and
+    ADC from a Pioneer at URL ``pioneer`` when given (they replace the simulated ones)."""
     sources: list[Source] = [SysinfoSource()]
     if sim:
         sources += [AdcSource(), ImuSource(), GpsSource(), BatterySource(), CameraSource(),
                     StereoSource(), DepthSource(), LaserSource()]  # fmt: skip
     if gpsd:
         sources.append(GpsdSource(*parse_host_port(gpsd, 2947)))
+    if pioneer:
+        link = PioneerLink(pioneer)
+        sources += [PioneerBatterySource(link), PioneerAdcSource(link)]
     return {s.name: s for s in sources}
