@@ -99,7 +99,7 @@ def test_stop_in_mid_motion(make_sim, make_arm) -> None:
     sim, mp, sp = make_sim()
     arm = make_arm(mp, sp)
     arm.wait_for_state()
-    move = far_move()
+    move = far_move(duration=8.0)
     arm.download(move)
     sim.wait_until(lambda s: s.in_motion and s.sim_time > 1.0, 10)
     arm.stop()
