@@ -335,11 +335,17 @@ class Session:
         """Write one framed packet within ``timeout`` (default: the transport's deadline).
         A lost link or a missed deadline fails the session and raises."""
         self.check()
-        self._send(packet, timeout)
+        self._send((packet,), timeout)
 
-    def _send(self, packet: bytes, timeout: float | None) -> None:
+    def send_many(self, packets: Sequence[bytes], timeout: float | None = None) -> None:
+        """Write several framed packets in **one** write (as some vendor SDKs do, so that a
+        robot sees them together); statistics and listeners still see each packet."""
+        self.check()
+        self._send(packets, timeout)
+
+    def _send(self, packets: Sequence[bytes], timeout: float | None) -> None:
         try:
-            self.transport.write(packet, timeout)
+            self.transport.write(packets[0] if len(packets) == 1 else b"".join(packets), timeout)
         except ConnectionLost as exc:
             self.fail(exc)
             raise
@@ -349,10 +355,11 @@ class Session:
             raise
         now = time.monotonic()
         self.last_tx = now
-        payload = self._payload_of(packet)
-        self.stats.count_sent(self._name_of(payload, "tx"))
-        if len(self.listeners):
-            self.listeners.notify("tx", payload, now)
+        for packet in packets:
+            payload = self._payload_of(packet)
+            self.stats.count_sent(self._name_of(payload, "tx"))
+            if len(self.listeners):
+                self.listeners.notify("tx", payload, now)
 
     # ------------------------------------------------------------------ reading
 
@@ -376,7 +383,7 @@ class Session:
             raise TimeoutError(f"{self.transport.url}: the link stayed busy for {timeout:g} s")
         try:
             if packet is not None:
-                self._send(packet, min(timeout, self.transport.write_timeout))
+                self._send((packet,), min(timeout, self.transport.write_timeout))
             while True:
                 self.check()
                 left = deadline - time.monotonic()

@@ -162,6 +162,24 @@ def test_laser_scan_sees_the_wall_at_its_distance(wall_sim: PioneerSim) -> None:
         assert all(x == pytest.approx(WALL_X, abs=0.006) for x, _ in scan.points())
 
 
+def test_laser_commands_each_reach_the_listeners(wall_sim: PioneerSim) -> None:
+    """start_laser writes its four commands in one write, as the vendor SDK does; listeners
+    (and so `dump` and its recordings) still see every one, in order."""
+    assert wall_sim.url is not None
+    sent: list[tuple[int, int]] = []
+
+    def listener(direction: str, payload: bytes, t: float) -> None:
+        if direction == "tx" and payload[0] in (35, 36, 37, 38):
+            cmd = arcos.decode_command(payload)
+            sent.append((cmd.command, cmd.arg))
+
+    with Pioneer.connect(wall_sim.url, listeners=[listener]) as robot:
+        robot.start_laser(math.radians(-45), math.radians(45), math.radians(0.5))
+        assert len(robot.wait_for_laser(timeout=5.0)) == 181  # the simulator got all four
+        assert sent == [(36, -45), (37, 45), (38, 50), (35, 2)]
+        assert robot.stats.as_dict()["sent"].get("ADSEL", 0) >= 1
+
+
 def test_scan_pose_follows_the_robot_and_teleports_are_flagged(wall_sim: PioneerSim) -> None:
     assert wall_sim.url is not None
     with Pioneer.connect(wall_sim.url, laser=True) as robot:

@@ -135,7 +135,7 @@ class SimulatorFeatures:
             arcos.encode_command(cmd_res, res_cdeg),
             arcos.encode_command(enable, 2 if extended else 1),
         ]  # fmt: skip
-        self._session.send(b"".join(packets))  # one write, as the vendor SDK
+        self._session.send_many(packets)  # one write, as the vendor SDK
 
     def stop_laser(self, *, new_commands: bool = False) -> None:
         """Switch the simulated laser off (one more scan may still come)."""
