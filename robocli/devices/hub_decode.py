@@ -23,10 +23,12 @@ from robocli.core import align_linear, align_nearest
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
 from robocli.protocols.ros4mat import (
     HEADER_SIZE,
+    RECORDS,
     Compression,
     MsgType,
     inflate,
     record_dtype,
+    sensor_type,
 )
 
 #: ``msgHeader`` for the hot path (27 B, little-endian, packed).
@@ -313,7 +315,7 @@ def align_readings(
     out: dict[str, Any] = {"t": ref}
     for name, r in readings.items():
         data = r.data
-        if data.ndim == 2 and data.dtype.kind == "f":
+        if sensor_type(r.sensor) in RECORDS:  # fixed records: interpolate each field
             idx, w = align_linear(r.t, ref)
             ok = idx >= 0
             j = np.where(ok, idx, 0)
@@ -322,10 +324,9 @@ def align_readings(
             out[name] = np.where(ok, vals, np.nan)
         else:
             idx = align_nearest(r.t, ref, tol)
-            picked = np.take(data, np.where(idx >= 0, idx, 0), axis=data.ndim - 1)
+            picked = np.take(data, np.where(idx >= 0, idx, 0), axis=data.ndim - 1)  # a copy
             missing = idx < 0
             if missing.any():
-                picked = picked.astype(np.float64) if data.dtype.kind == "f" else picked.copy()
                 picked[..., missing] = np.nan if data.dtype.kind == "f" else 0
             out[name] = picked
     return out

@@ -225,3 +225,17 @@ def test_raw_camera_buffers_fit_one_reply(server: HubServer) -> None:
             h.read("camera")
         with pytest.raises(ProtocolError):
             h.read("adc")
+
+
+def test_read_aligned_on_camera_frames(server: HubServer, hub: Hub) -> None:
+    hub.subscribe("imu", 200)
+    hub.subscribe("camera", rate=30, resolution="320x240")
+    hub.subscribe("hokuyo", 40)
+    wait_for(lambda: hub.read("camera"), 1)  # start from now
+    time.sleep(0.3)
+    out = hub.read_aligned(["camera", "imu", "hokuyo"], reference="camera")
+    m = len(out["t"])
+    assert m >= 2 and out["camera"].shape == (240, 320, 3, m)
+    assert out["imu"].shape == (9, m) and out["hokuyo"].shape == (1081, m)
+    scans = out["hokuyo"][:, np.isfinite(out["hokuyo"][0])]
+    assert scans.dtype == np.float32  # nearest scans, not interpolated between scans
