@@ -300,6 +300,15 @@ def simulate(
     time_scale: float = typer.Option(
         1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
     ),
+    laser: bool = typer.Option(
+        True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
+    ),
+    georef: str | None = typer.Option(  # noqa: UP007
+        None,
+        "--georef",
+        metavar="LAT,LON[,ALT]",
+        help="Map origin in degrees (and metres), for SIMSTAT's GPS fix.",
+    ),
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
     from robocli.robots.pioneer import ROBOT_PARAMS
@@ -309,12 +318,16 @@ def simulate(
     if subtype not in ROBOT_PARAMS:
         raise typer.BadParameter(f"unknown subtype {subtype!r}; known: {', '.join(ROBOT_PARAMS)}")
     world = _load_map(World, map_file) if map_file else None
+    options: dict[str, Any] = {"georef": _georef(georef) if georef else None}
+    if not laser:
+        options["laser"] = None
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():
         try:
             sims = serve_many(
                 robots, host=bind, port=port, pty=pty,
                 subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
+                **options,
             )  # fmt: skip
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {subtype} on {simulator.pty_path or simulator.url}")
@@ -326,6 +339,27 @@ def simulate(
         finally:
             for simulator in sims:
                 simulator.close()
+
+
+def _georef(text: str) -> tuple[float, float, float]:
+    """``LAT,LON[,ALT]`` -> (lat, lon, alt); anything else is a usage error naming it."""
+    parts = text.split(",")
+    try:
+        values = [float(v) for v in parts]
+    except ValueError:
+        values = []
+    if (
+        len(values) not in (2, 3)
+        or not all(math.isfinite(v) for v in values)
+        or abs(values[0]) > 90
+        or abs(values[1]) > 180
+    ):
+        raise typer.BadParameter(
+            f"{text!r} is not LAT,LON[,ALT] in degrees (and metres), e.g. 42.36,-71.06,10",
+            param_hint="'--georef'",
+        )
+    lat, lon, *alt = values
+    return lat, lon, alt[0] if alt else 0.0
 
 
 def _load_map(world_type: Any, path: Path) -> Any:
