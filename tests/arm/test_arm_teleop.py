@@ -1,0 +1,141 @@
+"""Arm teleop logic against the real simulator over sockets: jogs move the right joint the
+right way within limits, release and close send STOP, a joint at its limit is refused."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocli.devices.arm_teleop import ArmTeleop, Jog, JogKeys, jog_target, run_arm_teleop
+from robocli.errors import ConnectionLost, TimeoutError
+from robocli.kinematics import LimitError, fk, load_model
+
+IRB120 = load_model("irb120")
+
+
+def hold(teleop: ArmTeleop, key: str, seconds: float) -> None:
+    """Press ``key`` repeatedly (like a terminal's auto-repeat) for ``seconds``."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        teleop.key(key)
+        teleop.step()
+        time.sleep(0.02)
+
+
+def release(teleop: ArmTeleop, timeout: float = 5.0) -> None:
+    """Step without keys until the release timeout sent STOP."""
+    stops = teleop.sent["stops"]
+    deadline = time.monotonic() + timeout
+    while teleop.sent["stops"] == stops:
+        assert time.monotonic() < deadline, "no STOP after the key was released"
+        teleop.step()
+        time.sleep(0.02)
+
+
+def test_keys_release_and_modes() -> None:
+    keys = JogKeys(6, release_timeout=0.4)
+    keys.key("3", 0.0)
+    keys.key("up", 0.0)
+    assert keys.jog(0.3) == Jog("joint", 2, 1)
+    assert keys.jog(0.5) is None  # no key-up from terminals: the timeout releases it
+    keys.key("c", 1.0)
+    keys.key("f", 1.0)
+    assert keys.jog(1.1) == Jog("cartesian", 2, -1)
+    keys.key("space", 1.2)
+    assert keys.jog(1.2) is None
+    keys.key("9", 1.3)  # no joint 9: ignored
+    assert keys.mode == "cartesian"
+    keys.key("+", 1.3)
+    assert keys.scale > 1
+    keys.key("q", 1.4)
+    assert keys.quit and keys.jog(1.4) is None
+
+
+def test_jog_target_clips_and_refuses_at_limits() -> None:
+    q = IRB120.work.copy()
+    hi = IRB120.limits[0, 1]
+    q[0] = hi - 0.01
+    target, _ = jog_target(IRB120, q, Jog("joint", 0, 1), 0.3, 0.5, 0.05)
+    assert target[0] == pytest.approx(hi) and np.allclose(target[1:], q[1:])
+    with pytest.raises(LimitError, match="joint 1 is at its upper limit"):
+        jog_target(IRB120, target, Jog("joint", 0, 1), 0.3, 0.5, 0.05)
+    back, _ = jog_target(IRB120, target, Jog("joint", 0, -1), 0.3, 0.5, 0.05)
+    assert back[0] < hi
+    up, duration = jog_target(IRB120, IRB120.work, Jog("cartesian", 2, 1), 0.2, 0.5, 0.05)
+    dz = fk(IRB120, up)[0][:3, 3] - fk(IRB120, IRB120.work)[0][:3, 3]
+    assert dz == pytest.approx([0, 0, 0.01], abs=1e-6) and duration >= 0.2
+
+
+@pytest.mark.parametrize("profile", ["abb", "generic"])
+def test_jog_moves_the_joint_and_release_stops(make_sim: Any, make_arm: Any,
+                                               profile: str) -> None:  # fmt: skip
+    sim, mp, sp = make_sim(profile=profile, time_scale=2.0)
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    before = sim.snapshot()
+    teleop = ArmTeleop(arm, stream=profile == "generic", joint_speed=0.2)
+    teleop.key("2")
+    hold(teleop, "s", 0.5)  # J2 minus
+    moved = sim.snapshot()
+    assert moved.joints[1] < before.joints[1] - 0.02
+    assert np.allclose(moved.joints[2:], before.joints[2:], atol=1e-9)  # only J2 moves
+    release(teleop)
+    assert sim.snapshot().stops == before.stops + 1
+    still = sim.wait_until(lambda s: not s.in_motion, 5.0).joints
+    time.sleep(0.05)
+    assert sim.snapshot().joints == still  # stopped where it was
+    teleop.close()  # quitting sends STOP too
+    assert sim.wait_until(lambda s: s.stops == before.stops + 2, 5.0)
+
+
+def test_joint_at_limit_is_refused(make_sim: Any, make_arm: Any) -> None:
+    q0 = IRB120.work.copy()
+    q0[0] = IRB120.limits[0, 0]  # joint 1 at its lower limit
+    sim, mp, sp = make_sim(q0=q0)
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    with ArmTeleop(arm) as teleop:
+        teleop.key("1")
+        hold(teleop, "a", 0.3)  # towards the limit
+        assert "joint 1 is at its lower limit" in teleop.message
+        assert sim.snapshot().trajectories == 0 and teleop.sent["points"] == 0
+        hold(teleop, "d", 0.3)  # away from it
+        assert teleop.message == ""
+        assert sim.wait_until(lambda s: s.joints[0] > q0[0] + 1e-3, 5.0)
+        assert teleop.sent["trajectories"] > 0
+
+
+def test_cartesian_jog_moves_the_tcp(make_sim: Any, make_arm: Any) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    start = fk(IRB120, list(sim.snapshot().joints))[0][:3, 3]
+    with ArmTeleop(arm, cart_speed=0.1) as teleop:
+        teleop.key("c")
+        hold(teleop, "r", 0.4)  # +z
+        assert "TCP" in teleop.status()
+    end = fk(IRB120, list(sim.wait_until(lambda s: not s.in_motion, 5.0).joints))[0][:3, 3]
+    assert end[2] > start[2] + 0.005
+    assert np.allclose(end[:2], start[:2], atol=2e-3)
+
+
+def test_run_loop_stops_on_quit_and_on_a_lost_link(make_sim: Any, make_arm: Any) -> None:
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    keys = iter(["2", "w", "w", None, "q"])
+    teleop = ArmTeleop(arm)
+    run_arm_teleop(teleop, lambda timeout: next(keys, "q"))
+    assert teleop.quit and teleop.sent["trajectories"] == 1
+    assert sim.wait_until(lambda s: s.stops == teleop.sent["stops"] >= 1, 5.0).trajectories == 1
+    # the state link dies while a key is held: the teleop stops the arm and says why
+    teleop = ArmTeleop(arm, stale=0.3)
+    teleop.key("2")
+    sim.close()
+    start = time.monotonic()
+    with pytest.raises((TimeoutError, ConnectionLost)):
+        hold(teleop, "w", 5.0)
+    assert time.monotonic() - start < 4.0
