@@ -18,8 +18,9 @@ import typer
 from robocli.commands._common import sigterm_as_interrupt
 
 if TYPE_CHECKING:
-    from robocli.hub import HubServer
+    from robocli.hub import HubServer, tune_hub_process
 
+    tune_hub_process()
 STATUS_PERIOD_S = 0.5
 
 
@@ -63,8 +64,9 @@ def serve(
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
-    from robocli.hub import HubServer
+    from robocli.hub import HubServer, tune_hub_process
 
+    tune_hub_process()
     srv = HubServer(
         bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
         token=_token(token_file), max_clients=max_clients,

@@ -13,6 +13,6 @@ per sensor, a cursor per client), :mod:`robocli.hub.sources` and
 
 from __future__ import annotations
 
-from robocli.hub.hubserver import HubServer
+from robocli.hub.hubserver import HubServer, tune_hub_process
 
-__all__ = ["HubServer"]
+__all__ = ["HubServer", "tune_hub_process"]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sys
 from typing import Any
 
 from robocli.errors import InvalidArgument
@@ -14,13 +15,24 @@ from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
 from robocli.sim.serving import Server
 
-__all__ = ["HubServer", "PORT"]
+__all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
 log = logging.getLogger("robocli.hub")
 
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
 SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
+HUB_SWITCH_INTERVAL_S = 1e-4
+"""The interpreter's thread switch interval for a process that is mainly a hub."""
+
+
+def tune_hub_process() -> None:
+    """Tune this interpreter for serving many clients: a thread waiting for the GIL gets it
+    after :data:`HUB_SWITCH_INTERVAL_S` instead of 5 ms. A connection's thread hands the GIL
+    over several times per pull (socket, C ring, copies); with 40 clients the default interval
+    queued pulls behind each other: measured p99 pull 40-90 ms at 5 ms, 17-20 ms at 0.1 ms,
+    and less CPU. Process-wide: ``robocli serve`` calls it; a library user decides."""
+    sys.setswitchinterval(HUB_SWITCH_INTERVAL_S)
 
 
 class HubServer:

@@ -48,7 +48,7 @@ from robocli.protocols.ros4mat import (
 )
 from robocli.sim.links import Link
 
-__all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "pull_body"]
+__all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "body_parts", "pull_body"]
 
 log = logging.getLogger("robocli.hub")
 
@@ -75,36 +75,24 @@ _REPLY_TYPES = {
 _HEADER: struct.Struct = layout.struct_of(Header, "msgHeader")
 
 
-def pull_body(pulled: Pulled, offset: int = 0) -> bytearray:
-    """The body of a data reply after ``offset`` spare bytes (room for the header): the
-    records, or their info records then their blobs. One copy out of the records."""
+def body_parts(pulled: Pulled) -> list[Any]:
+    """The pieces of a data reply's body, as buffers over the pulled records (no copy): the
+    records, or their info records then each frame's blobs at their used size."""
     rec, src = pulled.records, pulled.source
-    n = len(rec)
     if not src.blobs:
-        out = bytearray(offset + rec.nbytes)
-        np.frombuffer(out, np.uint8, offset=offset)[:] = rec.view(np.uint8).reshape(-1)
-        return out
-    infos = rec["info"]
-    sizes = src.blob_sizes(rec)
-    info_bytes = infos.size * infos.dtype.itemsize  # stereo: two infos per frame
-    out = bytearray(offset + info_bytes + int(sizes.sum()))
-    np.frombuffer(out, infos.dtype, count=infos.size, offset=offset)[:] = infos.reshape(-1)
-    widths = [rec.dtype[b].itemsize for b in src.blobs]
-    start = offset + info_bytes
-    if n and (sizes == np.array(widths)).all():  # every blob full: one strided copy each
-        frames = np.frombuffer(out, np.uint8, offset=start).reshape(n, sum(widths))
-        col = 0
-        for b, w in zip(src.blobs, widths, strict=True):
-            frames[:, col : col + w] = rec[b]
-            col += w
-        return out
-    view = memoryview(out)
-    for i in range(n):
-        for j, b in enumerate(src.blobs):
-            size = int(sizes[i, j])
-            view[start : start + size] = rec[b][i, :size].tobytes()
-            start += size
-    return out
+        return [memoryview(rec.view(np.uint8).reshape(-1))]
+    parts: list[Any] = [rec["info"].tobytes()]  # stereo: two infos per frame, in order
+    sizes = src.blob_sizes(rec).tolist()
+    blobs = [rec[b] for b in src.blobs]
+    for i, row in enumerate(sizes):
+        for blob, size in zip(blobs, row, strict=True):
+            parts.append(memoryview(blob[i, :size]))
+    return parts
+
+
+def pull_body(pulled: Pulled) -> bytes:
+    """The body of a data reply (one copy out of the records)."""
+    return b"".join(body_parts(pulled))
 
 
 class PullTimes:
@@ -171,20 +159,21 @@ class Ros4matSession:
         )
         return head + wire
 
-    def _data(self, msg_type: int, pulled: Pulled) -> bytes | bytearray:
-        """A data reply: built in place after room for its header unless compressed."""
+    def _data(self, msg_type: int, pulled: Pulled) -> bytes:
+        """A data reply, header and body joined in one copy (exact ``bytes``, which the link
+        sends without copying it again) unless compressed."""
         n = len(pulled.t)
         assert self.state is not None
         if self.state.compress and n:
-            return self._packet(msg_type, bytes(pull_body(pulled)), n)
-        out = pull_body(pulled, HEADER_SIZE)
-        body = len(out) - HEADER_SIZE
-        _HEADER.pack_into(out, 0, msg_type, 0, self.state.id, n, body, body, 0, self.hub.clock())
-        return out
+            return self._packet(msg_type, pull_body(pulled), n)
+        parts = body_parts(pulled)
+        body = sum(p.nbytes if isinstance(p, memoryview) else len(p) for p in parts)
+        head = _HEADER.pack(msg_type, 0, self.state.id, n, body, body, 0, self.hub.clock())
+        return b"".join([head, *parts])
 
     # ---------------------------------------------------------------- session protocol
 
-    def on_frame(self, frame: bytes, now: float) -> bytes | bytearray | None:
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
         try:
             return self._handle(frame)
         except (ProtocolError, DeviceError, InvalidArgument) as exc:
@@ -198,7 +187,7 @@ class Ros4matSession:
 
     # ---------------------------------------------------------------- dispatch
 
-    def _handle(self, frame: bytes) -> bytes | bytearray | None:
+    def _handle(self, frame: bytes) -> bytes | None:
         kind, error, cid, size, usize, csize, ctype, _ts = _HEADER.unpack_from(frame)
         body = frame[HEADER_SIZE:]
         if error or ctype != Compression.NONE or (size and usize != len(body)):
