@@ -260,3 +260,20 @@ def test_gpsd_source_against_a_recorded_stream(
         assert fixes[3]["climb"] == pytest.approx(0.4)
         assert srv.hub.channels["gps"].source.bad_lines == 1
         c.close()
+
+
+def test_real_camera_only_with_opencv(raw: Any) -> None:
+    from robocli.hub.sources.opencv import opencv_available
+
+    with HubServer(port=0, sim=False) as srv:
+        if not opencv_available():
+            assert "camera" not in srv.sensors  # robocli[camera] not installed
+            return
+        assert not srv.sensors["camera"]["simulated"]
+        c = raw(srv.port)
+        c.connect()
+        params = {"fps": 10, "width": 320, "height": 240, "id": 99, "compression": 0,
+                  "exposure": 0, "use_roi": 0, "roi": [0] * 4}  # fmt: skip
+        err = c.subscribe("camera", params)
+        assert err.error and "video99" in err.error_text
+        c.close()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from robocli.hub.sources.base import Batch, PeriodicSource, Source
 from robocli.hub.sources.imaging import CameraSource, DepthSource, LaserSource, StereoSource
+from robocli.hub.sources.opencv import OpenCvCameraSource, opencv_available
 from robocli.hub.sources.pioneer import PioneerAdcSource, PioneerBatterySource, PioneerLink
 from robocli.hub.sources.real import GpsdSource, SerialPorts, SysinfoSource, parse_host_port
 from robocli.hub.sources.sim import AdcSource, BatterySource, GpsSource, ImuSource
@@ -18,6 +19,7 @@ __all__ = [
     "GpsdSource",
     "ImuSource",
     "LaserSource",
+    "OpenCvCameraSource",
     "PeriodicSource",
     "PioneerAdcSource",
     "PioneerBatterySource",
@@ -35,12 +37,15 @@ def hub_sources(
     sim: bool = True, gpsd: str | None = None, pioneer: str | None = None
 ) -> dict[str, Source]:
     """The sources of a hub by sensor name: every simulated sensor when ``sim``; this
-    machine's system info always; the GPS from gpsd (``"HOST[:PORT]"``) and the battery and
-    ADC from a Pioneer at URL ``pioneer`` when given (they replace the simulated ones)."""
+    machine's system info always; without ``sim``, a real camera when OpenCV is installed
+    (``robocli[camera]``); the GPS from gpsd (``"HOST[:PORT]"``) and the battery and ADC from
+    a Pioneer at URL ``pioneer`` when given (they replace the simulated ones)."""
     sources: list[Source] = [SysinfoSource()]
     if sim:
         sources += [AdcSource(), ImuSource(), GpsSource(), BatterySource(), CameraSource(),
                     StereoSource(), DepthSource(), LaserSource()]  # fmt: skip
+    elif opencv_available():
+        sources.append(OpenCvCameraSource())
     if gpsd:
         sources.append(GpsdSource(*parse_host_port(gpsd, 2947)))
     if pioneer:
