@@ -65,7 +65,7 @@ SENSOR_IDS: dict[int, str] = {
 }
 """ros4mat sensor id -> the hub's sensor name."""
 
-_REPLY_TYPES = {
+_REPLY_TYPES: dict[int, int] = {
     MsgType.CONNECT: MsgType.CONNECT_ACK,
     MsgType.SUBSCRIBE: MsgType.SUBSCRIBE_ACK,
     MsgType.SERIAL_CMD: MsgType.SERIAL_ANS,
@@ -80,13 +80,13 @@ def body_parts(pulled: Pulled) -> list[Any]:
     records, or their info records then each frame's blobs at their used size."""
     rec, src = pulled.records, pulled.source
     if not src.blobs:
-        return [memoryview(rec.view(np.uint8).reshape(-1))]
+        return [rec.view(np.uint8).reshape(-1).data]
     parts: list[Any] = [rec["info"].tobytes()]  # stereo: two infos per frame, in order
     sizes = src.blob_sizes(rec).tolist()
     blobs = [rec[b] for b in src.blobs]
     for i, row in enumerate(sizes):
         for blob, size in zip(blobs, row, strict=True):
-            parts.append(memoryview(blob[i, :size]))
+            parts.append(blob[i, :size].data)
     return parts
 
 
@@ -212,9 +212,9 @@ class Ros4matSession:
         if kind == MsgType.UNSUBSCRIBE:
             if len(body) != 1:
                 return self._error(kind, "UNSUBSCRIBE takes 1 byte")
-            name = SENSOR_IDS.get(body[0])
-            if name is not None:
-                self.hub.unsubscribe(state, name)
+            sensor = SENSOR_IDS.get(body[0])
+            if sensor is not None:
+                self.hub.unsubscribe(state, sensor)
             return None
         if kind == MsgType.QUIT:
             self.hub.quit(state)

@@ -50,13 +50,11 @@ def jpeg_encoder() -> str | None:
 def encode_jpeg(image: npt.NDArray[np.uint8], quality: int, encoder: str) -> bytes:
     """An RGB image (H, W, 3) as JPEG bytes."""
     if encoder == "pillow":
-        from PIL import Image
-
+        image_module: Any = importlib.import_module("PIL.Image")
         buf = io.BytesIO()
-        Image.fromarray(image).save(buf, format="JPEG", quality=int(quality))
+        image_module.fromarray(image).save(buf, format="JPEG", quality=int(quality))
         return buf.getvalue()
-    import cv2
-
+    cv2: Any = importlib.import_module("cv2")
     ok, data = cv2.imencode(".jpg", image[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     if not ok:
         raise InvalidArgument("OpenCV could not encode the frame as JPEG")
@@ -85,7 +83,7 @@ def scene(width: int, height: int, t: float, shift: int = 0) -> npt.NDArray[np.u
         if len(_BASES) > 16:
             _BASES.clear()
         _BASES[(width, height)] = base
-    img = base.copy()
+    img: npt.NDArray[np.uint8] = base.copy()
     img[..., 0] = ((np.arange(width) + shift + 40.0 * t) % 256).astype(np.uint8)[None, :]
     r = min(width, height) / 8
     cx = (0.5 + 0.4 * math.sin(0.7 * t)) * width - shift

@@ -19,6 +19,10 @@ from robocli.hub.sources.imaging import CameraSource
 __all__ = ["OpenCvCameraSource", "opencv_available"]
 
 
+def _cv2() -> Any:
+    return importlib.import_module("cv2")
+
+
 def opencv_available() -> bool:
     """Whether OpenCV (``cv2``) can be imported here."""
     return importlib.util.find_spec("cv2") is not None
@@ -35,8 +39,7 @@ class OpenCvCameraSource(CameraSource):
         self.encoder = "opencv"
 
     def start(self, t0: float) -> None:
-        import cv2
-
+        cv2 = _cv2()
         self.stop()
         device = int(self.params.get("id", 0))
         capture = cv2.VideoCapture(device)
@@ -52,8 +55,7 @@ class OpenCvCameraSource(CameraSource):
         self.params["id"] = int(params.get("id", 0) or 0)
 
     def poll(self, now: float) -> Batch:
-        import cv2
-
+        cv2 = _cv2()
         capture = self._capture
         if capture is None:
             return self.empty()

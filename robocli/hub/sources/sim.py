@@ -81,7 +81,8 @@ class AdcSource(_RecordSource):
 
     def heading(self, t: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The platform's true heading (rad) at times ``t``."""
-        return np.radians(self.OMEGA_DEG) * (t % (360.0 / self.OMEGA_DEG))
+        heading: npt.NDArray[np.float64] = np.radians(self.OMEGA_DEG) * (t % (360 / self.OMEGA_DEG))
+        return heading
 
     def ir_volts(self, distance: npt.NDArray[np.float64]) -> npt.NDArray[np.float64]:
         """The IR sensor's output for a range (m), saturating outside 0.15..1.5 m."""
