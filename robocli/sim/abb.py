@@ -76,6 +76,8 @@ class ArmSimState:
     buffered: int
     motion_clients: int
     state_clients: int
+    motion_accepted: int
+    state_accepted: int
     states_sent: int
 
 
@@ -183,6 +185,8 @@ class AbbSim:
             tuple(float(v) for v in q), t, moving, *counters,
             motion_clients=len(self._motion.links()) if self._motion else 0,
             state_clients=len(self._state.links()) if self._state else 0,
+            motion_accepted=self._motion.accepted if self._motion else 0,
+            state_accepted=self._state.accepted if self._state else 0,
             states_sent=self.states_sent,
         )
 

@@ -34,8 +34,10 @@ def test_download_circle_matches_simulation(make_sim, make_arm) -> None:
     arm.wait_until_idle(30)
     rec.stop()
     assert acks == list(range(1, 101))
-    result = validate(planned, rec.log(), IRB)
-    assert float(np.max(result.rmse)) <= 1e-6, result.to_dict()
+    measured = rec.log()
+    result = validate(planned, measured, IRB)
+    span = (len(measured), measured.time[0], measured.time[-1], float(np.diff(measured.time).max()))
+    assert float(np.max(result.rmse)) <= 1e-6, (span, result.to_dict())
     assert sim.snapshot().points_received == 100
     final = np.array(sim.snapshot().joints)
     assert np.allclose(final, planned.positions[-1], atol=1e-6)
@@ -135,6 +137,7 @@ def test_dropped_motion_link_trajectory_completes(make_sim, make_arm) -> None:
     snap = sim.wait_until(lambda s: not s.in_motion, 20)
     assert snap.stops == 0
     assert np.allclose(snap.joints, move.positions[-1], atol=1e-6)
+    sim.wait_until(lambda s: s.motion_clients == 0 and s.state_clients == 0, 5)
     again = make_arm(mp, sp)  # the server re-listened and accepts the next client
     again.download(ptp_joint(IRB, IRB.work, n=5, q_start=move.positions[-1], duration=1.0))
     again.wait_until_idle(10)
@@ -142,7 +145,7 @@ def test_dropped_motion_link_trajectory_completes(make_sim, make_arm) -> None:
 
 
 def test_close_stops_a_running_trajectory(make_sim, make_arm) -> None:
-    sim, mp, sp = make_sim()
+    sim, mp, sp = make_sim(time_scale=1.0)  # 8 s of motion: close lands inside it
     arm = make_arm(mp, sp)
     arm.wait_for_state()
     arm.download(far_move(duration=8.0))

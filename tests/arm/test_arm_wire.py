@@ -144,7 +144,7 @@ def test_abb_motion_server_restarts_on_another_message(make_sim, make_arm) -> No
     raw = RawSM(mp)
     raw.send(sm.encode(sm.MsgType.PING, sm.CommType.SERVICE_REQUEST))
     assert raw.closed_by_peer()
-    assert sim.snapshot().frames_refused == 1
+    assert sim.wait_until(lambda s: s.motion_clients == 0, 5).frames_refused == 1
     arm = make_arm(mp, sp)
     arm.download(circle(IRB, 10, duration=1.0))
     arm.wait_until_idle(10)
@@ -155,11 +155,11 @@ def test_garbage_on_both_ports_while_another_client_monitors(make_sim, make_arm)
     monitor = make_arm(mp, sp, motion=False)
     monitor.wait_for_state()
     rng = np.random.default_rng(7)
-    for _ in range(2):
+    for i in range(2):
         bad = RawSM(mp)
         bad.send(rng.integers(0, 256, 4096, dtype=np.uint8).tobytes())
         bad.close()
-        sim.wait_until(lambda s: s.motion_clients == 0, 5)
+        sim.wait_until(lambda s, n=i + 1: s.motion_accepted == n and s.motion_clients == 0, 5)
         busy = RawSM(sp)  # one client per port: refused, whatever it sends
         busy.send(os.urandom(512))
         assert busy.closed_by_peer()
@@ -214,7 +214,10 @@ def test_abb_aborts_a_trajectory_it_cannot_reach(make_sim) -> None:
 
 def _connect_motion(sim, port: int, order: str) -> RawSM:
     sim.wait_until(lambda s: s.motion_clients == 0, 5)
-    return RawSM(port, order)
+    accepted = sim.snapshot().motion_accepted
+    raw = RawSM(port, order)
+    sim.wait_until(lambda s: s.motion_accepted == accepted + 1, 5)
+    return raw
 
 
 @pytest.mark.parametrize("variant", sorted(VARIANTS))

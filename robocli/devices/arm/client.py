@@ -92,6 +92,9 @@ class Arm:
         self._sample_listeners: Listeners[SampleListener] = Listeners(stats, "arm samples")
         self._activated_at: float | None = None  # monotonic time of the last activation
         self._expected_end = 0.0
+        self._target: tuple[float, ...] | None = None  # last point of the activated trajectory
+        self._moved = False  # a STATUS received since the activation said in motion
+        self._start: tuple[float, ...] | None = None  # joints when it was activated
         self._stop_frame = stop_frame(robot, byteorder, real)
         for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
             if session is not None:
@@ -239,6 +242,8 @@ class Arm:
             with self._cond:
                 self.status = ArmStatus.from_body(body, t)
                 self._statuses += 1
+                if self.status.in_motion and self._activated_at is not None:
+                    self._moved = self._moved or t > self._activated_at
                 self._cond.notify_all()
             return
         if sample is None:
@@ -266,35 +271,46 @@ class Arm:
             assert self.joints is not None
             return self.joints
 
+    def _finished(self, st: ArmStatus) -> bool:
+        """``st`` (received after the activation) shows the activated trajectory done: not
+        in motion, and either seen moving since, or at its last point (a state sampled
+        before the activation may be received after it)."""
+        if st.in_motion:
+            return False
+        if self._moved or self._target is None:
+            return True
+        sample = self.joints
+        return (self._start is not None and sample is not None
+                and _gap(self._start, self._target) > 1e-3  # (a closed path ends where it began)
+                and _gap(sample.joints, self._target) < 1e-3)  # fmt: skip
+
     def running(self) -> bool:
-        """True while a trajectory this client activated may still run: the last STATUS says
-        in motion, or (without state) its nominal end has not passed."""
+        """True while a trajectory this client activated may still run: the states since do
+        not show it finished (without the state port: its nominal end has not passed)."""
         if self._activated_at is None:
             return False
         st = self.status
         if self._state is not None and st is not None and st.t > self._activated_at:
-            return st.in_motion is not False
+            return not self._finished(st)
         return time.monotonic() < self._expected_end
 
-    def wait_until_idle(self, timeout: float, settle: float = 0.5) -> ArmStatus:
-        """Wait until STATUS says the arm is not in motion: after it was seen moving since the
-        last activation, or, if it never was, in every status for ``settle`` seconds after
-        the activation (a state sent before it may arrive after it). Needs the state port."""
+    def wait_until_idle(self, timeout: float, settle: float = 2.0) -> ArmStatus:
+        """Wait until the states show the arm idle: not in motion after it was seen moving
+        since the last activation, or at the trajectory's last point, or (a trajectory the
+        controller refused) not in motion for ``settle`` s. Needs the state port."""
         s = self._need(self._state, "state")
         since = self._activated_at if self._activated_at is not None else time.monotonic()
         deadline = time.monotonic() + timeout
         with self._cond:
-            count, moved = self._statuses, False
+            count = self._statuses
             while True:
                 s.check()
                 st = self.status
                 if self._statuses != count and st is not None and st.t > since:
                     count = self._statuses
-                    if st.in_motion:
-                        moved = True
-                    elif moved or self._activated_at is None:
+                    if self._activated_at is None and not st.in_motion:
                         return st
-                    elif st.t - since >= settle:
+                    if self._finished(st) or (not st.in_motion and st.t - since >= settle):
                         return st
                 left = deadline - time.monotonic()
                 if left <= 0:
@@ -427,12 +443,15 @@ class Arm:
         """STOP (-4): abort the running trajectory, acknowledged within ``timeout`` s."""
         self.send_point(SpecialSeq.STOP_TRAJECTORY, (0.0,) * self.robot.n_joints,
                         timeout=timeout)
-        self._activated_at, self._expected_end = None, 0.0
+        self._activated_at, self._expected_end, self._target = None, 0.0, None
 
     def _activated(self, points: list[Point]) -> None:
         now = time.monotonic()
         self._activated_at = now
         self._expected_end = now + sum(p.duration for p in points) + 1.0
+        self._target = points[-1].joints if points else None
+        self._start = self.joints.joints if self.joints is not None else None
+        self._moved = False
 
     def _q_now(self) -> tuple[float, ...] | None:
         sample = self.joints
@@ -444,3 +463,8 @@ class Arm:
             raise InvalidArgument(f"this Arm was connected without its {name} port")
         session.check()
         return session
+
+
+def _gap(a: tuple[float, ...], b: tuple[float, ...]) -> float:
+    """Largest joint difference (rad)."""
+    return max(abs(x - y) for x, y in zip(a, b, strict=False))
