@@ -13,13 +13,14 @@ from robocli.hub.server import PullTimes, Ros4matSession
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
-from robocli.sim.serving import Server
+from robocli.sim.serving import Server, Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
 log = logging.getLogger("robocli.hub")
 
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
+DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
 SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
 HUB_SWITCH_INTERVAL_S = 1e-4
@@ -47,6 +48,8 @@ class HubServer:
     ``max_clients``: connections at once; ``max_body``: largest request body (bytes).
     ``ring_budget``: bytes one sensor's ring may hold (also bounds one reply).
     ``send_timeout``: seconds a client may leave a reply unread before it is dropped.
+    ``detached_ttl``: seconds a client gone without QUIT keeps its subscriptions and buffers
+    for a reconnect with its id.
     ``sources``: extra or replacement sources by sensor name.
     """
 
@@ -64,6 +67,7 @@ class HubServer:
         max_body: int = MAX_BODY,
         ring_budget: int = DEFAULT_BUDGET,
         send_timeout: float = SEND_TIMEOUT_S,
+        detached_ttl: float = DETACHED_TTL_S,
         sources: dict[str, Source] | None = None,
     ) -> None:
         if max_clients < 1:
@@ -80,7 +84,8 @@ class HubServer:
         self._token = token
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
-        self.hub = Hub(all_sources, ring_budget=ring_budget)
+        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl)
+        self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
@@ -99,6 +104,9 @@ class HubServer:
         self.pull_times = PullTimes()
         """Server-side pull durations (request framed -> reply built): percentiles."""
 
+    def _expire(self, _now: float) -> None:
+        self.hub.expire()
+
     def _session(self, link: Link) -> Ros4matSession:
         return Ros4matSession(link, self.hub, link.name, self._token, self.serial, self.pull_times)
 
@@ -112,6 +120,7 @@ class HubServer:
             self.warnings.append(msg)
             log.warning(msg)
         self._url = self._server.serve_tcp(self.bind, self._port)
+        self._expiry.start()
         return self
 
     def exposure_warning(self) -> str | None:
@@ -155,6 +164,7 @@ class HubServer:
     def close(self) -> None:
         """Close every connection, stop every sensor (bounded). Idempotent."""
         self._server.close()
+        self._expiry.close()
         self.hub.close()
         if self.serial is not None:
             self.serial.close()

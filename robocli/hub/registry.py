@@ -6,7 +6,8 @@ A sensor runs while at least one client (connected or detached) is subscribed; i
 polls the source at the source's batch rate and pushes into the sensor's ring. Settings are
 shared: a non-silent subscribe reconfigures the sensor for everyone (last writer wins), as in
 ros4mat. A client that disconnects without QUIT is kept, detached, so that it can re-attach
-with its id and find its buffers; at most ``max_detached`` are kept (the oldest go first).
+with its id and find its buffers; at most ``max_detached`` are kept (the oldest go first),
+each for at most ``detached_ttl`` seconds (:meth:`Hub.expire`).
 """
 
 from __future__ import annotations
@@ -162,11 +163,13 @@ class Hub:
         *,
         clock: Callable[[], float] | None = None,
         max_detached: int = 256,
+        detached_ttl: float = 600.0,
         ring_budget: int = 64 << 20,
     ) -> None:
         self.clock = clock or hub_clock()
         self.channels = {name: Channel(s, self.clock, ring_budget) for name, s in sources.items()}
         self.max_detached = max_detached
+        self.detached_ttl = detached_ttl
         self._clients: dict[int, ClientState] = {}
         self._ids = itertools.count(1)
         self._lock = threading.Lock()
@@ -210,6 +213,17 @@ class Hub:
             evict = detached[: max(0, len(detached) - self.max_detached)]
         for old in evict:
             self.quit(old)
+
+    def expire(self) -> int:
+        """Forget the clients detached for more than ``detached_ttl`` seconds (their sensors
+        stop when nobody else uses them); returns how many."""
+        limit = self.clock() - self.detached_ttl
+        with self._lock:
+            old = [c for c in self._clients.values() if not c.connected and c.detached_at < limit]
+        for state in old:
+            log.info("client %d forgotten: detached for %.0f s", state.id, self.detached_ttl)
+            self.quit(state)
+        return len(old)
 
     def quit(self, state: ClientState) -> None:
         """Forget the client: unsubscribe everything."""

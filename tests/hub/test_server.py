@@ -290,3 +290,14 @@ def test_reply_with_partly_filled_blobs_decodes() -> None:
     assert images[0] == rec["blob0"][0, :100].tobytes()
     assert images[3] == rec["blob1"][1, :1].tobytes()
     assert [i["t"] for i in msg.body["infos"]] == [1.0, 1.0, 2.0, 2.0]
+
+
+def test_detached_client_is_forgotten_after_its_ttl(raw: Any, wait: Any) -> None:
+    with HubServer(port=0, detached_ttl=0.3) as srv:
+        c = raw(srv.port)
+        c.connect()
+        c.subscribe("imu", {"freq_acquisition": 100, "freq_send": 20})
+        c.close()
+        wait(lambda: srv.clients and not srv.clients[0].connected, what="detached")
+        wait(lambda: not srv.clients, what="the client forgotten")
+        assert not srv.sensors["imu"]["active"]  # its sensor stopped with it
