@@ -51,6 +51,7 @@ PROFILES = ("abb", "generic")
 ABB_BUFFER = 100  #: ``MAX_TRAJ_LENGTH`` of ``ROS_common.sys``
 SKIP_TOLERANCE = math.radians(0.1)  #: first point skipped when this close (``ROS_motion.mod``)
 MIN_SEGMENT_S = 1e-3  #: a zero or negative duration becomes the fastest allowed move
+MAX_QUEUE = 1000  #: points a streaming server holds ahead of the arm (more: FAILURE)
 
 
 @dataclass(frozen=True)
@@ -112,6 +113,10 @@ class Executor:
         if len(self._t) == 1:
             return ()
         return (self._t[0], self._t[self._brk], self._t[-1])
+
+    def queued(self, t: float) -> int:
+        """Points not yet reached at ``t``."""
+        return len(self._t) - bisect.bisect_right(self._t, t)
 
     def moving(self, t: float) -> bool:
         return t < self._t[-1]
@@ -337,6 +342,9 @@ class ArmController:
         )
         last = self.last_seq
         in_order = p.sequence == 0 or (last is not None and p.sequence == last + 1)
+        if p.sequence and self.executor.queued(now) >= MAX_QUEUE:
+            self.rejected_points += 1
+            return False  # the queue is full: the client retries later (MotoROS says BUSY)
         if bad or not in_order:
             self.rejected_points += 1
             if not in_order and not bad:  # REP-I0006: abort on an out-of-order sequence

@@ -189,3 +189,18 @@ def test_send_point_returns_the_round_trip(make_sim, make_arm) -> None:
     assert all(0 < r < 5 for r in rtts)
     snap = sim.snapshot()
     assert snap.buffered == 5 and snap.trajectories == 0
+
+
+def test_streaming_queue_is_bounded(make_sim, make_arm, monkeypatch) -> None:
+    """A streaming server holds a bounded queue ahead of the arm: beyond it, FAILURE."""
+    import robocli.sim.abb_session as abb_session
+
+    monkeypatch.setattr(abb_session, "MAX_QUEUE", 5)
+    sim, mp, sp = make_sim(profile="generic")
+    arm = make_arm(mp, None, state=False)
+    arm.send_point(0, IRB.work, duration=10.0)
+    for i in range(1, 5):
+        arm.send_point(i, IRB.work, duration=10.0)
+    with pytest.raises(DeviceError, match="FAILURE"):
+        arm.send_point(5, IRB.work, duration=10.0)
+    assert sim.snapshot().rejected_points == 1
