@@ -260,3 +260,11 @@ def test_every_library_vector_against_both_profiles(variant, make_sim) -> None:
             ack = sm.decode(got, byteorder=order, real=real)  # the STOP's reply, nothing else
             assert (ack.msg_type, ack.comm_type, ack.reply_code) == (11, 3, 1), name
         raw.close()
+
+
+@pytest.mark.parametrize(("server", "client"), [(">", "little"), ("<", "big")])
+def test_wrong_byte_order_is_refused(server, client, make_sim) -> None:
+    """The other byte order frames 3 bytes late, and small ints even decode: refused."""
+    sim, mp, sp = make_sim(byteorder=server)
+    with pytest.raises(TransportError, match="wrong byte order"):
+        Arm.connect("127.0.0.1", state_port=sp, motion=False, byte_order=client, timeout=1.0)
