@@ -262,9 +262,13 @@ def test_every_library_vector_against_both_profiles(variant, make_sim) -> None:
         raw.close()
 
 
-@pytest.mark.parametrize(("server", "client"), [(">", "little"), ("<", "big")])
-def test_wrong_byte_order_is_refused(server, client, make_sim) -> None:
-    """The other byte order frames 3 bytes late, and small ints even decode: refused."""
-    sim, mp, sp = make_sim(byteorder=server)
-    with pytest.raises(TransportError, match="wrong byte order"):
-        Arm.connect("127.0.0.1", state_port=sp, motion=False, byte_order=client, timeout=1.0)
+@pytest.mark.parametrize(("server", "client"), [((">", 4), ("little", 4)),
+                                               (("<", 4), ("big", 4)),
+                                               (("<", 8), ("little", 4))])  # fmt: skip
+def test_wrong_byte_order_or_real_size_is_refused(server, client, make_sim) -> None:
+    """The other byte order frames 3 bytes late, and small ints even decode; float64 bodies
+    do not fit float32 messages: refused at connect, never garbage joints."""
+    sim, mp, sp = make_sim(byteorder=server[0], real=server[1])
+    with pytest.raises(TransportError, match="wrong byte order or real size"):
+        Arm.connect("127.0.0.1", state_port=sp, motion=False, byte_order=client[0],
+                    real_size=client[1], timeout=1.0)  # fmt: skip

@@ -67,6 +67,7 @@ log = logging.getLogger("robocli.devices.arm")
 SampleListener = Callable[[JointSample], None]
 
 _POS = sm.ValidFields.POSITION
+_JOINT_TYPES = (MsgType.JOINT_POSITION, MsgType.JOINT_FEEDBACK, MsgType.STATUS)
 _ORDERS = {"little": "<", "big": ">", "<": "<", ">": ">"}
 
 
@@ -159,7 +160,7 @@ class Arm:
         assert s is not None
         url = s.transport.url
         wrong = TransportError(f"{url}: the port answers, but not in Simple Message "
-                               "(another protocol, or the wrong byte order)")
+                               "(another protocol, or the wrong byte order or real size)")
         try:
             s.request(None, lambda f: True, timeout)
             # a stream in the other byte order frames 3 bytes late (small ints even decode)
@@ -232,6 +233,9 @@ class Arm:
         msg = sm.decode(frame, byteorder=self.byteorder, real=self.real)
         body = msg.body
         if not isinstance(body, dict):
+            if isinstance(body, bytes) and msg.msg_type in _JOINT_TYPES:
+                raise ProtocolError(f"{msg.msg_type.name} with a {len(body)}-byte body: not "
+                                    f"{self.real}-byte reals (the wrong real size?)")
             return
         n = self.robot.n_joints
         sample = None
