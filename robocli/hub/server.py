@@ -29,12 +29,12 @@ import zlib
 from collections.abc import Mapping
 from typing import Any
 
-import construct as cs
 import numpy as np
 
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.hub.registry import ClientState, Hub, Pulled
 from robocli.protocols import layout
+from robocli.protocols.common import DECODE_ERRORS, undecodable
 from robocli.protocols.ros4mat import (
     HEADER_SIZE,
     Compression,
@@ -273,18 +273,9 @@ class Ros4matSession:
 
 
 def _parse(decl: Any, body: bytes, what: str) -> dict[str, Any]:
+    """A request body decoded with its declaration; :class:`ProtocolError` if it does not."""
     try:
-        if len(body) < decl.sizeof() if _fixed(decl) else False:
-            raise ProtocolError(f"{what} body of {len(body)} bytes is too short")
         value: dict[str, Any] = plain(decl.parse(body))
-    except (cs.ConstructError, ValueError, OverflowError) as exc:
-        raise ProtocolError(f"{what} body does not decode: {exc}") from exc
+    except DECODE_ERRORS as exc:
+        undecodable(f"ros4mat {what}", body, exc)
     return value
-
-
-def _fixed(decl: Any) -> bool:
-    try:
-        decl.sizeof()
-    except cs.SizeofError:
-        return False
-    return True

@@ -170,3 +170,28 @@ def test_client_that_pulls_but_never_reads_is_dropped(raw: Any, wait: Any) -> No
         assert got.body["infos"][0]["width"] == 320
         slow.close()
         good.close()
+
+
+def test_random_request_bodies_get_typed_replies(hub: HubServer, client_factory: Any) -> None:
+    """Every command id with random bodies: an error reply or none, never a dropped link."""
+    c = client_factory()
+    c.connect()
+    rng = random.Random(4)
+    kinds = [0x03, 0x04, 0x05, 0x06, 0x01, 0x20, 0x24, 0x29]
+    for _ in range(300):
+        kind = rng.choice(kinds)
+        body = bytes(rng.randrange(256) for _ in range(rng.randrange(1, 60)))
+        if kind == 0x03 and rng.random() < 0.5:  # a plausible SUBSCRIBE head, random params
+            sensor = rng.choice([0x20, 0x21, 0x23, 0x24, 0x26, 0x27, 0x29, 0x2A, 0x22, 0x7F])
+            body = bytes([sensor, 0]) + struct.pack("<II", 1, len(body)) + body
+        c.send(_header(kind, 1, len(body), len(body)) + body)
+        c.send(r4m.encode_request("gps", client_id=c.client_id))  # a marker after each
+        while True:
+            reply = c.recv()
+            if reply.msg_type == r4m.MsgType.GPS:
+                break
+            assert reply.error == 0 or reply.error_text, reply
+        if kind == 0x01:
+            c.client_id = reply.client_id
+    assert hub.link_stats.session_errors == 0
+    assert c.connect() >= 1
