@@ -69,12 +69,12 @@ def _check_wire(byte_order: str, real_size: int) -> None:
 def simulate(
     motion_port: int = typer.Option(11000, "--motion-port", min=0, max=65535),
     state_port: int = typer.Option(11002, "--state-port", min=0, max=65535),
-    state_ms: float = typer.Option(
-        100.0,
+    state_ms: float | None = typer.Option(  # noqa: UP007
+        None,
         "--state-ms",
         min=0.5,
         max=10_000.0,
-        help="State period, ms (ABB stock 100; the paper saw 20).",
+        help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
     ),
     byte_order: str = OrderOpt,
     real_size: int = RealOpt,
@@ -114,6 +114,8 @@ def simulate(
     _check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
+    if state_ms is None:
+        state_ms = 20.0 if paper else 100.0
     model = (
         ControllerModel.paper()
         if paper
