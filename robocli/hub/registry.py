@@ -105,14 +105,20 @@ class Channel:
         old_dtype = src.dtype()
         old = (dict(src.params), src.rate, src.batch_rate)
         if params is not None:
-            src.configure(params)
+            try:
+                src.configure(params)
+            except InvalidArgument:
+                src.params, src.rate, src.batch_rate = old  # refused: nothing changes
+                raise
         changed = old != (dict(src.params), src.rate, src.batch_rate)
         dtype = src.dtype()
         wanted = max(buffer, int(src.rate * RING_SECONDS))
         capacity = ring_capacity(dtype.itemsize, wanted, self._budget)
         if self.ring is None:
             self.ring = SensorRing(self.name, dtype, capacity)
-        elif dtype != old_dtype or capacity > self.ring.capacity:
+        elif dtype != old_dtype or (changed and capacity > self.ring.capacity):
+            # new layout or faster rate: everyone's unread samples of the old settings go
+            # (counted lost); a larger buffer alone is clamped instead, disturbing no one
             self.ring.reshape(dtype, capacity)
         return changed or self._ticker is None
 

@@ -301,3 +301,23 @@ def test_detached_client_is_forgotten_after_its_ttl(raw: Any, wait: Any) -> None
         wait(lambda: srv.clients and not srv.clients[0].connected, what="detached")
         wait(lambda: not srv.clients, what="the client forgotten")
         assert not srv.sensors["imu"]["active"]  # its sensor stopped with it
+
+
+def test_a_bigger_buffer_or_a_bad_setting_does_not_disturb_others(
+    hub: HubServer, client_factory: Any, wait: Any
+) -> None:
+    a, b = client_factory(), client_factory()
+    a.connect()
+    b.connect()
+    params = {"freq_acquisition": 100, "freq_send": 50, "channels": 255}
+    assert a.subscribe("adc", params, buffer=500).error == 0
+    ring = hub.hub.channels["adc"].ring
+    wait(lambda: ring.pushed > 20, what="samples")
+    assert b.subscribe("adc", params, buffer=60000).error == 0  # same settings, huge buffer
+    bad = b.subscribe("adc", {**params, "freq_acquisition": 60000})
+    assert bad.error and hub.sensors["adc"]["rate"] == 100  # refused, nothing changed
+    msg = a.pull("adc")
+    assert msg.size > 20  # a's unread samples survived b's requests
+    infos = {c.id: c for c in hub.clients}
+    assert infos[b.client_id].subscriptions["adc"] == ring.capacity  # clamped
+    assert infos[a.client_id].dropped == 0
