@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import queue
+import shutil
 import signal
 import subprocess
 import sys
@@ -84,3 +85,24 @@ def test_serve_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture
     assert main(["serve", "--port", "0", "--token-file", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "cannot read" in err
+
+
+@pytest.mark.skipif(shutil.which("script") is None, reason="needs script(1) for a terminal")
+def test_serve_on_a_terminal_shows_a_live_table() -> None:
+    cmd = f"{sys.executable} -m robocli serve --sim --port 0"
+    proc = subprocess.Popen(
+        ["script", "-qfec", cmd, "/dev/null"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        env={**os.environ, "COLUMNS": "120", "TERM": "xterm"},
+    )  # fmt: skip
+    try:
+        lines = Lines(proc)
+        lines.until("hub serving", 30.0)
+        lines.until("sensor camera")  # a table row, drawn by Rich
+        os.killpg(proc.pid, signal.SIGINT)
+        proc.wait(TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(TIMEOUT)
+    assert any("robocli hub on tcp://" in line for line in lines.seen)
