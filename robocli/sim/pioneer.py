@@ -108,6 +108,9 @@ class SimState:
     laser_ranges: tuple[float, ...] = ()  #: the last scan's ranges (m; inf: no return)
     simstat_mode: int = 0  #: 0 off, 2 a SIMSTAT before every SIP
     laser_enabled_at_sip: int = 0  #: ``sips_sent`` when the laser was last switched on
+    #: SIP cycles skipped because the simulator ran more than a cycle late (an overloaded
+    #: machine); a real controller skips them too rather than send a burst
+    cycles_skipped: int = 0
 
 
 class PioneerSim:
@@ -291,6 +294,7 @@ class PioneerSim:
             digout=c.digout, encoder_ticks=r.encoder_ticks(),
             laser_mode=c.ext.laser_mode, laser_scans=c.ext.scans, laser_ranges=c.ext.last_scan,
             simstat_mode=c.ext.simstat_mode, laser_enabled_at_sip=c.ext.enabled_at_sip,
+            cycles_skipped=self._ticker.skipped,
         )  # fmt: skip
 
 

@@ -364,7 +364,8 @@ def listen(host: str, port: int, backlog: int = 8) -> socket.socket:
 
 class Ticker:
     """Calls ``tick(now)`` every ``period`` wall seconds, on absolute deadlines
-    ``t0 + k * period`` (no drift); when more than a period late it skips the missed ticks.
+    ``t0 + k * period`` (no drift); when more than a period late it skips the missed ticks
+    and counts them in :attr:`skipped`.
 
     An exception in ``tick`` is logged with its traceback and counted in :attr:`errors`; the
     ticker goes on (one bad tick must not stop a robot's stream).
@@ -376,6 +377,7 @@ class Ticker:
         self.period, self.name = period, name
         self.errors = 0
         self.ticks = 0
+        self.skipped = 0
         self._tick = tick
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -409,6 +411,7 @@ class Ticker:
                 skipped = int(-delay / period)
                 log.debug("%s %.1f ms late; skipping %d ticks", self.name, -delay * 1e3, skipped)
                 k += skipped
+                self.skipped += skipped
             try:
                 self._tick(time.monotonic())
             except Exception:  # logged whole and counted; the stream goes on

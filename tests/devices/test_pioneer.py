@@ -228,12 +228,14 @@ def test_serial_path_over_a_pty_and_a_session_left_open() -> None:
         path = sim.serve_pty()
         first = Pioneer.connect(path, baud=9600)
         first.enable_motors()
-        first._closing = True  # simulate a crash: no CLOSE goes out
-        first.transport.close()
-        assert sim.snapshot().session_open
+        first.transport.close()  # a crash: the port goes away, no CLOSE goes out
+        assert sim.snapshot().session_open and sim.snapshot().commands["CLOSE"] == 0
         with Pioneer.connect(path) as second:
             assert second.wait_for_sip().sip_count >= 1
-        assert sim.snapshot().commands["CLOSE"] >= 2
+            assert sim.snapshot().commands["CLOSE"] == 1  # the re-sync's
+        # and the second client's own, once the simulator has read it
+        sim.wait_until(lambda s: s.commands["CLOSE"] == 2, 5.0)
+        first.close()
 
 
 def test_unreachable_url_is_a_transport_error() -> None:
