@@ -9,7 +9,7 @@ CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c
 
 .PHONY: venv demo test test-c asan valgrind bench lint soak dist dist-check clean fuzz
 
-$(STAMP): pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/build_core.py
+$(STAMP): pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,lint]'
@@ -24,11 +24,11 @@ test: $(STAMP) test-c
 	$(PY) -m pytest -q -p no:cacheprovider --benchmark-disable -m "not slow"
 
 # C tests read the golden vectors in specs/; warnings are errors.
-csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h
+csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h csrc/netio.h
 	$(CC) $(CFLAGS_STRICT) -D_POSIX_C_SOURCE=200112L -Icsrc -o $@ csrc/test_core.c $(CSRC) -lpthread -lm
 
 # The benchmark peers (ping-pong, ARCOS responder) over real loopback sockets.
-csrc/test_bench: $(CSRC) csrc/test_bench.c csrc/robocli_core.h
+csrc/test_bench: $(CSRC) csrc/test_bench.c csrc/robocli_core.h csrc/netio.h
 	$(CC) $(CFLAGS_STRICT) -Icsrc -o $@ csrc/test_bench.c $(CSRC) -lpthread -lm
 
 test-c: csrc/test_core csrc/test_bench

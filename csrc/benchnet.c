@@ -24,6 +24,7 @@
 #include <string.h>
 
 #include "robocli_core.h"
+#include "netio.h"
 
 #if defined(_WIN32) || !(defined(__unix__) || defined(__APPLE__))
 
@@ -98,12 +99,6 @@ void rc_responder_free(rc_responder *r) { (void)r; }
 #include <sched.h>
 #endif
 
-#ifdef MSG_NOSIGNAL
-#define BN_SEND_FLAGS MSG_NOSIGNAL
-#else
-#define BN_SEND_FLAGS 0
-#endif
-
 #define BN_POLL_MS 100       /* longest a responder wait lasts before it looks at `stop` */
 #define BN_SEND_TIMEOUT_S 1  /* a peer that does not read is dropped after this */
 #define BN_MAX_ENTRY 4096u   /* largest key or reply of a responder table entry */
@@ -160,41 +155,6 @@ static void bn_unpin(int cpu, const bn_mask *saved)
     (void)cpu;
     (void)saved;
 #endif
-}
-
-static int bn_send_all(int fd, const unsigned char *p, size_t len)
-{
-    while (len > 0) {
-        ssize_t k = send(fd, p, len, BN_SEND_FLAGS);
-        if (k < 0) {
-            if (errno == EINTR) {
-                continue;
-            }
-            return -1;
-        }
-        p += k;
-        len -= (size_t)k;
-    }
-    return 0;
-}
-
-static int bn_recv_all(int fd, unsigned char *p, size_t len)
-{
-    while (len > 0) {
-        ssize_t k = recv(fd, p, len, 0);
-        if (k < 0) {
-            if (errno == EINTR) {
-                continue;
-            }
-            return -1;
-        }
-        if (k == 0) {
-            return -1;
-        }
-        p += k;
-        len -= (size_t)k;
-    }
-    return 0;
 }
 
 static double bn_now(void)
@@ -258,8 +218,8 @@ static void *bn_echo_main(void *arg)
     }
     if (buf != NULL) {
         /* echo until the other end shuts down (rc_pingpong_free) or an error */
-        while (bn_recv_all(p->sfd, buf, p->msg_size) == 0 &&
-               bn_send_all(p->sfd, buf, p->msg_size) == 0) {
+        while (rc_net_recv_all(p->sfd, buf, p->msg_size) == 0 &&
+               rc_net_send_all(p->sfd, buf, p->msg_size) == 0) {
         }
         free(buf);
     }
@@ -340,8 +300,8 @@ int rc_pingpong_run(rc_pingpong *p, size_t n, int cpu, double *out_rtt)
     }
     for (i = 0; i < n; i++) {
         double t0 = bn_now();
-        if (bn_send_all(p->cfd, p->buf, p->msg_size) != 0 ||
-            bn_recv_all(p->cfd, p->buf, p->msg_size) != 0) {
+        if (rc_net_send_all(p->cfd, p->buf, p->msg_size) != 0 ||
+            rc_net_recv_all(p->cfd, p->buf, p->msg_size) != 0) {
             break;
         }
         out_rtt[i] = bn_now() - t0;
@@ -525,7 +485,7 @@ static void bn_serve(rc_responder *r, int fd)
             }
             /* counted first, so a peer that has read the reply always sees it counted */
             bn_count(r, &r->st.replies);
-            if (r->reply_lens[i] > 0 && bn_send_all(fd, r->replies[i], r->reply_lens[i]) != 0) {
+            if (r->reply_lens[i] > 0 && rc_net_send_all(fd, r->replies[i], r->reply_lens[i]) != 0) {
                 goto done;
             }
         }

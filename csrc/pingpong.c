@@ -5,6 +5,7 @@
 #define _POSIX_C_SOURCE 200112L
 
 #include "robocli_core.h"
+#include "netio.h"
 
 #if defined(_WIN32) || !(defined(__unix__) || defined(__APPLE__))
 
@@ -43,7 +44,7 @@ typedef struct echo_args {
     int rc;
 } echo_args;
 
-static int send_all(int fd, const unsigned char *p, size_t len)
+int rc_net_send_all(int fd, const unsigned char *p, size_t len)
 {
     while (len > 0) {
         ssize_t k = send(fd, p, len, RC_SEND_FLAGS);
@@ -59,7 +60,7 @@ static int send_all(int fd, const unsigned char *p, size_t len)
     return 0;
 }
 
-static int recv_all(int fd, unsigned char *p, size_t len)
+int rc_net_recv_all(int fd, unsigned char *p, size_t len)
 {
     while (len > 0) {
         ssize_t k = recv(fd, p, len, 0);
@@ -90,7 +91,8 @@ static void *echo_main(void *arg)
         return NULL;
     }
     for (i = 0; i < a->n; i++) {
-        if (recv_all(a->fd, buf, a->msg_size) != 0 || send_all(a->fd, buf, a->msg_size) != 0) {
+        if (rc_net_recv_all(a->fd, buf, a->msg_size) != 0 ||
+            rc_net_send_all(a->fd, buf, a->msg_size) != 0) {
             break;
         }
     }
@@ -177,7 +179,8 @@ int rc_pingpong_tcp(size_t n, size_t msg_size, double *out_rtt)
 
     for (i = 0; i < n; i++) {
         double t0 = now_s();
-        if (send_all(cfd, buf, msg_size) != 0 || recv_all(cfd, buf, msg_size) != 0) {
+        if (rc_net_send_all(cfd, buf, msg_size) != 0 ||
+            rc_net_recv_all(cfd, buf, msg_size) != 0) {
             break;
         }
         out_rtt[i] = now_s() - t0;
