@@ -265,7 +265,7 @@ def upload(
 def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
-    samples: int | None = typer.Option(None, "--samples", min=2, max=10_000_000),  # noqa: UP007
+    samples: int | None = typer.Option(None, "--samples", min=2, max=1_000_000),  # noqa: UP007
     duration: float | None = typer.Option(None, "--duration", min=0.01),  # noqa: UP007
     state_port: int = StatePortOpt,
     byte_order: str = OrderOpt,
@@ -284,7 +284,7 @@ def monitor(
                                           robot) as (h, _, sp):  # fmt: skip
         with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
                          real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
-            rec = arm.record()
+            rec = arm.record() if samples is None else arm.record(2 * samples)
             end = time.monotonic() + (duration if duration is not None else math.inf)
             try:
                 while time.monotonic() < end and (samples is None or _count(rec) < samples):

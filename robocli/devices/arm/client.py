@@ -80,7 +80,7 @@ class Arm:
 
     def __init__(self, motion: Session | None, state: Session | None, *, robot: RobotModel,
                  byteorder: sm.ByteOrder, real: sm.RealSize, timeout: float,
-                 history: int = 100_000) -> None:  # fmt: skip
+                 history: int = 10_000) -> None:  # fmt: skip
         """Use :meth:`connect`."""
         self.robot, self.byteorder, self.real, self.timeout = robot, byteorder, real, timeout
         self._motion, self._state = motion, state
@@ -107,7 +107,7 @@ class Arm:
     def connect(cls, host: str, motion_port: int = sm.PORT_MOTION,
                 state_port: int = sm.PORT_STATE, *, byte_order: str = "little",
                 real_size: int = 4, robot: str | RobotModel = "irb120", motion: bool = True,
-                state: bool = True, timeout: float = 5.0, history: int = 100_000,
+                state: bool = True, timeout: float = 5.0, history: int = 10_000,
                 listeners: Iterable[FrameListener] = ()) -> Arm:  # fmt: skip
         """Open the motion and/or state port of the controller at ``host``.
 
@@ -323,8 +323,10 @@ class Arm:
                     raise TimeoutError(f"{s.transport.url}: still in motion after {timeout:g} s")
                 self._cond.wait(min(left, 0.1))
 
-    def record(self, max_samples: int = 1_000_000) -> Recorder:
-        """Start recording joint samples (a :class:`Recorder`; stop it for the log)."""
+    def record(self, max_samples: int = 720_000) -> Recorder:
+        """Start recording joint samples (a :class:`Recorder`; stop it for the log). At most
+        ``max_samples`` are kept, the oldest dropped first (about 350 bytes each; the default
+        holds an hour of 100 Hz state with JOINT_FEEDBACK)."""
         return Recorder(self, max_samples)
 
     # ------------------------------------------------------------------ motion

@@ -36,7 +36,7 @@ def _tri(value: int) -> bool | None:
     return None if value < 0 else bool(value)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, slots=True)
 class JointSample:
     """Joint positions (rad) received at ``t`` (``time.monotonic()`` on this computer).
 
