@@ -39,6 +39,7 @@ def fuzz_arcos(data: bytes) -> None:
     if payload:
         body = payload[1:]
         _call(arcos.decode_body, payload[0], body)
+        _call(arcos.decode_sip, body)
         _call(arcos.decode_sip, memoryview(body))
         for parse in (
             arcos.parse_sync_reply,

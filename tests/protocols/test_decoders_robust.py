@@ -4,9 +4,11 @@ and a decoding failure names the packet. ros4mat inflation is bounded (zlib bomb
 from __future__ import annotations
 
 import struct
+import sys
 import tracemalloc
 import zlib
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -14,55 +16,30 @@ import reference
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from robocli.errors import FramingError, ProtocolError, RobocliError
+from robocli.errors import FramingError, ProtocolError
 from robocli.protocols import arcos, layout
 from robocli.protocols import ros4mat as r4m
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import enum_or_int
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fuzz"))
+import fuzz_decoders  # noqa: E402
+
 GOLDEN = reference.golden_frames()
-SM_COMBOS: list[tuple[sm.ByteOrder, sm.RealSize]] = [("<", 4), (">", 4), ("<", 8), (">", 8)]
 
 
-def survives(decoder: Callable[..., Any], *args: Any, **kwargs: Any) -> None:
-    """Call a decoder: success or a RobocliError are fine, anything else fails the test."""
-    try:
-        decoder(*args, **kwargs)
-    except RobocliError:
-        pass
-
-
-def arcos_decoders(payload: bytes) -> None:
-    survives(arcos.unframe, payload)
-    survives(arcos.decode_command, payload)
-    survives(arcos.decode_server, payload)
-    for in_session in (True, False):
-        for from_client in (True, False):
-            survives(arcos.describe, payload, from_client=from_client, in_session=in_session)
-    body = payload[1:]
-    survives(arcos.decode_sip, body)
-    survives(arcos.decode_sip, memoryview(body))
-    for parse in (
-        arcos.parse_sync_reply,
-        arcos.parse_config,
-        arcos.parse_io,
-        arcos.parse_encoder,
-        arcos.parse_battery,
-    ):
-        survives(parse, body)
-    if payload:
-        survives(arcos.decode_body, payload[0], body)
+# The decoders are driven by the fuzz harnesses themselves (fuzz/fuzz_decoders.py), with every
+# option byte, so that what `make fuzz` runs for minutes runs here on Hypothesis's examples.
 
 
 def sm_decoders(frame: bytes) -> None:
-    for byteorder, real in SM_COMBOS:
-        for validate in (True, False):
-            survives(sm.decode, frame, byteorder=byteorder, real=real, validate=validate)
+    for option in range(16):  # byte order x real size x length repaired x validated
+        fuzz_decoders.fuzz_simple_message(bytes((option,)) + frame)
 
 
 def r4m_decoders(frame: bytes) -> None:
-    survives(r4m.decode, frame)
-    survives(r4m.inflate, frame, len(frame))
+    for option in range(4):  # sizes repaired, inflate tried
+        fuzz_decoders.fuzz_ros4mat(bytes((option,)) + frame)
 
 
 def mutate(draw: st.DrawFn, frame: bytes) -> bytes:
@@ -119,8 +96,8 @@ def r4m_frames(draw: st.DrawFn) -> bytes:
 @settings(max_examples=400, suppress_health_check=[HealthCheck.too_slow])
 @given(st.binary(max_size=300) | golden_mutants(("arcos",)))
 def test_arcos_decoders_raise_only_robocli_errors(payload: bytes) -> None:
-    arcos_decoders(payload)
-    arcos_decoders(payload[3:-2])  # as a frame's payload
+    fuzz_decoders.fuzz_arcos(payload)
+    fuzz_decoders.fuzz_arcos(payload[3:-2])  # as a frame's payload
 
 
 @settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow])
