@@ -234,7 +234,7 @@ class Arm:
         body = msg.body
         if not isinstance(body, dict):
             if isinstance(body, bytes) and msg.msg_type in _JOINT_TYPES:
-                raise ProtocolError(f"{msg.msg_type.name} with a {len(body)}-byte body: not "
+                raise ProtocolError(f"{MsgType(msg.msg_type).name} with a {len(body)}-byte body: not "
                                     f"{self.real}-byte reals (the wrong real size?)")
             return
         n = self.robot.n_joints
