@@ -234,8 +234,9 @@ class Arm:
         body = msg.body
         if not isinstance(body, dict):
             if isinstance(body, bytes) and msg.msg_type in _JOINT_TYPES:
-                raise ProtocolError(f"{MsgType(msg.msg_type).name} with a {len(body)}-byte body: not "
-                                    f"{self.real}-byte reals (the wrong real size?)")
+                name = MsgType(msg.msg_type).name
+                raise ProtocolError(f"{name} with a {len(body)}-byte body: not {self.real}-byte "
+                                    "reals (the wrong real size?)")
             return
         n = self.robot.n_joints
         sample = None
