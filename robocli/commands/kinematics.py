@@ -20,8 +20,7 @@ if TYPE_CHECKING:
 
 RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
 PointsOpt = typer.Option(100, "--points", "-n", min=2, max=100_000, help="Number of points.")
-OutOpt = typer.Option(Path("sim.json"), "--out", "-o",
-                      help="Log to write (.json, .csv or .npz).")
+OutOpt = typer.Option(Path("sim.json"), "--out", "-o", help="Log to write (.json, .csv or .npz).")
 PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
 DurationOpt = typer.Option(None, "--duration", help="Total duration, s (instead of --speed).")
@@ -58,8 +57,9 @@ def _start(model: RobotModel, start: str | None) -> Any:
     return None if values is None else [math.radians(v) for v in values]
 
 
-def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path,
-            plot: Path | None, json_out: bool) -> None:
+def _finish(
+    model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: Path | None, json_out: bool
+) -> None:
     import numpy as np
 
     from robocli.io.trajlog import write_log
@@ -74,8 +74,11 @@ def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path,
     fraction = float(speeds[fastest] / model.max_speed[fastest])
     duration = float(log.time[-1] - log.time[0])
     summary: dict[str, Any] = {
-        "robot": model.name, "shape": shape, "points": len(log),
-        "duration_s": duration, "out": str(out),
+        "robot": model.name,
+        "shape": shape,
+        "points": len(log),
+        "duration_s": duration,
+        "out": str(out),
         "plot": None if plot is None else str(plot),
         "max_speed_fraction": fraction,
         "max_speed_joint": fastest + 1,
@@ -86,52 +89,82 @@ def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path,
     typer.echo(
         f"{model.name} {shape}: {len(log)} points over {duration:.3f} s, "
         f"fastest joint {fastest + 1} at {math.degrees(speeds[fastest]):.1f} deg/s "
-        f"({100 * fraction:.0f}% of its limit) -> {out}"
-        + (f", plot {plot}" if plot else "")
+        f"({100 * fraction:.0f}% of its limit) -> {out}" + (f", plot {plot}" if plot else "")
     )
 
 
 def circle(
-    robot: str = RobotOpt, points: int = PointsOpt,
+    robot: str = RobotOpt,
+    points: int = PointsOpt,
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
-    center: str | None = CenterOpt, plane: str = PlaneOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+    center: str | None = CenterOpt,
+    plane: str = PlaneOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,
+    duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt,
+    out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt,
+    json_out: bool = JsonOpt,  # noqa: UP007
 ) -> None:
     """A circle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import circle as make
 
     model = _model(robot)
-    log = make(model, points, radius, _floats(center, 3, "--center"), plane,
-               _start(model, start), speed, duration)
+    log = make(
+        model,
+        points,
+        radius,
+        _floats(center, 3, "--center"),
+        plane,
+        _start(model, start),
+        speed,
+        duration,
+    )
     _finish(model, log, "circle", out, plot, json_out)
 
 
 def rectangle(
-    robot: str = RobotOpt, points: int = PointsOpt,
+    robot: str = RobotOpt,
+    points: int = PointsOpt,
     width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
     height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
-    center: str | None = CenterOpt, plane: str = PlaneOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+    center: str | None = CenterOpt,
+    plane: str = PlaneOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,
+    duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt,
+    out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt,
+    json_out: bool = JsonOpt,  # noqa: UP007
 ) -> None:
     """A rectangle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import rectangle as make
 
     model = _model(robot)
-    log = make(model, points, width, height, _floats(center, 3, "--center"), plane,
-               _start(model, start), speed, duration)
+    log = make(
+        model,
+        points,
+        width,
+        height,
+        _floats(center, 3, "--center"),
+        plane,
+        _start(model, start),
+        speed,
+        duration,
+    )
     _finish(model, log, "rectangle", out, plot, json_out)
 
 
 def ptp_joint(
     to: str = typer.Option(..., "--to", help="Goal joint angles, comma-separated, deg."),
-    robot: str = RobotOpt, points: int = PointsOpt,
-    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+    robot: str = RobotOpt,
+    points: int = PointsOpt,
+    speed: float | None = SpeedOpt,
+    duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt,
+    out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt,
+    json_out: bool = JsonOpt,  # noqa: UP007
 ) -> None:
     """Joint-space point-to-point move with a quintic profile."""
     from robocli.kinematics.trajectory import ptp_joint as make
@@ -144,10 +177,14 @@ def ptp_joint(
 
 def ptp_cartesian(
     to: str = typer.Option(..., "--to", help="Goal TCP position x,y,z, m."),
-    robot: str = RobotOpt, points: int = PointsOpt,
-    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+    robot: str = RobotOpt,
+    points: int = PointsOpt,
+    speed: float | None = SpeedOpt,
+    duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt,
+    out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt,
+    json_out: bool = JsonOpt,  # noqa: UP007
 ) -> None:
     """Straight TCP line to a point, keeping the start orientation, through IK."""
     from robocli.kinematics.trajectory import ptp_cartesian as make
@@ -161,9 +198,12 @@ def ptp_cartesian(
 def file(
     waypoints: Path = typer.Argument(..., help="Waypoints: .json or .csv (joints or x,y,z)."),
     robot: str = RobotOpt,
-    speed: float | None = SpeedOpt, duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt, out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt, json_out: bool = JsonOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,
+    duration: float | None = DurationOpt,  # noqa: UP007
+    start: str | None = StartOpt,
+    out: Path = OutOpt,  # noqa: UP007
+    plot: Path | None = PlotOpt,
+    json_out: bool = JsonOpt,  # noqa: UP007
 ) -> None:
     """User waypoints from a file; times from the file, else from --speed or --duration."""
     from robocli.io.waypoints import read_waypoints
@@ -171,8 +211,15 @@ def file(
 
     model = _model(robot)
     wp = read_waypoints(waypoints)
-    log = make(model, wp.joints, wp.points, wp.time if speed is None and duration is None
-               else None, _start(model, start), speed, duration)
+    log = make(
+        model,
+        wp.joints,
+        wp.points,
+        wp.time if speed is None and duration is None else None,
+        _start(model, start),
+        speed,
+        duration,
+    )
     _finish(model, log, "file", out, plot, json_out)
 
 
@@ -208,18 +255,23 @@ def _table(result: Any, plot: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"simulated vs measured ({result.samples} samples, "
-                        f"delay {result.delay_s * 1e3:.1f} ms)")
+    table = Table(
+        title=f"simulated vs measured ({result.samples} samples, "
+        f"delay {result.delay_s * 1e3:.1f} ms)"
+    )
     table.add_column("joint", justify="right")
     for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
         table.add_column(name, justify="right")
     for j in range(result.rmse.shape[0]):
-        table.add_row(str(j + 1), f"{result.rmse[j]:.6f}", f"{result.mae[j]:.6f}",
-                      f"{result.max_abs[j]:.6f}")
+        table.add_row(
+            str(j + 1), f"{result.rmse[j]:.6f}", f"{result.mae[j]:.6f}", f"{result.max_abs[j]:.6f}"
+        )
     console = Console()
     console.print(table)
     if result.tcp_rmse_mm is not None:
-        console.print(f"TCP position error: RMSE {result.tcp_rmse_mm:.3f} mm, mean "
-                      f"{result.tcp_mean_mm:.3f} mm, max {result.tcp_max_mm:.3f} mm")
+        console.print(
+            f"TCP position error: RMSE {result.tcp_rmse_mm:.3f} mm, mean "
+            f"{result.tcp_mean_mm:.3f} mm, max {result.tcp_max_mm:.3f} mm"
+        )
     if plot is not None:
         console.print(f"plot written to {plot}")
