@@ -303,16 +303,21 @@ def _count(rec: Any) -> int:
 
 
 def describe(arm: Arm) -> dict[str, Any]:
-    """Joints (deg and rad), TCP position (m) and status of the last state."""
-    from robocli.kinematics.fk import fk_positions
+    """Joints (deg and rad), TCP pose (flange position in m, roll-pitch-yaw in deg) and
+    status of the last state."""
+    from robocli.kinematics.fk import fk
 
     sample = arm.joints
     assert sample is not None
-    tcp = fk_positions(arm.robot, list(sample.joints))[0]
+    pose = fk(arm.robot, list(sample.joints))[0]
+    r = pose[:3, :3]  # Z-Y-X Euler angles (yaw about z, pitch about y, roll about x)
+    rpy = (math.atan2(r[2, 1], r[2, 2]), math.asin(max(-1.0, min(1.0, -r[2, 0]))),
+           math.atan2(r[1, 0], r[0, 0]))  # fmt: skip
     st = arm.status
     return {
         "t": sample.t, "robot_time": sample.robot_time, "joints_rad": list(sample.joints),
-        "joints_deg": sample.degrees(), "tcp_m": [float(v) for v in tcp],
+        "joints_deg": sample.degrees(), "tcp_m": [float(v) for v in pose[:3, 3]],
+        "tcp_rpy_deg": [math.degrees(v) for v in rpy],
         "status": st.as_dict() if st is not None else None,
     }  # fmt: skip
 
@@ -321,9 +326,11 @@ def _line(d: dict[str, Any]) -> str:
     deg = " ".join(f"{v:8.3f}" for v in d["joints_deg"])
     rad = " ".join(f"{v:8.5f}" for v in d["joints_rad"])
     x, y, z = d["tcp_m"]
+    roll, pitch, yaw = d["tcp_rpy_deg"]
     st = d["status"] or {}
     flags = " ".join(f"{k}={v}" for k, v in st.items())
-    return f"joints deg [{deg}]  rad [{rad}]  tcp ({x:.4f}, {y:.4f}, {z:.4f}) m  {flags}"
+    return (f"joints deg [{deg}]  rad [{rad}]  tcp ({x:.4f}, {y:.4f}, {z:.4f}) m "
+            f"rpy ({roll:.2f}, {pitch:.2f}, {yaw:.2f}) deg  {flags}")
 
 
 def connect(

@@ -66,6 +66,7 @@ def test_connect_and_monitor_embedded_sim(tmp_path: Path, capsys) -> None:
     work = load_model("irb120").work
     assert state["joints_rad"] == pytest.approx(list(work), abs=1e-6)
     assert state["tcp_m"][0] > 0.3 and state["status"]["mode"] == "AUTO"
+    assert len(state["tcp_rpy_deg"]) == 3 and abs(abs(state["tcp_rpy_deg"][0]) - 180) < 1e-6
     code, out, _ = run(capsys, "connect", "arm", "sim", "--json", "--count", "3")
     assert code == 0 and len(out.strip().splitlines()) == 3
     log = tmp_path / "m.csv"
