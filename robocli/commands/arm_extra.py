@@ -1,0 +1,291 @@
+"""``robocli dump arm`` and ``robocli teleop arm``: thin layers over
+:class:`robocli.devices.arm.Arm` and :mod:`robocli.devices.arm_teleop`.
+
+The dump opens the motion and the state port as two clients (``--ports`` picks one; an ABB
+takes one client per port, so a dump holding the motion port keeps others from uploading)
+and shows every Simple Message both ways, in time order, named and decoded. ``--file``
+decodes a ``.jsonl`` capture (what ``--output`` records, or a trace) instead.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import queue
+import sys
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import reader_may_leave, rounded, sigterm_as_interrupt
+from robocli.commands.arm import (
+    MotionPortOpt,
+    OrderOpt,
+    RealOpt,
+    RobotOpt,
+    StatePortOpt,
+    TimeoutOpt,
+    _check_wire,
+    arm_host,
+)
+
+if TYPE_CHECKING:
+    from robocli.protocols import simple_message as sm
+
+HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
+                         show_default=False, metavar="HOST")  # fmt: skip
+_ARROWS = {"tx": "->", "rx": "<-"}
+_SEQ = {-1: "start", -2: "stream", -3: "end", -4: "STOP"}
+#: Short names in text lines (JSON keeps the protocol's names).
+_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
+          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
+          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
+_VALID_BITS = {"time": 1, "positions": 2, "velocities": 4, "accelerations": 8}
+#: How long a message waits for older ones from the other port's thread (s).
+_REORDER = 0.05
+
+
+def describe(frame: bytes, order: sm.ByteOrder = "<", real: sm.RealSize = 4,
+             n_joints: int = 6) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """Name and decoded fields of one whole Simple Message frame (joints cut to
+    ``n_joints``). A frame that does not decode is named ``undecodable`` with the reason."""
+    from robocli.protocols import simple_message as sm
+    from robocli.protocols.simple_message import CommType, MsgType, ReplyCode
+
+    try:
+        msg = sm.decode(frame, byteorder=order, real=real)
+    except sm.ProtocolError as exc:  # FramingError included
+        return "undecodable", {"error": str(exc)}
+    name = msg.msg_type.name if isinstance(msg.msg_type, MsgType) else f"TYPE_{msg.msg_type}"
+    if msg.comm_type == CommType.SERVICE_REQUEST:
+        name += " req"
+    elif msg.comm_type == CommType.SERVICE_REPLY:
+        code = msg.reply_code
+        name += " " + (code.name if isinstance(code, ReplyCode) else f"reply {code}")
+    body = msg.body
+    if not isinstance(body, dict):
+        return name, ({"bytes": len(body)} if isinstance(body, bytes) and body else {})
+    valid = body.get("valid_fields")
+    fields: dict[str, Any] = {}
+    for key, value in body.items():
+        if valid is not None and key in _VALID_BITS and not valid & _VALID_BITS[key]:
+            continue  # JOINT_FEEDBACK / JOINT_TRAJ_PT_FULL: only the fields it says are valid
+        if isinstance(value, list):
+            value = value[:n_joints]
+        if key == "sequence" and value in _SEQ:
+            value = f"{value}({_SEQ[value]})"
+        fields[key] = value
+    return name, fields
+
+
+def packet_view(order: sm.ByteOrder, real: sm.RealSize, n_joints: int, **options: Any) -> Any:
+    """A :class:`~robocli.commands._packets.PacketView` (its time ordering and ``--count``)
+    that shows Simple Message frames; each queued direction is ``"tx:motion"``-style
+    (direction and port). Built on first use, so that ``robocli --help`` stays fast."""
+    from robocli.commands._packets import LINE_MAX, PacketView
+
+    class ArmPacketView(PacketView):  # type: ignore[misc]
+        def show(self, direction: str, payload: bytes, t: float | None) -> None:
+            """Print one frame now (``payload``: the whole frame, ``direction``: dir:port)."""
+            way, _, port = direction.partition(":")
+            name, fields = describe(payload, order, real, n_joints)
+            if self.writer is not None:
+                self.writer.write(t or 0.0, way, payload)
+            if self.json_out:
+                record = {"t": t, "port": port or None, "dir": way, "name": name,
+                          "fields": fields}  # fmt: skip
+                if self.hex_out:
+                    record["hex"] = payload.hex()
+                sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
+            else:
+                text = " ".join(f"{_SHORT.get(k, k)}={_short(v)}" for k, v in fields.items())
+                stamp = f"{t:9.3f} " if t is not None else ""
+                line = f"{stamp}{port or '-':<6} {_ARROWS.get(way, '  ')} {name:<22} {text}"
+                line = line.rstrip()
+                cut = line if len(line) <= LINE_MAX else line[: LINE_MAX - 1] + "…"
+                sys.stdout.write(cut + "\n")
+                if self.hex_out:
+                    sys.stdout.write(f"{'':13}{payload.hex(' ')}\n")
+            sys.stdout.flush()
+            self.printed += 1
+
+    return ArmPacketView(**options)
+
+
+def _short(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list):
+        return "[" + ",".join(_short(v) for v in value) + "]"
+    return str(value)
+
+
+def dump(
+    host: str | None = typer.Argument(  # noqa: UP007
+        None, help="Controller address, 'sim' for an embedded simulator; omit with --file.",
+        show_default=False, metavar="HOST",
+    ),  # fmt: skip
+    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
+    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
+    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    output: Path | None = typer.Option(  # noqa: UP007
+        None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
+    ),
+    file: Path | None = typer.Option(  # noqa: UP007
+        None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
+    ),
+    ports: str = typer.Option("both", "--ports", help="both, motion or state."),
+    motion_port: int = MotionPortOpt,
+    state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    robot: str = RobotOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Print every Simple Message on the motion and state ports, in time order, named and
+    decoded (joints in rad)."""
+    from robocli.io.capture import CaptureWriter
+    from robocli.kinematics import load_model
+
+    _check_wire(byte_order, real_size)
+    if (host is None) == (file is None):
+        raise typer.BadParameter("give HOST or --file (one of them)")
+    if ports not in ("both", "motion", "state"):
+        raise typer.BadParameter(f"--ports is both, motion or state, not {ports!r}")
+    if output is not None and output.suffix != ".jsonl":
+        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
+    order = ">" if byte_order == "big" else "<"
+    n = load_model(robot).n_joints
+    writer = CaptureWriter(output) if output is not None else None
+    view = packet_view(order, real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
+                       count=count, writer=writer)  # fmt: skip
+    try:
+        with reader_may_leave(), sigterm_as_interrupt():
+            if file is not None:
+                _dump_file(view, file, "sm-be" if order == ">" else "sm-le")
+            else:
+                assert host is not None
+                _dump_live(view, host, ports, (motion_port, state_port),
+                           dict(byte_order=byte_order, real_size=real_size, robot=robot,
+                                timeout=timeout))  # fmt: skip
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def _dump_file(view: Any, file: Path, protocol: str) -> None:
+    from robocli.errors import RobocliError
+    from robocli.io.capture import CaptureStats, read_capture
+
+    stats = CaptureStats()
+    for item in read_capture(file, protocol, stats):
+        view.show(item.direction, item.frame, item.t)
+        if view.done:
+            return
+    if stats.frames == 0:
+        raise RobocliError(f"{file}: no Simple Message frame ({stats.dropped_bytes} bytes "
+                           "dropped)")  # fmt: skip
+
+
+def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
+               options: dict[str, Any]) -> None:  # fmt: skip
+    """Both ports as two clients, their frames queued by their threads and printed here in
+    time order until ``--count`` or Ctrl-C (then what was still queued)."""
+    from robocli.devices.arm import Arm
+
+    start = time.monotonic()
+    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
+
+    def listener(port: str) -> Any:
+        return lambda way, frame, t: seen.put((f"{way}:{port}", frame, t - start))
+
+    def take(wait: float = 0.0) -> None:
+        with contextlib.suppress(queue.Empty):
+            if wait:
+                view.add(*seen.get(timeout=wait))
+            while True:
+                view.add(*seen.get_nowait())
+
+    with arm_host(host, *port_numbers, options["byte_order"], options["real_size"],
+                  options["robot"]) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
+        try:
+            state = None
+            for name in ("motion", "state") if ports == "both" else (ports,):
+                arm = arms.enter_context(Arm.connect(
+                    h, mp, sp, motion=name == "motion", state=name == "state",
+                    history=16, listeners=[listener(name)], **options))  # fmt: skip
+                state = arm if name == "state" else None
+            while not view.done:
+                take(_REORDER)
+                view.flush(before=time.monotonic() - start - _REORDER)
+                if state is not None:  # raises when the state link is lost or silent
+                    state.wait_for_state(options["timeout"])
+        finally:
+            take()
+            view.flush()
+
+
+# ------------------------------------------------------------------------------ teleop
+
+
+def teleop(
+    host: str = HostArg,
+    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
+    joint_speed: float = typer.Option(
+        0.1, "--joint-speed", min=0.01, max=1.0, help="Fraction of the joint speed limits."
+    ),
+    cart_speed: float = typer.Option(
+        0.05, "--cart-speed", min=0.001, max=1.0, help="TCP speed, m/s."
+    ),
+    release: float = typer.Option(
+        0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
+    ),
+    motion_port: int = MotionPortOpt,
+    state_port: int = StatePortOpt,
+    byte_order: str = OrderOpt,
+    real_size: int = RealOpt,
+    robot: str = RobotOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
+    +/- speed, space stops, q quits. Letting go of the key sends STOP."""
+    from robocli.commands._screens import end_line, raw_terminal
+    from robocli.devices.arm import Arm
+    from robocli.devices.arm_teleop import ArmTeleop, run_arm_teleop
+
+    _check_wire(byte_order, real_size)
+    if not sys.stdin.isatty():
+        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
+    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order,
+                                          real_size, robot) as (h, mp, sp):  # fmt: skip
+        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
+                         timeout=timeout) as arm:  # fmt: skip
+            arm.wait_for_state()
+            typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
+                       "1-6 joint, c TCP, arrows/WASD (r/f: z) jog, +/- speed, space stops, "
+                       "q or Ctrl-C quits")  # fmt: skip
+            jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
+                            release_timeout=release)  # fmt: skip
+            try:
+                with raw_terminal() as read_key:
+                    run_arm_teleop(jog, read_key, on_update=_status_line())
+            finally:
+                end_line()
+
+
+def _status_line() -> Any:
+    """``on_update`` that redraws the teleop's status in place at 10 Hz."""
+    from robocli.commands._screens import STATUS_PERIOD
+
+    last = [-1.0]
+
+    def draw(jog: Any) -> None:
+        now = time.monotonic()
+        if now - last[0] >= STATUS_PERIOD:
+            last[0] = now
+            sys.stdout.write("\r" + jog.status()[:150] + "\x1b[K")
+            sys.stdout.flush()
+
+    return draw

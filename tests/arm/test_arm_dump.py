@@ -1,0 +1,106 @@
+"""``robocli dump arm`` as a user runs it (a subprocess): decoded Simple Messages of both
+ports in time order, JSON Lines, a capture that ``--file`` and robocli.io read back, the
+recorded traces in all three variants, ``| head`` and Ctrl-C, one-line errors."""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from robocli.io.capture import read_capture
+from robocli.protocols import simple_message as sm
+
+DATA = Path(__file__).resolve().parent.parent / "data" / "simple_message"
+CLI = [sys.executable, "-m", "robocli", "dump", "arm"]
+
+
+def dump(*args: str, timeout: float = 30.0) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=timeout)
+
+
+def test_live_json_lines_in_time_order() -> None:
+    done = dump("sim", "--count", "9", "--json")
+    assert done.returncode == 0, done.stderr
+    records = [json.loads(line) for line in done.stdout.splitlines()]
+    assert len(records) == 9 and done.stderr == ""
+    assert {r["port"] for r in records} == {"state"} and {r["dir"] for r in records} == {"rx"}
+    assert [r["name"] for r in records[:2]] == ["JOINT_POSITION", "STATUS"]
+    assert all(a["t"] <= b["t"] for a, b in zip(records, records[1:], strict=False))
+    first = records[0]["fields"]
+    assert len(first["joints"]) == 6 and first["joints"][1] == pytest.approx(0.174533)
+
+
+def test_capture_is_read_back(tmp_path: Path) -> None:
+    out = tmp_path / "arm.jsonl"
+    done = dump("sim", "--count", "12", "--hex", "--output", str(out))
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert len(lines) == 24  # a text line and a hex line per message
+    assert "<- JOINT_POSITION" in lines[0] and "seq=0 joints=[" in lines[0]
+    frames = list(read_capture(out, "sm-le"))
+    assert len(frames) == 12 and {f.direction for f in frames} == {"rx"}
+    assert bytes.fromhex(lines[1].replace(" ", "")) == frames[0].frame
+    names = [sm.decode(f.frame).msg_type.name for f in frames]  # type: ignore[union-attr]
+    again = dump("--file", str(out), "--json")
+    assert [json.loads(x)["name"] for x in again.stdout.splitlines()] == names
+
+
+@pytest.mark.parametrize("variant,options", [
+    ("le", []), ("bswap", ["--byte-order", "big"]), ("float64", ["--real-size", "8"]),
+])  # fmt: skip
+def test_traces_decode_in_every_variant(variant: str, options: list[str]) -> None:
+    done = dump("--file", str(DATA / f"exchange_{variant}.jsonl"), "--json", *options)
+    assert done.returncode == 0, done.stderr
+    records = [json.loads(line) for line in done.stdout.splitlines()]
+    names = {r["name"] for r in records}
+    assert "undecodable" not in names
+    assert {"PING req", "PING SUCCESS", "JOINT_TRAJ_PT req", "JOINT_TRAJ_PT SUCCESS"} <= names
+    stop = [r for r in records if r["fields"].get("sequence") == "-4(STOP)"]
+    assert stop and stop[0]["dir"] == "tx"
+
+
+def test_a_closed_pipe_ends_quietly() -> None:
+    proc = subprocess.Popen([*CLI, "sim"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.readline()
+    proc.stdout.close()  # like `| head -1`
+    assert proc.wait(20) == 0
+    assert proc.stderr.read() == b""
+
+
+def test_ctrl_c_exits_130_with_one_line() -> None:
+    proc = subprocess.Popen([*CLI, "sim"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)  # fmt: skip
+    assert proc.stdout is not None
+    proc.stdout.readline()  # it runs
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130
+    assert err.splitlines() == ["robocli: interrupted"]
+
+
+@pytest.mark.parametrize("args,code,text", [
+    (["sim", "--ports", "x"], 2, "--ports is both, motion or state"),
+    ([], 2, "give HOST or --file"),
+    (["sim", "--output", "x.txt"], 2, ".jsonl"),
+    (["127.0.0.1", "--motion-port", "1", "--state-port", "1"], 3, "connection refused"),
+])  # fmt: skip
+def test_bad_input_one_line(args: list[str], code: int, text: str, tmp_path: Path) -> None:
+    done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=30,
+                          cwd=tmp_path)  # fmt: skip
+    assert done.returncode == code
+    assert len(done.stderr.splitlines()) == 1 and text in done.stderr
+    assert "Traceback" not in done.stderr
+
+
+def test_empty_capture_fails(tmp_path: Path) -> None:
+    empty = tmp_path / "none.jsonl"
+    empty.write_text('{"t": 0, "dir": "s2c", "hex": "00ff"}\n')
+    done: Any = dump("--file", str(empty))
+    assert done.returncode == 1 and "no Simple Message frame" in done.stderr
