@@ -13,7 +13,7 @@ from typing import Any
 import typer
 
 from robocli._version import __version__
-from robocli.commands import arm, bench, kinematics, pioneer, ports
+from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands._common import PlainCommand
@@ -96,6 +96,8 @@ sim.command("abb", cls=PlainCommand)(arm.simulate)
 upload.command("arm", cls=PlainCommand)(arm.upload)
 monitor.command("arm", cls=PlainCommand)(arm.monitor)
 connect.command("arm", cls=PlainCommand)(arm.connect)
+dump.command("arm", cls=PlainCommand)(arm_extra.dump)
+teleop.command("arm", cls=PlainCommand)(arm_extra.teleop)
 
 app.command("subscribe")(hub_commands.subscribe)
 app.command("serial")(hub_commands.serial)
