@@ -30,6 +30,9 @@ from robocli.protocols.ros4mat import (
     sensor_type,
 )
 
+#: the dump proxy's deadline for a write (and how often a quiet read checks for close)
+_IO_TIMEOUT_S = 1.0
+
 _COLUMNS: dict[int, tuple[str, ...]] = {
     MsgType.ADC: tuple(f"ch{i}" for i in range(8)),
     MsgType.IMU: ("ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"),
@@ -261,7 +264,8 @@ class DumpProxy:
                 client.close()
                 continue
             for s in (client, hub):
-                s.settimeout(None)
+                # a deadline on every write; a quiet read only looks at the closing flag again
+                s.settimeout(_IO_TIMEOUT_S)
                 s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             with self._lock:
                 if len(self._socks) >= 2 * self._max:
@@ -273,10 +277,15 @@ class DumpProxy:
                 threading.Thread(target=self._pump, args=(src, dst, direction), daemon=True).start()
 
     def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
+        """Relay one direction of one session, showing each message before it is passed on.
+        A side that stops reading for ``_IO_TIMEOUT_S`` ends the session."""
         framer = Framer("ros4mat")
         try:
-            while True:
-                data = src.recv(65536)
+            while not self._closing.is_set():
+                try:
+                    data = src.recv(65536)
+                except TimeoutError:
+                    continue  # nothing to relay yet
                 if not data:
                     break
                 now = time.monotonic() - self._start
@@ -288,7 +297,7 @@ class DumpProxy:
                         name, fields = describe(frame)
                         with self._lock:
                             self.on_message(Message(now, direction, name, frame, fields))
-                    dst.sendall(data)
+                    dst.sendall(data)  # TimeoutError (an OSError): that side stopped reading
                 finally:
                     with self._idle:
                         self._in_flight -= 1
@@ -299,6 +308,11 @@ class DumpProxy:
             for s in (src, dst):
                 with contextlib.suppress(OSError):
                     s.shutdown(socket.SHUT_RDWR)
+            with self._lock:  # the session's slot is free again (the other pump may be first)
+                for s in (src, dst):
+                    if s in self._socks:
+                        self._socks.remove(s)
+                        s.close()
 
     def close(self, grace: float = 1.0) -> None:
         """Stop accepting, let bytes already read reach their side (``grace`` s at most),
