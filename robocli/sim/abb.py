@@ -57,6 +57,7 @@ log = logging.getLogger("robocli.sim.abb")
 
 SEND_TIMEOUT_S = 2.0
 MAX_CATCH_UP_S = 5.0  #: exact mode sends samples this many wall seconds late; older are skipped
+MAX_BURST = 5000  #: and at most this many at once
 BYTE_TIMEOUT_S = 0.5
 
 
@@ -215,7 +216,7 @@ class AbbSim:
         k = int(self.sim_time() / period) + 1
         exact = self.ctl_model.exact
         extra, last_t = 0.0, k * period - period
-        burst = max(1, int(MAX_CATCH_UP_S / wall))
+        burst = max(1, min(MAX_BURST, int(MAX_CATCH_UP_S / wall)))
         while not self._stop.is_set():
             due = self._t0 + k * wall + extra
             delay = due - time.monotonic()
