@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import math
 import os
+import shutil
+import signal
 import socket
+import subprocess
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -277,3 +280,40 @@ def test_real_camera_only_with_opencv(raw: Any) -> None:
         err = c.subscribe("camera", params)
         assert err.error and "video99" in err.error_text
         c.close()
+
+
+@pytest.mark.skipif(shutil.which("gpsfake") is None, reason="gpsd's gpsfake is not installed")
+def test_gpsd_source_against_gpsfake(raw: Any, wait: Any) -> None:
+    """A real gpsd fed by gpsd's own gpsfake with an NMEA log (CI installs gpsd-clients)."""
+    with socket.socket() as probe:  # a free port for gpsfake's gpsd
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    log = str(DATA / "gpsfake.nmea")
+    proc = subprocess.Popen(
+        ["gpsfake", "-q", "-c", "0.1", "-P", str(port), log],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )  # fmt: skip
+    try:
+        with HubServer(port=0, sim=False, gpsd=f"127.0.0.1:{port}") as srv:
+            c = raw(srv.port)
+            c.connect()
+            assert (
+                c.subscribe("gps", {"freq_acquisition": 1, "freq_send": 1}, buffer=100).error == 0
+            )
+            fixes: list[dict[str, Any]] = []
+
+            def located() -> bool:
+                fixes.extend(f for f in c.pull("gps").body or [] if f["state"] >= 0x10)
+                return bool(fixes)
+
+            wait(located, timeout=30, what="a fix from gpsd")
+            assert fixes[0]["latitude"] == pytest.approx(46.7817, abs=1e-3)
+            assert fixes[0]["longitude"] == pytest.approx(-71.2747, abs=1e-3)
+            c.close()
+    finally:
+        os.killpg(proc.pid, signal.SIGTERM)
+        try:
+            proc.wait(10)
+        except subprocess.TimeoutExpired:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(10)
