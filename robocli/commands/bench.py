@@ -104,6 +104,7 @@ def rtt(
         None, "--cpu", min=0, help="CPU for the same-CPU floor and the client (default: first)."
     ),
     json_out: bool = JsonOpt,
+    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
 ) -> None:
     """Request/acknowledge round trips through the real client, as multiples of the C
     ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
@@ -118,6 +119,10 @@ def rtt(
         from robocli.commands.hub import bench_rtt
 
         return bench_rtt(url, n, json_out)
+    if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5); lives with the arm commands
+        from robocli.commands.arm_extra import bench as arm_bench
+
+        return arm_bench("rtt", url, n, json_out, paper, floor_n, cpu)
     _check_target(target)
     same, other = _cpus(cpu)
     at = b.cpu_label
@@ -212,10 +217,15 @@ def jitter(
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
+    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
     from robocli import benchmarks as b
 
+    if target == "arm":  # the state period (Table 5); lives with the arm commands
+        from robocli.commands.arm_extra import bench as arm_bench
+
+        return arm_bench("jitter", url, n, json_out, paper)
     _check_target(target)
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")
