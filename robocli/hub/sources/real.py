@@ -245,8 +245,8 @@ class GpsdSource(Source):
     def _session(self) -> None:
         with socket.create_connection((self.host, self.port), timeout=5.0) as sock:
             self._sock = sock
-            sock.settimeout(None)
-            sock.sendall(b'?WATCH={"enable":true,"json":true};\n')
+            sock.sendall(b'?WATCH={"enable":true,"json":true};\n')  # within the 5 s timeout
+            sock.settimeout(None)  # then block on reports; stop() shuts the socket down
             buf = bytearray()
             while not self._stop.is_set():
                 data = sock.recv(65536)
