@@ -2,7 +2,8 @@
 
 Starts a simulated P3-DX (ARCOS over TCP on a free loopback port, 5x faster than real time),
 then: the CLI's one-shot status, a square driven from Python, the wander example, a packet
-dump and the round-trip benchmark with its C floor. Takes about 20 seconds.
+dump and the round-trip benchmark with its C floor; then an IRB120 circle uploaded to the
+embedded ABB simulator, monitored and validated. Takes about 30 seconds.
 """
 
 from __future__ import annotations
@@ -21,6 +22,29 @@ from wander import wander  # noqa: E402
 
 def step(title: str) -> None:
     print(f"\n=== {title}", flush=True)
+
+
+def arm_circle() -> int:
+    """An IRB120 circle: generated, uploaded to the embedded ABB simulator with its state
+    stream recorded, validated (per-joint RMSE), plotted when matplotlib is installed."""
+    import importlib.util
+    import tempfile
+
+    plot = importlib.util.find_spec("matplotlib") is not None
+    with tempfile.TemporaryDirectory() as tmp:
+        sim_log, real_log = f"{tmp}/sim.json", f"{tmp}/real.json"
+        steps = [
+            ["traj", "circle", "--points", "100", "--out", sim_log],
+            ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log],
+            ["validate", sim_log, real_log, *(["--plot", "arm_circle.png"] if plot else [])],
+        ]
+        for argv in steps:
+            step("robocli " + " ".join(argv).replace(tmp + "/", ""))
+            if robocli(argv) != 0:
+                return 1
+    print("plot written: arm_circle.png" if plot else
+          "no plot: matplotlib is not installed (pip install 'robocli[plot]')")  # fmt: skip
+    return 0
 
 
 def run() -> int:
@@ -75,6 +99,8 @@ def run() -> int:
         step(f"robocli bench rtt --url {url} --n 300")
         if robocli(["bench", "rtt", "--url", url, "--n", "300"]) != 0:
             return 1
+    if arm_circle() != 0:
+        return 1
     step("done: every command above also works on a real robot (a serial port or tcp://host:port)")
     return 0
 
