@@ -30,9 +30,9 @@ HUB_SWITCH_INTERVAL_S = 1e-4
 def tune_hub_process() -> None:
     """Tune this interpreter for serving many clients: a thread waiting for the GIL gets it
     after :data:`HUB_SWITCH_INTERVAL_S` instead of 5 ms. A connection's thread hands the GIL
-    over several times per pull (socket, C ring, copies); with 40 clients the default interval
-    queued pulls behind each other: measured p99 pull 40-90 ms at 5 ms, 17-20 ms at 0.1 ms,
-    and less CPU. Process-wide: ``robocli serve`` calls it; a library user decides."""
+    over several times per pull (socket, C ring, copies); with 40 multi-threaded clients at
+    the throughput target, p99 pull was 40-90 ms at 5 ms and 24-27 ms at 0.1 ms (README).
+    Process-wide: ``robocli serve`` calls it; a library user decides."""
     sys.setswitchinterval(HUB_SWITCH_INTERVAL_S)
 
 
