@@ -285,7 +285,7 @@ def _status_line() -> Any:
         now = time.monotonic()
         if now - last[0] >= STATUS_PERIOD:
             last[0] = now
-            sys.stdout.write("\r" + jog.status()[:150] + "\x1b[K")
+            sys.stdout.write("\r" + jog.status()[:79] + "\x1b[K")
             sys.stdout.flush()
 
     return draw

@@ -251,18 +251,17 @@ class ArmTeleop:
             log.warning("teleop: final STOP not acknowledged: %s", exc)
 
     def status(self) -> str:
-        """One line: mode, selection, speed, joints (deg), TCP (m), the last refusal."""
+        """One line of at most 80 columns: selection, jog, speed scale, joints (deg), TCP
+        (m); the last refusal instead of the joints when there is one."""
         k = self.keys
-        what = f"J{k.joint + 1}" if k.mode == "joint" else "TCP xyz"
+        what = f"J{k.joint + 1}" if k.mode == "joint" else "TCP"
+        head = f"{what:<3} {str(self.jog) if self.jog else 'idle':<4} x{k.scale:<4.2g}"
         sample = self.arm.joints
-        joints = tcp = "-"
-        if sample is not None:
-            joints = " ".join(f"{v:+.1f}" for v in sample.degrees())
-            x, y, z = fk(self.arm.robot, list(sample.joints))[0][:3, 3]
-            tcp = f"({x:.3f}, {y:.3f}, {z:.3f}) m"
-        jog = str(self.jog) if self.jog else "idle"
-        line = f"{what} x{k.scale:.2f} {jog:<5} deg [{joints}] tcp {tcp}"
-        return f"{line}  {self.message}" if self.message else line
+        if self.message or sample is None:
+            return f"{head} {self.message or 'no state yet'}"[:80]
+        joints = " ".join(f"{v:+.1f}" for v in sample.degrees())
+        x, y, z = fk(self.arm.robot, list(sample.joints))[0][:3, 3]
+        return f"{head} deg {joints}  tcp {x:.3f} {y:.3f} {z:.3f} m"[:80]
 
 
 def run_arm_teleop(teleop: ArmTeleop, read_key: Callable[[float], str | None],

@@ -3,11 +3,16 @@ right way within limits, release and close send STOP, a joint at its limit is re
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
 import time
 from typing import Any
 
 import numpy as np
 import pytest
+from cli.helpers import ROBOCLI
+from cli.test_screens import terminal
 
 from robocli.devices.arm_teleop import ArmTeleop, Jog, JogKeys, jog_target, run_arm_teleop
 from robocli.errors import ConnectionLost, TimeoutError
@@ -139,3 +144,35 @@ def test_run_loop_stops_on_quit_and_on_a_lost_link(make_sim: Any, make_arm: Any)
     with pytest.raises((TimeoutError, ConnectionLost)):
         hold(teleop, "w", 5.0)
     assert time.monotonic() - start < 4.0
+
+
+def test_cli_needs_a_terminal() -> None:
+    done = subprocess.run([*ROBOCLI, "teleop", "arm", "sim"], stdin=subprocess.DEVNULL,
+                          capture_output=True, text=True, timeout=30)  # fmt: skip
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+    assert "interactive terminal" in done.stderr
+
+
+def test_cli_jogs_on_a_terminal_and_quits() -> None:
+    with terminal("teleop", "arm", "sim") as term:
+        term.read_until(b"q or Ctrl-C quits")
+        term.read_until(b"\rJ1  idle", count=2)  # the status line redraws while idle
+        os.write(term.master, b"2")
+        for _ in range(10):
+            os.write(term.master, b"w")
+            term.drain(0.03)
+        term.read_until(b"J2  J2+")
+        os.write(term.master, b"q")
+        code, err = term.finish()
+    assert code == 0 and err == "", err
+    status = term.text.rstrip().rsplit("\r", 1)[-1]
+    assert len(status) <= 80 and "tcp" in status
+    assert term.output.endswith(b"\n")
+
+
+def test_cli_ctrl_c_exits_130_with_one_line() -> None:
+    with terminal("teleop", "arm", "sim") as term:
+        term.read_until(b"\rJ1  idle")
+        term.proc.send_signal(signal.SIGINT)
+        code, err = term.finish()
+    assert code == 130 and err.splitlines() == ["robocli: interrupted"], err
