@@ -51,12 +51,13 @@ def describe(frame: bytes, order: sm.ByteOrder = "<", real: sm.RealSize = 4,
              n_joints: int = 6) -> tuple[str, dict[str, Any]]:  # fmt: skip
     """Name and decoded fields of one whole Simple Message frame (joints cut to
     ``n_joints``). A frame that does not decode is named ``undecodable`` with the reason."""
+    from robocli.errors import FramingError, ProtocolError
     from robocli.protocols import simple_message as sm
     from robocli.protocols.simple_message import CommType, MsgType, ReplyCode
 
     try:
         msg = sm.decode(frame, byteorder=order, real=real)
-    except sm.ProtocolError as exc:  # FramingError included
+    except (FramingError, ProtocolError) as exc:
         return "undecodable", {"error": str(exc)}
     name = msg.msg_type.name if isinstance(msg.msg_type, MsgType) else f"TYPE_{msg.msg_type}"
     if msg.comm_type == CommType.SERVICE_REQUEST:
@@ -86,7 +87,7 @@ def packet_view(order: sm.ByteOrder, real: sm.RealSize, n_joints: int, **options
     (direction and port). Built on first use, so that ``robocli --help`` stays fast."""
     from robocli.commands._packets import LINE_MAX, PacketView
 
-    class ArmPacketView(PacketView):  # type: ignore[misc]
+    class ArmPacketView(PacketView):
         def show(self, direction: str, payload: bytes, t: float | None) -> None:
             """Print one frame now (``payload``: the whole frame, ``direction``: dir:port)."""
             way, _, port = direction.partition(":")

@@ -104,3 +104,15 @@ def test_empty_capture_fails(tmp_path: Path) -> None:
     empty.write_text('{"t": 0, "dir": "s2c", "hex": "00ff"}\n')
     done: Any = dump("--file", str(empty))
     assert done.returncode == 1 and "no Simple Message frame" in done.stderr
+
+
+def test_an_invalid_header_is_shown_not_fatal(tmp_path: Path) -> None:
+    capture = tmp_path / "bad.jsonl"
+    bad = "0c000000" "00000000" "01000000" "00000000"  # msg_type 0: the library refuses it
+    good = sm.encode(sm.MsgType.PING, sm.CommType.TOPIC).hex()
+    capture.write_text(f'{{"t": 0, "dir": "s2c", "hex": "{bad}{good}"}}\n')
+    done = dump("--file", str(capture), "--json")
+    assert done.returncode == 0, done.stderr
+    first, second = (json.loads(line) for line in done.stdout.splitlines())
+    assert first["name"] == "undecodable" and "msg_type is 0" in first["fields"]["error"]
+    assert second["name"] == "PING"
