@@ -43,6 +43,8 @@ _SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code
           "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
           "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
 _VALID_BITS = {"time": 1, "positions": 2, "velocities": 4, "accelerations": 8}
+#: Messages queued for the output at most (bounded memory when stdout stalls).
+MAX_QUEUED = 20_000
 #: How long a message waits for older ones from the other port's thread (s).
 _REORDER = 0.05
 
@@ -197,10 +199,17 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
     from robocli.devices.arm import Arm
 
     start = time.monotonic()
-    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
+    seen: queue.Queue[tuple[str, bytes, float]] = queue.Queue(MAX_QUEUED)
+    dropped = [0]
 
     def listener(port: str) -> Any:
-        return lambda way, frame, t: seen.put((f"{way}:{port}", frame, t - start))
+        def put(way: str, frame: bytes, t: float) -> None:
+            try:  # never block a link's reader: a stalled stdout loses messages, counted
+                seen.put_nowait((f"{way}:{port}", frame, t - start))
+            except queue.Full:
+                dropped[0] += 1
+
+        return put
 
     def take(wait: float = 0.0) -> None:
         with contextlib.suppress(queue.Empty):
@@ -226,6 +235,9 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
         finally:
             take()
             view.flush()
+            if dropped[0]:
+                typer.echo(f"robocli: {dropped[0]} messages not shown: the output was too slow",
+                           err=True)  # fmt: skip
 
 
 # ------------------------------------------------------------------------------ teleop
