@@ -3,13 +3,15 @@
 Starts a simulated P3-DX (ARCOS over TCP on a free loopback port, 5x faster than real time),
 then: the CLI's one-shot status, a square driven from Python, the wander example, a packet
 dump and the round-trip benchmark with its C floor; then an IRB120 circle uploaded to the
-embedded ABB simulator, monitored and validated. Takes about 30 seconds.
+embedded ABB simulator, monitored and validated; then a simulated sensor hub with two
+concurrent `robocli subscribe` clients and a summary read from Python. Takes about 40 s.
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import time
 from pathlib import Path
 
 from robocli import Pioneer
@@ -44,6 +46,45 @@ def arm_circle() -> int:
                 return 1
     print("plot written: arm_circle.png" if plot else
           "no plot: matplotlib is not installed (pip install 'robocli[plot]')")  # fmt: skip
+    return 0
+
+
+def sensor_hub() -> int:
+    """A simulated sensor hub (ros4mat v3 on a free loopback port): two `robocli subscribe adc`
+    processes at once, each with its own cursor, then the IMU and ADC read from Python."""
+    import subprocess
+
+    from robocli import Hub
+    from robocli.hub import HubServer
+
+    with HubServer(bind="127.0.0.1", port=0, sim=True).start() as hub:
+        where = f"127.0.0.1:{hub.port}"
+        step(f"robocli serve --sim (in-process, on {where}); two subscribers at once")
+        argv = ["subscribe", "adc", "--rate", "100", "--hub", where, "--duration", "2",
+                "--format", "csv"]  # fmt: skip
+        procs = [
+            subprocess.Popen([sys.executable, "-m", "robocli", *argv], stdout=subprocess.PIPE,
+                             text=True)
+            for _ in range(2)
+        ]  # fmt: skip
+        for i, proc in enumerate(procs, 1):
+            out, _ = proc.communicate(timeout=30)
+            rows = out.splitlines()[1:]
+            if proc.returncode != 0 or not rows:
+                return 1
+            print(f"robocli {' '.join(argv)}  # subscriber {i}: {len(rows)} rows, "
+                  f"last: {rows[-1][:60]}")  # fmt: skip
+
+        step("Python: Hub.connect, subscribe IMU at 200 Hz and ADC at 100 Hz, read 1 s")
+        with Hub.connect("127.0.0.1", hub.port) as client:
+            client.subscribe("imu", rate=200)
+            client.subscribe("adc", rate=100)
+            time.sleep(1.0)
+            imu, adc = client.read("imu"), client.read("adc")
+            accel = imu.accel
+            print(f"imu: {imu.data.shape[1]} samples, mean accel z {accel[2].mean():+.2f} g; "
+                  f"adc: {adc.data.shape} (channels x samples), "
+                  f"hub clock offset {(client.clock_offset or 0.0) * 1e3:+.3f} ms")  # fmt: skip
     return 0
 
 
@@ -99,7 +140,7 @@ def run() -> int:
         step(f"robocli bench rtt --url {url} --n 300")
         if robocli(["bench", "rtt", "--url", url, "--n", "300"]) != 0:
             return 1
-    if arm_circle() != 0:
+    if arm_circle() != 0 or sensor_hub() != 0:
         return 1
     step("done: every command above also works on a real robot (a serial port or tcp://host:port)")
     return 0
