@@ -43,6 +43,11 @@ def _check_target(target: str) -> None:
         raise typer.BadParameter(f"unknown target {target!r}; choose from {', '.join(TARGETS)}")
 
 
+def _check_paper_model(target: str, paper: bool) -> None:
+    if paper and target != "arm":  # it models the ABB controller only
+        raise typer.BadParameter(f"--paper-model is for --target arm, not {target!r}")
+
+
 class _Progress:
     """Rich progress on stderr, started only when stderr is a terminal and a stage has run
     for :data:`PROGRESS_AFTER` seconds (short runs stay silent; pipes never see it)."""
@@ -115,6 +120,7 @@ def rtt(
     """
     from robocli import benchmarks as b
 
+    _check_paper_model(target, paper)
     if target == "hub":  # the sensor hub's bench lives with its commands
         from robocli.commands.hub import bench_rtt
 
@@ -222,6 +228,7 @@ def jitter(
     """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
     from robocli import benchmarks as b
 
+    _check_paper_model(target, paper)
     if target == "arm":  # the state period (Table 5); lives with the arm commands
         from robocli.commands.arm_extra import bench as arm_bench
 

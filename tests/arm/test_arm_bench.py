@@ -125,3 +125,12 @@ def test_bad_arguments_one_line() -> None:
     done = subprocess.run([*BENCH, "jitter", "--target", "arm", "--url", "h:x"],
                           capture_output=True, text=True, timeout=30)  # fmt: skip
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+
+
+@pytest.mark.parametrize("kind", ["rtt", "jitter"])
+@pytest.mark.parametrize("target", ["pioneer", "hub"])
+def test_paper_model_is_for_the_arm_only(kind: str, target: str) -> None:
+    done = subprocess.run([*BENCH, kind, "--target", target, "--paper-model", "-n", "10"],
+                          capture_output=True, text=True, timeout=30)  # fmt: skip
+    assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
+    assert "--paper-model" in done.stderr and target in done.stderr
