@@ -221,16 +221,20 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
     with arm_host(host, *port_numbers, options["byte_order"], options["real_size"],
                   options["robot"]) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
         try:
-            state = None
+            state, opened = None, []
             for name in ("motion", "state") if ports == "both" else (ports,):
                 arm = arms.enter_context(Arm.connect(
                     h, mp, sp, motion=name == "motion", state=name == "state",
-                    history=16, listeners=[listener(name)], **options))  # fmt: skip
-                state = arm if name == "state" else None
+                    history=16, listeners=[listener(name)], stop_on_failure=False,
+                    **options))  # fmt: skip
+                opened.append(arm)
+                state = arm if name == "state" else state
             while not view.done:
                 take(_REORDER)
                 view.flush(before=time.monotonic() - start - _REORDER)
-                if state is not None:  # raises when the state link is lost or silent
+                for arm in opened:  # raises when a link was lost (the motion port is quiet)
+                    arm.check()
+                if state is not None:  # raises when the state link is silent
                     state.wait_for_state(options["timeout"])
         finally:
             take()

@@ -116,3 +116,17 @@ def test_an_invalid_header_is_shown_not_fatal(tmp_path: Path) -> None:
     first, second = (json.loads(line) for line in done.stdout.splitlines())
     assert first["name"] == "undecodable" and "msg_type is 0" in first["fields"]["error"]
     assert second["name"] == "PING"
+
+
+def test_motion_only_dump_notices_a_dropped_link(make_sim: Any) -> None:
+    """The motion port is quiet: the dump still sees the controller drop it, and says so."""
+    sim, mp, sp = make_sim()
+    proc = subprocess.Popen([*CLI, "127.0.0.1", "--ports", "motion", "--motion-port", str(mp),
+                             "--state-port", str(sp)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)  # fmt: skip
+    sim.wait_until(lambda s: s.motion_clients == 1, 10.0)  # the dump holds the port
+    sim.close()
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 1, err
+    assert len(err.splitlines()) == 1 and "Traceback" not in err
+    assert f":{mp}" in err and out == ""

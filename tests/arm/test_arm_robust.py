@@ -134,3 +134,33 @@ def _client_bytes(snapshot: Any) -> int:
 
     mine = snapshot.filter_traces([tracemalloc.Filter(True, "*robocli/devices/*")])
     return sum(stat.size for stat in mine.statistics("filename"))
+
+
+@pytest.mark.parametrize("ports", [{"state": False}, {"motion": False}, {}])
+def test_alive_and_check_follow_each_link(make_sim, make_arm, ports) -> None:
+    """``alive`` turns False and ``check()`` raises the link's error once the controller
+    drops the connection (the motion port alone is quiet: nothing else would notice)."""
+    from robocli.errors import ConnectionLost
+
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp, **ports)
+    assert arm.alive
+    arm.check()  # returns
+    sim.close()
+    deadline = time.monotonic() + 10.0
+    while arm.alive and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert not arm.alive
+    with pytest.raises(ConnectionLost):
+        arm.check()
+
+
+def test_a_closed_arm_is_not_alive(make_sim, make_arm) -> None:
+    from robocli.errors import ConnectionLost
+
+    _, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.close()
+    assert not arm.alive
+    with pytest.raises(ConnectionLost, match="closed"):
+        arm.check()

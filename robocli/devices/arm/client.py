@@ -17,7 +17,8 @@ and silently drops the rest, so longer trajectories are refused before anything 
 unless ``split=True``. Streaming (:meth:`Arm.stream`): points 0..N-1 for servers that execute
 as they receive (industrial_robot_client's streamer); an ABB never executes them. A FAILURE
 reply raises :class:`~robocli.errors.DeviceError`. :meth:`Arm.close` sends STOP (-4) when a
-trajectory runs, unless told not to.
+trajectory runs, unless told not to. :attr:`Arm.alive` and :meth:`Arm.check` tell whether a
+link was lost (a quiet motion port included) without waiting.
 """
 
 from __future__ import annotations
@@ -108,11 +109,14 @@ class Arm:
                 state_port: int = sm.PORT_STATE, *, byte_order: str = "little",
                 real_size: int = 4, robot: str | RobotModel = "irb120", motion: bool = True,
                 state: bool = True, timeout: float = 5.0, history: int = 10_000,
-                listeners: Iterable[FrameListener] = ()) -> Arm:  # fmt: skip
+                listeners: Iterable[FrameListener] = (),
+                stop_on_failure: bool = True) -> Arm:  # fmt: skip
         """Open the motion and/or state port of the controller at ``host``.
 
         ``byte_order``: ``"little"`` (ABB) or ``"big"`` (Fanuc, FS100); ``real_size`` 4 or 8.
-        With ``state``, waits up to ``timeout`` s for the first state message. Raises
+        With ``state``, waits up to ``timeout`` s for the first state message. A motion link
+        that fails sends STOP (-4) on its way down unless ``stop_on_failure=False`` (an
+        observer such as ``dump arm``, which never sends anything). Raises
         :class:`TransportError` (unreachable, or a port answering another protocol),
         :class:`DeviceError` (the controller refused: another client holds the port),
         :class:`InvalidArgument` (bad option), an unknown-model error (exit 2).
@@ -130,7 +134,7 @@ class Arm:
             links: list[Session | None] = []
             real: sm.RealSize = real_size  # type: ignore[assignment]
             wire: sm.ByteOrder = order  # type: ignore[assignment]
-            stop = [stop_frame(model, wire, real)]
+            stop = [stop_frame(model, wire, real)] if stop_on_failure else []
             ports = ((motion, motion_port, "motion"), (state, state_port, "state"))
             for wanted, port, name in ports:
                 link = open_session(host, port, name, wire, real, timeout,
@@ -175,6 +179,19 @@ class Arm:
             if s.raw_tail() or s.stats.decode_errors:
                 raise wrong from None
             raise TimeoutError(f"{url}: no state message within {timeout:g} s") from None
+
+    @property
+    def alive(self) -> bool:
+        """True while every link this Arm opened is up: none failed (a dropped connection, a
+        decoding error) and :meth:`close` was not called. Never blocks."""
+        return all(s.alive for s in self._sessions("both"))
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended a link (a
+        :class:`ConnectionLost` for a dropped connection or once closed, a
+        :class:`ProtocolError` for bytes that did not decode). Never blocks."""
+        for s in self._sessions("both"):
+            s.check()
 
     def close(self, stop: bool = True) -> None:
         """Close both links. With ``stop`` (the default) a trajectory that may be running is
