@@ -357,7 +357,9 @@ def test_client_against_amrisims_recorded_stream() -> None:
                 if frame[3] == arcos.PacketType.SIP:
                     time.sleep(0.002)
                 conn.sendall(frame)
-            conn.recv(4096)  # until the client closes
+            conn.settimeout(30.0)
+            while conn.recv(4096):  # the client's keep-alives, until it closes
+                pass
 
     thread = threading.Thread(target=serve, daemon=True)
     thread.start()
