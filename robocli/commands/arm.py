@@ -2,7 +2,9 @@
 :class:`robocli.devices.arm.Arm` and :class:`robocli.sim.abb.AbbSim`.
 
 ``HOST`` may be ``sim``: an embedded simulator in exact mode, reporting the controller time
-(JOINT_FEEDBACK) every 5 ms, so that a monitored run validates to the float.
+(JOINT_FEEDBACK) every 5 ms, so that a monitored run validates to the float; with
+``--stream`` (``upload``, ``teleop``) it is the streaming profile (``sim abb --profile
+generic``), as an ABB never executes streamed points.
 """
 
 from __future__ import annotations
@@ -42,18 +44,27 @@ def arm_host(
     byte_order: str = "little",
     real_size: int = 4,
     robot: str = "irb120",
+    profile: str = "abb",
 ) -> Iterator[tuple[str, int, int]]:
     """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
-    ephemeral loopback ports, closed afterwards."""
+    ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
+    ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
+    needs: an ABB never executes streamed points)."""
     if host != SIM:
         yield host, motion_port, state_port
         return
     from robocli.sim.abb import AbbSim
 
-    with AbbSim(robot, state_ms=EMBEDDED_STATE_MS, feedback=True, real=8 if real_size == 8 else 4,
+    with AbbSim(robot, profile=profile, state_ms=EMBEDDED_STATE_MS, feedback=True,
+                real=8 if real_size == 8 else 4,
                 byteorder=">" if byte_order == "big" else "<") as simulator:  # fmt: skip
         motion, state = simulator.serve_tcp("127.0.0.1", 0, 0)
         yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
+
+
+def _profile(stream: bool) -> str:
+    """The embedded simulator's profile for a command's ``--stream``."""
+    return "generic" if stream else "abb"
 
 
 def _check_wire(byte_order: str, real_size: int) -> None:
@@ -234,8 +245,8 @@ def upload(
 
     _check_wire(byte_order, real_size)
     traj = _trajectory(robot, shape, points, file, duration, radius, center)
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order,
-                                          real_size, robot) as (h, mp, sp):  # fmt: skip
+    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
+                                          robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
         with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
                          timeout=timeout) as arm:  # fmt: skip
             here = arm.wait_for_state().joints

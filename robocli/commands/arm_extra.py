@@ -28,6 +28,7 @@ from robocli.commands.arm import (
     StatePortOpt,
     TimeoutOpt,
     _check_wire,
+    _profile,
     arm_host,
 )
 
@@ -275,8 +276,8 @@ def teleop(
     _check_wire(byte_order, real_size)
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order,
-                                          real_size, robot) as (h, mp, sp):  # fmt: skip
+    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
+                                          robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
         with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
                          timeout=timeout) as arm:  # fmt: skip
             arm.wait_for_state()

@@ -109,3 +109,20 @@ def test_port_with_another_protocol_exit_3(talking_server, capsys) -> None:
     code, _, err = run(capsys, "connect", "arm", "127.0.0.1", "--state-port", str(server.port),
                        "--timeout", "0.5")  # fmt: skip
     assert code == 3 and "not in Simple Message" in err
+
+
+def test_upload_stream_to_sim_starts_the_streaming_profile(tmp_path: Path, capsys) -> None:
+    """``upload arm sim --stream``: the embedded simulator streams (an ABB would keep the
+    points without -3 and never move), so the run ends at the trajectory's last point."""
+    from robocli.io.trajlog import read_log
+
+    sim_json, real_json = tmp_path / "sim.json", tmp_path / "real.json"
+    assert run(capsys, "traj", "circle", "--points", "20", "--duration", "1", "--out",
+               str(sim_json))[0] == 0  # fmt: skip
+    code, out, err = run(capsys, "upload", "arm", "sim", "--stream", "--file", str(sim_json),
+                         "--monitor", str(real_json), "--wait", "20")  # fmt: skip
+    assert code == 0, err
+    assert "acknowledged 20/20" in out and "arm idle" in out
+    planned, measured = read_log(sim_json), read_log(real_json)
+    assert np.abs(measured.positions[-1] - planned.positions[-1]).max() < 1e-6
+    assert np.ptp(measured.positions, axis=0).max() > 0.01  # it moved

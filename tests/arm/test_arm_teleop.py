@@ -176,3 +176,27 @@ def test_cli_ctrl_c_exits_130_with_one_line() -> None:
         term.proc.send_signal(signal.SIGINT)
         code, err = term.finish()
     assert code == 130 and err.splitlines() == ["robocli: interrupted"], err
+
+
+def _j2(status: str) -> float:
+    """Joint 2 (deg) on a status line: ``J2  J2+  x1    deg +0.0 +10.0 ...``."""
+    return float(status.split(" deg ", 1)[1].split()[1])
+
+
+def test_cli_streams_to_an_embedded_streaming_simulator() -> None:
+    """``teleop arm sim --stream`` starts the generic (streaming) profile itself: the jog
+    moves the arm (an ABB profile would buffer the streamed points and never run them)."""
+    with terminal("teleop", "arm", "sim", "--stream") as term:
+        term.read_until(b"(streaming)")
+        term.read_until(b"\rJ1  idle", count=2)
+        before = _j2(term.text.rsplit("\r", 1)[-1])
+        os.write(term.master, b"2")
+        for _ in range(15):
+            os.write(term.master, b"w")
+            term.drain(0.03)
+        term.read_until(b"\rJ2  idle")  # released: STOP sent
+        os.write(term.master, b"q")
+        code, err = term.finish()
+    assert code == 0 and err == "", err
+    lines = [x for x in term.text.split("\r") if " deg " in x]
+    assert max(_j2(x) for x in lines) > before + 0.5
