@@ -9,17 +9,15 @@ from __future__ import annotations
 
 import contextlib
 import socket
-import threading
 import time
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from robocli.core import Framer
 from robocli.devices.hub import Hub, Reading
 from robocli.devices.hub_decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
+from robocli.devices.proxy import Message, RecordingProxy
 from robocli.errors import DeviceError, ProtocolError, TransportError
 from robocli.protocols.common import plain
 from robocli.protocols.ros4mat import (
@@ -29,9 +27,6 @@ from robocli.protocols.ros4mat import (
     decode,
     sensor_type,
 )
-
-#: the dump proxy's deadline for a write (and how often a quiet read checks for close)
-_IO_TIMEOUT_S = 1.0
 
 _COLUMNS: dict[int, tuple[str, ...]] = {
     MsgType.ADC: tuple(f"ch{i}" for i in range(8)),
@@ -170,17 +165,6 @@ def survey(hub: Hub, window: float = 0.5, sensors: tuple[str, ...] | None = None
 # ---------------------------------------------------------------------- recording proxy
 
 
-@dataclass
-class Message:
-    """One ros4mat message seen by :class:`DumpProxy`."""
-
-    t: float
-    direction: str  # "c2s" (client to hub) or "s2c"
-    name: str
-    frame: bytes
-    fields: dict[str, Any]
-
-
 def describe(frame: bytes) -> tuple[str, dict[str, Any]]:
     """Name and decoded fields of one ros4mat frame; bulky bodies are summarised."""
     try:
@@ -215,125 +199,21 @@ def describe(frame: bytes) -> tuple[str, dict[str, Any]]:
     return name, fields
 
 
-class DumpProxy:
+class DumpProxy(RecordingProxy):
     """A transparent TCP proxy in front of a hub that names and decodes every message.
 
     Clients connect to :attr:`port` (on ``bind``) instead of the hub; bytes pass through
     unchanged in both directions, and each complete ros4mat frame goes to ``on_message``
     (from the pumping threads; its exceptions are the caller's, they end that session).
+    The shared :class:`~robocli.devices.proxy.RecordingProxy` with ros4mat's framer and
+    :func:`describe`.
     """
 
-    def __init__(
-        self,
-        upstream: tuple[str, int],
-        on_message: Callable[[Message], None],
-        *,
-        bind: str = "127.0.0.1",
-        port: int = 0,
-        max_clients: int = 8,
-    ) -> None:
-        self.upstream = upstream
-        self.on_message = on_message
-        self._lock = threading.Lock()
-        self._listener = socket.create_server((bind, port))
-        self._listener.settimeout(0.25)
-        self.port = self._listener.getsockname()[1]
-        self._closing = threading.Event()
-        self._idle = threading.Condition()
-        self._in_flight = 0
-        self._socks: list[socket.socket] = []
-        self._max = max_clients
-        self._start = time.monotonic()
-        self._thread = threading.Thread(target=self._accept, name="hub-dump", daemon=True)
-
-    def start(self) -> DumpProxy:
-        self._thread.start()
-        return self
-
-    def _accept(self) -> None:
-        while not self._closing.is_set():
-            try:
-                client, _ = self._listener.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            try:
-                hub = socket.create_connection(self.upstream, timeout=5.0)
-            except OSError:
-                client.close()
-                continue
-            for s in (client, hub):
-                # a deadline on every write; a quiet read only looks at the closing flag again
-                s.settimeout(_IO_TIMEOUT_S)
-                s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            with self._lock:
-                if len(self._socks) >= 2 * self._max:
-                    client.close()
-                    hub.close()
-                    continue
-                self._socks += [client, hub]
-            for src, dst, direction in ((client, hub, "c2s"), (hub, client, "s2c")):
-                threading.Thread(target=self._pump, args=(src, dst, direction), daemon=True).start()
-
-    def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
-        """Relay one direction of one session, showing each message before it is passed on.
-        A side that stops reading for ``_IO_TIMEOUT_S`` ends the session."""
-        framer = Framer("ros4mat")
-        try:
-            while not self._closing.is_set():
-                try:
-                    data = src.recv(65536)
-                except TimeoutError:
-                    continue  # nothing to relay yet
-                if not data:
-                    break
-                now = time.monotonic() - self._start
-                with self._idle:
-                    self._in_flight += 1
-                try:
-                    # shown before it is passed on: a reply is never shown before its request
-                    for frame in framer.feed(data):
-                        name, fields = describe(frame)
-                        with self._lock:
-                            self.on_message(Message(now, direction, name, frame, fields))
-                    dst.sendall(data)  # TimeoutError (an OSError): that side stopped reading
-                finally:
-                    with self._idle:
-                        self._in_flight -= 1
-                        self._idle.notify_all()
-        except OSError:
-            pass
-        finally:
-            for s in (src, dst):
-                with contextlib.suppress(OSError):
-                    s.shutdown(socket.SHUT_RDWR)
-            with self._lock:  # the session's slot is free again (the other pump may be first)
-                for s in (src, dst):
-                    if s in self._socks:
-                        self._socks.remove(s)
-                        s.close()
-
-    def close(self, grace: float = 1.0) -> None:
-        """Stop accepting, let bytes already read reach their side (``grace`` s at most),
-        then cut every proxied session."""
-        self._closing.set()
-        with self._idle:
-            self._idle.wait_for(lambda: self._in_flight == 0, grace)
-        self._listener.close()
-        with self._lock:
-            socks, self._socks = self._socks, []
-        for s in socks:
-            with contextlib.suppress(OSError):
-                s.shutdown(socket.SHUT_RDWR)
-            s.close()
-        self._thread.join(1.0)
-
-    def __enter__(self) -> DumpProxy:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    def __init__(self, upstream: tuple[str, int], on_message: Callable[[Message], None], *,
+                 bind: str = "127.0.0.1", port: int = 0,
+                 max_clients: int = 8) -> None:  # fmt: skip
+        super().__init__(upstream, on_message, framer="ros4mat", describe=describe, bind=bind,
+                         port=port, max_clients=max_clients, name="hub-dump")  # fmt: skip
 
 
 def check_upstream(host: str, port: int, timeout: float = 2.0) -> None:

@@ -1,0 +1,167 @@
+"""A transparent TCP proxy that records every message of the sessions it relays.
+
+``dump hub`` and ``dump arm --listen`` are built on it: a client connects to the proxy
+instead of the device (a hub, one port of an ABB controller, which takes one client per port:
+the proxy lets a dump see another program's session), the bytes pass through unchanged both
+ways, and each complete frame, cut by a :class:`~robocli.core.Framer` of the protocol, is
+handed to ``on_message`` before it is passed on (so a reply is never shown before its
+request).
+
+Bounded: at most ``max_clients`` sessions at once (more are closed at once), one read of
+64 KiB per relay step, a frame no larger than the framer's ``max_frame``, and a deadline of
+``_IO_TIMEOUT_S`` on every write (a side that stops reading ends its session).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from robocli.core import Framer
+
+__all__ = ["Describe", "Message", "RecordingProxy"]
+
+#: the deadline for a write (and how often a quiet read checks for close)
+_IO_TIMEOUT_S = 1.0
+_READ = 65536
+
+#: ``describe(frame) -> (name, fields)``: how a protocol names and decodes one whole frame.
+Describe = Callable[[bytes], tuple[str, dict[str, Any]]]
+
+
+@dataclass
+class Message:
+    """One message seen by a :class:`RecordingProxy`."""
+
+    t: float  #: seconds since the proxy was made (monotonic)
+    direction: str  #: "c2s" (client to device) or "s2c"
+    name: str
+    frame: bytes
+    fields: dict[str, Any] = field(default_factory=dict)
+
+
+class RecordingProxy:
+    """Relay TCP sessions to ``upstream`` and show each ``framer`` frame to ``on_message``.
+
+    ``framer``: a :data:`robocli.core.PROTOCOLS` name (``"ros4mat"``, ``"sm-le"``...), with
+    ``max_frame`` (its default when None). ``describe`` names and decodes a frame for the
+    :class:`Message` (None: the name is empty, the caller decodes ``Message.frame``).
+    ``on_message`` is called from the relaying threads, one call at a time; its exceptions
+    are the caller's (they end that session). Use :meth:`start`, then :meth:`close` (or
+    ``with``); clients connect to :attr:`port` on ``bind``.
+    """
+
+    def __init__(self, upstream: tuple[str, int], on_message: Callable[[Message], None], *,
+                 framer: str, describe: Describe | None = None, max_frame: int | None = None,
+                 bind: str = "127.0.0.1", port: int = 0, max_clients: int = 8,
+                 name: str = "proxy") -> None:  # fmt: skip
+        Framer(framer, max_frame)  # an unknown protocol or a bad size is refused here
+        self.upstream, self.on_message = upstream, on_message
+        self._framer, self._max_frame, self._describe = framer, max_frame, describe
+        self._lock = threading.Lock()
+        self._listener = socket.create_server((bind, port))
+        self._listener.settimeout(0.25)
+        self.port: int = self._listener.getsockname()[1]
+        self._closing = threading.Event()
+        self._idle = threading.Condition()
+        self._in_flight = 0
+        self._socks: list[socket.socket] = []
+        self._max = max_clients
+        self._start = time.monotonic()
+        self._thread = threading.Thread(target=self._accept, name=name, daemon=True)
+
+    def start(self) -> RecordingProxy:
+        """Start accepting clients; returns self."""
+        self._thread.start()
+        return self
+
+    def _accept(self) -> None:
+        while not self._closing.is_set():
+            try:
+                client, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            try:
+                device = socket.create_connection(self.upstream, timeout=5.0)
+            except OSError:
+                client.close()
+                continue
+            for s in (client, device):
+                # a deadline on every write; a quiet read only looks at the closing flag again
+                s.settimeout(_IO_TIMEOUT_S)
+                s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            with self._lock:
+                if len(self._socks) >= 2 * self._max:
+                    client.close()
+                    device.close()
+                    continue
+                self._socks += [client, device]
+            for src, dst, way in ((client, device, "c2s"), (device, client, "s2c")):
+                threading.Thread(target=self._pump, args=(src, dst, way), daemon=True).start()
+
+    def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
+        """Relay one direction of one session, showing each message before it is passed on.
+        A side that stops reading for ``_IO_TIMEOUT_S`` ends the session."""
+        framer = Framer(self._framer, self._max_frame)
+        describe = self._describe
+        try:
+            while not self._closing.is_set():
+                try:
+                    data = src.recv(_READ)
+                except TimeoutError:
+                    continue  # nothing to relay yet
+                if not data:
+                    break
+                now = time.monotonic() - self._start
+                with self._idle:
+                    self._in_flight += 1
+                try:
+                    for frame in framer.feed(data):
+                        name, fields = describe(frame) if describe is not None else ("", {})
+                        with self._lock:
+                            self.on_message(Message(now, direction, name, frame, fields))
+                    dst.sendall(data)  # TimeoutError (an OSError): that side stopped reading
+                finally:
+                    with self._idle:
+                        self._in_flight -= 1
+                        self._idle.notify_all()
+        except OSError:
+            pass
+        finally:
+            for s in (src, dst):
+                with contextlib.suppress(OSError):
+                    s.shutdown(socket.SHUT_RDWR)
+            with self._lock:  # the session's slot is free again (the other pump may be first)
+                for s in (src, dst):
+                    if s in self._socks:
+                        self._socks.remove(s)
+                        s.close()
+
+    def close(self, grace: float = 1.0) -> None:
+        """Stop accepting, let bytes already read reach their side (``grace`` s at most),
+        then cut every proxied session. Idempotent."""
+        self._closing.set()
+        with self._idle:
+            self._idle.wait_for(lambda: self._in_flight == 0, grace)
+        self._listener.close()
+        with self._lock:
+            socks, self._socks = self._socks, []
+        for s in socks:
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+            s.close()
+        if self._thread.is_alive():
+            self._thread.join(1.0)
+
+    def __enter__(self) -> RecordingProxy:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
