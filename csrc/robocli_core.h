@@ -62,7 +62,10 @@ unsigned long rc_framer_count(rc_framer *f, const unsigned char *data, size_t n,
  * double timestamp. Each reader has its own cursor and its own limit (<= capacity):
  * when more than `limit` records are unread, the oldest are dropped for that reader
  * only and counted in its lost counter. Memory: one ring + O(readers).
- * Not thread-safe: the caller serialises push/read on one ring. */
+ * Thread-safe (POSIX threads, Windows): each call takes the ring's own mutex for its C
+ * work only, so one thread may push while many read, with no lock in the caller.
+ * A reader id is only reused after remove_reader; a caller must not read an id it
+ * removed. */
 typedef struct rc_ring rc_ring;
 
 rc_ring *rc_ring_new(size_t record_size, size_t capacity);

@@ -14,7 +14,7 @@ This is the only module that imports the compiled extension. It offers:
 * :class:`Responder` -- a minimal ARCOS server in C answering frames from a canned table.
 
 The C calls release the GIL. :class:`Framer` objects are not thread-safe (use one per
-stream); :class:`Ring` serialises every call with a lock. NumPy is imported only by the
+stream); :class:`Ring` is thread-safe (the C ring locks itself). NumPy is imported only by the
 ring, alignment and floor functions, so a client that only frames bytes does not load it.
 """
 
@@ -167,8 +167,13 @@ class Ring:
 
     Every record carries a float64 timestamp. Each reader has its own cursor and limit: when
     more than ``limit`` records are unread, the oldest are dropped for that reader only and
-    counted in :meth:`lost`. A new reader sees only records pushed after it was added. All
-    methods are serialised by a lock, so one thread may push while others read.
+    counted in :meth:`lost`. A new reader sees only records pushed after it was added.
+
+    Thread-safe: one thread may push while many read. The C ring serialises its calls with
+    its own mutex, taken for the C work only; no Python lock is held across the C calls
+    (each releases and retakes the GIL), so readers never queue behind a thread that is
+    waiting for the GIL. Adding and removing readers also take a Python lock, to keep the
+    set of known reader ids in step with the C ring.
     """
 
     def __init__(self, record_size: int, capacity: int) -> None:
@@ -194,17 +199,14 @@ class Ring:
     @property
     def pushed(self) -> int:
         """Records pushed since creation."""
-        with self._lock:
-            return int(lib.rc_ring_pushed(self._r))
+        return int(lib.rc_ring_pushed(self._r))
 
     def push(self, t: float, record: Buffer | npt.NDArray[Any]) -> None:
         """Append one record (exactly ``record_size`` bytes) stamped ``t`` seconds."""
         nbytes = _view(record).nbytes
         if nbytes != self._record_size:
             raise ValueError(f"record has {nbytes} bytes, expected {self._record_size}")
-        buf = _bytes_view(record)
-        with self._lock:
-            lib.rc_ring_push(self._r, float(t), buf)
+        lib.rc_ring_push(self._r, float(t), _bytes_view(record))
 
     def push_many(self, t: npt.ArrayLike, records: Buffer | npt.NDArray[Any]) -> None:
         """Append n records: ``t`` shape (n,), ``records`` n * record_size bytes.
@@ -225,9 +227,7 @@ class Ring:
         if n == 0:
             return
         tbuf = ffi.from_buffer("double[]", tt)
-        rbuf = _bytes_view(rec)
-        with self._lock:
-            lib.rc_ring_push_many(self._r, tbuf, rbuf, n)
+        lib.rc_ring_push_many(self._r, tbuf, _bytes_view(rec), n)
 
     def add_reader(self, limit: int | None = None) -> int:
         """New reader (id >= 0) seeing only later records; ``limit`` <= capacity (None: all)."""
@@ -252,15 +252,13 @@ class Ring:
 
     def available(self, reader: int) -> int:
         """Unread records of ``reader`` (never more than its limit)."""
-        with self._lock:
-            self._check(reader)
-            return int(lib.rc_ring_available(self._r, reader))
+        self._check(reader)
+        return int(lib.rc_ring_available(self._r, reader))
 
     def lost(self, reader: int) -> int:
         """Records dropped for ``reader`` because it fell more than its limit behind."""
-        with self._lock:
-            self._check(reader)
-            return int(lib.rc_ring_lost(self._r, reader))
+        self._check(reader)
+        return int(lib.rc_ring_lost(self._r, reader))
 
     def read(
         self, reader: int, max_records: int | None = None
@@ -268,31 +266,26 @@ class Ring:
         """Take up to ``max_records`` unread records, oldest first.
 
         Returns ``(t, records)``: float64 shape (n,) and uint8 shape (n, record_size), freshly
-        allocated (one copy out of the ring).
+        allocated (one copy out of the ring). Records pushed while it runs are left for the
+        next read.
         """
         import numpy as np
 
         if max_records is not None and max_records < 0:
             raise ValueError("max_records must be >= 0")
-        with self._lock:
-            self._check(reader)
-            n = int(lib.rc_ring_available(self._r, reader))
-            if max_records is not None:
-                n = min(n, max_records)
-            t = np.empty(n, dtype=np.float64)
-            rec = np.empty((n, self._record_size), dtype=np.uint8)
-            if n:
-                got = int(
-                    lib.rc_ring_read(
-                        self._r,
-                        reader,
-                        ffi.from_buffer("double[]", t),
-                        ffi.from_buffer("unsigned char[]", rec),
-                        n,
-                    )
-                )
-                if got != n:  # pragma: no cover - impossible under the lock
-                    t, rec = t[:got], rec[:got]
+        self._check(reader)
+        r = self._r
+        n = int(lib.rc_ring_available(r, reader))
+        if max_records is not None:
+            n = min(n, max_records)
+        t = np.empty(n, dtype=np.float64)
+        rec = np.empty((n, self._record_size), dtype=np.uint8)
+        if n:
+            tbuf = ffi.from_buffer("double[]", t)
+            rbuf = ffi.from_buffer("unsigned char[]", rec)
+            got = int(lib.rc_ring_read(r, reader, tbuf, rbuf, n))
+            if got != n:  # the reader was removed meanwhile (the C ring's unread only grows)
+                t, rec = t[:got], rec[:got]
         return t, rec
 
 

@@ -107,6 +107,52 @@ def test_concurrent_push_and_read() -> None:
     assert r.lost(a) == 0
 
 
+def test_one_writer_many_readers_without_a_caller_lock() -> None:
+    """The C ring locks itself: readers with small limits race one writer (the C calls run
+    truly concurrently, without the GIL) and readers come and go; every record read is
+    whole (its bytes match its timestamp), in order, and read + lost == pushed."""
+    size, n, batch = 16384, 12000, 3
+    r = Ring(size, 64)
+    readers = [r.add_reader(limit) for limit in (3, 10, None)]
+    errors: list[str] = []
+    done = threading.Event()
+
+    def reader(rid: int) -> None:
+        seen, last = 0, -1.0
+        while True:
+            finished = done.is_set()
+            t, rec = r.read(rid)
+            for ti, row in zip(t.tolist(), rec, strict=True):
+                if ti <= last or not np.all(row == int(ti) & 0xFF):
+                    errors.append(f"reader {rid}: record {ti} after {last}, torn or out of order")
+                    return
+                last = ti
+            seen += len(t)
+            if finished:
+                break
+        if seen + r.lost(rid) != n:
+            errors.append(f"reader {rid}: {seen} read + {r.lost(rid)} lost != {n}")
+
+    def churn() -> None:
+        while not done.is_set():
+            r.remove_reader(r.add_reader(2))
+            r.available(readers[0])
+
+    threads = [threading.Thread(target=reader, args=(rid,)) for rid in readers]
+    threads.append(threading.Thread(target=churn))
+    for th in threads:
+        th.start()
+    for i in range(0, n, batch):
+        k = min(batch, n - i)
+        ts = np.arange(i, i + k, dtype=np.float64)
+        r.push_many(ts, np.repeat((ts.astype(np.int64) & 0xFF).astype(np.uint8), size))
+    done.set()
+    for th in threads:
+        th.join(10)
+    assert not any(th.is_alive() for th in threads)
+    assert errors == []
+    assert r.pushed == n
+
 OPS = st.lists(
     st.one_of(
         st.tuples(st.just("push"), st.integers(0, 3)),
