@@ -4,8 +4,10 @@ A :class:`Link` frames what it receives with the C framer (bounded by ``max_fram
 each complete frame to its session and writes the replies inline from its own thread. A
 partial frame with no new byte for ``byte_timeout`` is abandoned: its first byte is dropped and
 the rest rescanned. :meth:`Link.send` never blocks: output the peer cannot take now waits in a
-bounded backlog, and a peer that leaves it unread for ``send_timeout`` is dropped. Pushes from
-another thread (a ticker) are flushed by the next push or by the link's own thread.
+bounded backlog, and a peer that leaves it unread for ``send_timeout`` is dropped. With nothing
+queued, a reply is written straight from the caller's buffer and only what the peer could not
+take yet is copied into the backlog (a large reply, a camera frame, is not copied whole). Pushes
+from another thread (a ticker) are flushed by the next push or by the link's own thread.
 
 Used through :class:`robocli.sim.serving.Server`; nothing here is global.
 """
@@ -110,8 +112,10 @@ class Link:
             if self._closed:
                 self._stats.tx_dropped += len(data)
                 return False
-            self._backlog += data
-            return self._flush_locked(time.monotonic())
+            if self._backlog:
+                self._backlog += data
+                return self._flush_locked(time.monotonic())
+            return self._send_direct(data)
 
     def close(self) -> None:
         """Drop the link: its thread sees the end of the stream and finishes."""
@@ -131,14 +135,34 @@ class Link:
 
     # ---------------------------------------------------------------- output (tx lock held)
 
-    def _flush_locked(self, now: float) -> bool:
+    def _write_locked(self, data: bytes | bytearray) -> int | None:
+        """Write what the peer takes now; None (and the link dropped) if the write failed."""
         try:
-            n = self._write_now(self._backlog)
+            return self._write_now(data)
         except OSError as exc:
             log.info("%s: write failed (%s); dropping the link", self.name, exc)
             self._mark_closed("write failed")
+            return None
+
+    def _send_direct(self, data: bytes | bytearray) -> bool:
+        """Nothing queued: write from ``data`` itself, back-log only the rest."""
+        n = self._write_locked(data)
+        if n is None:
+            return False
+        if n == len(data):
+            return True
+        self._backlog += memoryview(data)[n:]  # the only copy: what the peer did not take
+        return self._backlog_checked(n, time.monotonic())
+
+    def _flush_locked(self, now: float) -> bool:
+        n = self._write_locked(self._backlog)
+        if n is None:
             return False
         del self._backlog[:n]
+        return self._backlog_checked(n, now)
+
+    def _backlog_checked(self, n: int, now: float) -> bool:
+        """After ``n`` bytes went out: restart or enforce the backlog's deadline and bound."""
         if not self._backlog:
             self._backlog_since = 0.0
             return True
@@ -168,7 +192,7 @@ class Link:
         log.debug("%s: link closing (%s)", self.name, why)
         self._interrupt()
 
-    def _write_now(self, data: bytearray) -> int:  # pragma: no cover - overridden
+    def _write_now(self, data: bytes | bytearray) -> int:  # pragma: no cover - overridden
         """Write what can go without blocking; the bytes consumed from ``data``."""
         raise NotImplementedError
 
@@ -262,7 +286,7 @@ class TcpLink(Link):
             ms = int(limits.send_timeout * 1000)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, ms)
 
-    def _write_now(self, data: bytearray) -> int:
+    def _write_now(self, data: bytes | bytearray) -> int:
         try:
             n = self.sock.send(data, DONTWAIT)
         except (TimeoutError, BlockingIOError, InterruptedError):
@@ -325,7 +349,7 @@ class PtyLink(Link):
         self.master, self.slave = master, slave
         self._wake_r, self._wake_w = os.pipe()
 
-    def _write_now(self, data: bytearray) -> int:
+    def _write_now(self, data: bytes | bytearray) -> int:
         """What the pty cannot take now is dropped, as on a serial line with nobody
         listening: the backlog is always emptied."""
         view = memoryview(data)
