@@ -14,6 +14,7 @@ import json
 import queue
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -141,6 +142,11 @@ def dump(
         None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
     ),
     ports: str = typer.Option("both", "--ports", help="both, motion or state."),
+    listen: str | None = typer.Option(  # noqa: UP007
+        None, "--listen", metavar="[ADDR:]PORT",
+        help="Be a recording proxy: other programs connect to the motion port PORT and the "
+        "state port PORT+2 (0: ephemeral) instead of the controller.",
+    ),  # fmt: skip
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
     byte_order: str = OrderOpt,
@@ -158,6 +164,9 @@ def dump(
         raise typer.BadParameter("give HOST or --file (one of them)")
     if ports not in ("both", "motion", "state"):
         raise typer.BadParameter(f"--ports is both, motion or state, not {ports!r}")
+    if listen is not None and host is None:
+        raise typer.BadParameter("--listen relays to a HOST; not with --file")
+    bind_to = _listen_address(listen) if listen is not None else None
     if output is not None and output.suffix != ".jsonl":
         raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
     order = ">" if byte_order == "big" else "<"
@@ -173,7 +182,7 @@ def dump(
                 assert host is not None
                 _dump_live(view, host, ports, (motion_port, state_port),
                            dict(byte_order=byte_order, real_size=real_size, robot=robot,
-                                timeout=timeout))  # fmt: skip
+                                timeout=timeout), bind_to)  # fmt: skip
     finally:
         if writer is not None:
             writer.close()
@@ -193,11 +202,21 @@ def _dump_file(view: Any, file: Path, protocol: str) -> None:
                            "dropped)")  # fmt: skip
 
 
+def _listen_address(text: str) -> tuple[str, int]:
+    """``--listen [ADDR:]PORT`` -> (address, motion port); the state port is 2 above."""
+    addr, _, port = text.strip().rpartition(":")
+    if not port.isdigit() or not (int(port) == 0 or 1 <= int(port) <= 65533):
+        raise typer.BadParameter(f"--listen is [ADDR:]PORT with PORT 0 or 1..65533, not {text!r}")
+    return addr or "127.0.0.1", int(port)
+
+
 def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
-               options: dict[str, Any]) -> None:  # fmt: skip
-    """Both ports as two clients, their frames queued by their threads and printed here in
-    time order until ``--count`` or Ctrl-C (then what was still queued)."""
+               options: dict[str, Any], listen: tuple[str, int] | None) -> None:  # fmt: skip
+    """Both ports as two clients (or, with ``listen``, as two recording proxies), their
+    frames queued by their threads and printed here in time order until ``--count`` or
+    Ctrl-C (then what was still queued)."""
     from robocli.devices.arm import Arm
+    from robocli.errors import TransportError
 
     start = time.monotonic()
     seen: queue.Queue[tuple[str, bytes, float]] = queue.Queue(MAX_QUEUED)
@@ -223,7 +242,10 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                   options["robot"]) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
         try:
             state, opened = None, []
-            for name in ("motion", "state") if ports == "both" else (ports,):
+            relays = []
+            if listen is not None:  # other programs' sessions, through recording proxies
+                relays = _relay(arms, listener, (h, mp, sp), ports, listen, options["byte_order"])
+            for name in () if listen else ("motion", "state") if ports == "both" else (ports,):
                 arm = arms.enter_context(Arm.connect(
                     h, mp, sp, motion=name == "motion", state=name == "state",
                     history=16, listeners=[listener(name)], stop_on_failure=False,
@@ -235,14 +257,51 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                 view.flush(before=time.monotonic() - start - _REORDER)
                 for arm in opened:  # raises when a link was lost (the motion port is quiet)
                     arm.check()
+                for relay in relays:  # a client came, the controller could not be reached
+                    if relay.upstream_error is not None:
+                        up, exc = relay.upstream, relay.upstream_error
+                        raise TransportError(f"no controller at {up[0]}:{up[1]} "
+                                             f"({exc.strerror or exc})")  # fmt: skip
                 if state is not None:  # raises when the state link is silent
                     state.wait_for_state(options["timeout"])
         finally:
+            arms.close()  # nothing is queued after
             take()
             view.flush()
             if dropped[0]:
                 typer.echo(f"robocli: {dropped[0]} messages not shown: the output was too slow",
                            err=True)  # fmt: skip
+
+
+def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int, int],
+           ports: str, listen: tuple[str, int], byte_order: str) -> list[Any]:  # fmt: skip
+    """Start a recording proxy per port (motion on ``listen``, state 2 above) on ``stack``;
+    each frame goes to ``listener(port)("tx"|"rx", frame, t)``. Says where, on stderr.
+    The controller is not probed: that would take its one client slot."""
+    from robocli.devices.proxy import Message, RecordingProxy
+    from robocli.protocols import simple_message as sm
+
+    def shown(put: Callable[[str, bytes, float], None]) -> Callable[[Message], None]:
+        def on_message(m: Message) -> None:
+            put("tx" if m.direction == "c2s" else "rx", m.frame, time.monotonic())
+
+        return on_message
+
+    host, mp, sp = upstream
+    bind, port = listen
+    framer = "sm-be" if byte_order == "big" else "sm-le"
+    said, relays = [], []
+    for name, offset, target in (("motion", 0, mp), ("state", 2, sp)):
+        if ports not in ("both", name):
+            continue
+        proxy = stack.enter_context(RecordingProxy(
+            (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
+            bind=bind, port=port + offset if port else 0, max_clients=2,
+            name=f"arm-dump-{name}").start())  # fmt: skip
+        said.append(f"{name} {bind}:{proxy.port} -> {host}:{target}")
+        relays.append(proxy)
+    typer.echo("dump: clients connect to " + ", ".join(said), err=True)
+    return relays
 
 
 # ------------------------------------------------------------------------------ teleop

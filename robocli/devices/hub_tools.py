@@ -8,17 +8,17 @@ Part of the hub client (:mod:`robocli.devices.hub`); the CLI (``robocli subscrib
 from __future__ import annotations
 
 import contextlib
-import socket
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
 
+from robocli.devices import proxy
 from robocli.devices.hub import Hub, Reading
 from robocli.devices.hub_decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
 from robocli.devices.proxy import Message, RecordingProxy
-from robocli.errors import DeviceError, ProtocolError, TransportError
+from robocli.errors import DeviceError, ProtocolError
 from robocli.protocols.common import plain
 from robocli.protocols.ros4mat import (
     HEADER_SIZE,
@@ -218,10 +218,7 @@ class DumpProxy(RecordingProxy):
 
 def check_upstream(host: str, port: int, timeout: float = 2.0) -> None:
     """Raise :class:`TransportError` when nothing listens at the hub's address."""
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as exc:
-        raise TransportError(f"no hub at {host}:{port} ({exc.strerror or exc})") from None
+    proxy.check_upstream(host, port, timeout, "hub")
 
 
 __all__ = [

@@ -23,8 +23,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from robocli.core import Framer
+from robocli.errors import TransportError
 
-__all__ = ["Describe", "Message", "RecordingProxy"]
+__all__ = ["Describe", "Message", "RecordingProxy", "check_upstream"]
 
 #: the deadline for a write (and how often a quiet read checks for close)
 _IO_TIMEOUT_S = 1.0
@@ -73,6 +74,9 @@ class RecordingProxy:
         self._socks: list[socket.socket] = []
         self._max = max_clients
         self._start = time.monotonic()
+        #: why the last client could not be relayed (``upstream`` refused or unreachable; the
+        #: client was closed), or None
+        self.upstream_error: OSError | None = None
         self._thread = threading.Thread(target=self._accept, name=name, daemon=True)
 
     def start(self) -> RecordingProxy:
@@ -90,7 +94,8 @@ class RecordingProxy:
                 return
             try:
                 device = socket.create_connection(self.upstream, timeout=5.0)
-            except OSError:
+            except OSError as exc:
+                self.upstream_error = exc
                 client.close()
                 continue
             for s in (client, device):
@@ -165,3 +170,12 @@ class RecordingProxy:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def check_upstream(host: str, port: int, timeout: float = 2.0, what: str = "device") -> None:
+    """Raise :class:`TransportError` (``no {what} at host:port``) when nothing listens there
+    (a connection opened and closed at once)."""
+    try:
+        socket.create_connection((host, port), timeout=timeout).close()
+    except OSError as exc:
+        raise TransportError(f"no {what} at {host}:{port} ({exc.strerror or exc})") from None

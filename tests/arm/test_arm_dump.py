@@ -5,6 +5,7 @@ recorded traces in all three variants, ``| head`` and Ctrl-C, one-line errors.""
 from __future__ import annotations
 
 import json
+import re
 import signal
 import subprocess
 import sys
@@ -90,6 +91,8 @@ def test_ctrl_c_exits_130_with_one_line() -> None:
     ([], 2, "give HOST or --file"),
     (["sim", "--output", "x.txt"], 2, ".jsonl"),
     (["127.0.0.1", "--motion-port", "1", "--state-port", "1"], 3, "connection refused"),
+    (["sim", "--listen", "127.0.0.1:x"], 2, "--listen is [ADDR:]PORT"),
+    (["sim", "--listen", "65534"], 2, "--listen is [ADDR:]PORT"),
 ])  # fmt: skip
 def test_bad_input_one_line(args: list[str], code: int, text: str, tmp_path: Path) -> None:
     done = subprocess.run([*CLI, *args], capture_output=True, text=True, timeout=30,
@@ -130,3 +133,55 @@ def test_motion_only_dump_notices_a_dropped_link(make_sim: Any) -> None:
     assert proc.returncode == 1, err
     assert len(err.splitlines()) == 1 and "Traceback" not in err
     assert f":{mp}" in err and out == ""
+
+
+def test_listen_records_another_programs_upload(make_sim: Any) -> None:
+    """``--listen``: an uploader connects to the dump instead of the controller (which takes
+    one client per port); its upload is shown both ways and runs; the port stays single."""
+    from robocli.devices.arm import Arm
+    from robocli.errors import DeviceError
+    from robocli.kinematics import load_model
+    from robocli.kinematics.trajectory import circle
+
+    sim, mp, sp = make_sim()
+    proc = subprocess.Popen([*CLI, "127.0.0.1", "--motion-port", str(mp), "--state-port",
+                             str(sp), "--listen", "127.0.0.1:0", "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    assert proc.stderr is not None
+    said = proc.stderr.readline()
+    pm, ps = (int(p) for p in re.findall(r"127\.0\.0\.1:(\d+) ->", said))
+    assert f"-> 127.0.0.1:{mp}" in said and f"-> 127.0.0.1:{sp}" in said
+    with Arm.connect("127.0.0.1", pm, ps) as arm:
+        sent = arm.download(circle(load_model("irb120"), 5, duration=1.0), first_duration=0.5)
+        arm.wait_until_idle(10.0)
+        assert sim.snapshot().motion_clients == 1  # the uploader's, through the dump
+        with pytest.raises(DeviceError):  # the controller's refusal, relayed
+            Arm.connect("127.0.0.1", pm, ps, motion=False, timeout=5.0)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 130 and err.splitlines() == ["robocli: interrupted"], err
+    records = [json.loads(line) for line in out.splitlines()]
+    requests = [r for r in records if (r["port"], r["dir"]) == ("motion", "tx")]
+    replies = [r for r in records if r["name"] == "JOINT_TRAJ_PT SUCCESS"]
+    assert len(requests) == len(replies) == sent
+    assert requests[0]["fields"]["sequence"] == "-1(start)"
+    assert requests[-1]["fields"]["sequence"] == "-3(end)"
+    assert {r["name"] for r in records if r["port"] == "state"} >= {"JOINT_POSITION", "STATUS"}
+
+
+def test_listen_says_when_the_controller_is_unreachable() -> None:
+    """The controller is not probed (that would take its one client slot): the first client
+    that cannot be relayed ends the dump with exit 3 and one line."""
+    import socket
+
+    proc = subprocess.Popen([*CLI, "127.0.0.1", "--motion-port", "1", "--ports", "motion",
+                             "--listen", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)  # fmt: skip
+    assert proc.stderr is not None
+    (port,) = re.findall(r"127\.0\.0\.1:(\d+) ->", proc.stderr.readline())
+    with socket.create_connection(("127.0.0.1", int(port)), timeout=5.0) as client:
+        client.settimeout(5.0)
+        assert client.recv(16) == b""  # closed: nothing to relay to
+    _, err = proc.communicate(timeout=20)
+    assert proc.returncode == 3 and len(err.splitlines()) == 1
+    assert "no controller at 127.0.0.1:1" in err

@@ -26,3 +26,22 @@ def test_more_sessions_than_slots_one_after_another(server: HubServer) -> None:
                 hub.subscribe("adc", rate=100)
     names = [m.name for m in seen if m.direction == "c2s"]
     assert names.count("CONNECT") == 5 and names.count("SUBSCRIBE") >= 5
+
+
+def test_the_shared_proxy_checks_its_framer_and_says_why_it_could_not_relay() -> None:
+    """RecordingProxy (what DumpProxy is, with ros4mat): an unknown framer is refused when it
+    is made; a client it cannot relay is closed, and ``upstream_error`` says why."""
+    import socket
+
+    from robocli.devices.proxy import RecordingProxy
+
+    with pytest.raises(ValueError, match="unknown protocol"):
+        RecordingProxy(("127.0.0.1", 1), print, framer="nope")
+    with socket.create_server(("127.0.0.1", 0)) as closed:
+        dead = closed.getsockname()[1]  # a port nothing listens on, once closed
+    with RecordingProxy(("127.0.0.1", dead), print, framer="sm-le").start() as proxy:
+        assert proxy.upstream_error is None
+        with socket.create_connection(("127.0.0.1", proxy.port), timeout=5.0) as client:
+            client.settimeout(5.0)
+            assert client.recv(16) == b""
+        assert isinstance(proxy.upstream_error, ConnectionRefusedError)
