@@ -355,11 +355,13 @@ class Session:
             raise
         now = time.monotonic()
         self.last_tx = now
+        payload_of, name_of, count = self._payload_of, self._name_of, self.stats.count_sent
+        listeners = self.listeners
         for packet in packets:
-            payload = self._payload_of(packet)
-            self.stats.count_sent(self._name_of(payload, "tx"))
-            if len(self.listeners):
-                self.listeners.notify("tx", payload, now)
+            payload = payload_of(packet)
+            count(name_of(payload, "tx"))
+            if listeners._items:
+                listeners.notify("tx", payload, now)
 
     # ------------------------------------------------------------------ reading
 
@@ -378,14 +380,16 @@ class Session:
             self._leaders += 1
         if self._reader_polling:
             self._wake_reader()
-        if not self._read_lock.acquire(timeout=max(0.0, timeout)):
+        read_lock = self._read_lock
+        if not (read_lock.acquire(False) or read_lock.acquire(timeout=max(0.0, timeout))):
             self._leader_done()
             raise TimeoutError(f"{self.transport.url}: the link stayed busy for {timeout:g} s")
         try:
             if packet is not None:
                 self._send((packet,), min(timeout, self.transport.write_timeout))
             while True:
-                self.check()
+                if self.error is not None or self._closing:
+                    self.check()
                 left = deadline - time.monotonic()
                 if left <= 0:
                     raise TimeoutError(f"{self.transport.url}: no reply within {timeout:g} s")
@@ -393,7 +397,7 @@ class Session:
                 if reply is not None:
                     return reply
         finally:
-            self._read_lock.release()
+            read_lock.release()
             self._leader_done()
 
     def _leader_done(self) -> None:
@@ -425,29 +429,31 @@ class Session:
         if self._raw_tail is not None:
             self._raw_tail += data
             del self._raw_tail[:-_RAW_TAIL]
-        frames = self.framer.feed(data)
         reply = None
-        for frame in frames:
-            self._dispatch(frame, now)
+        payload_of, name_of, count = self._payload_of, self._name_of, self.stats.count_received
+        listeners, on_frame = self.listeners, self.on_frame
+        for frame in self.framer.feed(data):
+            payload = payload_of(frame)
+            count(name_of(payload, "rx"))
+            if listeners._items:
+                listeners.notify("rx", payload, now)
+            try:
+                on_frame(frame, now)
+            except ProtocolError as exc:
+                self._decode_failed(exc)
             if reply is None and match is not None and match(frame):
                 reply = frame
         return reply
 
-    def _dispatch(self, frame: bytes, now: float) -> None:
-        payload = self._payload_of(frame)
-        self.stats.count_received(self._name_of(payload, "rx"))
-        if len(self.listeners):
-            self.listeners.notify("rx", payload, now)
-        try:
-            self.on_frame(frame, now)
-        except ProtocolError as exc:
-            self.stats.add("decode_errors")
-            if not self._decode_logged:
-                self._decode_logged = True
-                log.warning("%s: %s (later ones only counted)", self.transport.url, exc,
-                            exc_info=True)  # fmt: skip
-            else:
-                log.debug("%s: %s", self.transport.url, exc)
+    def _decode_failed(self, exc: ProtocolError) -> None:
+        """A received frame did not decode: count it, log the first with its traceback."""
+        self.stats.add("decode_errors")
+        if not self._decode_logged:
+            self._decode_logged = True
+            log.warning("%s: %s (later ones only counted)", self.transport.url, exc,
+                        exc_info=True)  # fmt: skip
+        else:
+            log.debug("%s: %s", self.transport.url, exc)
 
     def _read_loop(self) -> None:
         """Handle unsolicited frames while no caller holds the read side.
