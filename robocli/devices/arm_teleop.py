@@ -184,7 +184,9 @@ class ArmTeleop:
 
     def step(self, now: float | None = None) -> None:
         """Send what the held key asks for: STOP on release, a new motion every ``period``
-        (at once when the direction changed)."""
+        (at once when the direction changed). Raises the link's error once a link is lost,
+        even while idle (:meth:`Arm.check`)."""
+        self.arm.check()
         now = self.clock() if now is None else now
         jog = self.keys.jog(now)
         if jog is None:

@@ -200,3 +200,31 @@ def test_cli_streams_to_an_embedded_streaming_simulator() -> None:
     assert code == 0 and err == "", err
     lines = [x for x in term.text.split("\r") if " deg " in x]
     assert max(_j2(x) for x in lines) > before + 0.5
+
+
+def test_run_loop_ends_on_a_link_lost_while_idle(make_sim: Any, make_arm: Any) -> None:
+    """No key held, nothing sent: the loop still notices the controller went away."""
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    teleop = ArmTeleop(arm)
+    deadline = time.monotonic() + 10.0
+
+    def read_key(timeout: float) -> str | None:  # no key; quits after 10 s at most
+        time.sleep(timeout)
+        return "q" if time.monotonic() > deadline else None
+
+    sim.close()
+    with pytest.raises(ConnectionLost):
+        run_arm_teleop(teleop, read_key)
+
+
+def test_cli_says_in_one_line_that_the_controller_went_away(make_sim: Any) -> None:
+    sim, mp, sp = make_sim()
+    with terminal("teleop", "arm", "127.0.0.1", "--motion-port", str(mp), "--state-port",
+                  str(sp)) as term:  # fmt: skip
+        term.read_until(b"\rJ1  idle")
+        sim.close()
+        code, err = term.finish()
+    assert code == 1 and len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert f":{sp}" in err or f":{mp}" in err
