@@ -196,7 +196,7 @@ class ArcosController:
             log.debug("%s: undecodable command %s (%s)", link.name, payload.hex(" "), exc)
             return None
         if link.sync_state == IN_SESSION:
-            self.commands[cmd.name] += 1
+            self.commands[_COMMAND_NAMES[cmd.command]] += 1  # (cmd.name: an enum look-up)
             if cmd.command == Command.SETO:  # its data is not an ordinary argument
                 self.ext.seto(payload)
                 return None
@@ -232,8 +232,8 @@ class ArcosController:
             log.debug("%s: out-of-order sync %d in state %d; restarting", link.name, c, state)
             link.sync_state = PRE_SYNC
         else:
-            self.commands[_command_name(c)] += 1
-            log.debug("%s: command %s before OPEN ignored", link.name, _command_name(c))
+            self.commands[_COMMAND_NAMES[c]] += 1
+            log.debug("%s: command %s before OPEN ignored", link.name, _COMMAND_NAMES[c])
         return None
 
     def _open(self, link: ArcosSession) -> None:
@@ -497,3 +497,7 @@ def _command_name(c: int) -> str:
         return Command(c).name
     except ValueError:
         return f"CMD_{c}"
+
+
+#: every command byte's name, computed once: a command is counted on every request's path
+_COMMAND_NAMES = tuple(_command_name(c) for c in range(256))
