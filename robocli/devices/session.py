@@ -264,6 +264,9 @@ class Session:
         self.stuck_threads: list[str] = []
         #: the device's handler of every received frame (settable until :meth:`start`)
         self.on_frame = on_frame
+        #: called with the monotonic time of every packet sent (a device's own statistics,
+        #: cheaper than a listener that sees every frame); must not raise
+        self.on_sent: Callable[[float], None] | None = None
         self._payload_of = payload_of
         self._name_of = name_of
         self._emergency_stop = emergency_stop
@@ -356,10 +359,12 @@ class Session:
         now = time.monotonic()
         self.last_tx = now
         payload_of, name_of, count = self._payload_of, self._name_of, self.stats.count_sent
-        listeners = self.listeners
+        listeners, on_sent = self.listeners, self.on_sent
         for packet in packets:
             payload = payload_of(packet)
             count(name_of(payload, "tx"))
+            if on_sent is not None:
+                on_sent(now)
             if listeners._items:
                 listeners.notify("tx", payload, now)
 
@@ -532,6 +537,8 @@ class Session:
             self.last_tx = time.monotonic()
             payload = self._payload_of(packet)
             self.stats.count_sent(self._name_of(payload, "tx"))
+            if self.on_sent is not None:
+                self.on_sent(self.last_tx)
             if len(self.listeners):
                 self.listeners.notify("tx", payload, self.last_tx)
         return True

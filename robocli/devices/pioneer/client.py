@@ -132,7 +132,7 @@ class Pioneer(SimulatorFeatures):
         self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
         self._init_simulated()
         session.on_frame = self._on_frame
-        session.listeners.add(self._count_tx)
+        session.on_sent = self.stats.tx_times.append  # the time of every packet sent
         session.add_task("keepalive", self._keepalive_step)
         self._supervisor = session.add_task("supervisor", self._supervise_step)
         session.start()
@@ -559,10 +559,6 @@ class Pioneer(SimulatorFeatures):
         if sip is None:
             return True
         return sip_motors_on(sip[0])
-
-    def _count_tx(self, direction: str, payload: bytes, t: float) -> None:
-        if direction == "tx":
-            self.stats.tx_times.append(t)
 
     def _on_frame(self, frame: bytes, now: float) -> None:
         """Every received frame, in the reader thread or a caller waiting for a reply."""
