@@ -31,6 +31,7 @@ from robocli.protocols.arcos import (
     FLAG_SONAR_MASK,
     MAX_PAYLOAD,
     Command,
+    DecodedCommand,
     PacketType,
     decode_command,
     encode_server,
@@ -124,6 +125,9 @@ class ArcosController:
         )  # fmt: skip
         self._handlers = {**self._make_handlers(), **self.ext.handlers()}
         self._config_cache: tuple[tuple[float, ...], bytes] | None = None
+        #: commands decoded, by payload: a client repeats the same few (CONFIG requests,
+        #: PULSE, set-points), and decoding is the larger part of a request's cost
+        self._decoded: dict[bytes, DecodedCommand] = {}
         head = ("x", "y", "th", "lvel", "rvel", "battery", "stall_bumpers", "control", "flags")
         empty: dict[str, Any] = {**dict.fromkeys(head, 0), "compass": 0, "sonar": ()}
         self._sip_fixed = len(encode_sip_body({**empty, **self._sip_tail()}))
@@ -190,14 +194,19 @@ class ArcosController:
         link.last_rx = now
         link.watchdog_tripped = False
         self.last = link
-        try:
-            cmd = decode_command(payload)
-        except (ConstructError, RobocliError, ValueError) as exc:
-            log.debug("%s: undecodable command %s (%s)", link.name, payload.hex(" "), exc)
-            return None
+        cmd = self._decoded.get(payload)
+        if cmd is None:
+            try:
+                cmd = decode_command(payload)
+            except (ConstructError, RobocliError, ValueError) as exc:
+                log.debug("%s: undecodable command %s (%s)", link.name, payload.hex(" "), exc)
+                return None
+            if len(self._decoded) >= _DECODED_MAX:
+                self._decoded.clear()
+            self._decoded[payload] = cmd
         if link.sync_state == IN_SESSION:
             self.commands[_COMMAND_NAMES[cmd.command]] += 1  # (cmd.name: an enum look-up)
-            if cmd.command == Command.SETO:  # its data is not an ordinary argument
+            if cmd.command == _SETO:  # its data is not an ordinary argument
                 self.ext.seto(payload)
                 return None
             handler = self._handlers.get(cmd.command)
@@ -501,3 +510,5 @@ def _command_name(c: int) -> str:
 
 #: every command byte's name, computed once: a command is counted on every request's path
 _COMMAND_NAMES = tuple(_command_name(c) for c in range(256))
+_SETO = int(Command.SETO)
+_DECODED_MAX = 256  #: distinct payloads the decoded-command cache holds before it restarts
