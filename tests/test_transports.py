@@ -109,3 +109,45 @@ def test_faulty_transport_splits_drops_and_corrupts_reproducibly() -> None:
         a.close()
         faulty.close()
     assert results[0] == results[1]
+
+
+def test_a_write_the_peer_takes_only_in_part_keeps_its_deadline_and_its_bytes() -> None:
+    a, b = pair()
+    with a, b:
+        big = bytes(range(256)) * 40_000  # 10 MB: far more than the socket buffers hold
+        with pytest.raises(TransportError, match="write timed out"):
+            a.write(big, timeout=0.2)  # nobody reads: the deadline, not a hang
+    a, b = pair()
+    with a, b:
+        data = bytes(range(256)) * 4_000  # 1 MB, read as it comes by another thread
+        got = bytearray()
+
+        def reader() -> None:
+            while len(got) < len(data):
+                got.extend(b.read(65536, timeout=2.0))
+
+        thread = threading.Thread(target=reader)
+        thread.start()
+        a.write(data, timeout=5.0)
+        a.write(b"end", timeout=5.0)
+        thread.join(5.0)
+        assert bytes(got[: len(data)]) == data  # nothing lost or reordered past a short send
+
+
+def test_writes_from_two_threads_never_interleave() -> None:
+    a, b = pair()
+    with a, b:
+        n = 600_000  # each write needs several sends: the socket buffer is smaller
+        got = bytearray()
+
+        def reader() -> None:
+            while len(got) < 2 * n:
+                got.extend(b.read(65536, timeout=2.0))
+
+        threads = [threading.Thread(target=reader)]
+        threads += [threading.Thread(target=a.write, args=(c * n, 5.0)) for c in (b"A", b"B")]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(5.0)
+        assert bytes(got) in (b"A" * n + b"B" * n, b"B" * n + b"A" * n)
