@@ -159,17 +159,17 @@ class Ros4matSession:
         )
         return head + wire
 
-    def _data(self, msg_type: int, pulled: Pulled) -> bytes:
-        """A data reply, header and body joined in one copy (exact ``bytes``, which the link
-        sends without copying it again) unless compressed."""
+    def _data(self, msg_type: int, pulled: Pulled) -> list[Any]:
+        """A data reply as buffers: its header, then the records (no copy; the link writes
+        them in one gathered write), or the header and the compressed body."""
         n = len(pulled.t)
         assert self.state is not None
         if self.state.compress and n:
-            return self._packet(msg_type, pull_body(pulled), n)
+            return [self._packet(msg_type, pull_body(pulled), n)]
         parts = body_parts(pulled)
         body = sum(p.nbytes if isinstance(p, memoryview) else len(p) for p in parts)
         head = _HEADER.pack(msg_type, 0, self.state.id, n, body, body, 0, self.hub.clock())
-        return b"".join([head, *parts])
+        return [head, *parts]
 
     # ---------------------------------------------------------------- session protocol
 
@@ -204,9 +204,10 @@ class Ros4matSession:
             if body:
                 return self._error(kind, "a data pull has no body")
             start = time.perf_counter()
-            reply = self._data(kind, self.hub.pull(state, name))
+            parts = self._data(kind, self.hub.pull(state, name))
             self._times.add(time.perf_counter() - start)
-            return reply
+            self.link.send_parts(parts)  # after the replies to earlier frames
+            return None
         if kind == MsgType.SUBSCRIBE:
             return self._subscribe(body)
         if kind == MsgType.UNSUBSCRIBE:

@@ -21,7 +21,7 @@ import select
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from typing import TYPE_CHECKING
 
@@ -36,6 +36,7 @@ __all__ = ["DONTWAIT", "Link", "LinkLimits", "LinkStats", "PtyLink", "TcpLink"]
 log = logging.getLogger("robocli.sim.serving")
 
 RECV_SIZE = 65536  #: bytes per recv
+MAX_PARTS = 512  #: buffers one gathered write takes (below every platform's IOV_MAX)
 DONTWAIT = getattr(socket, "MSG_DONTWAIT", 0)  #: 0 where the platform has no such flag
 
 
@@ -90,6 +91,7 @@ class Link:
         self._last_rx = time.monotonic()
         self._backlog = bytearray()
         self._backlog_since = 0.0
+        self._replies: list[bytes] = []  # replies of the frames being dispatched (link thread)
         self._closed = False
         self._stats = LinkStats()
         self.session: Session | None = None
@@ -116,6 +118,40 @@ class Link:
                 self._backlog += data
                 return self._flush_locked(time.monotonic())
             return self._send_direct(data)
+
+    def send_parts(self, parts: Sequence[bytes | memoryview]) -> bool:
+        """Send one reply made of several contiguous buffers (a header, then records) without
+        joining them: one gathered write where the link supports it, and only what the peer
+        did not take is copied into the backlog. Call it from the link's own thread while it
+        dispatches frames (a session's ``on_frame``): the replies already returned for earlier
+        frames go first. Returns False when the link is gone."""
+        if self._replies:
+            self.send(b"".join(self._replies))
+            self._replies.clear()
+        views = [memoryview(p).cast("B") for p in parts]
+        total = sum(v.nbytes for v in views)
+        with self._tx_lock:
+            if self._closed:
+                self._stats.tx_dropped += total
+                return False
+            if self._backlog or len(views) > MAX_PARTS:
+                for v in views:
+                    self._backlog += v
+                return self._flush_locked(time.monotonic())
+            try:
+                n = self._write_parts(views)
+            except OSError as exc:
+                log.info("%s: write failed (%s); dropping the link", self.name, exc)
+                self._mark_closed("write failed")
+                return False
+            if n == total:
+                return True
+            skip = n
+            for v in views:  # back-log what the peer did not take
+                if skip < v.nbytes:
+                    self._backlog += v[skip:]
+                skip = max(0, skip - v.nbytes)
+            return self._backlog_checked(n, time.monotonic())
 
     def close(self) -> None:
         """Drop the link: its thread sees the end of the stream and finishes."""
@@ -196,6 +232,11 @@ class Link:
         """Write what can go without blocking; the bytes consumed from ``data``."""
         raise NotImplementedError
 
+    def _write_parts(self, views: list[memoryview]) -> int:
+        """:meth:`_write_now` of the buffers one after the other (a link with a gathered
+        write overrides it)."""
+        return self._write_now(b"".join(views))
+
     def _interrupt(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
 
@@ -219,12 +260,14 @@ class Link:
     def _dispatch(self, frames: list[bytes], now: float) -> bytes:
         session = self.session
         assert session is not None  # set before the thread starts
-        replies = []
+        replies = self._replies  # send_parts sends these first
         for f in frames:
             reply = session.on_frame(f, now)
             if reply:
                 replies.append(reply)
-        return b"".join(replies)
+        out = b"".join(replies)
+        replies.clear()
+        return out
 
     def _partial_deadline(self) -> float | None:
         """When the partial frame held now is abandoned (None: nothing held)."""
@@ -289,6 +332,16 @@ class TcpLink(Link):
     def _write_now(self, data: bytes | bytearray) -> int:
         try:
             n = self.sock.send(data, DONTWAIT)
+        except (TimeoutError, BlockingIOError, InterruptedError):
+            return 0
+        self._stats.bytes_out += n
+        return n
+
+    def _write_parts(self, views: list[memoryview]) -> int:
+        if not DONTWAIT or not hasattr(self.sock, "sendmsg"):
+            return super()._write_parts(views)
+        try:
+            n = self.sock.sendmsg(views, (), DONTWAIT)
         except (TimeoutError, BlockingIOError, InterruptedError):
             return 0
         self._stats.bytes_out += n
