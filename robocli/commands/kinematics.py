@@ -263,15 +263,25 @@ def _table(result: Any, plot: Path | None) -> None:
     for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
         table.add_column(name, justify="right")
     for j in range(result.rmse.shape[0]):
-        table.add_row(
-            str(j + 1), f"{result.rmse[j]:.6f}", f"{result.mae[j]:.6f}", f"{result.max_abs[j]:.6f}"
-        )
+        table.add_row(str(j + 1), *(_rad(v[j]) for v in (result.rmse, result.mae, result.max_abs)))
     console = Console()
     console.print(table)
     if result.tcp_rmse_mm is not None:
         console.print(
-            f"TCP position error: RMSE {result.tcp_rmse_mm:.3f} mm, mean "
-            f"{result.tcp_mean_mm:.3f} mm, max {result.tcp_max_mm:.3f} mm"
+            f"TCP position error: RMSE {_mm(result.tcp_rmse_mm)} mm, mean "
+            f"{_mm(result.tcp_mean_mm)} mm, max {_mm(result.tcp_max_mm)} mm"
         )
     if plot is not None:
         console.print(f"plot written to {plot}")
+
+
+def _rad(value: float) -> str:
+    """An error in rad: fixed point from 1e-4 up, else scientific (1e-7 must not read as 0)."""
+    return f"{value:.6f}" if value >= 1e-4 or value == 0 else f"{value:.2e}"
+
+
+def _mm(value: float | None) -> str:
+    """An error in mm, readable at the micrometre level and below."""
+    if value is None:
+        return "-"
+    return f"{value:.3f}" if value >= 0.01 or value == 0 else f"{value:.2e}"
