@@ -249,6 +249,7 @@ def upload(
                                           robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
         with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
                          timeout=timeout) as arm:  # fmt: skip
+            arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
             here = arm.wait_for_state().joints
             gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
             if not stream and gap > 1e-3:

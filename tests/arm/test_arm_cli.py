@@ -126,3 +126,21 @@ def test_upload_stream_to_sim_starts_the_streaming_profile(tmp_path: Path, capsy
     planned, measured = read_log(sim_json), read_log(real_json)
     assert np.abs(measured.positions[-1] - planned.positions[-1]).max() < 1e-6
     assert np.ptp(measured.positions, axis=0).max() > 0.01  # it moved
+
+
+@pytest.mark.parametrize("case", ["101", "limit"])
+def test_a_refused_upload_sends_nothing_not_even_the_approach(
+    case: str, make_sim, tmp_path: Path, capsys
+) -> None:
+    """The checks run before the arm is moved to the trajectory's start: a refused upload
+    leaves the controller untouched."""
+    sim, motion, state = make_sim()
+    args = ["upload", "arm", "127.0.0.1", "--motion-port", str(motion), "--state-port",
+            str(state)]  # fmt: skip
+    if case == "101":
+        args += ["--shape", "circle", "--points", "101"]
+    else:
+        args += ["--file", str(_bad_log(tmp_path, [0.0, 0.0, 1.5, 0.0, 0.0, 0.0]))]
+    code, out, err = run(capsys, *args)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "moving" not in out and sim.snapshot().points_received == 0

@@ -397,6 +397,25 @@ class Arm:
             raise DeviceError(f"{s.transport.url}: the controller refused point {seq} "
                               f"(reply code {int(code)}: FAILURE)", code=int(code))  # fmt: skip
 
+    def check_trajectory(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
+                         split: bool = False) -> None:  # fmt: skip
+        """The checks :meth:`download` makes before sending anything (finite values,
+        increasing times, joint ranges and speeds, the 100-point buffer unless ``split``;
+        :meth:`stream` has no such buffer), without sending: call it before moving the arm
+        to a trajectory's start."""
+        self._checked(traj, split, None, None)
+
+    def _checked(
+        self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], split: bool,
+        q_now: npt.ArrayLike | None, first_duration: float | None,
+    ) -> list[Point]:  # fmt: skip
+        points = prepare(self.robot, traj, q_now, first_duration)
+        if len(points) > ABB_MAX_POINTS and not split:
+            raise InvalidArgument(
+                f"trajectory has {len(points)} points; the ABB server keeps {ABB_MAX_POINTS} "
+                "and silently drops the rest (use split=True / --split)")
+        return points
+
     def download(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
                  split: bool = False, first_duration: float | None = None,
                  timeout: float | None = None,
@@ -410,11 +429,7 @@ class Arm:
         ``LimitError`` before sending anything, :class:`DeviceError` on a FAILURE reply,
         :class:`TimeoutError` when a reply does not come within ``timeout`` s.
         """
-        points = prepare(self.robot, traj, self._q_now(), first_duration)
-        if len(points) > ABB_MAX_POINTS and not split:
-            raise InvalidArgument(
-                f"trajectory has {len(points)} points; the ABB server keeps {ABB_MAX_POINTS} "
-                "and silently drops the rest (use split=True / --split)")
+        points = self._checked(traj, split, self._q_now(), first_duration)
         chunks = split_points(points)
         if len(chunks) > 1:
             self._need(self._state, "state")
