@@ -143,8 +143,9 @@ class _Output:
         if self.fmt == "csv":
             np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
         elif self.fmt == "jsonl":
-            for row in rows.tolist():
-                buf.write(json.dumps(dict(zip(self.cols, row, strict=True))) + "\n")
+            for row in rows.tolist():  # the precision of the wire: float32 fields, us times
+                values = [round(row[0], 6), *(float(f"{v:.7g}") for v in row[1:])]
+                buf.write(json.dumps(dict(zip(self.cols, values, strict=True))) + "\n")
         elif self.live is None:
             np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
         else:

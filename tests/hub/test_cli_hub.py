@@ -69,6 +69,29 @@ def test_count_jsonl_channel_mask_compressed(server: HubServer) -> None:
     assert all(a["t"] < b["t"] for a, b in zip(rows, rows[1:], strict=False))
 
 
+def test_plain_sensor_names_and_jsonl_at_the_wires_precision(server: HubServer) -> None:
+    """`laser` is the hokuyo, `sysinfo` the computer; JSON values carry float32's digits
+    (no 0.0018077874556183815 for a float32 0.0018077875)."""
+    hub = f"127.0.0.1:{server.port}"
+    code, out, err = finish(cli("subscribe", "imu", "--rate", "50", "--hub", hub,
+                                "--count", "5", "--format", "jsonl"))  # fmt: skip
+    assert code == 0, err
+    for row in map(json.loads, out.splitlines()):
+        for key, value in row.items():
+            digits = repr(value).lstrip("-").replace(".", "").split("e")[0].strip("0")
+            assert len(digits) <= (16 if key == "t" else 7), (key, value)
+    code, out, err = finish(cli("subscribe", "laser", "--rate", "10", "--hub", hub,
+                                "--count", "1", "--format", "csv"))  # fmt: skip
+    assert code == 0 and len(out.splitlines()) == 2, err
+
+
+def test_unknown_sensor_is_a_usage_error_naming_the_known_ones(server: HubServer) -> None:
+    code, _, err = finish(cli("subscribe", "sonar", "--rate", "5",
+                              "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "'sonar'" in err and "laser" in err and "Traceback" not in err
+
+
 def test_table_without_a_terminal(server: HubServer) -> None:
     proc = cli("subscribe", "imu", "--rate", "50", "--hub", f"127.0.0.1:{server.port}",
                "--count", "5", "--format", "table")  # fmt: skip

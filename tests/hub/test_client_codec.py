@@ -59,7 +59,7 @@ def test_subscribe_rules() -> None:
         subscribe_body("adc", 10, channels=0x100)
     with pytest.raises(InvalidArgument, match="fps_depth"):
         subscribe_body("imu", 10, fps_depth=3)
-    with pytest.raises(ProtocolError, match="unknown"):
+    with pytest.raises(InvalidArgument, match="unknown sensor 'lidar'"):
         subscribe_body("lidar", 10)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import reference
 
-from robocli.errors import FramingError, ProtocolError
+from robocli.errors import FramingError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -69,7 +69,8 @@ def test_subscribe_helpers() -> None:
     assert r4m.adc_freq_send_default(100) == 35
     assert r4m.adc_freq_send_default(50) == 22
     assert r4m.sensor_type("ordinateur") == r4m.sensor_type("computer") == r4m.MsgType.COMPUTER
-    with pytest.raises(ProtocolError):
+    assert r4m.sensor_type("laser") == r4m.sensor_type("hokuyo") == r4m.MsgType.HOKUYO
+    with pytest.raises(InvalidArgument, match="unknown sensor 'sonar'; known: adc"):
         r4m.sensor_type("sonar")
     pull = r4m.encode_request("adc", client_id=7)
     (vector,) = [v for v in SPEC["vectors"] if v["name"] == "pull_adc"]

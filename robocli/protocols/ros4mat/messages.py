@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import construct as cs
 
-from robocli.errors import ProtocolError
+from robocli.errors import InvalidArgument, ProtocolError
 
 if TYPE_CHECKING:
     pass
@@ -97,14 +97,26 @@ SENSORS: dict[str, MsgType] = {
 }
 """Sensor names (the original client's, plus ``computer``/``webcam``/``battery``) -> id."""
 
+ALIASES: dict[str, str] = {
+    "laser": "hokuyo",
+    "stereo": "camera_stereo",
+    "depth": "kinect",
+    "sysinfo": "computer",
+}
+"""robocli's plain names for the sensors whose ros4mat names are hardware models."""
+
 
 def sensor_type(sensor: str | int) -> MsgType:
-    """The message id of a sensor given by name (``"adc"``) or id."""
+    """The message id of a sensor given by name (``"adc"``, or an alias such as ``"laser"``)
+    or id. An unknown name is the caller's mistake (:class:`InvalidArgument`), an unknown id
+    a protocol one (:class:`ProtocolError`)."""
     if isinstance(sensor, str):
+        name = sensor.lower()
         try:
-            return SENSORS[sensor.lower()]
+            return SENSORS[ALIASES.get(name, name)]
         except KeyError:
-            raise ProtocolError(f"unknown ros4mat sensor {sensor!r}") from None
+            known = ", ".join(sorted({*SENSORS, *ALIASES} - {"webcam", "ordinateur"}))
+            raise InvalidArgument(f"unknown sensor {sensor!r}; known: {known}") from None
     try:
         return MsgType(sensor)
     except ValueError:
