@@ -64,7 +64,9 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: str = typer.Argument(..., help="adc, imu, gps, battery, computer, hokuyo, camera..."),
+    sensor: str = typer.Argument(
+        ..., help="adc, imu, gps, battery, sysinfo, laser, camera, stereo, depth."
+    ),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
     hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     buffer: int | None = typer.Option(  # noqa: UP007
