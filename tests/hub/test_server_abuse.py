@@ -81,7 +81,7 @@ def test_malformed_input_does_not_disturb_a_streaming_client(
     assert info.dropped == 0
 
 
-def test_token_guards_settings_and_serial(raw: Any) -> None:
+def test_token_guards_settings_and_serial(raw: Any, wait: Any) -> None:
     with HubServer(port=0, token="s3cret") as srv:
         anon, owner = raw(srv.port), raw(srv.port)
         anon.connect()
@@ -97,7 +97,8 @@ def test_token_guards_settings_and_serial(raw: Any) -> None:
         owner.send(r4m.encode_request(r4m.MsgType.DOUT_CTRL, {"d0": 1, "d1": 0, "d2": 0, "d3": 1}))
         assert anon.subscribe("adc", silent=True).error == 0  # joining reads, changes nothing
         assert anon.pull("adc").error == 0
-        assert srv.sensors["adc"]["digital_out"] == [1, 0, 0, 1]
+        # DOUT_CTRL has no reply: wait for the owner's connection to have handled it
+        wait(lambda: srv.sensors["adc"]["digital_out"] == [1, 0, 0, 1], what="DOUT_CTRL")
         for c in (anon, owner, wrong):
             c.close()
 
