@@ -111,6 +111,8 @@ class SimState:
     #: SIP cycles skipped because the simulator ran more than a cycle late (an overloaded
     #: machine); a real controller skips them too rather than send a burst
     cycles_skipped: int = 0
+    #: client links connected now (a closed client's link goes once its thread sees the end)
+    clients: int = 0
 
 
 class PioneerSim:
@@ -295,6 +297,7 @@ class PioneerSim:
             laser_mode=c.ext.laser_mode, laser_scans=c.ext.scans, laser_ranges=c.ext.last_scan,
             simstat_mode=c.ext.simstat_mode, laser_enabled_at_sip=c.ext.enabled_at_sip,
             cycles_skipped=self._ticker.skipped,
+            clients=sum(len(srv.links()) for srv in (self._tcp, self._pty) if srv is not None),
         )  # fmt: skip
 
 

@@ -52,6 +52,7 @@ def test_subtype_override_and_unknown_subtype(sim: PioneerSim) -> None:
     assert sim.url is not None
     with pytest.raises(UnknownRobotError, match="no parameters"):
         Pioneer.connect(sim.url, subtype="box")
+    sim.wait_until(lambda s: s.clients == 0, 5.0)  # one client at a time: the first has left
     with Pioneer.connect(sim.url, subtype="p3dx-sh") as robot:
         assert robot.params.dist_conv == 1.0
 
