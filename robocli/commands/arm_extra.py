@@ -341,8 +341,8 @@ def teleop(
                          timeout=timeout) as arm:  # fmt: skip
             arm.wait_for_state()
             typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
-                       "1-6 joint, c TCP, arrows/WASD (r/f: z) jog, +/- speed, space stops, "
-                       "q or Ctrl-C quits")  # fmt: skip
+                       "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
+            typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
             jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
                             release_timeout=release)  # fmt: skip
             try:
