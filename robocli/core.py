@@ -118,11 +118,18 @@ class Framer:
 
     def feed(self, data: Buffer) -> list[bytes]:
         """Append ``data`` to the stream and return every frame now complete, in order."""
+        f = self._f
         if len(data):
-            buf = _bytes_view(data)
-            if lib.rc_framer_feed(self._f, buf, len(buf)) != 0:
+            # bytes go to C as they are (cffi passes their buffer); other buffers get a view
+            buf = data if type(data) is bytes else _bytes_view(data)
+            if lib.rc_framer_feed(f, buf, len(buf)) != 0:
                 raise MemoryError("framer buffer could not grow")
-        return list(self.frames())
+        # the loop of frames() inlined: this runs once per read on every link
+        out: list[bytes] = []
+        fp, lp, nxt, buffer = self._frame, self._len, lib.rc_framer_next, ffi.buffer
+        while nxt(f, fp, lp):
+            out.append(buffer(fp[0], lp[0])[:])
+        return out
 
     def frames(self) -> Iterator[bytes]:
         """Take the complete frames already buffered, without feeding."""
