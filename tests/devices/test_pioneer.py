@@ -44,8 +44,9 @@ def test_handshake_identity_config_and_motors_off(sim: PioneerSim) -> None:
         assert not state.motors_enabled and state.sonar_enabled
         robot.enable_motors()
         assert robot.wait_for_sip().motors_enabled or robot.wait_for_sip().motors_enabled
-    snap = sim.snapshot()
-    assert not snap.session_open and not snap.motors_enabled
+    # the simulator handles the stop sequence on its own link thread: wait for it
+    snap = sim.wait_until(lambda s: not s.session_open, 5.0)
+    assert not snap.motors_enabled
 
 
 def test_subtype_override_and_unknown_subtype(sim: PioneerSim) -> None:
