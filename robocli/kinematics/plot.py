@@ -20,13 +20,13 @@ class PlotUnavailableError(RobocliError):
 
 def _pyplot() -> Any:
     try:
-        import matplotlib
+        import matplotlib  # type: ignore[import-not-found,unused-ignore]  # optional extra
     except ImportError:
         raise PlotUnavailableError(
             "plotting needs matplotlib: pip install robocli[plot]"
         ) from None
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # type: ignore[import-not-found,unused-ignore]
 
     return plt
 
