@@ -9,6 +9,7 @@ import signal
 import socket
 import subprocess
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -204,7 +205,7 @@ def test_gps_and_battery_values() -> None:
 def test_sysinfo_on_this_machine() -> None:
     src = SysinfoSource()
     src.start(0.0)
-    sum(i * i for i in range(200000))  # some CPU time between the two readings
+    time.sleep(0.05)  # a few 10 ms clock ticks between the two readings of /proc/stat
     rec = src.sample(np.array([1.0]))[0]
     total = int(Path("/proc/meminfo").read_text().split()[1])
     used, free, _buffers = (int(v) for v in rec["memory"])
@@ -212,6 +213,8 @@ def test_sysinfo_on_this_machine() -> None:
     assert rec["state"] == r4m.ComputerState.OK
     assert sum(rec["cpu_load"]) == pytest.approx(100.0, abs=0.5)
     assert rec["unix_load"].tolist() == pytest.approx(os.getloadavg(), abs=0.5)
+    again = src.sample(np.array([1.0]))[0]  # at once: no tick yet, the last split again
+    assert sum(again["cpu_load"]) == pytest.approx(100.0, abs=0.5)
 
 
 # ------------------------------------------------------------------------ gpsd

@@ -63,6 +63,7 @@ class SysinfoSource(PeriodicSource):
     def __init__(self, proc: Path = PROC) -> None:
         self._proc = proc
         self._last: list[int] | None = None
+        self._last_load: list[float] = [math.nan] * 7  # the last split measured
         super().__init__()
 
     def configure(self, params: Mapping[str, Any]) -> None:
@@ -92,9 +93,13 @@ class SysinfoSource(PeriodicSource):
         if now is None or last is None:
             return [math.nan] * 7
         d = [a - b for a, b in zip(now, last, strict=True)]
-        total = sum(d) or 1
+        total = sum(d)
+        if total <= 0:  # no clock tick (10 ms) since the last call: keep measuring from `last`
+            self._last = last
+            return list(self._last_load)
         user, nice, system, idle, iowait, irq, softirq = (100.0 * v / total for v in d)
-        return [user, system, nice, idle, iowait, irq, softirq]
+        self._last_load = [user, system, nice, idle, iowait, irq, softirq]
+        return list(self._last_load)
 
     def load_average(self) -> list[float]:
         try:
