@@ -182,14 +182,16 @@ class AbbSim:
             q, moving = c.executor.sample(t), c.executor.moving(t)
             counters = (c.executor.trajectories, c.points_received, c.dropped_points,
                         c.rejected_points, c.frames_refused, c.stops, len(c.buffer))  # fmt: skip
+        # accepted before links: a link is counted and listed under one server lock, so
+        # "n accepted, 0 open" then means the n-th has really gone (not: not yet listed)
+        accepted = [srv.accepted if srv else 0 for srv in (self._motion, self._state)]
+        open_now = [len(srv.links()) if srv else 0 for srv in (self._motion, self._state)]
         return ArmSimState(
             tuple(float(v) for v in q), t, moving, *counters,
-            motion_clients=len(self._motion.links()) if self._motion else 0,
-            state_clients=len(self._state.links()) if self._state else 0,
-            motion_accepted=self._motion.accepted if self._motion else 0,
-            state_accepted=self._state.accepted if self._state else 0,
+            motion_clients=open_now[0], state_clients=open_now[1],
+            motion_accepted=accepted[0], state_accepted=accepted[1],
             states_sent=self.states_sent,
-        )
+        )  # fmt: skip
 
     def wait_until(self, predicate: Any, timeout: float) -> ArmSimState:
         """Poll snapshots until ``predicate(state)`` holds, or raise TimeoutError."""
