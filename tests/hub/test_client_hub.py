@@ -239,3 +239,29 @@ def test_read_aligned_on_camera_frames(server: HubServer, hub: Hub) -> None:
     assert out["imu"].shape == (9, m) and out["hokuyo"].shape == (1081, m)
     scans = out["hokuyo"][:, np.isfinite(out["hokuyo"][0])]
     assert scans.dtype == np.float32  # nearest scans, not interpolated between scans
+
+
+@pytest.mark.parametrize("name", ["camera", "camera_stereo"])
+def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: str) -> None:
+    """quality > 0: the hub encodes each frame as JPEG (Pillow, a test dependency), and the
+    client decodes it back into the scene that the hub rendered at that frame's timestamp."""
+    from robocli.hub.sources.imaging import StereoSource, scene
+
+    assert server.sensors["camera"]["jpeg"] == "pillow"
+    with Hub.connect("127.0.0.1", server.port) as hub:
+        hub.subscribe(name, rate=15, resolution="160x120", quality=90)
+        reading = wait_for(lambda: hub.read(name), 2)[0]
+        hub.unsubscribe(name)
+    data, t = reading
+    assert data.shape[:3] == (120, 160, 3) and data.dtype == np.uint8
+    frame, ti = data[..., -1].astype(float), float(t[-1])
+
+    def error(shift_s: float, disparity: int = 0) -> float:
+        return float(np.abs(frame - scene(160, 120, ti + shift_s, disparity)).mean())
+
+    assert error(0.0) < 3.0  # JPEG at quality 90: a few levels off on average
+    assert error(0.5) > 3 * error(0.0)  # and it is this frame, not any frame
+    if name == "camera_stereo":
+        right = reading.right[..., -1].astype(float)
+        want = scene(160, 120, ti, StereoSource.DISPARITY)
+        assert np.abs(right - want).mean() < 3.0
