@@ -370,7 +370,9 @@ def throughput(
     ),
     seconds: float = typer.Option(10.0, "--seconds", min=0.5, max=3600, help="Measured time."),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
-    workers: int = typer.Option(2, "--workers", min=1, max=64, help="Client processes."),
+    workers: int | None = typer.Option(  # noqa: UP007
+        None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
@@ -403,7 +405,8 @@ def throughput(
 
 def _print_throughput(r: dict[str, Any]) -> None:
     typer.echo(
-        f"{r['clients']} clients x {', '.join(r['sensors'])}, pulling each at "
+        f"{r['clients']} clients in {r['workers']} processes x {', '.join(r['sensors'])}, "
+        f"pulling each at "
         f"{r['pull_hz']:g} Hz for {r['seconds']:g} s"
     )
     if r["not_served"]:

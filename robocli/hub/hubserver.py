@@ -31,7 +31,8 @@ def tune_hub_process() -> None:
     """Tune this interpreter for serving many clients: a thread waiting for the GIL gets it
     after :data:`HUB_SWITCH_INTERVAL_S` instead of 5 ms. A connection's thread hands the GIL
     over several times per pull (socket, C ring, copies); with 40 multi-threaded clients at
-    the throughput target, p99 pull was 40-90 ms at 5 ms and 24-27 ms at 0.1 ms (README).
+    the throughput target, p99 pull was 40-90 ms at 5 ms and 24-27 ms at 0.1 ms (measured
+    before the self-locking ring, with 2 client processes).
     Process-wide: ``robocli serve`` calls it; a library user decides."""
     sys.setswitchinterval(HUB_SWITCH_INTERVAL_S)
 

@@ -185,6 +185,7 @@ def test_bench_commands_against_a_hub_process() -> None:
     assert code == 0, err
     report = json.loads(out)
     assert report["clients"] == 2 and report["pulls_per_s"] > 0 and not report["errors"]
+    assert report["workers"] == 1  # five clients to a process by default
     assert report["per_sensor"]["adc"]["samples"] > 0 and report["hub_peak_rss_mb"] > 0
     code, _, err = finish(cli("bench", "throughput", "--sensors", "lidar"))
     assert code == 2 and "lidar" in err
