@@ -101,13 +101,17 @@ def simulate(
         "--jitter-ms",
         min=0.0,
         max=10_000.0,
-        help="Motion reply jitter (half-normal sigma), ms.",
+        help="Motion reply jitter: std of a skewed extra delay, ms.",
     ),
     noise_rad: float = typer.Option(
         0.0, "--noise-rad", min=0.0, max=1.0, help="Gaussian noise on reported joints, rad."
     ),
     period_jitter_ms: float = typer.Option(
-        0.0, "--period-jitter-ms", min=0.0, max=10_000.0, help="State period jitter, ms."
+        0.0,
+        "--period-jitter-ms",
+        min=0.0,
+        max=10_000.0,
+        help="State period std, ms (each period drawn afresh, skewed as the paper's).",
     ),
     lag_ms: float = typer.Option(
         0.0, "--lag-ms", min=0.0, max=10_000.0, help="Execution delay after activation, ms."

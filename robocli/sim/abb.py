@@ -207,36 +207,41 @@ class AbbSim:
     # ---------------------------------------------------------------- state publishing
 
     def _publish(self) -> None:
-        """State messages on absolute deadlines ``k * period`` (plus the model's period
-        jitter). Exact mode: each sample is taken at its nominal instant, missed ones are sent
-        late rather than skipped (up to :data:`MAX_CATCH_UP_S` late), and with ``feedback``
-        the instants a motion starts and ends are reported too. Otherwise a sample is taken
-        when sent, and a late publisher skips the missed ones."""
+        """State messages on absolute deadlines ``k * period``. Exact mode: each sample is
+        taken at its nominal instant, missed ones are sent late rather than skipped (up to
+        :data:`MAX_CATCH_UP_S` late), and with ``feedback`` the instants a motion starts and
+        ends are reported too. Otherwise a sample is taken when sent, and a late publisher
+        skips the missed ones; with the model's period jitter each period is drawn afresh
+        (:meth:`ControllerModel.state_period_ms`) from the previous deadline."""
         period = self.state_ms / 1000.0  # simulated s
         wall = period / self.time_scale
-        jitter = self.ctl_model.period_jitter_ms / 1000.0 / self.time_scale
         k = int(self.sim_time() / period) + 1
         exact = self.ctl_model.exact
-        extra, last_t = 0.0, k * period - period
+        renewal = self.ctl_model.period_jitter_ms > 0.0
+        due, last_t = self._t0 + k * wall, k * period - period
         burst = max(1, min(MAX_BURST, int(MAX_CATCH_UP_S / wall)))
         while not self._stop.is_set():
-            due = self._t0 + k * wall + extra
             delay = due - time.monotonic()
             if delay > 0 and self._stop.wait(delay):
                 return
-            now_k = int((time.monotonic() - self._t0) / wall)
+            now = time.monotonic()
+            now_k = int((now - self._t0) / wall)
             if exact:
                 times = [j * period for j in range(max(k, now_k - burst + 1), now_k + 1)]
                 times = times or [k * period]
                 if self.feedback:
                     times = self._with_events(last_t, times)
                 k = max(k, now_k) + 1
+                due = self._t0 + k * wall
             else:
                 times = [self.sim_time()]
-                k = max(k, now_k) + 1 if now_k > k else k + 1
+                if renewal:  # from the last deadline, or from now after a stall
+                    drawn = self.ctl_model.state_period_ms(self._rng, self.state_ms)
+                    due = max(due, now - wall) + drawn / 1000.0 / self.time_scale
+                else:
+                    k = max(k, now_k) + 1 if now_k > k else k + 1
+                    due = self._t0 + k * wall
             last_t = times[-1]
-            if jitter:
-                extra = abs(float(self._rng.normal(0.0, jitter)))
             links: list[Link] = self._state.links() if self._state else []
             if not links:
                 continue

@@ -61,9 +61,9 @@ class ControllerModel:
     Each motion reply waits ``latency_ms`` plus a gamma-distributed extra (shape 4) whose
     standard deviation is ``jitter_ms`` (mean twice that): a skewed round trip with a floor,
     like the paper's Table 5. ``noise_rad`` adds Gaussian noise to reported joints;
-    ``period_jitter_ms`` delays each state message by a half-normal amount of that sigma
-    (absolute deadlines, so periods spread both ways); ``lag_ms`` delays execution after an
-    activation.
+    ``period_jitter_ms`` makes the state period a random one of that standard deviation, drawn
+    afresh for each message (see :meth:`state_period_ms`); ``lag_ms`` delays execution after
+    an activation.
     """
 
     latency_ms: float = 0.0
@@ -81,8 +81,27 @@ class ControllerModel:
     def paper(cls) -> ControllerModel:
         """Numbers shaped like the IRB120 paper's Table 5 (RTT 20..66 ms, mean 34; use a
         20 ms state period) and Table 4 (joint RMSE a few mrad)."""
-        return cls(latency_ms=20.0, jitter_ms=6.8, noise_rad=0.004, period_jitter_ms=14.0,
+        return cls(latency_ms=20.0, jitter_ms=6.8, noise_rad=0.004, period_jitter_ms=18.0,
                    lag_ms=30.0)  # fmt: skip
+
+    def state_period_ms(self, rng: np.random.Generator, period_ms: float) -> float:
+        """One state period: ``period_ms`` on average, ``period_jitter_ms`` its standard
+        deviation, in the shape of the paper's Table 5 (0.5 to 63 ms around a 20.3 ms mean,
+        median 15.7: many messages close behind the one before, a few after a long wait).
+        That is a beta distribution on [:data:`PERIOD_SPAN`] x ``period_ms``; a deviation
+        wider than that span allows is narrowed to fit."""
+        lo, hi = (f * period_ms for f in PERIOD_SPAN)
+        m = (period_ms - lo) / (hi - lo)
+        var = min((self.period_jitter_ms / (hi - lo)) ** 2, 0.95 * m * (1 - m))
+        if var <= 0.0:
+            return period_ms
+        n = m * (1 - m) / var - 1
+        return lo + (hi - lo) * float(rng.beta(m * n, (1 - m) * n))
+
+
+#: The span of a modelled state period, as fractions of its mean: the paper's Table 5 min
+#: and max over its mean (0.5 and 63.5 ms, 20.3 ms).
+PERIOD_SPAN = (0.5 / 20.3, 63.5 / 20.3)
 
 
 class Executor:

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from typing import Any
 
+import numpy as np
 import pytest
 
 from robocli.arm_bench import parse_url, rtt, state_periods
@@ -134,3 +135,33 @@ def test_paper_model_is_for_the_arm_only(kind: str, target: str) -> None:
                           capture_output=True, text=True, timeout=30)  # fmt: skip
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
     assert "--paper-model" in done.stderr and target in done.stderr
+
+
+def test_state_period_model_has_the_shape_of_table5() -> None:
+    """The model's state period (the paper's σ, 18 ms, around 20 ms) in the shape Table 5
+    reports: mean 20.3, median 15.7, σ 18.0, min 0.5, max 63.0 ms."""
+    from robocli.sim.abb import ControllerModel
+
+    rng = np.random.default_rng(7)
+    draws = np.array([ControllerModel.paper().state_period_ms(rng, 20.0) for _ in range(20_000)])
+    assert draws.mean() == pytest.approx(20.0, abs=0.5)
+    assert draws.std() == pytest.approx(18.0, abs=0.8)
+    assert 13.0 < np.median(draws) < 16.5  # skewed: most periods short, a few long
+    assert 0.45 < draws.min() < 1.0 and 55.0 < draws.max() < 63.6
+    narrow = [ControllerModel(period_jitter_ms=1.0).state_period_ms(rng, 20.0) for _ in range(500)]
+    assert np.std(narrow) == pytest.approx(1.0, abs=0.2) and 15 < min(narrow) < max(narrow) < 25
+    assert ControllerModel(latency_ms=5.0).state_period_ms(rng, 20.0) == 20.0
+
+
+def test_state_periods_on_the_wire_follow_the_model(make_sim: Any, make_arm: Any) -> None:
+    from robocli.sim.abb import ControllerModel
+
+    scale = 2.0
+    sim, mp, sp = make_sim(state_ms=20.0, time_scale=scale,
+                           model=ControllerModel(period_jitter_ms=18.0))  # fmt: skip
+    arm = make_arm(mp, sp)
+    run = state_periods(arm, Run("state period", 150))
+    ms = run.samples[: run.count] * 1e3 * scale  # simulated ms
+    assert run.count == 150
+    assert 15.0 < ms.mean() < 25.0 and ms.std() > 12.0  # the exact simulator: σ about 1 ms
+    assert np.median(ms) < 0.85 * ms.mean() and ms.min() < 3.0 and ms.max() < 70.0
