@@ -142,7 +142,8 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo(f"robocli: {message}{hint}", err=True)
         return exc.exit_code
     except TyperException as exc:  # usage errors (bad option, missing argument: code 2)
-        if type(exc).__name__ == "NoArgsIsHelpError":
+        if type(exc).__name__ == "NoArgsIsHelpError":  # a group without its command: help
+            typer.echo(exc.format_message())
             return 0
         message = exc.format_message().rstrip(".") + _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import queue
 import sys
 import time
@@ -49,7 +50,8 @@ SubtypeOpt = typer.Option(
 )  # fmt: skip
 BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
 TimeoutOpt = typer.Option(
-    5.0, "--timeout", min=0.1, metavar="SECONDS", help="Seconds to wait for the robot."
+    5.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
+    help="Seconds to wait for the robot.",
 )
 
 
@@ -219,6 +221,8 @@ def dump(
         raise typer.BadParameter("give PORT or --file, not both")
     if output is not None and output.suffix != ".jsonl":
         raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
+    if output is not None and file is not None and _same_file(output, file):
+        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
     full = bool(ctx.find_root().params.get("verbose"))
     writer = CaptureWriter(output) if output is not None else None
     try:
@@ -231,6 +235,13 @@ def dump(
     finally:
         if writer is not None:
             writer.close()
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet)
+        return False
 
 
 def _dump_file(view: Any, file: Path) -> None:

@@ -121,8 +121,8 @@ def _record(line: bytes) -> tuple[float | None, str, bytes] | None:
         data = bytes.fromhex(record.get("hex", ""))
         t = record.get("t")
         t = float(t) if t is not None else None
-    except (ValueError, TypeError, AttributeError):  # not JSON, not an object, bad hex or t
-        return None
+    except (ValueError, TypeError, AttributeError, RecursionError):  # not JSON, not an object,
+        return None  # bad hex or t, or nested too deeply
     return t, _DIRECTIONS.get(str(record.get("dir")), "?"), data
 
 

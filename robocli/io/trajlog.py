@@ -37,6 +37,16 @@ class LogFormatError(RobocliError, ValueError):
     exit_code = EXIT_USAGE
 
 
+def open_capped(src: Path, limit: int, what: str) -> io.StringIO:
+    """The text of ``src`` (UTF-8), read in bounded memory: a file over ``limit`` bytes,
+    even one whose size ``stat`` cannot tell (a pipe, ``/dev/zero``), is refused."""
+    with src.open("rb") as fh:
+        data = fh.read(limit + 1)
+    if len(data) > limit:
+        raise LogFormatError(f"{src}: over the {limit // 2**20} MiB limit of {what}")
+    return io.StringIO(data.decode("utf-8"))
+
+
 @dataclass(frozen=True)
 class TrajectoryLog:
     """Samples of a joint trajectory: ``time`` (N,) s, ``positions`` (N, n) rad,
@@ -155,8 +165,8 @@ def read_log(path: str | Path) -> TrajectoryLog:
             )
         if suffix == ".npz":
             return _read_npz(src)
-        with src.open("r", encoding="utf-8") as fh:
-            return _read_csv(src, fh) if suffix == ".csv" else _read_json(src, fh)
+        fh = open_capped(src, MAX_LOG_BYTES, "a log")
+        return _read_csv(src, fh) if suffix == ".csv" else _read_json(src, fh)
     except OSError as exc:
         raise LogFormatError(f"{src}: cannot read ({exc.strerror})") from exc
     except UnicodeDecodeError as exc:
@@ -183,6 +193,8 @@ def _read_json(src: Path, fh: Any) -> TrajectoryLog:
         raise LogFormatError(f"{src}: {exc}") from None
     except ValueError as exc:
         raise LogFormatError(f"{src}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise LogFormatError(f"{src}: not a log (JSON nested too deeply)") from None
     if not isinstance(doc, dict):
         raise LogFormatError(f"{src}: a log is a JSON object with keys {', '.join(KEYS)}")
     for key in ("time", "joints_positions"):

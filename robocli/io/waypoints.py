@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.io.trajlog import LogFormatError
+from robocli.io.trajlog import LogFormatError, open_capped
 
 FloatArray = npt.NDArray[np.float64]
 MAX_WAYPOINT_BYTES = 64 * 1024 * 1024
@@ -42,12 +42,16 @@ def read_waypoints(path: str | Path) -> Waypoints:
     try:
         if src.stat().st_size > MAX_WAYPOINT_BYTES:
             raise LogFormatError(f"{src}: a waypoint file is at most 64 MiB")
-        with src.open("r", encoding="utf-8") as fh:
-            wp = _from_csv(fh) if suffix == ".csv" else _from_json(fh)
+        fh = open_capped(src, MAX_WAYPOINT_BYTES, "a waypoint file")
+        wp = _from_csv(fh) if suffix == ".csv" else _from_json(fh)
+    except RecursionError:
+        raise LogFormatError(f"{src}: not waypoints (JSON nested too deeply)") from None
     except OSError as exc:
         raise LogFormatError(f"{src}: cannot read ({exc.strerror})") from exc
     except (UnicodeDecodeError, ValueError) as exc:
         if isinstance(exc, LogFormatError):
+            if str(exc).startswith(f"{src}:"):
+                raise
             raise LogFormatError(f"{src}: {exc}") from None
         raise LogFormatError(f"{src}: not valid {suffix[1:].upper()} ({exc})") from None
     for name, arr in (("joints", wp.joints), ("points", wp.points), ("time", wp.time)):

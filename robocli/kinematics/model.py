@@ -98,9 +98,8 @@ def load_model(name_or_path: str | Path) -> RobotModel:
     if text_name.endswith(".json") or "/" in text_name or "\\" in text_name:
         path = Path(text_name)
         try:
-            if path.stat().st_size > MAX_MODEL_BYTES:
-                raise ModelFileError(f"{path}: a model file is at most {MAX_MODEL_BYTES} bytes")
-            raw = path.read_bytes()
+            with path.open("rb") as fh:  # bounded, even where stat has no size (/dev/zero)
+                raw = fh.read(MAX_MODEL_BYTES + 1)
         except OSError as exc:
             raise ModelFileError(f"{path}: cannot read model file ({exc.strerror})") from exc
         return parse_model(raw, str(path))
@@ -122,6 +121,8 @@ def parse_model(raw: bytes, where: str) -> RobotModel:
         doc = json.loads(raw)
     except (ValueError, UnicodeDecodeError) as exc:
         raise ModelFileError(f"{where}: not valid JSON ({exc})") from exc
+    except RecursionError:
+        raise ModelFileError(f"{where}: not a model (JSON nested too deeply)") from None
     if not isinstance(doc, dict):
         raise ModelFileError(f"{where}: a model file is a JSON object")
     try:

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
-from robocli.errors import TimeoutError, TransportError
+from robocli.errors import InvalidArgument, TimeoutError, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.arcos_session import PRE_SYNC, ArcosController, sonar_batch
 from robocli.sim.arcos_simext import Georef
@@ -242,8 +242,11 @@ class PioneerSim:
         stats = [s.stats() for s in (self._tcp, self._pty) if s is not None]
         bad = sum(s.bad_checksums for s in stats)
         dropped = sum(s.dropped_bytes for s in stats)
+        # before the controller lock: a link ending holds its server's lock, then takes the
+        # controller's (detach), so the other order would deadlock
+        clients = sum(len(srv.links()) for srv in (self._tcp, self._pty) if srv is not None)
         with self._ctl.lock:
-            return self._snapshot(bad, dropped)
+            return self._snapshot(bad, dropped, clients)
 
     def wait_until(self, predicate: Callable[[SimState], bool], timeout: float) -> SimState:
         """Poll snapshots until ``predicate`` holds; raises :class:`~robocli.errors.TimeoutError`
@@ -274,7 +277,7 @@ class PioneerSim:
         if session is not None and data:
             session.link.send(data)
 
-    def _snapshot(self, bad_checksums: int, dropped_bytes: int) -> SimState:
+    def _snapshot(self, bad_checksums: int, dropped_bytes: int, clients: int) -> SimState:
         r, c = self._model, self._ctl
         left, right = r.wheel_speeds()
         last = c.last
@@ -297,7 +300,7 @@ class PioneerSim:
             laser_mode=c.ext.laser_mode, laser_scans=c.ext.scans, laser_ranges=c.ext.last_scan,
             simstat_mode=c.ext.simstat_mode, laser_enabled_at_sip=c.ext.enabled_at_sip,
             cycles_skipped=self._ticker.skipped,
-            clients=sum(len(srv.links()) for srv in (self._tcp, self._pty) if srv is not None),
+            clients=clients,
         )  # fmt: skip
 
 
@@ -307,6 +310,8 @@ def serve_many(
     """``n`` independent robots on ``port``, ``port + 1``, ... (``port=0``: ephemeral ports),
     or each on its own pseudo-terminal with ``pty=True`` (``host``/``port`` unused). Keyword
     arguments go to :class:`PioneerSim`. On failure the robots already started are closed."""
+    if port and not pty and port + n - 1 > 65535:
+        raise InvalidArgument(f"port {port} + {n} robots runs past port 65535")
     sims: list[PioneerSim] = []
     try:
         for i in range(n):

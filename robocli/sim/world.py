@@ -9,6 +9,9 @@ Map files (:meth:`World.load`):
 * JSON: ``{"walls": [[x1, y1, x2, y2], ...], "start": [x, y, th]}`` (``start`` optional,
   ``th`` in radians);
 * text: one wall per line ``x1 y1 x2 y2``, an optional ``start x y th`` line, ``#`` comments.
+
+Coordinates are finite and within :data:`MAX_COORD_M` of the origin; a file holds at most
+:data:`MAX_MAP_BYTES`.
 """
 
 from __future__ import annotations
@@ -27,7 +30,13 @@ from robocli.errors import EXIT_USAGE, RobocliError
 
 FloatArray = npt.NDArray[np.float64]
 
-__all__ = ["MapError", "World"]
+__all__ = ["MAX_COORD_M", "MAX_MAP_BYTES", "MapError", "World"]
+
+#: Largest coordinate a map may hold (m): ray casting squares lengths, and a world much
+#: larger than a building only overflows them.
+MAX_COORD_M = 1e6
+#: Largest map file read (bytes): a building of 100,000 walls fits in a few MiB.
+MAX_MAP_BYTES = 16 * 2**20
 
 
 class MapError(RobocliError, ValueError):
@@ -40,6 +49,8 @@ def _as_walls(segments: Iterable[Sequence[float]] | FloatArray) -> FloatArray:
     walls = np.array(segments, dtype=np.float64).reshape(-1, 4)
     if not np.all(np.isfinite(walls)):
         raise MapError("wall coordinates must be finite numbers")
+    if walls.size and np.abs(walls).max() > MAX_COORD_M:
+        raise MapError(f"wall coordinates must lie within {MAX_COORD_M:g} m of the origin")
     walls.setflags(write=False)
     return walls
 
@@ -88,12 +99,21 @@ class World:
         """Read a JSON or text map (see the module docstring)."""
         p = Path(path)
         try:
-            text = p.read_text(encoding="utf-8")
+            with p.open("rb") as f:
+                data = f.read(MAX_MAP_BYTES + 1)
         except OSError as exc:
             raise MapError(f"cannot read map {p}: {exc.strerror or exc}") from exc
-        if p.suffix.lower() == ".json" or text.lstrip().startswith("{"):
-            return _parse_json(text, p)
-        return _parse_text(text, p)
+        if len(data) > MAX_MAP_BYTES:
+            raise MapError(f"{p}: larger than {MAX_MAP_BYTES // 2**20} MiB, not a map")
+        text = data.decode("utf-8")  # UnicodeDecodeError: the CLI names the byte
+        try:
+            if p.suffix.lower() == ".json" or text.lstrip().startswith("{"):
+                return _parse_json(text, p)
+            return _parse_text(text, p)
+        except MapError as exc:
+            if str(p) in str(exc):
+                raise
+            raise MapError(f"{p}: {exc}") from exc
 
     # ------------------------------------------------------------------ queries
 
@@ -174,6 +194,8 @@ def _start(value: Any, where: str) -> tuple[float, float, float]:
         raise MapError(f"{where}: start must be three numbers x y th, got {value!r}") from exc
     if not all(math.isfinite(v) for v in (x, y, th)):
         raise MapError(f"{where}: start must be finite")
+    if max(abs(x), abs(y)) > MAX_COORD_M:
+        raise MapError(f"{where}: start must lie within {MAX_COORD_M:g} m of the origin")
     return x, y, th
 
 
@@ -182,6 +204,8 @@ def _parse_json(text: str, path: Path) -> World:
         doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise MapError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from exc
+    except RecursionError:
+        raise MapError(f"{path}: not a map (JSON nested too deeply)") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("walls"), list):
         raise MapError(f'{path}: expected an object with a "walls" list')
     walls = []

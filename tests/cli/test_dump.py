@@ -50,7 +50,7 @@ def test_dev_zero_streams_in_bounded_memory_and_stops_on_ctrl_c() -> None:
     assert proc.returncode == 130 and err.strip() == "robocli: interrupted", err
 
 
-@pytest.mark.parametrize("kind", ["empty", "random", "broken-jsonl"])
+@pytest.mark.parametrize("kind", ["empty", "random", "broken-jsonl", "deep-jsonl"])
 def test_a_capture_without_packets_exits_1_saying_what_was_dropped(
     tmp_path: Path, kind: str
 ) -> None:
@@ -62,6 +62,9 @@ def test_a_capture_without_packets_exits_1_saying_what_was_dropped(
         data = bytes(b for b in rng.randbytes(5000) if b != 0xFA)  # no frame can start
         path, dropped = tmp_path / "random.bin", len(data)
         path.write_bytes(data)
+    elif kind == "deep-jsonl":  # once a RecursionError traceback
+        path, dropped = tmp_path / "deep.jsonl", 100_000
+        path.write_text("[" * 100_000 + "\n")
     else:
         lines = ["not json", '{"t": 0, "dir": "s2c", "hex": "zz"}', "[1, 2]", '{"hex": "fafb03"}']
         path = tmp_path / "broken.jsonl"

@@ -51,6 +51,35 @@ def test_both_port_and_file(tmp_path: Path) -> None:
     assert "give PORT or --file, not both" in line
 
 
+def test_output_over_the_file_being_read_is_refused(tmp_path: Path) -> None:
+    capture = tmp_path / "c.jsonl"
+    text = (Path(__file__).parents[2] / "examples" / "pioneer_drive.jsonl").read_text()
+    capture.write_text(text)
+    line = one_line_error(
+        run("dump", "pioneer", "--file", str(capture), "--output", str(capture)), 2
+    )
+    assert "would be emptied" in line and capture.read_text() == text  # untouched
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (("connect", "pioneer", "sim", "--timeout", "inf"), "inf"),
+        (("sim", "pioneer", "--port", "65535", "--robots", "3"), "65535"),
+    ],
+)
+def test_out_of_range_values(args: tuple[str, ...], named: str) -> None:
+    line = one_line_error(run(*args), 2)
+    assert named in line, line
+
+
+@pytest.mark.parametrize("words", [(), ("connect",), ("bench",), ("sim",)])
+def test_a_group_without_its_command_shows_its_help(words: tuple[str, ...]) -> None:
+    proc = run(*words)
+    assert proc.returncode == 0 and proc.stdout.startswith("Usage: robocli"), proc
+    assert "Commands:" in proc.stdout
+
+
 @pytest.mark.parametrize(
     ("content", "named"),
     [

@@ -8,12 +8,19 @@ import sys
 import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
 from robocli.devices.pioneer import Pioneer
-from robocli.errors import ConnectionLost, TimeoutError, TransportError, UnknownRobotError
+from robocli.errors import (
+    ConnectionLost,
+    InvalidArgument,
+    TimeoutError,
+    TransportError,
+    UnknownRobotError,
+)
 from robocli.protocols import arcos
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.pioneer import PioneerSim
@@ -217,9 +224,9 @@ def test_no_sip_raises_timeout_not_a_hang() -> None:
 
     threading.Thread(target=serve, daemon=True).start()
     start = time.monotonic()
-    with pytest.raises(TimeoutError, match="no SIP"):
-        Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", sip_timeout=0.5)
-    assert time.monotonic() - start < 5
+    with pytest.raises(TimeoutError, match="no SIP"):  # connect's timeout bounds it
+        Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0)
+    assert time.monotonic() - start < 3
     srv.close()
 
 
@@ -335,3 +342,15 @@ def test_sips_stopping_mid_session_raise_timeout() -> None:
                 robot.wait_for_sip(timeout=2)
         with pytest.raises(TimeoutError):
             _ = robot.state
+
+
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [("timeout", math.inf), ("timeout", math.nan), ("timeout", 0.0), ("sip_timeout", -1.0),
+     ("keepalive", "0.4"), ("timeout", 1e308)],
+)  # fmt: skip
+def test_durations_must_be_finite_positive_seconds(option: str, value: Any) -> None:
+    """Checked before anything is opened: inf once reached socket.create_connection as an
+    OverflowError traceback."""
+    with pytest.raises(InvalidArgument, match=option):
+        Pioneer.connect("tcp://127.0.0.1:9", **{option: value})

@@ -108,6 +108,17 @@ def test_malformed_model_files_fail_with_one_clear_line(tmp_path: Path, edit, me
     assert "\n" not in str(info.value)
 
 
+def test_model_file_nested_too_deeply_or_endless(tmp_path: Path) -> None:
+    deep = tmp_path / "deep.json"
+    deep.write_text("[" * 50_000)  # under the size cap, past the JSON parser's depth
+    with pytest.raises(ModelFileError, match="nested too deeply"):
+        load_model(deep)
+    endless = tmp_path / "zero.json"
+    endless.symlink_to("/dev/zero")  # stat says 0 bytes
+    with pytest.raises(ModelFileError, match="at most"):
+        load_model(endless)
+
+
 def test_model_file_with_nan_is_refused(tmp_path: Path) -> None:
     text = (MODELS_DIR / "irb120.json").read_text().replace('"a": [0.0,', '"a": [NaN,')
     path = tmp_path / "nan.json"

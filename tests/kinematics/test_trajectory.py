@@ -140,6 +140,7 @@ def test_waypoints_from_csv_and_json(irb120: RobotModel, tmp_path: Path) -> None
         ("e.csv", "x,y,z\n0,0,zero\n", "not a number"),
         ("f.txt", "", ".json or .csv"),
         ("g.json", "{not json", "not valid JSON"),
+        ("h.json", "[" * 100_000, "nested too deeply"),
     ],
 )
 def test_bad_waypoint_files_give_one_line(tmp_path: Path, name: str, text: str,

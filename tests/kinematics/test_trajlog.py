@@ -61,6 +61,7 @@ GOOD = {"time": [0.0, 0.1], "joints_positions": [[0.0] * 6, [0.1] * 6]}
         ('[1, 2]', "a JSON object"),
         ('{"time": [0, 0.1', "not valid JSON"),
         ('{"time": [0, 0.1], "joints_positions": [[0], [0]], "tcp": [[0, 0], [0, 0]]}', "tcp"),
+        ("[" * 100_000, "nested too deeply"),
     ],
 )
 def test_malformed_json_gives_one_typed_line(tmp_path: Path, text: str, message: str) -> None:
@@ -106,6 +107,16 @@ def test_oversized_log_is_refused_before_parsing(tmp_path: Path,
         read_log(path)
     monkeypatch.undo()
     assert len(read_log(path)) == 2
+
+
+def test_a_log_without_end_is_read_in_bounded_memory(tmp_path: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """``stat`` gives no size for a device or a pipe: the read itself is capped."""
+    path = tmp_path / "zero.json"
+    path.symlink_to("/dev/zero")
+    monkeypatch.setattr(trajlog, "MAX_LOG_BYTES", 1 << 16)
+    with pytest.raises(LogFormatError, match="over the 0 MiB limit"):
+        read_log(path)
 
 
 def test_missing_file_is_a_usage_error(tmp_path: Path) -> None:

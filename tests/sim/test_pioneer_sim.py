@@ -696,3 +696,33 @@ def test_world_load_json_and_text(tmp_path: Any) -> None:
         World.load(badj)
     with pytest.raises(MapError, match="cannot read"):
         World.load(tmp_path / "missing.json")
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "message"),
+    [
+        ("deep.json", "[" * 100_000, "nested too deeply"),
+        ("huge.json", '{"walls": [[-1e200, -1e200, 1e200, 1e200]]}', "within 1e\\+06 m"),
+        ("far.txt", "0 0 1 1\nstart 1e7 0 0\n", "start must lie within"),
+        ("nan.json", '{"walls": [[0, 0, NaN, 1]]}', "finite"),
+    ],
+)
+def test_a_file_that_is_not_a_map_is_refused_naming_it(
+    tmp_path: Any, name: str, text: str, message: str
+) -> None:
+    """Each of these once gave a traceback, or a simulator whose ticks failed on overflow."""
+    path = tmp_path / name
+    path.write_text(text)
+    with pytest.raises(MapError, match=message) as info:
+        World.load(path)
+    assert str(path) in str(info.value) and info.value.exit_code == 2
+
+
+def test_an_endless_map_file_is_read_in_bounded_memory(
+    tmp_path: Any, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import robocli.sim.world as world
+
+    monkeypatch.setattr(world, "MAX_MAP_BYTES", 1 << 16)
+    with pytest.raises(MapError, match="larger than"):
+        World.load("/dev/zero")  # stat says 0 bytes; reading would never end

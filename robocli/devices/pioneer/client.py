@@ -161,7 +161,9 @@ class Pioneer(SimulatorFeatures):
 
         ``subtype`` overrides the robot's own (conversion factors from
         :data:`robocli.robots.pioneer.ROBOT_PARAMS`); ``params`` gives them outright.
-        ``deadman``: stop the robot when no motion command came for that many seconds.
+        ``timeout`` bounds each step of connecting: opening the port, each handshake reply,
+        the first SIP. ``sip_timeout``: a session without SIPs for that long has lost the
+        robot. ``deadman``: stop the robot when no motion command came for that many seconds.
         Serial ports start at ``baud`` and probe the other rates when the robot stays silent;
         ``switch_baud`` (e.g. 38400) moves the link there with HOSTBAUD after CONFIG, when
         the robot allows it. Raises :class:`TransportError` (unreachable),
@@ -170,6 +172,7 @@ class Pioneer(SimulatorFeatures):
         its subtype). ``laser=True`` starts a simulator's laser with the vendor SDK's
         defaults (:meth:`start_laser`; a :class:`DeviceError` on a real robot).
         """
+        _check_seconds(timeout=timeout, sip_timeout=sip_timeout, keepalive=keepalive)
         transport = open_transport(url, baudrate=baud, timeout=timeout)
         return cls.from_transport(
             transport,
@@ -203,6 +206,11 @@ class Pioneer(SimulatorFeatures):
     ) -> Pioneer:
         """Like :meth:`connect` over an already open transport (a pipe, a wrapped or
         fault-injecting stream). The Pioneer owns it from now on and closes it."""
+        try:
+            _check_seconds(timeout=timeout, sip_timeout=sip_timeout, keepalive=keepalive)
+        except InvalidArgument:
+            transport.close()
+            raise
         # The handshake reads its replies itself; what else arrives once OPEN went out (the
         # robot's first SIPs) is kept and handed to the client when it starts.
         early: list[tuple[bytes, float]] = []
@@ -245,8 +253,8 @@ class Pioneer(SimulatorFeatures):
         try:
             for frame, t in early:
                 robot._on_frame(frame, t)
-            if robot.stats.sips == 0:
-                robot.wait_for_sip(timeout=max(sip_timeout, 1.0))
+            if robot.stats.sips == 0:  # connecting ends with the first SIP, within timeout
+                robot.wait_for_sip(timeout=max(timeout, 1.0))
             if laser:
                 robot.start_laser()
         except BaseException:
@@ -670,6 +678,18 @@ def _finite(name: str, value: object) -> float:
     if not math.isfinite(value):
         raise InvalidArgument(f"{name} must be a finite number, not {value!r}")
     return float(value)
+
+
+def _check_seconds(**durations: float) -> None:
+    """Each duration a number of seconds in (0, :data:`MAX_WAIT_S`], or
+    :class:`InvalidArgument` (sockets and locks overflow on larger ones)."""
+    for name, value in durations.items():
+        if not 0 < _finite(name, value) <= MAX_WAIT_S:
+            raise InvalidArgument(f"{name} must be within 0..{MAX_WAIT_S:g} s, not {value!r}")
+
+
+#: The longest wait a duration argument may ask for (s): 11 days.
+MAX_WAIT_S = 1e6
 
 
 def _clamp_int(value: int) -> int:

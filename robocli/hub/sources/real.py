@@ -208,7 +208,7 @@ class GpsdSource(Source):
         """Handle one gpsd JSON line (TPV reports become fixes; the rest is ignored)."""
         try:
             msg = json.loads(line)
-        except ValueError:
+        except (ValueError, RecursionError):  # not JSON, or nested too deeply
             self.bad_lines += 1
             return
         if not isinstance(msg, dict) or msg.get("class") != "TPV":
