@@ -13,6 +13,7 @@ collected; long loops call a ``progress(done)`` callback. All samples are in sec
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import time
 from collections.abc import Callable, Iterator
@@ -108,8 +109,10 @@ def histogram(
         hi = lo + 1.0
     counts, edges = np.histogram(a, bins=bins, range=(lo, hi))
     top = max(int(counts.max()), 1)
+    # enough decimals that neighbouring edges differ (a 0.02 ms spread: 99.91 - 99.93)
+    digits = min(6, max(1, 1 - math.floor(math.log10((hi - lo) / bins))))
     return [
-        f"{edges[i]:10.1f} - {edges[i + 1]:10.1f} {label} {int(c):7d} "
+        f"{edges[i]:10.{digits}f} - {edges[i + 1]:10.{digits}f} {label} {int(c):7d} "
         + "#" * max(int(c) and 1, round(width * int(c) / top))
         for i, c in enumerate(counts)
     ]

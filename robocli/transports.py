@@ -17,7 +17,9 @@ for robustness tests.
 
 from __future__ import annotations
 
+import errno
 import math
+import os
 import random
 import re
 import select
@@ -26,7 +28,7 @@ import threading
 import time
 from typing import Any
 
-from robocli.errors import ConnectionLost, InvalidArgument, TransportError
+from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, TransportError
 
 _TCP_URL = re.compile(r"^(?:tcp://)?(?P<host>\[[^\]]+\]|[A-Za-z0-9_.\-]+):(?P<port>\d{1,5})/?$")
 
@@ -179,7 +181,7 @@ class SocketTransport(Transport):
         except ConnectionRefusedError:
             raise TransportError(
                 f"cannot connect to {url}: connection refused "
-                "(is the robot, or `robocli sim pioneer`, listening there?)"
+                "(is the robot, or its simulator `robocli sim ...`, listening there?)"
             ) from None
         except TimeoutError:
             raise TransportError(f"cannot connect to {url}: no answer in {timeout:g} s") from None
@@ -281,9 +283,16 @@ class SerialTransport(Transport):
         try:
             if "://" in url:
                 port = serial.serial_for_url(url, baudrate=baudrate, timeout=0)
-            else:
+            elif os.name == "posix":  # flock: a second robocli on the port is refused
+                port = serial.Serial(url, baudrate=baudrate, timeout=0, exclusive=True)
+            else:  # Windows opens COM ports exclusively anyway
                 port = serial.Serial(url, baudrate=baudrate, timeout=0)
         except (serial.SerialException, ValueError) as exc:
+            if getattr(exc, "errno", None) in (errno.EAGAIN, errno.EWOULDBLOCK):
+                raise DeviceError(
+                    f"{url}: robot busy: another program holds this serial port "
+                    f"(find it with `fuser {url}`)"
+                ) from None
             raise TransportError(f"cannot open {url}: {exc}{_serial_hint(exc)}") from None
         return cls(port, url)
 

@@ -168,27 +168,16 @@ def reader_may_leave() -> Iterator[None]:
 
 @contextlib.contextmanager
 def explain_refusal(url: str) -> Iterator[None]:
-    """Around connecting: a link reset or closed by the peer during the handshake (a real
-    robot, or its serial-to-network bridge, holding another client) becomes a
-    :class:`DeviceError` that says what this usually means. Refusals with a reason already
-    are DeviceErrors."""
-    from robocli.errors import ConnectionLost, DeviceError
+    """Around connecting: a link reset or closed by the peer during the handshake becomes
+    the :class:`DeviceError` of :func:`~robocli.devices.pioneer.link.busy_refusal` (the
+    Pioneer's handshake does this itself; other paths may lose the link around it)."""
+    from robocli.devices.pioneer.link import busy_refusal
+    from robocli.errors import ConnectionLost
 
     try:
         yield
     except ConnectionLost as exc:
-        text = str(exc).lower()
-        if "reset" in text:
-            how = "reset"
-        elif "closed by the peer" in text:
-            how = "closed"
-        else:
-            raise
-        raise DeviceError(
-            f"{url}: the connection was {how} during the handshake; this usually means the "
-            "robot is busy: another client holds it (close that program, or wait 2 s for "
-            "the robot's watchdog to end its session, then retry)"
-        ) from None
+        raise busy_refusal(url, exc) or exc from None
 
 
 #: Decimals kept in JSON output, by field name: the protocol's resolution in SI units

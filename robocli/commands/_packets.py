@@ -130,8 +130,19 @@ class PacketView:
         text = " ".join(f"{k}={_short(v, self.full)}" for k, v in fields.items())
         line = f"{stamp}{_ARROWS.get(direction, '  ')} {name:<12} {text}".rstrip()
         if not self.full and len(line) > LINE_MAX:
-            line = line[: LINE_MAX - 1] + "…"
+            mark = ellipsis()
+            line = line[: LINE_MAX - len(mark)] + mark
         return line
+
+
+def ellipsis() -> str:
+    """``…`` where standard output can encode it, else ``...`` (a latin-1 or ASCII
+    terminal, ``PYTHONIOENCODING=ascii``)."""
+    try:
+        "\u2026".encode(getattr(sys.stdout, "encoding", None) or "ascii")
+    except (UnicodeEncodeError, LookupError):
+        return "..."
+    return "\u2026"
 
 
 def _short(value: Any, full: bool) -> str:

@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from rich.console import RenderableType
 
     from robocli.devices.pioneer import Pioneer
+    from robocli.devices.pioneer.state import PioneerState
 
 #: Seconds between two redraws of the teleop status line (10 Hz).
 STATUS_PERIOD = 0.1
@@ -99,9 +100,15 @@ def render(robot: Pioneer) -> RenderableType:
 
 def live_view(robot: Pioneer) -> None:
     """Redraw :func:`render` at every SIP until ``q`` (when stdin is a terminal) or Ctrl-C;
-    always leave the cursor on a fresh line."""
+    always leave the cursor on a fresh line. Output that is not a terminal (a pipe, a file)
+    gets one line per SIP instead, flushed as it comes: a redrawn screen reaches a pipe only
+    when the view ends."""
     from rich.live import Live
 
+    if not sys.stdout.isatty():
+        while True:
+            print(state_line(robot.state), flush=True)
+            robot.wait_for_sip()
     try:
         with keyboard() as read_key, Live(render(robot), auto_refresh=False) as live:
             while True:
@@ -111,6 +118,15 @@ def live_view(robot: Pioneer) -> None:
                     return
     finally:
         end_line()
+
+
+def state_line(st: PioneerState) -> str:
+    """One line of a SIP for a log or a pipe: receive time, pose, speeds, battery."""
+    return (
+        f"{st.t:.3f}  {pose_text(st.x, st.y, st.th)}  {velocity_text(st.v, st.w)}  "
+        f"battery {st.battery:.1f} V  motors {'on' if st.motors_enabled else 'off'}"
+        + ("  STALL" if st.stalled else "")
+    )
 
 
 def end_line() -> None:

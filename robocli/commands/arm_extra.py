@@ -89,7 +89,7 @@ def packet_view(order: sm.ByteOrder, real: sm.RealSize, n_joints: int, **options
     """A :class:`~robocli.commands._packets.PacketView` (its time ordering and ``--count``)
     that shows Simple Message frames; each queued direction is ``"tx:motion"``-style
     (direction and port). Built on first use, so that ``robocli --help`` stays fast."""
-    from robocli.commands._packets import LINE_MAX, PacketView
+    from robocli.commands._packets import LINE_MAX, PacketView, ellipsis
 
     class ArmPacketView(PacketView):
         def show(self, direction: str, payload: bytes, t: float | None) -> None:
@@ -109,7 +109,8 @@ def packet_view(order: sm.ByteOrder, real: sm.RealSize, n_joints: int, **options
                 stamp = f"{t:9.3f} " if t is not None else ""
                 line = f"{stamp}{port or '-':<6} {_ARROWS.get(way, '  ')} {name:<22} {text}"
                 line = line.rstrip()
-                cut = line if len(line) <= LINE_MAX else line[: LINE_MAX - 1] + "…"
+                mark = ellipsis()
+                cut = line if len(line) <= LINE_MAX else line[: LINE_MAX - len(mark)] + mark
                 sys.stdout.write(cut + "\n")
                 if self.hex_out:
                     sys.stdout.write(f"{'':13}{payload.hex(' ')}\n")

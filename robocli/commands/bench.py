@@ -277,7 +277,17 @@ def _show(
     floor_note: str = "",
 ) -> None:
     """A table (each row in its own unit, named in the unit column) and histograms of
-    ``hist`` in the unit of their samples; or JSON (microseconds, to the nanosecond)."""
+    ``hist`` in the unit of their samples; or JSON (microseconds, to the nanosecond).
+    A reader that leaves early (``| head -1``) ends the output quietly, exit 0."""
+    from robocli.commands._common import reader_may_leave
+
+    with reader_may_leave():
+        _print_results(results, hist, json_out, floor_note)
+
+
+def _print_results(
+    results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool, floor_note: str
+) -> None:
     import numpy as np
 
     from robocli import benchmarks as b

@@ -31,3 +31,55 @@ def test_keepalive_period_in_ms_and_json_rounded() -> None:
         assert result["unit"] == "us"
         for key in ("mean", "median", "p99"):
             assert len(repr(result[key]).split(".")[-1]) <= 3, result
+
+
+def test_histogram_edges_are_told_apart() -> None:
+    """A narrow spread once printed three bins all labelled ``99.9 - 99.9 ms``."""
+    from robocli.benchmarks import histogram
+
+    lines = histogram([0.09990, 0.09991, 0.09993, 0.09995], bins=4, unit=1e-3, label="ms")
+    edges = [(line.split()[0], line.split()[2]) for line in lines]
+    assert all(lo != hi for lo, hi in edges) and len({lo for lo, _ in edges}) == 4
+
+
+def test_a_reader_that_leaves_early_ends_the_bench_quietly() -> None:
+    import subprocess
+    import sys
+
+    script = f"{sys.executable} -m robocli bench jitter -n 10 | head -1; exit ${{PIPESTATUS[0]}}"
+    proc = subprocess.run(script, shell=True, executable="/bin/bash", capture_output=True,
+                          text=True, timeout=60)  # fmt: skip
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert proc.stdout.startswith("measurement")
+
+
+def test_a_robot_that_resets_the_handshake_is_busy_for_every_command() -> None:
+    """``connect`` said "robot busy" (exit 4) and ``bench`` "link lost" (exit 1)."""
+    import socket
+    import struct
+    import threading
+
+    srv = socket.create_server(("127.0.0.1", 0))
+
+    def reset_each() -> None:
+        while True:
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                return
+            conn.settimeout(5)
+            try:
+                conn.recv(64)  # the first SYNC, then an RST, as a robot's bridge may answer
+            except OSError:
+                pass
+            conn.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))
+            conn.close()
+
+    threading.Thread(target=reset_each, daemon=True).start()
+    url = f"tcp://127.0.0.1:{srv.getsockname()[1]}"
+    try:
+        for args in (("connect", "pioneer", url, "--once"), ("bench", "jitter", "--url", url)):
+            proc = run(*args)
+            assert proc.returncode == 4 and "robot is busy" in proc.stderr, (args, proc.stderr)
+    finally:
+        srv.close()

@@ -133,3 +133,15 @@ def test_connect_shows_a_simulators_laser() -> None:
     _check_rounded(data)
     plain = run("connect", "pioneer", "sim", "--once", "--no-laser")
     assert plain.returncode == 0 and "laser" not in plain.stdout
+
+
+def test_the_live_view_into_a_pipe_is_one_line_per_sip() -> None:
+    """Into a pipe the redrawn screen came out only after Ctrl-C: `| head -1` never ended."""
+    with running("connect", "pioneer", "sim") as proc:
+        assert proc.stdout is not None
+        lines = [proc.stdout.readline() for _ in range(3)]
+        stamps = [float(line.split()[0]) for line in lines]
+        assert all(" m/s " in line and "battery" in line for line in lines), lines
+        assert 0.05 < stamps[2] - stamps[0] < 0.5  # SIPs, 100 ms apart
+        proc.stdout.close()
+        assert proc.wait(timeout=20) == 0

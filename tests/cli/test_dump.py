@@ -220,3 +220,16 @@ def test_laser_commands_named_for_a_simulator_as_the_trace_decoder_does() -> Non
         assert re.search(rf"-> {re.escape(name)} arg={arg}$", proc.stdout, re.M), name
     plain = run("dump", "pioneer", "--file", str(DATA / "a_simpleConnect.jsonl"))
     assert "sim:" not in plain.stdout  # AMRISim, but no laser commands were sent
+
+
+def test_a_terminal_that_cannot_show_an_ellipsis_gets_three_dots() -> None:
+    """A latin-1 or ASCII terminal once got a UnicodeEncodeError traceback on the first
+    shortened line."""
+    import os
+
+    env = {**os.environ, "PYTHONIOENCODING": "ascii"}
+    capture = Path(__file__).parents[2] / "examples" / "pioneer_drive.jsonl"
+    proc = run("dump", "pioneer", "--file", str(capture), "-n", "40", env=env)
+    assert proc.returncode == 0, proc.stderr
+    cut = [line for line in proc.stdout.splitlines() if line.endswith("...")]
+    assert cut and all(len(line) <= 160 for line in proc.stdout.splitlines())

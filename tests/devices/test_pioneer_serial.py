@@ -38,3 +38,23 @@ def test_permission_error_hints_at_the_dialout_group() -> None:
     exc = OSError(errno.EACCES, "could not open port /dev/ttyUSB0: [Errno 13] Permission denied")
     assert "dialout" in _serial_hint(exc)
     assert _serial_hint(OSError(errno.ENOENT, "No such file")) == ""
+
+
+def test_a_second_client_on_a_serial_robot_is_refused_and_the_first_goes_on() -> None:
+    """A pty, like a USB serial port, lets two programs open it: their bytes then interleave
+    and both sessions break. The first client locks the port; the second gets "robot busy"
+    (exit 4 in the CLI) and the first keeps its SIPs."""
+    from robocli.errors import DeviceError
+
+    with PioneerSim("p3dx", time_scale=5.0) as sim:
+        path = sim.serve_pty()
+        with Pioneer.connect(path) as robot:
+            first = robot.wait_for_sip().sip_count
+            with pytest.raises(DeviceError, match="robot busy") as info:
+                Pioneer.connect(path, timeout=1.0)
+            assert info.value.exit_code == 4
+            for _ in range(5):
+                state = robot.wait_for_sip(timeout=2.0)
+            assert state.sip_count > first
+        with Pioneer.connect(path) as robot:  # the lock went with the first client
+            robot.wait_for_sip()

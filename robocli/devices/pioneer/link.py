@@ -80,9 +80,28 @@ def _serial_port(session: Session) -> Any | None:
     return port if port is not None and hasattr(port, "baudrate") else None
 
 
+def busy_refusal(url: str, exc: ConnectionLost) -> DeviceError | None:
+    """What a link reset or closed by the peer during the handshake usually means (a real
+    robot, or its serial-to-network bridge, holding another client, gives no reason): a
+    :class:`DeviceError` saying so, or None for another loss."""
+    text = str(exc).lower()
+    if "reset" in text:
+        how = "reset"
+    elif "closed by the peer" in text:
+        how = "closed"
+    else:
+        return None
+    return DeviceError(
+        f"{url}: the connection was {how} during the handshake; this usually means the "
+        "robot is busy: another client holds it (close that program, or wait 2 s for "
+        "the robot's watchdog to end its session, then retry)"
+    )
+
+
 def handshake(session: Session, timeout: float) -> RobotIdentity:
     """SYNC0/1/2 with retries; CLOSE a session that an earlier client left open.
-    A server that refuses the link (robot busy) raises :class:`DeviceError` with its reason.
+    A server that refuses the link (robot busy) raises :class:`DeviceError` with its reason,
+    or with what a reset without one usually means (:func:`busy_refusal`).
 
     On a serial port that stays silent at the configured rate, the other rates are probed
     in turn, as the vendor SDK does: CLOSE then SYNC0 at each; the port stays at the rate
@@ -109,11 +128,11 @@ def handshake(session: Session, timeout: float) -> RobotIdentity:
             step = 0  # silence: start again
             misses += 1
             continue
-        except ConnectionLost:
+        except ConnectionLost as exc:
             reason = find_refusal(session.raw_tail())
             if reason is not None:
                 raise DeviceError(f"{url}: {reason}") from None
-            raise
+            raise busy_refusal(url, exc) or exc from None
         misses = 0
         payload = payload_of(frame)
         if payload[0] & 0xF0 == 0x30:
