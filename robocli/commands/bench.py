@@ -27,7 +27,9 @@ if TYPE_CHECKING:
     from robocli.benchmarks import Run
 
 TARGETS = ("pioneer",)
-TargetOpt = typer.Option("pioneer", "--target", "-t", help="Robot type: pioneer.")
+TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
+JitterTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer or arm.")
+SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
 UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
 JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
 EXIT_INTERRUPTED = 130
@@ -38,9 +40,11 @@ SIM_TARGETS = (6.0, 15.0)
 PROGRESS_AFTER = 2.0
 
 
-def _check_target(target: str) -> None:
+def _check_target(target: str, also: tuple[str, ...] = ()) -> None:
+    """``also``: the other targets this command measures (handled before this check)."""
     if target not in TARGETS:
-        raise typer.BadParameter(f"unknown target {target!r}; choose from {', '.join(TARGETS)}")
+        known = ", ".join((*TARGETS, *also))
+        raise typer.BadParameter(f"unknown target {target!r}; choose from {known}")
 
 
 def _check_paper_model(target: str, paper: bool) -> None:
@@ -129,7 +133,7 @@ def rtt(
         from robocli.commands.arm_extra import bench as arm_bench
 
         return arm_bench("rtt", url, n, json_out, paper, floor_n, cpu)
-    _check_target(target)
+    _check_target(target, also=("arm", "hub"))
     same, other = _cpus(cpu)
     at = b.cpu_label
     progress = _Progress()
@@ -219,7 +223,7 @@ def _finish(interrupted: bool) -> None:
 
 
 def jitter(
-    target: str = TargetOpt,
+    target: str = JitterTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
@@ -233,7 +237,7 @@ def jitter(
         from robocli.commands.arm_extra import bench as arm_bench
 
         return arm_bench("jitter", url, n, json_out, paper)
-    _check_target(target)
+    _check_target(target, also=("arm",))
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")
     if period is not None and period.size:
@@ -242,7 +246,7 @@ def jitter(
 
 
 def sip(
-    target: str = TargetOpt,
+    target: str = SipTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIPs to collect."),
     json_out: bool = JsonOpt,

@@ -118,3 +118,12 @@ def test_verbose_after_the_subcommand() -> None:
     assert proc.returncode == 0, proc.stderr
     assert "INFO" in proc.stderr and "pose" in proc.stdout
     assert run("connect", "pioneer", "sim", "--once", "-vv").returncode == 0
+
+
+@pytest.mark.parametrize(
+    ("command", "targets"),
+    [("rtt", "pioneer, arm, hub"), ("jitter", "pioneer, arm"), ("sip", "pioneer")],
+)
+def test_an_unknown_bench_target_lists_what_that_bench_measures(command: str, targets: str) -> None:
+    line = one_line_error(run("bench", command, "--target", "robotx"), 2)
+    assert line.endswith(f"choose from {targets}. Try 'robocli bench {command} -h'."), line
