@@ -19,7 +19,14 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import SIM, print_json, print_json_line, sigterm_as_interrupt
+from robocli.commands._common import (
+    SIM,
+    print_json,
+    print_json_line,
+    reader_may_leave,
+    rounded,
+    sigterm_as_interrupt,
+)
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
@@ -241,13 +248,20 @@ def upload(
     real_size: int = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
-    wait: float = typer.Option(600.0, "--wait", min=0.0, help="Seconds to wait for the end."),
+    wait: float = typer.Option(
+        600.0, "--wait", min=0.0, max=86_400.0,
+        help="Seconds to wait for the end (0: do not wait; the arm moves on).",
+    ),  # fmt: skip
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
-    from robocli.devices.arm import Arm
-    from robocli.io.trajlog import write_log
+    from robocli.devices.arm import Arm, StillMoving
+    from robocli.io.trajlog import check_writable, write_log
 
     _check_wire(byte_order, real_size)
+    if monitor is not None and wait == 0:
+        raise typer.BadParameter("--monitor records until the end: give --wait > 0")
+    if monitor is not None:
+        check_writable(monitor)  # before the arm moves: not after the whole run
     traj = _trajectory(robot, shape, points, file, duration, radius, center)
     with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
                                           robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
@@ -259,20 +273,30 @@ def upload(
             if not stream and gap > 1e-3:
                 typer.echo("moving to the first point")
                 arm.move_to(traj.positions[0])
-                arm.wait_until_idle(wait or 600.0)
+                arm.wait_until_idle(max(wait, 600.0))
             rec = arm.record() if monitor is not None else None
             with _Progress() as progress:
                 send = arm.stream if stream else arm.download
                 kw: dict[str, Any] = {} if stream else {"split": split}
                 sent = send(traj, progress=progress, **kw)
-            status = arm.wait_until_idle(wait) if wait > 0 else arm.status
+            if wait == 0:  # fire and forget: the activated trajectory runs on
+                arm.close(stop=False)
+                typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
+                return
+            try:
+                arm.wait_until_idle(wait)
+            except StillMoving:
+                arm.close(stop=False)  # --wait bounds the waiting, not the motion
+                raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
+                                  f"{wait:g} s and keeps moving (not waiting longer)") from None
+            finally:
+                if rec is not None and monitor is not None:
+                    rec.stop()
             if rec is not None and monitor is not None:
-                rec.stop()
                 log = rec.log()
                 write_log(log, monitor)
                 typer.echo(f"recorded {len(log)} samples -> {monitor}")
-    moving = status is None or status.in_motion
-    typer.echo(f"uploaded {sent} points; arm {'moving' if moving else 'idle'}")
+    typer.echo(f"uploaded {sent} points; arm idle")
 
 
 # ------------------------------------------------------------------------------ monitor, connect
@@ -282,7 +306,9 @@ def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
     samples: int | None = typer.Option(None, "--samples", min=2, max=1_000_000),  # noqa: UP007
-    duration: float | None = typer.Option(None, "--duration", min=0.01),  # noqa: UP007
+    duration: float | None = typer.Option(  # noqa: UP007
+        None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
+    ),
     state_port: int = StatePortOpt,
     byte_order: str = OrderOpt,
     real_size: int = RealOpt,
@@ -291,11 +317,12 @@ def monitor(
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
     from robocli.devices.arm import Arm
-    from robocli.io.trajlog import write_log
+    from robocli.io.trajlog import check_writable, write_log
 
     _check_wire(byte_order, real_size)
     if (samples is None) == (duration is None):
         raise typer.BadParameter("give --samples or --duration")
+    check_writable(out)  # before recording: not after the whole --duration
     with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
                                           robot) as (h, _, sp):  # fmt: skip
         with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
@@ -364,26 +391,23 @@ def connect(
     from robocli.devices.arm import Arm
 
     _check_wire(byte_order, real_size)
-    with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
-                                          robot) as (h, _, sp):  # fmt: skip
+    with reader_may_leave(), sigterm_as_interrupt(), arm_host(
+            host, 11000, state_port, byte_order, real_size, robot) as (h, _, sp):  # fmt: skip
         with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
                          real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
             arm.wait_for_state()
             shown, last = 0, 0.0
-            try:
-                while True:
-                    d = describe(arm)
-                    if once:
-                        print_json(d) if json_out else typer.echo(_line(d))
-                        return
-                    if json_out:
-                        print_json_line(d)
-                        shown += 1
-                    elif d["t"] - last >= 0.1:
-                        typer.echo(_line(d))
-                        shown, last = shown + 1, d["t"]
-                    if count is not None and shown >= count:
-                        return
-                    arm.wait_for_state(timeout)
-            except KeyboardInterrupt:
-                return
+            while True:  # Ctrl-C: exit 130 (the link is closed on the way out)
+                d = describe(arm)
+                if once:
+                    print_json(rounded(d)) if json_out else typer.echo(_line(d))
+                    return
+                if json_out:
+                    print_json_line(rounded(d))
+                    shown += 1
+                elif d["t"] - last >= 0.1:
+                    typer.echo(_line(d))
+                    shown, last = shown + 1, d["t"]
+                if count is not None and shown >= count:
+                    return
+                arm.wait_for_state(timeout)

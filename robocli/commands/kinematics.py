@@ -255,10 +255,8 @@ def _table(result: Any, plot: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(
-        title=f"simulated vs measured ({result.samples} samples, "
-        f"delay {result.delay_s * 1e3:.1f} ms)"
-    )
+    table = Table(title=f"sim vs real: {result.samples} samples, delay "
+                        f"{result.delay_s * 1e3:.1f} ms")  # fmt: skip
     table.add_column("joint", justify="right")
     for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
         table.add_column(name, justify="right")

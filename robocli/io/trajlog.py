@@ -13,6 +13,7 @@ import csv
 import io
 import json
 import math
+import os
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,13 +39,14 @@ class LogFormatError(RobocliError, ValueError):
 
 
 def open_capped(src: Path, limit: int, what: str) -> io.StringIO:
-    """The text of ``src`` (UTF-8), read in bounded memory: a file over ``limit`` bytes,
-    even one whose size ``stat`` cannot tell (a pipe, ``/dev/zero``), is refused."""
+    """The text of ``src`` (UTF-8, a leading byte-order mark as Excel writes it dropped),
+    read in bounded memory: a file over ``limit`` bytes, even one whose size ``stat`` cannot
+    tell (a pipe, ``/dev/zero``), is refused."""
     with src.open("rb") as fh:
         data = fh.read(limit + 1)
     if len(data) > limit:
         raise LogFormatError(f"{src}: over the {limit // 2**20} MiB limit of {what}")
-    return io.StringIO(data.decode("utf-8"))
+    return io.StringIO(data.decode("utf-8-sig"))
 
 
 @dataclass(frozen=True)
@@ -52,14 +54,18 @@ class TrajectoryLog:
     """Samples of a joint trajectory: ``time`` (N,) s, ``positions`` (N, n) rad,
     ``velocities`` (N, n) rad/s and ``tcp`` (N, 3) m (``None`` when not recorded).
 
-    ``time`` is on whatever clock recorded it (0 at the first point for generated runs);
-    validation aligns clocks itself.
+    ``time`` starts at 0 at the first point for generated runs and for recordings
+    (:meth:`robocli.devices.arm.Recorder.log`); a log may also be on any other clock, as
+    validation aligns clocks itself. ``origin``: where the recording clock (the controller's,
+    or this computer's ``time.monotonic()``) stood at ``time`` 0, when known (kept as
+    ``"time_origin"`` in JSON and NPZ; CSV has no place for it).
     """
 
     time: FloatArray
     positions: FloatArray
     velocities: FloatArray
     tcp: FloatArray | None = None
+    origin: float | None = None
 
     def __post_init__(self) -> None:
         _check(self, "log")
@@ -89,6 +95,8 @@ class TrajectoryLog:
         }
         if self.tcp is not None:
             out["tcp"] = self.tcp.tolist()
+        if self.origin is not None:
+            out["time_origin"] = self.origin
         return out
 
 
@@ -98,6 +106,22 @@ def finite_difference(time: FloatArray, positions: FloatArray) -> FloatArray:
         return np.zeros_like(positions)
     with np.errstate(all="ignore"):  # a bad time axis is reported by the log's own check
         return np.asarray(np.gradient(positions, time, axis=0, edge_order=1), dtype=float)
+
+
+def check_writable(path: str | Path) -> Path:
+    """Raise :class:`LogFormatError` unless a log could be written to ``path``: a known
+    suffix, an existing writable directory, not a directory itself. For commands that
+    record for a while (or move a robot) before they write: check first."""
+    out = Path(path)
+    _suffix(out)
+    parent = out.parent if str(out.parent) else Path(".")
+    if out.is_dir():
+        raise LogFormatError(f"{out}: cannot write (a directory)")
+    if not parent.is_dir():
+        raise LogFormatError(f"{out}: cannot write (no directory {parent})")
+    if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
+        raise LogFormatError(f"{out}: cannot write (permission denied)")
+    return out
 
 
 def write_log(log: TrajectoryLog, path: str | Path) -> Path:
@@ -110,6 +134,8 @@ def write_log(log: TrajectoryLog, path: str | Path) -> Path:
                       "joints_velocities": log.velocities}
             if log.tcp is not None:
                 arrays["tcp"] = log.tcp
+            if log.origin is not None:
+                arrays["time_origin"] = np.float64(log.origin)
             with out.open("wb") as fh:
                 np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
         elif suffix == ".csv":
@@ -133,9 +159,11 @@ def _write_json(log: TrajectoryLog, fh: io.TextIOBase | Any) -> None:
 
     fh.write('{\n  "time": ' + json.dumps(log.time.tolist()) + ",\n")
     rows("joints_positions", log.positions, False)
-    rows("joints_velocities", log.velocities, log.tcp is None)
+    rows("joints_velocities", log.velocities, log.tcp is None and log.origin is None)
     if log.tcp is not None:
-        rows("tcp", log.tcp, True)
+        rows("tcp", log.tcp, log.origin is None)
+    if log.origin is not None:
+        fh.write(f'  "time_origin": {json.dumps(log.origin)}\n')
     fh.write("}\n")
 
 
@@ -205,7 +233,20 @@ def _read_json(src: Path, fh: Any) -> TrajectoryLog:
     qd = (_array(src, "joints_velocities", doc["joints_velocities"], 2)
           if doc.get("joints_velocities") is not None else None)
     tcp = _array(src, "tcp", doc["tcp"], 2) if doc.get("tcp") is not None else None
-    return _build(src, time, q, qd, tcp)
+    return _build(src, time, q, qd, tcp, _origin(src, doc.get("time_origin")))
+
+
+def _origin(src: Path, value: Any) -> float | None:
+    """The optional ``time_origin``: one finite number."""
+    if value is None:
+        return None
+    try:
+        origin = float(value)
+    except (TypeError, ValueError):
+        raise LogFormatError(f"{src}: 'time_origin' must be one number") from None
+    if not math.isfinite(origin) or isinstance(value, bool):
+        raise LogFormatError(f"{src}: 'time_origin' must be one finite number")
+    return origin
 
 
 def _array(src: Path, key: str, value: Any, ndim: int) -> FloatArray:
@@ -259,29 +300,68 @@ def _read_csv(src: Path, fh: Any) -> TrajectoryLog:
 
 
 def _read_npz(src: Path) -> TrajectoryLog:
+    """An NPZ log, its members checked before any is decompressed: each one's uncompressed
+    size (a deflated zip member may expand a thousandfold), and each array's header (real
+    numbers only, a shape its member can hold)."""
     try:
+        with zipfile.ZipFile(src) as zf:
+            _check_npz_members(src, zf)
         with np.load(src, allow_pickle=False) as npz:
             missing = [k for k in ("time", "joints_positions") if k not in npz.files]
             if missing:
                 raise LogFormatError(f"{src}: missing array {missing[0]!r}")
             arrays = {k: np.asarray(npz[k], dtype=float) for k in KEYS if k in npz.files}
-    except (zipfile.BadZipFile, ValueError, EOFError) as exc:
+            origin = npz["time_origin"] if "time_origin" in npz.files else None
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, ValueError, EOFError,
+            NotImplementedError, RuntimeError) as exc:  # fmt: skip
         if isinstance(exc, LogFormatError):
             raise
         raise LogFormatError(f"{src}: not a valid NPZ log ({exc})") from None
+    if origin is not None and origin.shape not in ((), (1,)):
+        raise LogFormatError(f"{src}: 'time_origin' must be one number")
     return _build(src, arrays["time"], arrays["joints_positions"],
-                  arrays.get("joints_velocities"), arrays.get("tcp"))
+                  arrays.get("joints_velocities"), arrays.get("tcp"),
+                  _origin(src, None if origin is None else origin.reshape(-1)[0].item()))
+
+
+def _check_npz_members(src: Path, zf: zipfile.ZipFile) -> None:
+    total = 0
+    for info in zf.infolist():
+        total += info.file_size
+        if info.file_size > MAX_LOG_BYTES or total > MAX_LOG_BYTES:
+            raise LogFormatError(
+                f"{src}: {info.filename} expands to {info.file_size} bytes, over the "
+                f"{MAX_LOG_BYTES // 2**20} MiB log limit")  # fmt: skip
+    for name in (*KEYS, "time_origin"):
+        try:
+            info = zf.getinfo(name + ".npy")
+        except KeyError:
+            continue
+        with zf.open(info) as fh:
+            version = np.lib.format.read_magic(fh)
+            if version == (1, 0):
+                shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+            elif version == (2, 0):
+                shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+            else:
+                raise LogFormatError(f"{src}: {name!r} has an unsupported .npy version")
+        if dtype.kind not in "fiu":
+            kind = {"c": "complex numbers", "b": "booleans", "O": "Python objects",
+                    "U": "text", "S": "bytes"}.get(dtype.kind, f"{dtype} values")  # fmt: skip
+            raise LogFormatError(f"{src}: {name!r} holds {kind}: logs hold real numbers")
+        if math.prod(shape) * dtype.itemsize > info.file_size:
+            raise LogFormatError(f"{src}: {name!r} is truncated (its header says {shape})")
 
 
 def _build(src: Path, time: FloatArray, q: FloatArray, qd: FloatArray | None,
-           tcp: FloatArray | None) -> TrajectoryLog:
+           tcp: FloatArray | None, origin: float | None = None) -> TrajectoryLog:
     where = str(src)
     if q.ndim != 2 or time.ndim != 1:
         raise LogFormatError(f"{where}: 'time' is a list and 'joints_positions' a list of rows")
     if qd is None and q.shape[0] == time.shape[0]:
         qd = finite_difference(time, q)
     try:
-        return TrajectoryLog(time, q, qd if qd is not None else q, tcp)
+        return TrajectoryLog(time, q, qd if qd is not None else q, tcp, origin)
     except LogFormatError as exc:
         raise LogFormatError(f"{where}: {exc}") from None
 

@@ -28,7 +28,10 @@ _REFINE = 3
 @dataclass(frozen=True)
 class Validation:
     """Result of :func:`validate`. ``delay_s``: the measured clock reads ``sim time +
-    delay_s`` at the same motion. Errors are measured minus simulated."""
+    delay_s`` at the same motion (how late the measured motion came when both logs count
+    from their start, as generated and recorded logs do). ``start_delay_s``: the same,
+    each log's time counted from its first sample (meaningful whatever clocks the logs are
+    on). Errors are measured minus simulated."""
 
     delay_s: float
     onset_delay_s: float | None
@@ -39,11 +42,13 @@ class Validation:
     tcp_rmse_mm: float | None
     tcp_mean_mm: float | None
     tcp_max_mm: float | None
+    start_delay_s: float = math.nan
 
     def to_dict(self) -> dict[str, Any]:
         """Plain numbers for JSON output."""
         return {
             "delay_s": self.delay_s,
+            "start_delay_s": self.start_delay_s,
             "onset_delay_s": self.onset_delay_s,
             "samples": self.samples,
             "joints": [
@@ -150,6 +155,10 @@ def validate(sim: TrajectoryLog, meas: TrajectoryLog, model: RobotModel | None =
     """Compare a measured run with its simulation after aligning them in time (or at a
     given ``delay_s``). TCP errors use the logs' TCP columns, else FK of ``model``."""
     onset = None
+    for name, log in (("simulated", sim), ("measured", meas)):
+        if len(log) < 2:
+            raise ValidationError(f"the {name} log has {len(log)} sample; each log needs at "
+                                  "least two")  # fmt: skip
     if delay_s is None:
         delay_s, onset = align(sim, meas)
     elif sim.n_joints != meas.n_joints:
@@ -178,6 +187,7 @@ def validate(sim: TrajectoryLog, meas: TrajectoryLog, model: RobotModel | None =
         tcp_stats = (float(np.sqrt(np.mean(dist**2))), float(np.mean(dist)), float(dist.max()))
     return Validation(
         delay_s=float(delay_s), onset_delay_s=onset, samples=int(err.shape[0]),
+        start_delay_s=float(delay_s - (meas.time[0] - sim.time[0])),
         rmse=np.sqrt(np.mean(err**2, axis=0)), mae=np.mean(np.abs(err), axis=0),
         max_abs=np.max(np.abs(err), axis=0),
         tcp_rmse_mm=tcp_stats[0], tcp_mean_mm=tcp_stats[1], tcp_max_mm=tcp_stats[2],

@@ -57,6 +57,7 @@ def test_traj_upload_monitor_validate_against_sim_process(tmp_path: Path, capsys
     code, out, err = run(capsys, "validate", str(sim_json), str(real_json), "--json")
     assert code == 0, err
     assert json.loads(out)["max_rmse_rad"] <= 1e-6
+    assert 0.0 <= json.loads(out)["delay_s"] < 1.0  # the recording counts from its start
 
 
 def test_connect_and_monitor_embedded_sim(tmp_path: Path, capsys) -> None:

@@ -211,3 +211,28 @@ def test_streaming_queue_is_bounded(make_sim, make_arm, monkeypatch) -> None:
     with pytest.raises(DeviceError, match="FAILURE"):
         arm.send_point(5, IRB.work, duration=10.0)
     assert sim.snapshot().rejected_points == 1
+
+
+def test_a_recording_counts_from_its_start(make_sim, make_arm, tmp_path) -> None:
+    """A recording on this computer's clock starts at 0 like the plan, so that the delay
+    validation reports is how late the motion came, not the clock's reading (the absolute
+    start is kept as the log's origin, also through a JSON file)."""
+    from robocli.io.trajlog import read_log, write_log
+
+    sim, mp, sp = make_sim(state_ms=5.0, time_scale=1.0)  # JOINT_POSITION: receive times
+    arm = make_arm(mp, sp)
+    here = arm.wait_for_state()
+    planned = circle(IRB, 30, duration=2.0)
+    arm.move_to(planned.positions[0])
+    arm.wait_until_idle(30)
+    rec = arm.record()
+    arm.download(planned)
+    arm.wait_until_idle(30)
+    rec.stop()
+    measured = rec.log()
+    assert measured.time[0] == 0.0 and measured.origin is not None
+    assert here.t < measured.origin < here.t + 60
+    result = validate(planned, measured, IRB)
+    assert 0.0 <= result.delay_s < 1.0 and abs(result.start_delay_s - result.delay_s) < 1e-9
+    write_log(measured, tmp_path / "real.json")
+    assert read_log(tmp_path / "real.json").origin == measured.origin

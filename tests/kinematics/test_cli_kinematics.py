@@ -4,6 +4,7 @@ exit codes and one-line errors (never a traceback)."""
 from __future__ import annotations
 
 import json
+import os
 import re
 import subprocess
 import sys
@@ -12,13 +13,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robocli.io.trajlog import read_log, write_log
+from robocli.io.trajlog import TrajectoryLog, read_log, write_log
 from robocli.kinematics.validate import shifted
 
 
-def run(cwd: Path, *args: str) -> subprocess.CompletedProcess[str]:
+def run(cwd: Path, *args: str, env: dict[str, str] | None = None
+        ) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "robocli", *args], capture_output=True,
-                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=cwd)
+                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=cwd,
+                          env={**os.environ, **env} if env else None)
 
 
 def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
@@ -114,3 +117,31 @@ def test_without_matplotlib_the_plot_option_says_how_to_get_it(tmp_path: Path) -
     line = one_line_error(proc, 1)
     assert "pip install robocli[plot]" in line
     assert not (tmp_path / "x.png").exists()
+
+
+def test_waypoints_csv_with_a_byte_order_mark(tmp_path: Path) -> None:
+    """Excel writes UTF-8 CSV with a byte-order mark."""
+    rows = ["q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg", "0,10,10,0,70,0", "20,10,10,0,70,0"]
+    (tmp_path / "wp.csv").write_bytes(b"\xef\xbb\xbf" + "\r\n".join(rows).encode() + b"\r\n")
+    proc = run(tmp_path, "traj", "file", "wp.csv", "--duration", "3", "--out", "f.json")
+    assert proc.returncode == 0, proc.stderr
+    assert len(read_log(tmp_path / "f.json")) >= 2
+
+
+def test_validate_a_one_sample_log(tmp_path: Path) -> None:
+    assert run(tmp_path, "traj", "circle", "--out", "sim.json").returncode == 0
+    sim = read_log(tmp_path / "sim.json")
+    write_log(TrajectoryLog.from_positions(sim.time[:1], sim.positions[:1]), tmp_path / "one.json")
+    proc = run(tmp_path, "validate", "sim.json", "one.json")
+    assert proc.returncode == 2
+    assert "the measured log has 1 sample; each log needs at least two" in proc.stderr
+
+
+def test_validate_table_title_fits_80_columns(tmp_path: Path) -> None:
+    assert run(tmp_path, "traj", "circle", "--out", "sim.json").returncode == 0
+    sim = read_log(tmp_path / "sim.json")
+    write_log(shifted(sim, 13624.0681, pad_s=1.0), tmp_path / "real.json")
+    proc = run(tmp_path, "validate", "sim.json", "real.json", env={"COLUMNS": "80"})
+    assert proc.returncode == 0, proc.stderr
+    title = proc.stdout.splitlines()[0]
+    assert "delay 13624068.1 ms" in title and title.strip().endswith("ms")

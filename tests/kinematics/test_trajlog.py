@@ -122,3 +122,40 @@ def test_a_log_without_end_is_read_in_bounded_memory(tmp_path: Path,
 def test_missing_file_is_a_usage_error(tmp_path: Path) -> None:
     with pytest.raises(LogFormatError, match="cannot read"):
         read_log(tmp_path / "nope.json")
+
+
+def test_npz_zip_bomb_refused_before_decompressing(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    """The limit applies to what the members expand to, not to the compressed file."""
+    path = tmp_path / "bomb.npz"
+    n = 1 << 19  # 4 MiB of float64 zeros, deflated to a few KiB
+    np.savez_compressed(path, time=np.zeros(n), joints_positions=np.zeros((n, 1)))
+    assert path.stat().st_size < 64 * 1024
+    monkeypatch.setattr(trajlog, "MAX_LOG_BYTES", 1 << 20)
+    with pytest.raises(LogFormatError, match=r"time\.npy expands to 4194432 bytes, over the 1 MiB"):
+        read_log(path)
+
+
+@pytest.mark.parametrize(("dtype", "kind"), [(complex, "complex numbers"), (bool, "booleans"),
+                                             ("U3", "text")])  # fmt: skip
+def test_npz_of_non_real_numbers_is_refused(tmp_path: Path, dtype: object, kind: str) -> None:
+    path = tmp_path / "c.npz"
+    np.savez(path, time=np.arange(3.0), joints_positions=np.ones((3, 6)).astype(dtype))
+    with pytest.raises(LogFormatError, match=f"'joints_positions' holds {kind}: logs hold real"):
+        read_log(path)
+
+
+@pytest.mark.parametrize("suffix", [".json", ".npz"])
+def test_time_origin_round_trip(log: TrajectoryLog, tmp_path: Path, suffix: str) -> None:
+    from dataclasses import replace
+
+    path = write_log(replace(log, origin=16989.326389693), tmp_path / f"r{suffix}")
+    assert read_log(path).origin == 16989.326389693
+    assert read_log(write_log(log, tmp_path / f"s{suffix}")).origin is None
+
+
+def test_bad_time_origin(tmp_path: Path) -> None:
+    path = tmp_path / "o.json"
+    path.write_text(json.dumps({**GOOD, "time_origin": [1, 2]}))
+    with pytest.raises(LogFormatError, match="'time_origin' must be one number"):
+        read_log(path)

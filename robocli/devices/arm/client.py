@@ -46,10 +46,12 @@ from robocli.devices.arm.state import (
 )
 from robocli.devices.session import FrameListener, Listeners, Session
 from robocli.errors import (
+    EXIT_FAILURE,
     ConnectionLost,
     DeviceError,
     InvalidArgument,
     ProtocolError,
+    RobocliError,
     TimeoutError,
     TransportError,
 )
@@ -60,7 +62,7 @@ from robocli.protocols import simple_message as sm
 from robocli.protocols.common import find_refusal
 from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
 
-__all__ = ["Arm", "SampleListener"]
+__all__ = ["Arm", "SampleListener", "StillMoving"]
 
 log = logging.getLogger("robocli.devices.arm")
 
@@ -70,6 +72,13 @@ SampleListener = Callable[[JointSample], None]
 _POS = sm.ValidFields.POSITION
 _JOINT_TYPES = (MsgType.JOINT_POSITION, MsgType.JOINT_FEEDBACK, MsgType.STATUS)
 _ORDERS = {"little": "<", "big": ">", "<": "<", ">": ">"}
+
+
+class StillMoving(TimeoutError):
+    """:meth:`Arm.wait_until_idle` gave up while the states still show the trajectory
+    running: the controller answers (not an unreachable one: exit 1), the arm moves on."""
+
+    exit_code = EXIT_FAILURE
 
 
 class Arm:
@@ -97,6 +106,9 @@ class Arm:
         self._target: tuple[float, ...] | None = None  # last point of the activated trajectory
         self._moved = False  # a STATUS received since the activation said in motion
         self._start: tuple[float, ...] | None = None  # joints when it was activated
+        self._streamed = False  # the activated trajectory was streamed (not downloaded)
+        self._travel = 0.0  # how far (rad) its points lie from the start at most
+        self._displaced = False  # a joint sample since the activation was away from the start
         self._stop_frame = stop_frame(robot, byteorder, real)
         for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
             if session is not None:
@@ -147,6 +159,8 @@ class Arm:
                 arm.add_listener(listener)
             if arm._state is not None:
                 arm._first_state(timeout)
+            if arm._motion is not None:  # (after the state's first message: no extra wait)
+                arm._no_refusal(0.01 if arm._state is not None else 0.1)
             for s in sessions:
                 s.start()
             if arm._motion is not None:
@@ -179,6 +193,22 @@ class Arm:
             if s.raw_tail() or s.stats.decode_errors:
                 raise wrong from None
             raise TimeoutError(f"{url}: no state message within {timeout:g} s") from None
+
+    def _no_refusal(self, wait: float) -> None:
+        """Raise :class:`DeviceError` when the motion port refused this client (a busy
+        server says why on connecting, then closes): its motion port is quiet otherwise, so
+        read what came within ``wait`` s before the reader starts (and would swallow it)."""
+        s = self._motion
+        assert s is not None
+        try:
+            s.request(None, lambda f: False, wait)
+        except TimeoutError:
+            return  # nothing said: a controller's motion port speaks only when spoken to
+        except RobocliError:
+            reason = find_refusal(s.raw_tail())
+            if reason is not None:
+                raise DeviceError(f"{s.transport.url}: {reason}") from None
+            raise
 
     @property
     def alive(self) -> bool:
@@ -275,6 +305,9 @@ class Arm:
         with self._cond:
             self.history.append(sample)
             self.joints = sample
+            if (self._activated_at is not None and t > self._activated_at
+                    and self._start is not None and _gap(sample.joints, self._start) > 1e-3):
+                self._displaced = True
             self._cond.notify_all()
         if len(self._sample_listeners):
             self._sample_listeners.notify(sample)
@@ -321,7 +354,9 @@ class Arm:
     def wait_until_idle(self, timeout: float, settle: float = 2.0) -> ArmStatus:
         """Wait until the states show the arm idle: not in motion after it was seen moving
         since the last activation, or at the trajectory's last point, or (a trajectory the
-        controller refused) not in motion for ``settle`` s. Needs the state port."""
+        controller refused) not in motion for ``settle`` s. Needs the state port. Raises
+        :class:`StillMoving` (a :class:`TimeoutError`) when the states still show motion
+        after ``timeout`` s (nothing is stopped), :class:`TimeoutError` when no STATUS came."""
         s = self._need(self._state, "state")
         since = self._activated_at if self._activated_at is not None else time.monotonic()
         deadline = time.monotonic() + timeout
@@ -335,11 +370,27 @@ class Arm:
                     if self._activated_at is None and not st.in_motion:
                         return st
                     if self._finished(st) or (not st.in_motion and st.t - since >= settle):
-                        return st
+                        if not self._stalled():
+                            return st
+                        if time.monotonic() >= self._expected_end:
+                            raise DeviceError(
+                                f"{s.transport.url}: the controller acknowledged the streamed "
+                                "points, but the arm did not move while their durations "
+                                "elapsed (an ABB never runs streamed points: download them, "
+                                "without --stream)")  # fmt: skip
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise TimeoutError(f"{s.transport.url}: still in motion after {timeout:g} s")
+                    if st is None or st.t <= since:
+                        raise TimeoutError(f"{s.transport.url}: no STATUS within {timeout:g} s")
+                    raise StillMoving(f"{s.transport.url}: the trajectory has not ended after "
+                                      f"{timeout:g} s")  # fmt: skip
                 self._cond.wait(min(left, 0.1))
+
+    def _stalled(self) -> bool:
+        """The activated trajectory was streamed and should move the arm, but no state since
+        showed motion or a joint away from where it began."""
+        return (self._streamed and self._travel > 1e-3 and not self._moved
+                and not self._displaced)  # fmt: skip
 
     def record(self, max_samples: int = 720_000) -> Recorder:
         """Start recording joint samples (a :class:`Recorder`; stop it for the log). At most
@@ -473,7 +524,7 @@ class Arm:
         to a streaming server (not an ABB: it never executes points without -3)."""
         points = prepare(self.robot, traj, self._q_now(), first_duration)
         wait = self.timeout if timeout is None else timeout
-        self._activated(points)
+        self._activated(points, streamed=True)
         for i, p in enumerate(points):
             self._send_point(i, p, wait)
             if progress is not None:
@@ -486,13 +537,18 @@ class Arm:
                         timeout=timeout)
         self._activated_at, self._expected_end, self._target = None, 0.0, None
 
-    def _activated(self, points: list[Point]) -> None:
+    def _activated(self, points: list[Point], streamed: bool = False) -> None:
         now = time.monotonic()
-        self._activated_at = now
-        self._expected_end = now + sum(p.duration for p in points) + 1.0
-        self._target = points[-1].joints if points else None
-        self._start = self.joints.joints if self.joints is not None else None
-        self._moved = False
+        start = self.joints.joints if self.joints is not None else None
+        with self._cond:
+            self._activated_at = now
+            self._expected_end = now + sum(p.duration for p in points) + 1.0
+            self._target = points[-1].joints if points else None
+            self._start = start
+            self._moved = self._displaced = False
+            self._streamed = streamed
+            self._travel = max((_gap(p.joints, start) for p in points),
+                               default=0.0) if start is not None else 0.0  # fmt: skip
 
     def _q_now(self) -> tuple[float, ...] | None:
         sample = self.joints

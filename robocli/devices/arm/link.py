@@ -9,6 +9,7 @@ from collections.abc import Callable
 from robocli.core import Framer
 from robocli.devices.arm.state import Point
 from robocli.devices.session import Session
+from robocli.errors import TransportError
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.protocols.simple_message import CommType, MsgType, SpecialSeq
@@ -20,7 +21,14 @@ __all__ = ["namer", "open_session", "point_frame", "stop_frame"]
 def open_session(host: str, port: int, name: str, order: sm.ByteOrder, real: sm.RealSize,
                  timeout: float, stop: list[bytes]) -> Session:
     """One port's session (not started); its emergency stop is ``stop``."""
-    transport = SocketTransport.connect(host, port, timeout)
+    try:
+        transport = SocketTransport.connect(host, port, timeout)
+    except TransportError as exc:
+        if "connection refused" not in str(exc):
+            raise
+        raise TransportError(f"cannot connect to tcp://{host}:{port}: connection refused (is "
+                             f"the controller's {name} server, or `robocli sim abb`, "
+                             "listening there?)") from None
     framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
     return Session(transport, framer, on_frame=lambda f, t: None, name_of=namer(order, real),
                    emergency_stop=lambda: stop, name=f"arm-{name}")  # fmt: skip

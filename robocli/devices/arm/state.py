@@ -9,20 +9,20 @@ from __future__ import annotations
 
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
-from robocli.errors import InvalidArgument, TimeoutError
+from robocli.errors import EXIT_FAILURE, InvalidArgument, TimeoutError
 from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import check_limits
 
 __all__ = [
-    "ABB_MAX_POINTS", "ArmStatus", "JointSample", "Point", "Recorder", "prepare",
-    "split_points",
+    "ABB_MAX_POINTS", "ArmStatus", "JointSample", "Point", "Recorder", "TooFewSamples",
+    "prepare", "split_points",
 ]  # fmt: skip
 
 ABB_MAX_POINTS = 100  #: the ABB RAPID server's buffer; it drops the rest silently
@@ -152,11 +152,20 @@ def split_points(points: list[Point], size: int = ABB_MAX_POINTS) -> list[list[P
     return out
 
 
+class TooFewSamples(TimeoutError):
+    """:meth:`Recorder.log` of a recording shorter than two samples: the controller was
+    reached (exit 1, not an unreachable one's 3); record for longer."""
+
+    exit_code = EXIT_FAILURE
+
+
 class Recorder:
     """Joint samples collected from ``Arm.record()`` until :meth:`stop` (bounded).
 
     :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock
-    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times.
+    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times,
+    counted from the first sample recorded (time 0, as a planned trajectory's start), that
+    clock's reading there kept as the log's ``origin``.
     """
 
     def __init__(self, arm: Any, max_samples: int) -> None:
@@ -185,6 +194,10 @@ class Recorder:
         times = [t for t, _ in kept]
         samples = [s for _, s in kept]
         if len(samples) < 2:
-            raise TimeoutError("fewer than two joint samples were recorded")
+            raise TooFewSamples(f"{len(samples)} joint sample(s) recorded: a log needs two; "
+                                "record for longer than two state periods")
         q = [s.joints for s in samples]
-        return TrajectoryLog.from_positions(times, q, fk_positions(self._arm.robot, q))
+        origin = times[0]
+        log = TrajectoryLog.from_positions([t - origin for t in times], q,
+                                           fk_positions(self._arm.robot, q))  # fmt: skip
+        return replace(log, origin=origin)
