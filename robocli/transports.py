@@ -17,6 +17,7 @@ for robustness tests.
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import math
 import os
@@ -342,6 +343,13 @@ class SerialTransport(Transport):
             raise ConnectionLost(f"{self.url}: {exc}") from None
 
     def _close(self) -> None:
+        if self._fd is not None and os.name == "posix":
+            import fcntl
+
+            # unlock first: a reader thread still in poll() on the fd keeps the open file,
+            # and with it the lock, alive after close() until its poll returns
+            with contextlib.suppress(OSError):
+                fcntl.flock(self._fd, fcntl.LOCK_UN)
         self.port.close()
 
 
