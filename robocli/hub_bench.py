@@ -232,7 +232,11 @@ def _client(
 
 
 def _worker_main() -> None:
-    """A worker process: argv[1] is a JSON job; prints its results as one JSON line."""
+    """A worker process: argv[1] is a JSON job; prints its results as one JSON line.
+    Ctrl-C reaches the whole process group: the worker ignores it, the parent stops it."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     job = json.loads(sys.argv[1])
     out: dict[str, Any] = {"latency": [], "sensors": {}}
     lock = threading.Lock()
@@ -274,29 +278,32 @@ def throughput(
     workers = max(1, min(workers, clients))
     start = time.time() + 1.5 + 0.05 * clients
     end = start + seconds
-    procs = []
+    procs: list[subprocess.Popen[str]] = []
     before = _children_cpu()
     spawned = time.time()
-    for w in range(workers):
-        n = clients // workers + (1 if w < clients % workers else 0)
-        job = {"address": address, "sensors": used, "pull_hz": pull_hz, "start": start,
-               "end": end, "clients": n, "quit": hub is None}  # fmt: skip
-        code = "from robocli.hub_bench import _worker_main; _worker_main()"
-        procs.append(subprocess.Popen(
-            [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
-        ))  # fmt: skip
-    cpu0 = rss = 0.0
-    dropped0 = dropped1 = None
-    if hub is not None:
-        time.sleep(max(0.0, start - time.time()))
-        cpu0, dropped0 = cpu_seconds(hub.pid), hub.dropped()
-        time.sleep(max(0.0, end - time.time()))
-        cpu1, dropped1 = cpu_seconds(hub.pid), hub.dropped()
-        rss = peak_rss(hub.pid)
-    results = []
-    for proc in procs:
-        out, _ = proc.communicate(timeout=seconds + 60)
-        results.append(json.loads(out.strip().splitlines()[-1]))
+    try:
+        for w in range(workers):
+            n = clients // workers + (1 if w < clients % workers else 0)
+            job = {"address": address, "sensors": used, "pull_hz": pull_hz, "start": start,
+                   "end": end, "clients": n, "quit": hub is None}  # fmt: skip
+            code = "from robocli.hub_bench import _worker_main; _worker_main()"
+            procs.append(subprocess.Popen(
+                [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
+            ))  # fmt: skip
+        cpu0 = rss = 0.0
+        dropped0 = dropped1 = None
+        if hub is not None:
+            time.sleep(max(0.0, start - time.time()))
+            cpu0, dropped0 = cpu_seconds(hub.pid), hub.dropped()
+            time.sleep(max(0.0, end - time.time()))
+            cpu1, dropped1 = cpu_seconds(hub.pid), hub.dropped()
+            rss = peak_rss(hub.pid)
+        results = []
+        for proc in procs:
+            out, _ = proc.communicate(timeout=seconds + 60)
+            results.append(json.loads(out.strip().splitlines()[-1]))
+    finally:  # interrupted (or failed): no worker outlives the bench
+        _stop_workers(procs)
     client_cores = (_children_cpu() - before) / max(time.time() - spawned, 1e-9)
     lat = np.concatenate([np.asarray(r["latency"], dtype=np.float64) for r in results])
     per: dict[str, dict[str, int]] = {}
@@ -328,6 +335,21 @@ def throughput(
         and report.get("hub_cpu_cores", 0.0) <= TARGET_CORES
     )  # fmt: skip
     return report
+
+
+def _stop_workers(procs: list[subprocess.Popen[str]]) -> None:
+    """Terminate the workers still running (they ignore SIGINT), then reap them, bounded."""
+    for proc in procs:
+        if proc.poll() is None:
+            proc.terminate()
+    for proc in procs:
+        try:
+            proc.wait(2.0)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(2.0)
+        if proc.stdout is not None:
+            proc.stdout.close()
 
 
 def _children_cpu() -> float:

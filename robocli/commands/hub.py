@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import math
 import os
 import sys
 import time
@@ -16,7 +17,12 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import print_json, reader_may_leave, sigterm_as_interrupt
+from robocli.commands._common import (
+    print_json,
+    print_json_line,
+    reader_may_leave,
+    sigterm_as_interrupt,
+)
 
 if TYPE_CHECKING:
     import numpy as np
@@ -29,28 +35,49 @@ HUB_HELP = "Hub address HOST[:PORT] (default $ROBOCLI_HUB, else 127.0.0.1; port 
 HubOpt = typer.Option(None, "--hub", help=HUB_HELP, show_default=False)
 HubArg = typer.Argument(..., help="Hub address HOST[:PORT].", show_default=False)
 FORMATS = ("table", "csv", "jsonl")
+TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
+SENSOR_HELP = (
+    "adc, imu, gps, battery, sysinfo (or computer), laser (or hokuyo), camera, "
+    "stereo (or camera_stereo), depth (or kinect)"
+)
+SERIAL_MAX_WAIT_S = 5.0  #: the hub's longest serial read wait (MAX_SERIAL_WAIT_S)
+TokenOpt = typer.Option(
+    None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
+    show_envvar=False, show_default=False,
+    help=f"The hub's token (serve --token-file), needed to change settings or use a serial "
+    f"port on a hub that has one (default ${TOKEN_ENV}).",
+)  # fmt: skip
 
 
 def _address(hub: str | None) -> str:
     return hub or os.environ.get("ROBOCLI_HUB") or "127.0.0.1"
 
 
-def open_hub(address: str, *, compress: bool = False, timeout: float = 5.0) -> Hub:
-    """Connect, turning "nobody listens" into one line with a hint (exit 3)."""
+def open_hub(
+    address: str,
+    *,
+    compress: bool = False,
+    timeout: float = 5.0,
+    token_file: Path | None = None,
+    hub_option: bool = True,
+) -> Hub:
+    """Connect (with the token in ``token_file``, if any); "nobody listens" is one line with
+    a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB."""
+    from robocli.commands.serve import token_from_file
     from robocli.devices.hub import Hub, parse_hub
     from robocli.errors import TransportError
     from robocli.transports import InvalidURL
 
+    token = token_from_file(token_file)
     host, port = parse_hub(address)
     try:
-        return Hub.connect(host, port, compress=compress, timeout=timeout)
+        return Hub.connect(host, port, compress=compress, timeout=timeout, token=token)
     except InvalidURL:
         raise
-    except TransportError:
-        raise TransportError(
-            f"no hub listening at {host}:{port}; start one with `robocli serve --sim` "
-            "(or give --hub HOST[:PORT] / $ROBOCLI_HUB)"
-        ) from None
+    except TransportError as exc:
+        if not hub_option or type(exc) is not TransportError:
+            raise
+        raise TransportError(f"{exc} (or give --hub HOST[:PORT] / $ROBOCLI_HUB)") from None
 
 
 def _mask(text: str) -> int:
@@ -64,17 +91,20 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: str = typer.Argument(
-        ..., help="adc, imu, gps, battery, sysinfo, laser, camera, stereo, depth."
-    ),
+    sensor: str = typer.Argument(..., help=SENSOR_HELP + ".", show_default=False),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
     hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     buffer: int | None = typer.Option(  # noqa: UP007
         None, "--buffer", min=1, help="Samples the hub keeps for us (default: 1 s)."
     ),
-    poll: float | None = typer.Option(  # noqa: UP007
-        None, "--poll", min=0.1, max=1000, help="Pulls per second (default: rate/4 + 10)."
-    ),
+    poll: int | None = typer.Option(  # noqa: UP007
+        None,
+        "--poll",
+        min=1,
+        max=65535,
+        help="Pulls per second, Hz: also the hub's batch rate of adc, imu, gps, battery "
+        "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
+    ),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
     duration: float | None = typer.Option(  # noqa: UP007
         None, "--duration", min=0, help="Stop after S seconds."
@@ -84,34 +114,76 @@ def subscribe(
         None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
     ),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
+    token_file: Path | None = TokenOpt,  # noqa: UP007
 ) -> None:
     """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
     --count. Times are on this machine's clock (the hub's offset is estimated)."""
     from robocli.devices.hub_tools import columns_of, rows_of, stream
-    from robocli.protocols.ros4mat import adc_freq_send_default, sensor_type
+    from robocli.errors import InvalidArgument
+    from robocli.protocols.ros4mat import MsgType, adc_freq_send_default, sensor_type
 
     if duration is not None and count is not None:
         raise typer.BadParameter("give --duration or --count, not both")
     fmt = fmt or ("table" if sys.stdout.isatty() else "csv")
     if fmt not in FORMATS:
         raise typer.BadParameter(f"--format: choose from {', '.join(FORMATS)}")
-    kind = sensor_type(sensor)
+    try:
+        kind = sensor_type(sensor)
+    except InvalidArgument:
+        raise typer.BadParameter(f"unknown sensor {sensor!r}; choose from {SENSOR_HELP}") from None
+    if kind == MsgType.KINECT_DEPTH:
+        raise typer.BadParameter(f"{sensor!r} (0x28) has no data pull in ros4mat; use depth")
     mask = _mask(channels)
-    params: dict[str, Any] = {"channels": mask} if kind == 0x20 else {}
+    params: dict[str, Any] = {"channels": mask} if kind == MsgType.ADC else {}
     pulls = poll or min(float(adc_freq_send_default(rate)), float(rate))
     out: _Output | None = None
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with open_hub(_address(hub), compress=compress) as client:
+            with open_hub(_address(hub), compress=compress, token_file=token_file) as client:
                 client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
                 out = _Output(fmt, columns_of(sensor, mask))
+                losses = _Losses(sensor, buffer or rate)
                 for reading in stream(client, sensor, pulls, duration=duration, count=count):
                     out.write(rows_of(reading, mask))
+                    losses.update(client.lost.get(sensor.lower(), 0))
+                losses.update(client.lost.get(sensor.lower(), 0), final=True)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:
             if out is not None:
                 out.close()
+
+
+LOSS_REPORT_S = 10.0  #: while streaming, samples lost are said at most this often
+
+
+class _Losses:
+    """Says on stderr that samples were lost (the library counts them): when it first
+    happens, then at most every :data:`LOSS_REPORT_S`, and the total at the end."""
+
+    def __init__(self, sensor: str, buffer: int) -> None:
+        self.sensor, self.buffer = sensor, buffer
+        self.said, self.said_at = 0, -LOSS_REPORT_S
+
+    def update(self, lost: int, final: bool = False) -> None:
+        now = time.monotonic()
+        if lost <= self.said or (not final and now - self.said_at < LOSS_REPORT_S):
+            return
+        self.said, self.said_at = lost, now
+        typer.echo(
+            f"robocli: {lost} {self.sensor} samples lost{'' if final else ' so far'} (gaps in "
+            f"their times): the hub's buffer of {self.buffer} overflowed between pulls; raise "
+            "--buffer or pull more often (--poll)",
+            err=True,
+        )
+
+
+def _json_value(value: float, integer: bool) -> float | int | None:
+    """A field as JSON has it: an integer field as an int, a float32 one at its 7 digits,
+    NaN (no reading, e.g. no CPU temperature sensor) as null (JSON has no NaN)."""
+    if not math.isfinite(value):
+        return None
+    return int(value) if integer else float(f"{value:.7g}")
 
 
 class _Output:
@@ -145,8 +217,11 @@ class _Output:
         if self.fmt == "csv":
             np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
         elif self.fmt == "jsonl":
+            from robocli.devices.hub_tools import INTEGER_COLUMNS
+
+            ints = [c in INTEGER_COLUMNS for c in self.cols[1:]]
             for row in rows.tolist():  # the precision of the wire: float32 fields, us times
-                values = [round(row[0], 6), *(float(f"{v:.7g}") for v in row[1:])]
+                values = [round(row[0], 6), *map(_json_value, row[1:], ints)]
                 buf.write(json.dumps(dict(zip(self.cols, values, strict=True))) + "\n")
         elif self.live is None:
             np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
@@ -184,18 +259,22 @@ def connect(
     once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
+    token_file: Path | None = TokenOpt,  # noqa: UP007
 ) -> None:
     """Survey a hub over ros4mat: running sensors and their rates, round trip, clock offset,
-    the client id it gave us (clients seen). Repeats every window until Ctrl-C."""
+    the client id it gave us (clients seen). Repeats every window until Ctrl-C (--json: one
+    object per line)."""
     from robocli.devices.hub_tools import survey
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with open_hub(host) as client:
+            with open_hub(host, token_file=token_file, hub_option=False) as client:
                 while True:
                     info = survey(client, window)
-                    if json_out:
+                    if json_out and once:
                         print_json(info)
+                    elif json_out:  # one compact object per survey (JSON Lines)
+                        print_json_line(info)
                     else:
                         _print_survey(info)
                     if once:
@@ -204,11 +283,16 @@ def connect(
             raise typer.Exit(EXIT_INTERRUPTED) from None
 
 
+def _ms(value: float | None) -> str:
+    """``0.123 ms``, or ``-`` before any data reply (nothing running to pull)."""
+    return "-" if value is None else f"{value} ms"
+
+
 def _print_survey(info: dict[str, Any]) -> None:
     typer.echo(
         f"hub {info['hub']}  ros4mat v{info['protocol_version']}  client id "
-        f"{info['client_id']} (clients seen)  rtt {info['rtt_ms']} ms  "
-        f"clock offset {info['clock_offset_ms']} ms"
+        f"{info['client_id']} (clients seen)  rtt {_ms(info['rtt_ms'])}  "
+        f"clock offset {_ms(info['clock_offset_ms'])}"
     )
     for name, s in info["sensors"].items():
         if s["active"]:
@@ -235,7 +319,6 @@ def dump(
 
     from robocli.devices.hub import parse_hub
     from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
-    from robocli.io.capture import CaptureWriter
 
     upstream = parse_hub(host)
     check_upstream(*upstream)
@@ -243,7 +326,7 @@ def dump(
     done = threading.Event()
     broken = threading.Event()
     printed = 0
-    writer = CaptureWriter(output) if output is not None else None
+    writer = _capture(output) if output is not None else None
 
     def show(msg: Message) -> None:
         nonlocal printed
@@ -291,6 +374,21 @@ def dump(
                 writer.close()
 
 
+def _capture(path: Path) -> Any:
+    """A capture writer on ``path`` (JSON Lines); a name or place it cannot have is a usage
+    error (exit 2), before any client connects."""
+    from robocli.errors import RobocliError
+    from robocli.io.capture import CaptureWriter
+
+    if path.suffix != ".jsonl":
+        raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
+                                 param_hint="'--output'")  # fmt: skip
+    try:
+        return CaptureWriter(path)
+    except RobocliError as exc:
+        raise typer.BadParameter(str(exc), param_hint="'--output'") from None
+
+
 def serial(
     hub: str = HubArg,
     port: str = typer.Argument(..., help="The serial port on the hub, e.g. /dev/ttyUSB0."),
@@ -298,9 +396,16 @@ def serial(
     send: str = typer.Option("", "--send", help="Bytes to send: text, or hex with --hex."),
     recv: int = typer.Option(0, "--recv", min=0, max=1024, help="Bytes to read back."),
     hex_io: bool = typer.Option(False, "--hex", help="--send is hex; print the reply in hex."),
-    timeout: float = typer.Option(1.0, "--timeout", min=0, max=60, help="Read timeout, s."),
+    timeout: float = typer.Option(  # at most robocli.hub.sources.real.MAX_SERIAL_WAIT_S
+        1.0,
+        "--timeout",
+        min=0,
+        max=SERIAL_MAX_WAIT_S,
+        help="Read timeout, s (the hub waits at most 5 s, ros4mat's receive timeout).",
+    ),  # fmt: skip
     parity: bool = typer.Option(False, "--parity", help="Even parity."),
     stop_bits: int = typer.Option(1, "--stop-bits", min=1, max=2, help="Stop bits."),
+    token_file: Path | None = TokenOpt,  # noqa: UP007
 ) -> None:
     """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD)."""
     if hex_io:
@@ -310,7 +415,7 @@ def serial(
             raise typer.BadParameter(f"--send: {send!r} is not hex") from None
     else:
         data = send.encode().decode("unicode_escape").encode("latin-1")
-    with open_hub(hub) as client:
+    with open_hub(hub, token_file=token_file, hub_option=False) as client:
         reply = client.serial(
             port, data, baud=baud, recv=recv, timeout=timeout, parity=parity,
             stop_bits=stop_bits,

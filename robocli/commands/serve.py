@@ -24,7 +24,10 @@ if TYPE_CHECKING:
 STATUS_PERIOD_S = 0.5
 
 
-def _token(path: Path | None) -> bytes | None:
+def token_from_file(path: Path | None) -> bytes | None:
+    """The token in ``path`` (surrounding whitespace stripped: a trailing newline is not part
+    of it), None for no path; a usage error when it cannot be read or is empty. The hub
+    (``serve --token-file``) and its clients read token files alike."""
     if path is None:
         return None
     try:
@@ -69,13 +72,15 @@ def serve(
     tune_hub_process()
     srv = HubServer(
         bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=_token(token_file), max_clients=max_clients,
+        token=token_from_file(token_file), max_clients=max_clients,
     )  # fmt: skip
     with sigterm_as_interrupt():
         try:
             srv.start()
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
+            for note in _replaced(sim, pioneer, gpsd):
+                typer.echo(note, err=True)
             typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
             sys.stdout.flush()
             if sys.stdout.isatty():
@@ -86,6 +91,19 @@ def serve(
             typer.echo("hub stopped", err=True)
         finally:
             srv.close()
+
+
+def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
+    """What replaces simulated sensors when real ones are given with ``--sim``."""
+    if not sim:
+        return []
+    notes = []
+    if pioneer:
+        notes.append(f"adc and battery: from the Pioneer at {pioneer.strip()} (--pioneer "
+                     "replaces the simulated ones)")  # fmt: skip
+    if gpsd:
+        notes.append(f"gps: from gpsd at {gpsd} (--gpsd replaces the simulated one)")
+    return notes
 
 
 def status_lines(srv: HubServer) -> list[str]:

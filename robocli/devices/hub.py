@@ -37,6 +37,7 @@ from robocli.errors import (
     InvalidArgument,
     ProtocolError,
     TimeoutError,
+    TransportError,
 )
 from robocli.protocols.common import find_refusal
 from robocli.protocols.ros4mat import (
@@ -50,10 +51,15 @@ from robocli.protocols.ros4mat import (
     encode_request,
     sensor_type,
 )
-from robocli.transports import Transport, open_transport
+from robocli.transports import InvalidURL, Transport, open_transport
 
 #: Pulls whose round trips the clock filter looks at.
 CLOCK_WINDOW = 64
+#: The longest token :meth:`Hub.connect` sends (it rides in CONNECT, under the hub's 64 KiB
+#: request limit).
+MAX_TOKEN = 4096
+#: What to do when no hub listens at an address.
+NO_HUB_HINT = "start one with `robocli serve --sim`"
 #: Sensors whose subscribe params carry a ``freq_send`` (the driver's batch rate).
 _WITH_FREQ_SEND = (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.BATTERY)
 _CAMERAS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT, MsgType.KINECT_DEPTH)
@@ -137,14 +143,15 @@ def subscribe_body(
     rate: float | None = None,
     *,
     buffer: int | None = None,
-    poll: float | None = None,
+    poll: int | None = None,
     **params: Any,
 ) -> dict[str, Any]:
     """The SUBSCRIBE body the original client sends (for :func:`encode_request`).
 
     ``rate`` None: a silent subscribe (join the current settings). ``buffer`` defaults to
-    ``rate`` (one second); ``poll`` is the driver's batch rate (``freqSend``: default
-    ⌊rate/4 + 10⌋, an explicit value is clamped to ``rate``). ``params``: ``channels`` (ADC
+    ``rate`` (one second); ``poll`` is the driver's batch rate in Hz, an integer 0..65535
+    (``freqSend`` of adc, imu, gps, battery: default ⌊rate/4 + 10⌋, an explicit value is
+    clamped to ``rate``). ``params``: ``channels`` (ADC
     mask, default 0xFF); cameras ``resolution='640x480'`` or ``width``/``height``, ``id``,
     ``quality`` (0 raw, 1..100 JPEG), ``exposure``, ``roi``; stereo ``id_left``/``id_right``,
     ``exposure_left``/``exposure_right``; Kinect ``send_rgb``, ``send_depth``,
@@ -172,8 +179,10 @@ def subscribe_body(
             values["freq_send"] = send
         if kind == MsgType.ADC:
             mask = _u16("channels", extra.pop("channels", 0xFF))
-            if mask > 0xFF:
-                raise InvalidArgument(f"channels must be an 8-bit mask, not {mask:#x}")
+            if not 1 <= mask <= 0xFF:  # the CLI's rule too: a mask selects some channel
+                raise InvalidArgument(
+                    f"channels must be an 8-bit mask with a channel set (1..0xff), not {mask:#x}"
+                )
             values["channels"] = mask
     if extra:
         raise InvalidArgument(f"{next(iter(extra))}: not a setting of {kind.name.lower()}")
@@ -236,6 +245,10 @@ class Hub:
         self.hub_clock = hub_clock
         self.sync = ClockSync()
         self._subscribed: dict[str, MsgType] = {}
+        self._lost: dict[str, int] = {}
+        self._last_t: dict[str, float] = {}  # hub time of the last sample read, per sensor
+        self._period: dict[str, float] = {}  # sample period (s): asked, then as seen
+        self._since: dict[str, tuple[float, int]] = {}  # hub time of subscribing, buffer
 
     # ------------------------------------------------------------------ connecting
 
@@ -250,19 +263,32 @@ class Hub:
         client_id: int = 0,
         clock: Callable[[], float] = time.time,
         hub_clock: bool = False,
+        token: bytes | str | None = None,
     ) -> Hub:
         """Connect to the hub at ``host`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
         default 1500) and send CONNECT. ``compress``: the hub zlib-compresses every reply.
         ``client_id``: re-attach to that client's buffers. ``clock``: the client's clock
-        (seconds, like :func:`time.time`). Raises :class:`TransportError` when nobody
-        listens, :class:`TimeoutError` when the hub does not answer."""
+        (seconds, like :func:`time.time`). ``token``: the shared secret of a hub started
+        with one (``robocli serve --token-file``), sent after CONNECT's 2-byte body; a
+        ``str`` is sent UTF-8 encoded. Without it (or with a wrong one) a hub with a token
+        refuses settings changes and serial commands ("unauthorized"); pulls and silent
+        subscribes work. Raises :class:`TransportError` when nobody listens,
+        :class:`TimeoutError` when the hub does not answer."""
+        secret = _token_bytes(token)
         h, p = parse_hub(host)
         if port is not None:
             p = port
-        transport = open_transport(f"tcp://{h}:{p}", timeout=timeout)
+        try:
+            transport = open_transport(f"tcp://{h}:{p}", timeout=timeout)
+        except InvalidURL:
+            raise
+        except TransportError as exc:  # the transport's hint names robots, not hubs
+            text = str(exc)
+            reason = text.split(": ", 1)[-1].split(" (", 1)[0] if ": " in text else text
+            raise TransportError(f"no hub at {h}:{p} ({reason}); {NO_HUB_HINT}") from None
         return cls.from_transport(
             transport, compress=compress, timeout=timeout, client_id=client_id,
-            clock=clock, hub_clock=hub_clock,
+            clock=clock, hub_clock=hub_clock, token=secret or None,
         )  # fmt: skip
 
     @classmethod
@@ -275,8 +301,14 @@ class Hub:
         client_id: int = 0,
         clock: Callable[[], float] = time.time,
         hub_clock: bool = False,
+        token: bytes | str | None = None,
     ) -> Hub:
         """Like :meth:`connect` over an open transport (the hub owns it from now on)."""
+        try:
+            secret = _token_bytes(token)
+        except InvalidArgument:
+            transport.close()
+            raise
         session = Session(
             transport,
             Framer("ros4mat"),
@@ -286,15 +318,16 @@ class Hub:
             name="hub",
         )
         hello = {"protocol_version": PROTOCOL_VERSION, "compression": int(bool(compress))}
+        connect = encode_request(MsgType.CONNECT, hello, client_id=client_id)
+        if secret:  # after the 2-byte body; the header's size stays 1 record
+            connect = encode_request(
+                MsgType.CONNECT, connect[HEADER.size :] + secret, client_id=client_id
+            )
         # No reader thread: ros4mat sends nothing unasked, every reply is read by the caller
         # that asked (a lost link shows at the next request). Measured with 40 clients
         # pulling 3 sensors at 20 Hz, the idle readers' wake-ups tripled the p99 pull.
         try:
-            reply = session.request(
-                encode_request(MsgType.CONNECT, hello, client_id=client_id),
-                _is(MsgType.CONNECT_ACK),
-                timeout,
-            )
+            reply = session.request(connect, _is(MsgType.CONNECT_ACK), timeout)
             header, _ = body_of(reply)
         except ConnectionLost:
             reason = find_refusal(session.raw_tail())
@@ -348,13 +381,19 @@ class Hub:
         rate: float | None = None,
         *,
         buffer: int | None = None,
-        poll: float | None = None,
+        poll: int | None = None,
         **params: Any,
     ) -> None:
         """Subscribe to ``name`` (adc, imu, gps, battery, computer, hokuyo, camera,
-        camera_stereo, kinect) at ``rate`` Hz keeping ``buffer`` samples; no ``rate``: a
-        silent subscribe. See :func:`subscribe_body` for the settings. Raises
-        :class:`DeviceError` when the hub refuses."""
+        camera_stereo, kinect; or robocli's names sysinfo, laser, stereo, depth) at ``rate``
+        Hz keeping ``buffer`` samples; no ``rate``: a silent subscribe. See
+        :func:`subscribe_body` for the settings. Raises :class:`DeviceError` when the hub
+        refuses, :class:`InvalidArgument` for ``kinect_ir`` (ros4mat has no pull for it)."""
+        if sensor_type(name) == MsgType.KINECT_DEPTH:
+            raise InvalidArgument(
+                f"sensor: {name!r} (0x28) has no data pull in ros4mat and no hub serves it; "
+                "subscribe to 'kinect' (alias 'depth') for RGB and depth"
+            )
         body = subscribe_body(name, rate, buffer=buffer, poll=poll, **params)
         frame = raw_frame_bytes(body)
         if frame and frame * body["buffer_size"] > MAX_BODY_SIZE:
@@ -366,8 +405,16 @@ class Hub:
                 )
             body["buffer_size"] = fits  # the default (1 s) would not fit in one reply
         packet = encode_request(MsgType.SUBSCRIBE, body, client_id=self.client_id)
-        body_of(self._request(packet, MsgType.SUBSCRIBE_ACK))  # an error reply raises
-        self._subscribed[name.lower()] = sensor_type(name)
+        header, _ = body_of(self._request(packet, MsgType.SUBSCRIBE_ACK))  # errors raise
+        key = name.lower()
+        self._subscribed[key] = sensor_type(name)
+        self._last_t.pop(key, None)  # new settings: gaps from the old ones are not losses
+        self._period.pop(key, None)
+        self._since.pop(key, None)
+        if rate is not None:
+            self._period[key] = 1.0 / float(rate)
+            if header[7]:  # the hub's time of the subscription (robocli's hub sends it)
+                self._since[key] = (float(header[7]), int(body["buffer_size"]))
 
     def unsubscribe(self, name: str) -> None:
         """Stop receiving ``name`` (no reply, as in the original protocol)."""
@@ -376,6 +423,41 @@ class Hub:
             encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
         )
         self._subscribed.pop(name.lower(), None)
+        self._last_t.pop(name.lower(), None)
+
+    @property
+    def lost(self) -> dict[str, int]:
+        """Samples lost so far, by sensor name (as given to :meth:`read`): the gaps in the
+        times of the samples read, over 1.5 sample periods (the period as subscribed, then
+        as seen within a reading). ros4mat does not report them: the hub drops a client's
+        oldest samples when its buffer (``subscribe(buffer=)``) overflows between two
+        reads. Before the first sample read, samples dropped are counted from the time of
+        the subscription when the first reading fills the buffer (a hub that stamps its
+        SUBSCRIBE_ACK, as robocli's does)."""
+        return dict(self._lost)
+
+    def _count_lost(self, key: str, hub_t: np.ndarray[Any, Any]) -> int:
+        """Samples missing before and within ``hub_t`` (the hub times of one reading)."""
+        if not len(hub_t):
+            return 0
+        ts = np.asarray(hub_t, dtype=np.float64)
+        if len(ts) >= 3:  # contiguous samples (one pull): their spacing is the rate's
+            self._period[key] = float(np.median(np.diff(ts)))
+        prev = self._last_t.get(key)
+        self._last_t[key] = float(ts[-1])
+        period = self._period.get(key)
+        since = self._since.pop(key, None)
+        if prev is None and since is not None and period and len(ts) >= since[1]:
+            prev = since[0] - period  # a full first reading: it overflowed since subscribing
+        if prev is not None:
+            ts = np.concatenate(([prev], ts))
+        if period is None or not period > 0 or len(ts) < 2:
+            return 0
+        gaps = np.diff(ts) / period
+        lost = int(np.sum(np.where(gaps > 1.5, np.rint(gaps) - 1, 0)))
+        if lost:
+            self._lost[key] = self._lost.get(key, 0) + lost
+        return lost
 
     def pull(self, name: str) -> bytes:
         """One data pull of ``name``: the raw reply frame (header + body). Feeds the clock
@@ -390,10 +472,13 @@ class Hub:
 
     def read(self, name: str) -> Reading:
         """Every new sample of ``name`` since the last read (a destructive pull): a
-        :class:`Reading` that unpacks as ``data, t`` in the original client's shapes."""
+        :class:`Reading` that unpacks as ``data, t`` in the original client's shapes. Its
+        ``lost`` counts the samples the hub dropped before them (see :attr:`lost`)."""
         frame = self.pull(name)
         offset = None if self.hub_clock else (self.sync.offset or 0.0)
-        return decode_reading(frame, name.lower(), offset)
+        reading = decode_reading(frame, name.lower(), offset)
+        reading.lost = self._count_lost(name.lower(), reading.hub_t)
+        return reading
 
     def read_aligned(
         self,
@@ -411,6 +496,10 @@ class Hub:
         sample within ``tolerance`` (default: one grid step), NaN/zero where none is.
         Returns ``{"t": times, name: data (fields x M)...}``.
         """
+        if isinstance(names, str) or not names:
+            raise InvalidArgument(
+                f"read_aligned: give a list of sensor names (['adc', 'imu']), not {names!r}"
+            )
         if (rate is None) == (reference is None):
             raise InvalidArgument("read_aligned: give either rate or reference")
         if reference is not None and reference not in names:
@@ -480,6 +569,20 @@ class Hub:
 
     def __repr__(self) -> str:
         return f"<Hub {self.url} client {self.client_id}>"
+
+
+def _token_bytes(token: bytes | str | None) -> bytes:
+    """The token as sent (b"" for none); :class:`InvalidArgument` for an empty, too long or
+    non-bytes one."""
+    if token is None:
+        return b""
+    if isinstance(token, str):
+        token = token.encode()
+    if not isinstance(token, (bytes, bytearray)):
+        raise InvalidArgument(f"token must be bytes or str, not {type(token).__name__}")
+    if not token or len(token) > MAX_TOKEN:
+        raise InvalidArgument(f"token must be 1..{MAX_TOKEN} bytes, not {len(token)}")
+    return bytes(token)
 
 
 def _ignore(frame: bytes, t: float) -> None:

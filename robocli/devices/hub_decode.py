@@ -72,7 +72,10 @@ class Reading:
     Named rows and extra arrays are attributes: ``reading.accel`` (3 x N), ``.gyro``,
     ``.mag``, ``.longitude``, ``.ranges``, ``.depth``, ``.right``... (:attr:`fields` lists
     them). ``data, t = reading`` unpacks like the MATLAB call. Arrays over an uncompressed
-    reply are read-only views of the received bytes.
+    reply are read-only views of the received bytes. ``lost``: samples missing before and
+    between this reading's samples, from gaps in their times (set by
+    :meth:`~robocli.devices.hub.Hub.read`; the hub dropped them when this client's buffer
+    overflowed between pulls).
     """
 
     sensor: str
@@ -83,6 +86,7 @@ class Reading:
     info: np.ndarray[Any, Any] | None = None
     fields: dict[str, np.ndarray[Any, Any]] = field(default_factory=dict)
     nbytes: int = 0
+    lost: int = 0
 
     def __iter__(self) -> Any:
         yield self.data
@@ -106,7 +110,8 @@ def body_of(frame: bytes) -> tuple[tuple[Any, ...], bytes | memoryview]:
     payload = memoryview(frame)[HEADER_SIZE:]
     if error:
         text = bytes(payload).split(b"\0", 1)[0].decode("ascii", "replace")
-        raise DeviceError(f"hub refused {_name(mtype)}: {text or 'error ' + str(error)}", error)
+        what = _REQUEST_OF.get(mtype, _name(mtype))
+        raise DeviceError(f"hub refused {what}: {text or 'error ' + str(error)}", error)
     if size == 0 or not len(payload):
         return header, b""
     if ctype == Compression.ZLIB:
@@ -114,6 +119,14 @@ def body_of(frame: bytes) -> tuple[tuple[Any, ...], bytes | memoryview]:
     if ctype != Compression.NONE or usize != csize:
         raise ProtocolError(f"ros4mat {_name(mtype)}: bad compression fields {ctype}/{usize}")
     return header, payload
+
+
+#: An error reply has the type of the expected reply: the request it refuses, by name.
+_REQUEST_OF: dict[int, str] = {
+    MsgType.CONNECT_ACK: "CONNECT",
+    MsgType.SUBSCRIBE_ACK: "SUBSCRIBE",
+    MsgType.SERIAL_ANS: "SERIAL_CMD",
+}
 
 
 def _name(mtype: int) -> str:
@@ -299,6 +312,8 @@ def align_readings(
     tolerance: float | None = None,
 ) -> dict[str, Any]:
     """Put readings on one time base (see :meth:`Hub.read_aligned`)."""
+    if not readings:
+        raise InvalidArgument("align_readings: no readings to align")
     empty = [name for name, r in readings.items() if len(r) == 0]
     if empty:
         raise TimeoutError(f"read_aligned: no samples yet from {', '.join(empty)}")

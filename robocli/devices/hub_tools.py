@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from robocli.devices import proxy
-from robocli.devices.hub import Hub, Reading
+from robocli.devices.hub import NO_HUB_HINT, Hub, Reading
 from robocli.devices.hub_decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
 from robocli.devices.proxy import Message, RecordingProxy
 from robocli.errors import DeviceError, ProtocolError
@@ -35,6 +35,18 @@ _COLUMNS: dict[int, tuple[str, ...]] = {
     MsgType.COMPUTER: COMPUTER_ROWS,
     MsgType.BATTERY: BATTERY_ROWS,
 }
+
+
+PULLABLE: tuple[str, ...] = tuple(
+    n for n in SENSORS if n not in ("webcam", "ordinateur", "kinect_ir")
+)
+"""The ros4mat names of the sensors a client can pull (``kinect_ir``, 0x28, has no pull)."""
+
+
+INTEGER_COLUMNS = frozenset(
+    {"beams", "height", "width", "state", "n_cells", "mem_used", "mem_free", "mem_buffers"}
+)
+"""Columns of :func:`rows_of` whose values are integers on the wire (counts, sizes, states)."""
 
 
 def columns_of(sensor: str, channels: int = 0xFF) -> tuple[str, ...]:
@@ -115,7 +127,7 @@ def _head(reading: Reading, n: int) -> Reading:
     cut = {k: v[..., :n] for k, v in reading.fields.items()}
     return Reading(
         reading.sensor, reading.data[..., :n], reading.t[:n], reading.hub_t[:n],
-        reading.packet_timestamp, reading.info, cut, reading.nbytes,
+        reading.packet_timestamp, reading.info, cut, reading.nbytes, reading.lost,
     )  # fmt: skip
 
 
@@ -125,7 +137,7 @@ def survey(hub: Hub, window: float = 0.5, sensors: tuple[str, ...] | None = None
     rate and latest time; the round trip and clock offset. ros4mat has no message listing
     sensors or clients: the client id the hub assigned (max existing + 1) bounds the number
     of clients it has seen."""
-    names = sensors or tuple(n for n in SENSORS if n not in ("webcam", "ordinateur"))
+    names = sensors or PULLABLE
     active: dict[str, Any] = {}
     for name in names:
         try:
@@ -141,7 +153,8 @@ def survey(hub: Hub, window: float = 0.5, sensors: tuple[str, ...] | None = None
     for name in running:
         reading = hub.read(name)
         span = time.monotonic() - start
-        latest = reading.hub_t[-1] if len(reading) else (first[name].hub_t[-1:] or [None])[0]
+        before = first[name]
+        latest = reading.hub_t[-1] if len(reading) else before.hub_t[-1] if len(before) else None
         active[name].update(
             rate_hz=round(len(reading) / span, 1),
             samples_per_pull=len(reading),
@@ -218,10 +231,12 @@ class DumpProxy(RecordingProxy):
 
 def check_upstream(host: str, port: int, timeout: float = 2.0) -> None:
     """Raise :class:`TransportError` when nothing listens at the hub's address."""
-    proxy.check_upstream(host, port, timeout, "hub")
+    proxy.check_upstream(host, port, timeout, "hub", NO_HUB_HINT)
 
 
 __all__ = [
+    "INTEGER_COLUMNS",
+    "PULLABLE",
     "DumpProxy",
     "Message",
     "check_upstream",

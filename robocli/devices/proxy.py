@@ -15,6 +15,8 @@ Bounded: at most ``max_clients`` sessions at once (more are closed at once), one
 from __future__ import annotations
 
 import contextlib
+import errno
+import os
 import socket
 import threading
 import time
@@ -23,9 +25,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from robocli.core import Framer
-from robocli.errors import TransportError
+from robocli.errors import InvalidArgument, TransportError
 
-__all__ = ["Describe", "Message", "RecordingProxy", "check_upstream"]
+__all__ = ["Describe", "Message", "RecordingProxy", "check_upstream", "listen"]
 
 #: the deadline for a write (and how often a quiet read checks for close)
 _IO_TIMEOUT_S = 1.0
@@ -65,7 +67,7 @@ class RecordingProxy:
         self.upstream, self.on_message = upstream, on_message
         self._framer, self._max_frame, self._describe = framer, max_frame, describe
         self._lock = threading.Lock()
-        self._listener = socket.create_server((bind, port))
+        self._listener = listen(bind, port)
         self._listener.settimeout(0.25)
         self.port: int = self._listener.getsockname()[1]
         self._closing = threading.Event()
@@ -172,10 +174,51 @@ class RecordingProxy:
         self.close()
 
 
-def check_upstream(host: str, port: int, timeout: float = 2.0, what: str = "device") -> None:
-    """Raise :class:`TransportError` (``no {what} at host:port``) when nothing listens there
-    (a connection opened and closed at once)."""
+def listen(bind: str, port: int) -> socket.socket:
+    """A listening TCP socket on ``bind:port``. An address that does not resolve or is not
+    this machine's raises :class:`InvalidArgument` (a usage error); a port in use, or one
+    this process may not take, :class:`TransportError`."""
+    if not 0 <= port < 65536:
+        raise InvalidArgument(f"listen: port {port} out of range 0..65535")
+    try:
+        family, kind, proto, _, addr = socket.getaddrinfo(
+            bind, port, type=socket.SOCK_STREAM, flags=socket.AI_PASSIVE
+        )[0]
+    except (socket.gaierror, UnicodeError) as exc:
+        why = exc.strerror if isinstance(exc, socket.gaierror) else "not a host name"
+        raise InvalidArgument(
+            f"listen: cannot listen on {bind!r}: {why} (give an address of this machine, "
+            "e.g. 127.0.0.1)"
+        ) from None
+    sock = socket.socket(family, kind, proto)
+    try:
+        if os.name != "nt":  # as socket.create_server: a restarted dump rebinds at once
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        sock.bind(addr)
+        sock.listen()
+    except OSError as exc:
+        sock.close()
+        if exc.errno in (errno.EADDRINUSE, getattr(errno, "WSAEADDRINUSE", -1)):
+            raise TransportError(
+                f"port {port} is in use on {bind}: is another dump or server running?"
+            ) from None
+        if exc.errno in (errno.EADDRNOTAVAIL, getattr(errno, "WSAEADDRNOTAVAIL", -1)):
+            raise InvalidArgument(
+                f"listen: {bind} is not an address of this machine ({exc.strerror})"
+            ) from None
+        raise TransportError(f"cannot listen on {bind}:{port}: {exc.strerror or exc}") from None
+    return sock
+
+
+def check_upstream(
+    host: str, port: int, timeout: float = 2.0, what: str = "device", hint: str = ""
+) -> None:
+    """Raise :class:`TransportError` (``no {what} at host:port (reason); {hint}``) when
+    nothing listens there (a connection opened and closed at once)."""
     try:
         socket.create_connection((host, port), timeout=timeout).close()
     except OSError as exc:
-        raise TransportError(f"no {what} at {host}:{port} ({exc.strerror or exc})") from None
+        why = exc.strerror or str(exc) or type(exc).__name__
+        why = why[:1].lower() + why[1:]  # as the transports say it: "connection refused"
+        tail = f"; {hint}" if hint else ""
+        raise TransportError(f"no {what} at {host}:{port} ({why}){tail}") from None

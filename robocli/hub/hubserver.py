@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import logging
 import sys
+import threading
 from typing import Any
 
 from robocli.errors import InvalidArgument
@@ -22,7 +23,15 @@ log = logging.getLogger("robocli.hub")
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
 DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
 SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
+CONNECT_TIMEOUT_S = 10.0
+"""A connection that has not sent a complete CONNECT this long after it opened is closed:
+idle or half-sent connections must not hold the ``max_clients`` slots."""
+REFUSE_HEADROOM = 8
+"""Connections beyond ``max_clients`` answered with a ros4mat error reply ("hub full") rather
+than the serving layer's plain-text refusal line, which a ros4mat client cannot parse."""
+WATCH_PERIOD_S = 0.25  #: how often the connections are checked (handshake, oversize requests)
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
+BUSY_REASON = "hub full: too many clients"
 HUB_SWITCH_INTERVAL_S = 1e-4
 """The interpreter's thread switch interval for a process that is mainly a hub."""
 
@@ -51,7 +60,12 @@ class HubServer:
     ``send_timeout``: seconds a client may leave a reply unread before it is dropped.
     ``detached_ttl``: seconds a client gone without QUIT keeps its subscriptions and buffers
     for a reconnect with its id.
+    ``connect_timeout``: seconds a new connection has to send a complete CONNECT (or a
+    request re-attaching a detached client id) before it is closed.
     ``sources``: extra or replacement sources by sensor name.
+
+    A connection whose first request declares a body over ``max_body`` is closed within
+    :data:`WATCH_PERIOD_S`.
     """
 
     def __init__(
@@ -69,12 +83,19 @@ class HubServer:
         ring_budget: int = DEFAULT_BUDGET,
         send_timeout: float = SEND_TIMEOUT_S,
         detached_ttl: float = DETACHED_TTL_S,
+        connect_timeout: float = CONNECT_TIMEOUT_S,
         sources: dict[str, Source] | None = None,
     ) -> None:
         if max_clients < 1:
             raise InvalidArgument("max_clients must be >= 1")
         if max_body < 64:
             raise InvalidArgument("max_body must be >= 64 bytes")
+        if not connect_timeout > 0:
+            raise InvalidArgument("connect_timeout must be > 0 s")
+        self.connect_timeout = connect_timeout
+        self.max_clients = max_clients
+        self._sessions = 0  # connections admitted as clients (at most max_clients)
+        self._sessions_lock = threading.Lock()
         self.bind, self._port = bind, port
         self.serial_ports = tuple(serial_ports)
         self.gpsd, self.pioneer = gpsd, pioneer
@@ -83,22 +104,25 @@ class HubServer:
         if token is not None and not token:
             raise InvalidArgument("token must not be empty")
         self._token = token
+        self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl)
         self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
+        self._watch = Ticker(min(WATCH_PERIOD_S, connect_timeout / 4), self._watch_links,
+                             "hub-watch")  # fmt: skip
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
             self._session,
             protocol="ros4mat",
-            max_clients=max_clients,
+            max_clients=max_clients + REFUSE_HEADROOM,
             max_frame=HEADER_SIZE + max_body,
             byte_timeout=1.0,
             send_timeout=send_timeout,
             max_backlog=ring_budget + (1 << 20),
             name="hub",
-            busy_reason="hub full: too many clients",
+            busy_reason=BUSY_REASON,
         )
         self._url: str | None = None
         self.warnings: list[str] = []
@@ -108,8 +132,38 @@ class HubServer:
     def _expire(self, _now: float) -> None:
         self.hub.expire()
 
+    def _watch_links(self, now: float) -> None:
+        """Close the connections without a client: those that sent no CONNECT within
+        ``connect_timeout``, and those whose first request declared a body over
+        ``max_body`` (not a ros4mat client: the framer dropped it, no reply can name it).
+        A connected client's oversize request is skipped, as garbage is (the framer
+        resynchronises)."""
+        for link in self._server.links():
+            session = link.session
+            if not isinstance(session, Ros4matSession) or session.state is not None:
+                continue
+            if now - session.opened > self.connect_timeout:
+                log.info("%s: no CONNECT within %g s; closing", link.name, self.connect_timeout)
+                link.close()
+            elif link.stats.oversize:
+                log.info("%s: a request body over %d bytes before CONNECT; closing", link.name,
+                         self._max_body)  # fmt: skip
+                link.close()
+
     def _session(self, link: Link) -> Ros4matSession:
-        return Ros4matSession(link, self.hub, link.name, self._token, self.serial, self.pull_times)
+        with self._sessions_lock:
+            full = self._sessions >= self.max_clients
+            if not full:
+                self._sessions += 1
+        if full:  # answered in ros4mat: an error reply to each request, then closed
+            log.warning("%s refused: %s", link.name, BUSY_REASON)
+            return Ros4matSession(link, self.hub, link.name, None, None, refuse=BUSY_REASON)
+        return Ros4matSession(link, self.hub, link.name, self._token, self.serial,
+                              self.pull_times, on_end=self._session_ended)  # fmt: skip
+
+    def _session_ended(self) -> None:
+        with self._sessions_lock:
+            self._sessions -= 1
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -122,6 +176,7 @@ class HubServer:
             log.warning(msg)
         self._url = self._server.serve_tcp(self.bind, self._port)
         self._expiry.start()
+        self._watch.start()
         return self
 
     def exposure_warning(self) -> str | None:
@@ -164,6 +219,7 @@ class HubServer:
 
     def close(self) -> None:
         """Close every connection, stop every sensor (bounded). Idempotent."""
+        self._watch.close()
         self._server.close()
         self._expiry.close()
         self.hub.close()

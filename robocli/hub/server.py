@@ -26,7 +26,7 @@ import struct
 import threading
 import time
 import zlib
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 import numpy as np
@@ -133,12 +133,21 @@ class Ros4matSession:
         token: bytes | None,
         serial: Any,
         times: PullTimes | None = None,
+        *,
+        refuse: str | None = None,
+        on_end: Callable[[], None] | None = None,
     ) -> None:
         self.link, self.hub, self.peer = link, hub, peer
+        self.refuse = refuse
+        """Why every request of this connection gets an error reply (the hub is full)."""
+        self._on_end = on_end
         self._token = token
         self._serial = serial
         self._times = times or PullTimes()
         self.state: ClientState | None = None
+        self.opened = time.monotonic()
+        """When the connection opened (monotonic s): the hub closes it if it has no client
+        (:attr:`state`) ``connect_timeout`` s later."""
 
     # ---------------------------------------------------------------- replies
 
@@ -174,6 +183,12 @@ class Ros4matSession:
     # ---------------------------------------------------------------- session protocol
 
     def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        if self.refuse is not None:  # an error reply the original client can read
+            kind = frame[0] if frame else 0
+            if kind == MsgType.QUIT:
+                self.link.close()
+                return None
+            return self._error(_REPLY_TYPES.get(kind, kind), self.refuse)
         try:
             return self._handle(frame)
         except (ProtocolError, DeviceError, InvalidArgument) as exc:
@@ -181,6 +196,8 @@ class Ros4matSession:
             return self._error(_REPLY_TYPES.get(kind, kind), str(exc))
 
     def on_close(self) -> None:
+        if self._on_end is not None:
+            self._on_end()
         if self.state is not None:
             self.hub.detach(self.state)
             log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)

@@ -108,6 +108,19 @@ def test_no_hub_exits_3_with_a_hint() -> None:
     assert err.count("\n") == 1 and "robocli serve --sim" in err
 
 
+@pytest.mark.parametrize("args", [
+    ("dump", "hub", "127.0.0.1:1", "--listen", "127.0.0.1:0"),
+    ("bench", "rtt", "--target", "hub", "--url", "127.0.0.1:1"),
+    ("bench", "throughput", "--url", "127.0.0.1:1"),
+    ("connect", "hub", "127.0.0.1:1", "--once"),
+])  # fmt: skip
+def test_every_hub_command_says_how_to_start_a_hub(args: tuple[str, ...]) -> None:
+    code, out, err = finish(cli(*args))
+    assert code == 3 and err.count("\n") == 1, err
+    assert "no hub at 127.0.0.1:1" in err and "robocli serve --sim" in err, err
+    assert "sim pioneer" not in err and "robot" not in err, err
+
+
 def test_usage_errors_exit_2(server: HubServer) -> None:
     hub = f"127.0.0.1:{server.port}"
     for args in (
@@ -139,6 +152,7 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     imu = info["sensors"]["imu"]
     assert imu["active"] and 50 <= imu["rate_hz"] <= 200
     assert info["sensors"]["camera_stereo"]["active"] is False
+    assert "kinect_ir" not in info["sensors"]  # 0x28: no pull, no hub serves it
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
 
@@ -227,3 +241,151 @@ def test_a_reader_that_leaves_ends_subscribe_quietly(server: HubServer) -> None:
     proc = subprocess.run(["bash", "-c", line], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 0 and proc.stderr == ""
     assert len(proc.stdout.splitlines()) == 3
+
+
+def test_dump_listen_in_use_exits_3_and_a_bad_address_2_in_one_line(server: HubServer) -> None:
+    hub = f"127.0.0.1:{server.port}"
+    code, out, err = finish(cli("dump", "hub", hub, "--listen", hub))
+    assert code == 3 and out == "" and err.count("\n") == 1, err
+    assert f"port {server.port} is in use" in err
+    for bad in ("garbage.invalid", "192.0.2.1:0"):
+        code, out, err = finish(cli("dump", "hub", hub, "--listen", bad))
+        assert code == 2 and err.count("\n") == 1 and "Traceback" not in err, err
+
+
+def _children(pid: int) -> list[int]:
+    """The pids of ``pid``'s child processes (Linux /proc)."""
+    kids = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                kids.append(int(entry.name))
+    return kids
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs Linux /proc")
+def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
+    """Ctrl-C on a terminal reaches the whole process group, the client workers included:
+    they stay quiet and the parent stops them."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "bench", "throughput", "--clients", "2",
+         "--seconds", "30", "--sensors", "imu"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
+        start_new_session=True,
+    )  # fmt: skip
+    try:
+        end = time.monotonic() + 60
+        while len(_children(proc.pid)) < 2 and time.monotonic() < end:  # hub + a worker
+            time.sleep(0.1)
+        kids = _children(proc.pid)
+        assert len(kids) >= 2, kids
+        time.sleep(1.0)  # the workers' clients are running
+        os.killpg(proc.pid, signal.SIGINT)
+        code, out, err = finish(proc, 30)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait(10)
+    assert code == 130 and err.strip() == "robocli: interrupted", err
+    time.sleep(0.5)
+    assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # no worker left behind
+
+
+def test_token_file_for_a_hub_that_has_one(tmp_path: Path) -> None:
+    """``--token-file`` (or $ROBOCLI_HUB_TOKEN_FILE), read as ``serve --token-file`` reads
+    it: the right token subscribes, a wrong or missing one exits 4 "unauthorized"."""
+    right, wrong = tmp_path / "right", tmp_path / "wrong"
+    right.write_text("s3cret\n")
+    wrong.write_text("guess\n")
+    with HubServer(bind="127.0.0.1", port=0, sim=True, token=b"s3cret") as srv:
+        args = ("subscribe", "adc", "--rate", "50", "--hub", f"127.0.0.1:{srv.port}",
+                "--count", "3", "--format", "csv")  # fmt: skip
+        code, out, err = finish(cli(*args, "--token-file", str(right)))
+        assert code == 0 and len(out.splitlines()) == 4, err
+        code, out, err = finish(cli(*args, env={"ROBOCLI_HUB_TOKEN_FILE": str(right)}))
+        assert code == 0 and len(out.splitlines()) == 4, err
+        for extra in (("--token-file", str(wrong)), ()):
+            code, out, err = finish(cli(*args, *extra))
+            assert code == 4 and err.count("\n") == 1 and "unauthorized" in err, err
+        code, out, err = finish(cli(*args, "--token-file", str(tmp_path / "none")))
+        assert code == 2 and err.count("\n") == 1 and "cannot read" in err, err
+
+
+def test_subscribe_says_how_many_samples_the_hub_dropped(server: HubServer) -> None:
+    code, out, err = finish(cli("subscribe", "adc", "--rate", "1000", "--buffer", "10",
+                                "--poll", "2", "--duration", "1.2", "--format", "csv",
+                                "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+    assert code == 0, err
+    rows = len(out.splitlines()) - 1
+    last = err.strip().splitlines()[-1]
+    assert "adc samples lost (gaps in their times)" in last and "--buffer" in last, err
+    assert 500 < int(last.split()[1]) <= 1300 - rows, err
+
+
+def test_poll_is_an_integer_in_hz_as_the_protocol_field_is(server: HubServer) -> None:
+    code, out, err = finish(cli("subscribe", "--help"))
+    assert code == 0, err
+    poll = out[out.index("--poll") :].split("--channels")[0]
+    assert "INTEGER" in poll and "Hz" in poll and "1<=x<=65535" in poll, poll
+    code, _, err = finish(cli("subscribe", "adc", "--rate", "100", "--poll", "0.5",
+                              "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+    assert code == 2 and err.count("\n") == 1 and "--poll" in err, err
+
+
+def test_subscribe_names_the_aliases_and_refuses_kinect_ir_and_an_empty_mask() -> None:
+    code, out, err = finish(cli("subscribe", "--help"))
+    assert code == 0, err
+    for alias in ("computer", "hokuyo", "camera_stereo", "kinect"):
+        assert alias in out, out
+    for args in (("kinect_ir", "--rate", "5"), ("adc", "--rate", "5", "--channels", "0")):
+        code, out, err = finish(cli("subscribe", *args, "--hub", "127.0.0.1:1"))
+        assert code == 2 and err.count("\n") == 1, err  # refused before connecting
+    code, _, err = finish(cli("subscribe", "sonar", "--rate", "5", "--hub", "127.0.0.1:1"))
+    assert "kinect_ir" not in err and "hokuyo" in err, err
+
+
+def test_connect_hub_output_without_data_and_json_lines_when_repeating() -> None:
+    with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:
+        hub = f"127.0.0.1:{srv.port}"
+        code, out, err = finish(cli("connect", "hub", hub, "--once", "--window", "0.1"))
+        assert code == 0, err
+        assert "None" not in out and "rtt -" in out, out  # nothing running: nothing pulled
+        with Hub.connect(hub) as other:
+            other.subscribe("gps", 1)  # running, at times with no sample in a window
+            _connect_hub_json_lines(hub)
+
+
+def _connect_hub_json_lines(hub: str) -> None:
+    proc = cli("connect", "hub", hub, "--json", "--window", "0.1")
+    assert proc.stdout is not None
+    lines = [proc.stdout.readline() for _ in range(2)]
+    proc.send_signal(signal.SIGINT)
+    code, _, err = finish(proc)
+    assert code == 130, err
+    for line in lines:  # JSON Lines: one compact object per line
+        assert json.loads(line)["protocol_version"] == 3, lines
+
+
+def _not_json(name: str) -> None:
+    raise AssertionError(f"{name} is not JSON")
+
+
+def test_jsonl_rows_are_strict_json_with_integers_as_ints(server: HubServer) -> None:
+    hub = f"127.0.0.1:{server.port}"
+    for sensor, key in (("camera", "height"), ("sysinfo", "mem_used"), ("laser", "beams")):
+        code, out, err = finish(cli("subscribe", sensor, "--rate", "5", "--hub", hub,
+                                    "--count", "1", "--format", "jsonl"))  # fmt: skip
+        assert code == 0, err
+        row = json.loads(out.splitlines()[0], parse_constant=_not_json)
+        assert isinstance(row[key], int), row
+
+
+def test_dump_output_it_cannot_write_is_a_usage_error(server: HubServer) -> None:
+    hub = f"127.0.0.1:{server.port}"
+    for path in ("/nonexistent/x.jsonl", "/tmp/capture.txt"):
+        code, _, err = finish(cli("dump", "hub", hub, "--listen", "127.0.0.1:0", "-o", path))
+        assert code == 2 and err.count("\n") == 1 and "--output" in err, err

@@ -149,6 +149,9 @@ def test_read_aligned(server: HubServer, hub: Hub) -> None:
     assert ref["imu"].shape[1] == len(ref["t"]) and ref["adc"].shape == (8, len(ref["t"]))
     with pytest.raises(InvalidArgument, match="rate or reference"):
         hub.read_aligned(["adc"], rate=10, reference="adc")
+    for names in ([], "adc"):
+        with pytest.raises(InvalidArgument, match="list of sensor names"):
+            hub.read_aligned(names, rate=10)  # type: ignore[arg-type]
 
 
 def test_clock_offset_within_half_a_millisecond(server: HubServer) -> None:
@@ -190,11 +193,60 @@ def test_unsubscribe_digital_out_and_refusals(server: HubServer, hub: Hub) -> No
         hub.read("adc")
     with pytest.raises(InvalidArgument, match="rate"):
         hub.subscribe("adc", 0)
+    with pytest.raises(InvalidArgument, match="channels"):  # as `--channels 0`
+        hub.subscribe("adc", 100, channels=0)
+    with pytest.raises(InvalidArgument, match="kinect"):  # 0x28: ros4mat has no pull for it
+        hub.subscribe("kinect_ir", 10)
 
 
 def test_no_hub_is_a_transport_error() -> None:
-    with pytest.raises(TransportError):
+    with pytest.raises(TransportError, match=r"no hub at 127\.0\.0\.1:1 .*robocli serve --sim"):
         Hub.connect("127.0.0.1", 1, timeout=2.0)
+
+
+def test_samples_the_hub_dropped_for_a_small_buffer_are_counted(server: HubServer) -> None:
+    """ros4mat does not say what the hub dropped: the client counts the gaps in the sample
+    times, per reading and per sensor, the ones before the first sample included."""
+    with Hub.connect("127.0.0.1", server.port) as h:
+        h.subscribe("adc", 1000, buffer=10)
+        start = time.monotonic()
+        got = lost_in_readings = 0
+        for _ in range(3):
+            time.sleep(0.3)
+            r = h.read("adc")
+            got += len(r)
+            lost_in_readings += r.lost
+        span = time.monotonic() - start
+        assert got <= 30 and lost_in_readings == h.lost["adc"]
+        assert 0.7 * (span * 1000 - got) <= h.lost["adc"] <= span * 1000 + 50, (got, h.lost)
+        h.subscribe("imu", 200)  # a buffer of 1 s, pulled often: nothing lost
+        for _ in range(10):
+            time.sleep(0.05)
+            assert h.read("imu").lost == 0
+        assert "imu" not in h.lost
+
+
+def test_a_refusal_names_the_request(server: HubServer, hub: Hub) -> None:
+    with pytest.raises(DeviceError, match=r"^hub refused SUBSCRIBE: silent subscribe"):
+        hub.subscribe("gps")  # silent, and nobody runs it
+
+
+def test_the_token_of_a_hub_that_has_one() -> None:
+    """``token=`` goes after CONNECT's 2-byte body: with it settings change; without it,
+    or with a wrong one, the hub says "unauthorized" (pulls and silent subscribes work)."""
+    with HubServer(bind="127.0.0.1", port=0, sim=True, token=b"s3cret") as srv:
+        with Hub.connect("127.0.0.1", srv.port, token="s3cret") as owner:
+            owner.subscribe("adc", 200)
+            assert len(wait_for(lambda: owner.read("adc"), 2))
+            for token in (None, b"guess"):
+                with Hub.connect("127.0.0.1", srv.port, token=token) as other:
+                    with pytest.raises(DeviceError, match="unauthorized"):
+                        other.subscribe("adc", 100)
+                    other.subscribe("adc")  # silent: joins, changes nothing
+                    assert len(wait_for(lambda o=other: o.read("adc"), 2))
+    for bad in (b"", "x" * 5000):
+        with pytest.raises(InvalidArgument, match="token"):
+            Hub.connect("127.0.0.1", srv.port, token=bad)
 
 
 def test_a_full_hub_says_so() -> None:

@@ -63,3 +63,41 @@ def test_serial_cli(pty_hub: tuple[HubServer, str, int]) -> None:
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "41 42 43"
+
+
+def test_serial_timeout_range_is_the_hubs_cap() -> None:
+    from robocli.commands.hub import SERIAL_MAX_WAIT_S
+    from robocli.hub.sources.real import MAX_SERIAL_WAIT_S
+
+    assert SERIAL_MAX_WAIT_S == MAX_SERIAL_WAIT_S
+    proc = subprocess.run(
+        [sys.executable, "-m", "robocli", "serial", "127.0.0.1:1", "/dev/ttyS0", "--timeout",
+         str(MAX_SERIAL_WAIT_S + 1)],
+        capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1, proc.stderr
+    assert "--timeout" in proc.stderr
+
+
+def test_a_client_queued_behind_others_hears_busy(pty_hub: tuple[HubServer, str, int]) -> None:
+    """Commands on the hub's serial ports run one at a time; one that waited
+    SERIAL_QUEUE_S for the others gets "busy" rather than no answer at all."""
+    srv, name, _master = pty_hub  # nobody answers on the pty: every read waits its timeout
+    results: list[object] = []
+
+    def user() -> None:
+        with Hub.connect("127.0.0.1", srv.port) as hub:
+            try:
+                results.append(hub.serial(name, b"?", recv=1, timeout=4.5))
+            except DeviceError as exc:
+                results.append(exc)
+
+    users = [threading.Thread(target=user) for _ in range(3)]
+    for u in users:
+        u.start()
+    for u in users:
+        u.join(30)
+    assert len(results) == 3
+    assert results.count(b"") == 1, results  # the first: its read timed out, nothing came
+    busy = [r for r in results if isinstance(r, DeviceError)]
+    assert len(busy) == 2 and all("busy" in str(e) for e in busy), results

@@ -45,3 +45,18 @@ def test_the_shared_proxy_checks_its_framer_and_says_why_it_could_not_relay() ->
             client.settimeout(5.0)
             assert client.recv(16) == b""
         assert isinstance(proxy.upstream_error, ConnectionRefusedError)
+
+
+def test_a_listen_address_in_use_or_unresolvable_is_a_typed_error(server: HubServer) -> None:
+    """Where the proxy listens is the user's: a name that does not resolve or is not this
+    machine's is a usage error (InvalidArgument), a port in use a TransportError; no
+    OSError escapes (``dump hub`` and ``dump arm --listen`` both listen through it)."""
+    from robocli.devices.proxy import RecordingProxy
+    from robocli.errors import InvalidArgument, TransportError
+
+    upstream = ("127.0.0.1", server.port)
+    with pytest.raises(TransportError, match=f"port {server.port} is in use"):
+        DumpProxy(upstream, print, port=server.port)
+    for bind in ("garbage.invalid", "256.1.1.1", "192.0.2.1"):  # the last: TEST-NET, not ours
+        with pytest.raises(InvalidArgument, match="listen"):
+            RecordingProxy(upstream, print, framer="sm-le", bind=bind)

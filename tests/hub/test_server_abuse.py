@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import random
+import socket
 import struct
 import threading
 import time
@@ -11,6 +12,7 @@ import tracemalloc
 from typing import Any
 
 import numpy as np
+import pytest
 
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
@@ -79,6 +81,46 @@ def test_malformed_input_does_not_disturb_a_streaming_client(
     assert len(t) > 50 and np.allclose(np.diff(t), 1 / 500, rtol=1e-3)  # not one lost
     info = {c.id: c for c in hub.clients}[good.client_id]
     assert info.dropped == 0
+
+
+def test_idle_connections_do_not_hold_the_slots(raw: Any) -> None:
+    """Connections that never send CONNECT are closed after ``connect_timeout``: two of them
+    held a 2-client hub "full" for good."""
+    from robocli import Hub
+    from robocli.errors import DeviceError
+
+    with HubServer(port=0, max_clients=2, connect_timeout=2.0) as srv:
+        idle = [socket.create_connection(("127.0.0.1", srv.port), timeout=10) for _ in range(2)]
+        idle[1].sendall(_header(0x01, 1, 2, 2)[:10])  # half a CONNECT header, then nothing
+        time.sleep(0.1)
+        try:
+            with pytest.raises(DeviceError, match="hub full"):
+                Hub.connect("127.0.0.1", srv.port).close()
+            start = time.monotonic()
+            for sock in idle:
+                assert sock.recv(64) == b""  # closed by the hub
+            assert time.monotonic() - start < 5
+            with Hub.connect("127.0.0.1", srv.port) as hub:  # a slot is free again
+                hub.subscribe("adc", 100)
+        finally:
+            for sock in idle:
+                sock.close()
+
+
+def test_an_oversize_body_before_connect_closes_the_connection(
+    hub: HubServer, client_factory: Any
+) -> None:
+    """A first request announcing more than the hub accepts (64 KiB) is no ros4mat client:
+    closed at once (not after the CONNECT timeout); a connected client's is skipped
+    (above)."""
+    good, bad = client_factory(), client_factory()
+    good.connect()
+    assert good.subscribe("adc", ADC_FAST, buffer=5000).error == 0
+    start = time.monotonic()
+    bad.send(_header(0x01, 1, 0xFFFFFFFF, 0xFFFFFFFF))
+    assert bad.sock.recv(64) == b""
+    assert time.monotonic() - start < 5  # the CONNECT timeout is 10 s
+    assert good.pull("adc").error == 0
 
 
 def test_token_guards_settings_and_serial(raw: Any, wait: Any) -> None:
@@ -196,3 +238,17 @@ def test_random_request_bodies_get_typed_replies(hub: HubServer, client_factory:
             c.client_id = reply.client_id
     assert hub.link_stats.session_errors == 0
     assert c.connect() >= 1
+
+
+def test_a_full_hub_refuses_in_ros4mat(raw: Any) -> None:
+    """One client too many gets a ros4mat error reply (CONNECT_ACK with error text), which
+    a ros4mat client can parse, not a plain text line; the client inside is served."""
+    with HubServer(port=0, max_clients=1) as srv:
+        inside, extra = raw(srv.port), raw(srv.port)
+        inside.connect()
+        reply = extra.request(r4m.MsgType.CONNECT, bytes([r4m.PROTOCOL_VERSION, 0]))
+        assert reply.msg_type == r4m.MsgType.CONNECT_ACK and reply.error
+        assert "hub full" in reply.error_text
+        assert inside.subscribe("adc", ADC_FAST).error == 0
+        extra.close()
+        inside.close()

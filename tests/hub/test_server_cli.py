@@ -85,6 +85,37 @@ def test_serve_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture
     assert main(["serve", "--port", "0", "--token-file", str(tmp_path / "none")]) == 2
     err = capsys.readouterr().err
     assert len(err.strip().splitlines()) == 1 and "cannot read" in err
+    for url in ("bogus://x", "tcp://host", "tcp://host:99999"):  # never works: refused now
+        assert main(["serve", "--port", "0", "--pioneer", url]) == 2
+        err = capsys.readouterr().err
+        assert len(err.strip().splitlines()) == 1 and "pioneer" in err, err
+
+
+def test_a_pioneer_url_is_checked_when_the_hub_is_made() -> None:
+    from robocli.errors import InvalidArgument
+    from robocli.hub import HubServer
+
+    with pytest.raises(InvalidArgument, match="unknown URL scheme 'bogus'"):
+        HubServer(port=0, sim=True, pioneer="bogus://x")
+    HubServer(port=0, sim=False, pioneer="tcp://127.0.0.1:1").close()  # away: retried later
+
+
+def test_serve_says_which_sensors_the_pioneer_replaces() -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "robocli", "serve", "--sim", "--port", "0", "--pioneer",
+         "tcp://127.0.0.1:1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONUNBUFFERED": "1"},
+    )  # fmt: skip
+    try:
+        Lines(proc).until("hub serving ", 30.0)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(TIMEOUT)
+    assert "adc and battery: from the Pioneer at tcp://127.0.0.1:1" in err, err
 
 
 @pytest.mark.skipif(shutil.which("script") is None, reason="needs script(1) for a terminal")

@@ -39,6 +39,9 @@ MAX_LINE = 64 * 1024  #: longest gpsd JSON line accepted
 MAX_QUEUED = 1024  #: gpsd fixes kept between polls
 MAX_SERIAL_READ = 4096  #: bytes one SERIAL_CMD may read
 MAX_SERIAL_WAIT_S = 5.0  #: longest read timeout honoured (ros4mat's receive timeout)
+SERIAL_QUEUE_S = 3.0
+"""A SERIAL_CMD waits this long for the commands ahead of it, then is refused "busy" (an
+answer well within the client's patience, rather than none)."""
 
 
 def parse_host_port(text: str, default_port: int) -> tuple[str, int]:
@@ -292,7 +295,12 @@ class SerialPorts:
         name = bytes(req["port"]).split(b"\0", 1)[0].decode("ascii", "replace")
         if name not in self.allowed:
             raise DeviceError(f"serial port {name!r} is not served by this hub")
-        with self._lock:
+        if not self._lock.acquire(timeout=SERIAL_QUEUE_S):
+            raise DeviceError(
+                f"serial port {name!r} busy: other clients' commands held the hub's serial "
+                f"ports for {SERIAL_QUEUE_S:g} s; retry"
+            )
+        try:
             try:
                 port = self._port(name, cmd)
             except (OSError, ValueError) as exc:
@@ -307,6 +315,8 @@ class SerialPorts:
             finally:
                 if cmd["close_after"]:
                     self._close(name)
+        finally:
+            self._lock.release()
 
     def _port(self, name: str, cmd: Mapping[str, Any]) -> Any:
         import serial
