@@ -18,15 +18,13 @@ from __future__ import annotations
 
 import contextlib
 import json
-import selectors
-import subprocess
 import sys
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robocli.benchmarks import Run
+from robocli.benchmarks import Run, child_process, wait_for_stdin_eof
 from robocli.errors import DeviceError, InvalidArgument, TransportError
 from robocli.protocols.simple_message import PORT_MOTION, SpecialSeq
 
@@ -114,27 +112,11 @@ def sim_process(paper: bool = False, state_ms: float = BENCH_STATE_MS, profile: 
     stops at the end of its stdin; it is terminated, then killed, if it does not."""
     options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu}
     code = "from robocli.arm_bench import _child_main; _child_main()"
-    proc = subprocess.Popen([sys.executable, "-c", code, json.dumps(options)],
-                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-                            start_new_session=True)  # fmt: skip
-    assert proc.stdin is not None and proc.stdout is not None
-    try:
-        with selectors.DefaultSelector() as sel:
-            sel.register(proc.stdout, selectors.EVENT_READ)
-            line = proc.stdout.readline().split() if sel.select(timeout) else []
+    with child_process(code, json.dumps(options), timeout=timeout) as (_, first):
+        line = first.split()
         if len(line) != 3:
             raise TransportError(f"the ABB simulator process did not start within {timeout:g} s")
         yield line[0], int(line[1]), int(line[2])
-    finally:
-        with contextlib.suppress(OSError):
-            proc.stdin.close()
-        for stop in (None, proc.terminate, proc.kill):
-            if stop is not None:
-                stop()
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(1.0)
-                break
-        proc.stdout.close()
 
 
 def _child_main() -> None:
@@ -154,4 +136,4 @@ def _child_main() -> None:
         motion, state = sim.serve_tcp("127.0.0.1", 0, 0)
         ports = [u.rsplit(":", 1)[1] for u in (motion, state)]
         print("127.0.0.1", *ports, flush=True)
-        sys.stdin.read()
+        wait_for_stdin_eof()

@@ -15,6 +15,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import selectors
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
@@ -116,6 +119,50 @@ def histogram(
         + "#" * max(int(c) and 1, round(width * int(c) / top))
         for i, c in enumerate(counts)
     ]
+
+
+@contextlib.contextmanager
+def child_process(
+    code: str, *args: str, timeout: float = 20.0
+) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """A Python child running ``code`` (``args`` as its argv), stdin and stdout piped, in its
+    own session (a Ctrl-C reaches only us; we stop it). Yields it and the first line it
+    printed within ``timeout`` s ("" if none). On the way out: the end of its stdin (children
+    wait for it: :func:`wait_for_stdin_eof`), then SIGTERM, then SIGKILL, 1 s each."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+        text=True, start_new_session=True,
+    )  # fmt: skip
+    try:
+        yield proc, read_line(proc, timeout)
+    finally:
+        with contextlib.suppress(OSError):
+            if proc.stdin is not None:
+                proc.stdin.close()
+        for stop in (None, proc.terminate, proc.kill):
+            if stop is not None:
+                stop()
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(1.0)
+                break
+        if proc.stdout is not None:
+            proc.stdout.close()
+
+
+def read_line(proc: subprocess.Popen[str], timeout: float) -> str:
+    """The next line a child prints within ``timeout`` s, stripped ("" if none)."""
+    assert proc.stdout is not None
+    with selectors.DefaultSelector() as sel:
+        sel.register(proc.stdout, selectors.EVENT_READ)
+        ready = sel.select(timeout)
+    return proc.stdout.readline().strip() if ready else ""
+
+
+def wait_for_stdin_eof() -> None:
+    """Block until standard input ends: how a benchmark's child process learns that its
+    parent is done (or gone). Reads in fixed chunks, so a chatty parent costs no memory."""
+    while sys.stdin.buffer.read(4096):
+        pass
 
 
 # ---------------------------------------------------------------------------- CPUs

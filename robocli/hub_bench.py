@@ -19,7 +19,6 @@ import contextlib
 import json
 import os
 import random
-import selectors
 import subprocess
 import sys
 import threading
@@ -30,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.benchmarks import Run
+from robocli.benchmarks import Run, child_process, read_line
 from robocli.errors import RobocliError, TransportError
 
 #: Sensor (as the bench names it) -> (ros4mat name, subscribe arguments).
@@ -69,49 +68,19 @@ class HubProcess:
             self.proc.stdin.flush()
         except OSError:
             return None
-        line = _readline(self.proc, timeout)
+        line = read_line(self.proc, timeout)
         return int(json.loads(line)["dropped"]) if line.startswith("{") else None
 
 
 @contextlib.contextmanager
 def hub_process(timeout: float = 20.0) -> Iterator[HubProcess]:
-    """A simulated hub in a child process, stopped at the end of its stdin (else SIGKILL
-    after 2 s)."""
+    """A simulated hub in a child process (:func:`~robocli.benchmarks.child_process`: it
+    stops at the end of its stdin)."""
     code = "from robocli.hub_bench import _hub_child; _hub_child()"
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
-        start_new_session=True,
-    )  # fmt: skip
-    assert proc.stdin is not None and proc.stdout is not None
-    try:
-        line = _readline(proc, timeout)
+    with child_process(code, timeout=timeout) as (proc, line):
         if not line.startswith("tcp://"):
             raise TransportError(f"the hub process did not start within {timeout:g} s {line}")
         yield HubProcess(line, proc.pid, proc)
-    finally:
-        _stop(proc)
-
-
-def _readline(proc: subprocess.Popen[str], timeout: float) -> str:
-    assert proc.stdout is not None
-    with selectors.DefaultSelector() as sel:
-        sel.register(proc.stdout, selectors.EVENT_READ)
-        ready = sel.select(timeout)
-    return proc.stdout.readline().strip() if ready else ""
-
-
-def _stop(proc: subprocess.Popen[str]) -> None:
-    """End of stdin stops the hub at once; one that does not within 2 s is killed."""
-    with contextlib.suppress(OSError):
-        if proc.stdin is not None:
-            proc.stdin.close()
-    try:
-        proc.wait(2.0)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.wait(2.0)
-    if proc.stdout is not None:
-        proc.stdout.close()
 
 
 def _hub_child() -> None:

@@ -77,42 +77,17 @@ def pioneer_sim_process(cpu: int | None = None, timeout: float = 20.0) -> Iterat
     when given), so that a benchmark measures the client against a server that does not
     share its interpreter. The child ignores Ctrl-C (the parent stops it: end of its stdin,
     then SIGTERM, then SIGKILL, each bounded)."""
-    import selectors
-    import subprocess
-    import sys
-
+    from robocli.benchmarks import child_process
     from robocli.errors import TransportError
 
     code = "from robocli.commands._common import sim_child_main; sim_child_main()"
-    args = [sys.executable, "-c", code, "" if cpu is None else str(cpu)]
-    proc = subprocess.Popen(
-        args, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, start_new_session=True
-    )
-    assert proc.stdin is not None and proc.stdout is not None  # both are pipes
-    try:
-        with selectors.DefaultSelector() as sel:
-            sel.register(proc.stdout, selectors.EVENT_READ)
-            ready = sel.select(timeout)
-        line = proc.stdout.readline().strip() if ready else ""
+    with child_process(code, "" if cpu is None else str(cpu), timeout=timeout) as (_, line):
         if not line.startswith("tcp://"):
             raise TransportError(
                 f"the simulator process did not start within {timeout:g} s"
                 + (f": {line}" if line else "")
             )
         yield line
-    finally:
-        with contextlib.suppress(OSError):
-            proc.stdin.close()  # the child stops at the end of its stdin
-        try:
-            proc.wait(0.5)  # a serving child exits at once; one still starting is terminated
-        except subprocess.TimeoutExpired:
-            proc.terminate()
-            try:
-                proc.wait(1.0)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait(1.0)
-        proc.stdout.close()
 
 
 def sim_child_main() -> None:
@@ -125,11 +100,12 @@ def sim_child_main() -> None:
     cpu = sys.argv[1] if len(sys.argv) > 1 else ""
     if cpu and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {int(cpu)})  # before any thread starts: they all inherit it
+    from robocli.benchmarks import wait_for_stdin_eof
     from robocli.sim.pioneer import PioneerSim
 
     with PioneerSim() as simulator:
         print(simulator.serve_tcp("127.0.0.1", 0), flush=True)
-        sys.stdin.read()  # until the parent closes the pipe (or dies)
+        wait_for_stdin_eof()  # until the parent closes the pipe (or dies)
 
 
 @contextlib.contextmanager

@@ -30,10 +30,18 @@ def token_from_file(path: Path | None) -> bytes | None:
     (``serve --token-file``) and its clients read token files alike."""
     if path is None:
         return None
+    from robocli.devices.hub import MAX_TOKEN
+
     try:
-        token = path.read_bytes().strip()
+        with path.open("rb") as f:  # bounded: a token is short, /dev/zero is not
+            token = f.read(MAX_TOKEN + 64).strip()
     except OSError as exc:
         raise typer.BadParameter(f"cannot read {path}: {exc.strerror or exc}") from None
+    if len(token) > MAX_TOKEN:
+        raise typer.BadParameter(
+            f"{path} holds more than a token ({MAX_TOKEN} bytes at most)",
+            param_hint="'--token-file'",
+        )
     if not token:
         raise typer.BadParameter(f"{path} is empty", param_hint="'--token-file'")
     return token

@@ -137,3 +137,18 @@ def test_serve_on_a_terminal_shows_a_live_table() -> None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(TIMEOUT)
     assert any("robocli hub on tcp://" in line for line in lines.seen)
+
+
+def test_a_token_file_is_read_in_bounded_memory(tmp_path: Path) -> None:
+    """A token file is short; one that never ends (here /dev/zero) is refused, not read."""
+    import typer
+
+    from robocli.commands.serve import token_from_file
+
+    endless = tmp_path / "token"
+    endless.symlink_to("/dev/zero")
+    with pytest.raises(typer.BadParameter, match="more than a token"):
+        token_from_file(endless)
+    short = tmp_path / "short"
+    short.write_bytes(b"s3cret\n")
+    assert token_from_file(short) == b"s3cret"
