@@ -1,0 +1,135 @@
+"""Packaging as a user or a packager meets it: the sdist ships every tracked file (the tests'
+data, fuzz/, specs/) and runs the tests it ships.
+
+The sdist is built once for this module, from a copy of this checkout, with ``build
+--no-isolation``: the setuptools and cffi of this venv (the test extra installs build and
+setuptools), no network, a few seconds. The wheel PyPI accepts (manylinux, abi3) is checked
+by ``make dist-check``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+import tarfile
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("build", reason="build is not installed: pip install -e '.[test]'")
+
+ROOT = Path(__file__).resolve().parents[1]
+TIMEOUT = 300  # s; bounds a hung build only: a build takes seconds
+# tracked files that stay out of the sdist: CI's own files
+NOT_SHIPPED = (".ci/", ".github/", ".gitignore")
+# tests that read tests/data and fuzz/ (at import or in the test), run from the unpacked sdist
+SHIPPED_TESTS = (
+    "tests/hub/test_server.py::test_original_client_bytes_are_served",  # original_client.hex
+    "tests/sim/test_laser_sim.py::test_reflectors_follow_the_lms200_rules",  # laser_room.map
+    "tests/test_fuzz_smoke.py::test_every_target_is_runnable",  # fuzz/
+)
+
+
+def _run(
+    argv: list[str], cwd: Path | None = None, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=TIMEOUT,
+        stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+
+
+def _in_git() -> bool:
+    return shutil.which("git") is not None and (ROOT / ".git").exists()
+
+
+def _git(*args: str) -> list[str]:
+    """NUL-separated paths from git in this checkout."""
+    proc = _run(["git", "-C", str(ROOT), *args, "-z"])
+    assert proc.returncode == 0, proc.stderr
+    return [p for p in proc.stdout.split("\0") if p]
+
+
+# what a developer's checkout holds besides its sources: the compiled core and its C file,
+# the C test binaries, objects and caches; none of them may reach the sdist
+ARTEFACTS = (
+    "robocli/_core.abi3.so", "robocli/_core.c", "robocli/__pycache__/cli.cpython-311.pyc",
+    "csrc/test_core", "csrc/test_core_asan", "csrc/test_bench", "csrc/test_bench_asan",
+    "csrc/checksum.o", "tests/__pycache__/conftest.cpython-311.pyc",
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def sdist(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The sdist of this checkout. Built from a copy of the files git does not ignore, with
+    the usual build artefacts added: setuptools merges a stale robocli.egg-info/SOURCES.txt
+    of the checkout into the sdist, which would hide a file that MANIFEST.in misses."""
+    src = ROOT
+    if _in_git():
+        src = tmp_path_factory.mktemp("checkout")
+        for name in _git("ls-files", "--cached", "--others", "--exclude-standard"):
+            if (ROOT / name).is_file():
+                (src / name).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(ROOT / name, src / name)
+        for name in ARTEFACTS:
+            (src / name).parent.mkdir(parents=True, exist_ok=True)
+            (src / name).write_bytes(b"\x7fELF not a source")
+    out = tmp_path_factory.mktemp("sdist")
+    proc = _run(
+        [sys.executable, "-m", "build", "--sdist", "--no-isolation", "--outdir", str(out), "."],
+        cwd=src,
+    )
+    assert proc.returncode == 0, f"sdist build failed:\n{proc.stdout[-4000:]}{proc.stderr[-4000:]}"
+    (tarball,) = out.glob("robocli-*.tar.gz")
+    return tarball
+
+
+def _members(tarball: Path) -> dict[str, tarfile.TarInfo]:
+    """The sdist's regular files by path below its top folder (robocli-X.Y.Z/)."""
+    with tarfile.open(tarball) as tar:
+        return {m.name.split("/", 1)[1]: m for m in tar.getmembers() if m.isfile()}
+
+
+def _unpack(tarball: Path, dest: Path) -> Path:
+    with tarfile.open(tarball) as tar:
+        if hasattr(tarfile, "data_filter"):
+            tar.extractall(dest, filter="data")
+        else:  # pragma: no cover - Python without the extraction filters
+            tar.extractall(dest)  # noqa: S202 - our own sdist
+    (top,) = dest.iterdir()
+    return top
+
+
+def test_sdist_ships_every_tracked_file_and_no_build_artefact(sdist: Path) -> None:
+    if not _in_git():
+        pytest.skip("not a git checkout: no tracked files to compare the sdist with")
+    shipped = set(_members(sdist))
+    tracked = {
+        p for p in _git("ls-files") if not p.startswith(NOT_SHIPPED) and (ROOT / p).is_file()
+    }
+    missing = sorted(tracked - shipped)
+    assert not missing, f"tracked files missing from the sdist (MANIFEST.in): {missing}"
+    junk = sorted(shipped & set(ARTEFACTS))
+    assert not junk, f"build artefacts in the sdist: {junk}"
+
+
+def test_the_sdist_runs_the_tests_that_need_its_data(sdist: Path, tmp_path: Path) -> None:
+    top = _unpack(sdist, tmp_path / "unpacked")
+    for name in ("original_client.hex", "gpsfake.nmea"):
+        assert (top / "tests" / "data" / "ros4mat" / name).is_file()
+    assert (top / "tests" / "data" / "arcos" / "laser_room.map").is_file()
+    # from a folder without a robocli/ in it: the tests import the installed package, and
+    # read their data and harnesses from the unpacked sdist
+    env = {**os.environ, "PYTHONDONTWRITEBYTECODE": "1"}
+    proc = _run(
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "--benchmark-disable"]
+        + [str(top / t) for t in SHIPPED_TESTS],
+        cwd=tmp_path,
+        env=env,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode == 0, out[-4000:]
+    assert f"{len(SHIPPED_TESTS)} passed" in out, out[-4000:]
+    assert f"rootdir: {top}" in out, out[-4000:]
