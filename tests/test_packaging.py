@@ -1,5 +1,6 @@
 """Packaging as a user or a packager meets it: the sdist ships every tracked file (the tests'
-data, fuzz/, specs/) and runs the tests it ships.
+data, fuzz/, specs/) and runs the tests it ships; a build without a C compiler stops with one
+line that says so.
 
 The sdist is built once for this module, from a copy of this checkout, with ``build
 --no-isolation``: the setuptools and cffi of this venv (the test extra installs build and
@@ -133,3 +134,33 @@ def test_the_sdist_runs_the_tests_that_need_its_data(sdist: Path, tmp_path: Path
     assert proc.returncode == 0, out[-4000:]
     assert f"{len(SHIPPED_TESTS)} passed" in out, out[-4000:]
     assert f"rootdir: {top}" in out, out[-4000:]
+
+
+@pytest.mark.parametrize("case", ["CC names a missing compiler", "no compiler on PATH"])
+def test_a_build_without_a_c_compiler_says_so_in_one_line(
+    sdist: Path, tmp_path: Path, case: str
+) -> None:
+    top = _unpack(sdist, tmp_path / "unpacked")
+    env = {k: v for k, v in os.environ.items() if k not in ("CC", "LDSHARED", "CFLAGS")}
+    if case == "CC names a missing compiler":
+        env["CC"] = str(tmp_path / "no-such-dir" / "cc")
+        named = env["CC"]
+    else:  # what a machine without gcc has: Python's configured compiler is not on PATH
+        empty = tmp_path / "bin"
+        empty.mkdir()
+        env["PATH"] = str(empty)
+        named = ""
+    proc = _run(
+        [sys.executable, "-m", "build", "--wheel", "--no-isolation", "--outdir", "out", "."],
+        cwd=top,
+        env=env,
+    )
+    out = proc.stdout + proc.stderr
+    assert proc.returncode != 0, out[-4000:]
+    lines = [line for line in out.splitlines() if "robocli: cannot build its C core" in line]
+    assert len(lines) == 1, out[-4000:]
+    line = lines[0]
+    assert "no C compiler found" in line and named in line, line
+    assert "apt install gcc python3-dev" in line and "--only-binary" in line, line
+    assert "Traceback" not in out and "No such file or directory" not in out, out[-4000:]
+    assert not list((top / "out").glob("*.whl"))
