@@ -1,6 +1,6 @@
 """Packaging as a user or a packager meets it: the sdist ships every tracked file (the tests'
 data, fuzz/, specs/) and runs the tests it ships; a build without a C compiler stops with one
-line that says so.
+line that says so; the metadata PyPI shows names the license, the authors and the project.
 
 The sdist is built once for this module, from a copy of this checkout, with ``build
 --no-isolation``: the setuptools and cffi of this venv (the test extra installs build and
@@ -10,6 +10,7 @@ by ``make dist-check``.
 
 from __future__ import annotations
 
+import email.parser
 import os
 import shutil
 import subprocess
@@ -164,3 +165,26 @@ def test_a_build_without_a_c_compiler_says_so_in_one_line(
     assert "apt install gcc python3-dev" in line and "--only-binary" in line, line
     assert "Traceback" not in out and "No such file or directory" not in out, out[-4000:]
     assert not list((top / "out").glob("*.whl"))
+
+
+def test_the_metadata_names_license_authors_and_project(sdist: Path) -> None:
+    members = _members(sdist)
+    with tarfile.open(sdist) as tar:
+        pkg_info = tar.extractfile(members["PKG-INFO"].name)
+        lic = tar.extractfile(members["LICENSE"].name)
+        assert pkg_info is not None and lic is not None
+        meta = email.parser.BytesParser().parse(pkg_info)
+        license_text = lic.read().decode()
+    assert "MIT License" in license_text and "robocli developers" in license_text
+    assert meta["License-Expression"] == "MIT"
+    assert meta.get_all("License-File") == ["LICENSE"]
+    assert meta["Author"] == "robocli developers"
+    urls = dict(u.split(", ", 1) for u in meta.get_all("Project-URL") or [])
+    assert {"Homepage", "Source", "Issues"} <= set(urls), urls
+    classifiers = meta.get_all("Classifier") or []
+    assert "Programming Language :: Python :: 3.10" in classifiers
+    assert "Operating System :: POSIX :: Linux" in classifiers
+    assert "Typing :: Typed" in classifiers
+    # the extras a user picks from: runtime alone, plot for the demo, test and lint for make test
+    extras = set(meta.get_all("Provides-Extra") or [])
+    assert {"plot", "test", "lint"} <= extras
