@@ -2,6 +2,10 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
+# The demo installs the package with its runtime and plot extras only; the test, lint and
+# bench targets add the test and lint tools to the same venv. Separate stamps, so that
+# `make demo` then `make test` installs the tools the demo went without.
+DEMO_STAMP := $(VENV)/.installed-demo
 STAMP  := $(VENV)/.installed
 CC     ?= gcc
 CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
@@ -9,6 +13,12 @@ CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
 .PHONY: venv demo test test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
+
+$(DEMO_STAMP): $(PKG_DEPS)
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[plot]'
+	touch $@
 
 $(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -18,7 +28,7 @@ $(STAMP): $(PKG_DEPS)
 
 venv: $(STAMP)
 
-demo: $(STAMP)
+demo: $(DEMO_STAMP)
 	$(PY) examples/demo.py
 
 test: $(STAMP) test-c
