@@ -84,6 +84,18 @@ $(BUILD_STAMP):
 	$(BUILDENV)/bin/python -m pip install -q $(BUILD_TOOLS)
 	touch $@
 
+# the policy `auditwheel show` reports must be manylinux with glibc <= $(GLIBC)
+define AUDITWHEEL_POLICY
+import re, sys
+text = " ".join(open(sys.argv[1]).read().split())
+m = re.search(r'consistent with the following platform tag: "(manylinux_(\d+)_(\d+)_\w+)"', text)
+want = tuple(int(v) for v in sys.argv[2].split("."))
+if not m or (int(m[2]), int(m[3])) > want:
+    sys.exit(f"auditwheel policy not manylinux for glibc <= {sys.argv[2]}: {text}")
+print("auditwheel policy:", m[1])
+endef
+export AUDITWHEEL_POLICY
+
 # (a stale robocli.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
 wheel: $(BUILD_STAMP)
 	rm -rf $(DIST_DIR)/robocli-* $(DIST_DIR)/.raw robocli.egg-info
@@ -96,8 +108,7 @@ wheel: $(BUILD_STAMP)
 	rm -rf $(DIST_DIR)/.raw
 	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
 	  | tee $(DIST_DIR)/.auditwheel-show.txt
-	tr -s ' \n' '  ' < $(DIST_DIR)/.auditwheel-show.txt \
-	  | grep -q 'consistent with the following platform tag: "$(WHEEL_PLAT)"'
+	$(BUILDENV)/bin/python -c "$$AUDITWHEEL_POLICY" $(DIST_DIR)/.auditwheel-show.txt $(GLIBC)
 	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli-*-cp310-abi3-*.whl
 	ls -l $(DIST_DIR)/robocli-*
 
