@@ -436,7 +436,8 @@ class Session:
         try:
             data = self.transport.read(65536, timeout)
         except ConnectionLost as exc:
-            why = ConnectionLost(f"{self.transport.url}: link lost ({exc})")
+            url = self.transport.url
+            why = ConnectionLost(f"{url}: link lost ({str(exc).removeprefix(f'{url}: ')})")
             self.fail(why)
             raise why from None
         if not data:
