@@ -87,6 +87,7 @@ def test_client_decodes_recorded_session(stem: str) -> None:
     assert state.y == pytest.approx(unwrap[1] * 0.485 / 1000, abs=1e-9)
     assert math.degrees(state.th) == pytest.approx(th_deg, abs=0.01)
     assert state.battery == pytest.approx(13.0)
+    assert state.state_of_charge is None  # AMRISim sends 0: not modelled, as ARIA reads it
     assert state.sonar[:16] == pytest.approx([5.0] * 16) or not state.sonar_enabled
     # the client closed the session as ARIA does: stop, motors off, CLOSE
     time.sleep(0.1)

@@ -190,6 +190,7 @@ class Pioneer(SimulatorFeatures):
         self._trip_listeners: Listeners[WatchdogListener] = Listeners(
             self.stats, "pioneer watchdog trip"
         )
+        self._soc_seen = False  # a SIP reported a non-zero state of charge
         self._clamp_warned: set[str] = set()
         self._motors_off_warned = False
         self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
@@ -724,9 +725,11 @@ class Pioneer(SimulatorFeatures):
             if self._sip is None:
                 raise TimeoutError(f"{self.transport.url}: no SIP received yet")
             body, now, odo = self._sip
+            sip = arcos.decode_sip(body)
+            self._soc_seen = self._soc_seen or bool(sip["state_of_charge"])
             self._state = build_state(
-                arcos.decode_sip(body), now, odo, tuple(self._sonar), tuple(self._sonar_t),
-                self.params, self.stats.sips,
+                sip, now, odo, tuple(self._sonar), tuple(self._sonar_t),
+                self.params, self.stats.sips, soc_seen=self._soc_seen,
             )  # fmt: skip
         return self._state
 
