@@ -51,16 +51,18 @@ SubtypeOpt = typer.Option(
 BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
 TimeoutOpt = typer.Option(
     5.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
-    help="Seconds to wait for the robot.",
+    help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
 )
 
 
 @contextlib.contextmanager
 def _connected(port: str, **options: Any) -> Iterator[Pioneer]:
     """A connected Pioneer on ``port`` (``sim``: an embedded simulator), Ctrl-C and SIGTERM
-    stopping it; a reset during the handshake is explained as a busy robot."""
+    stopping it; a reset during the handshake is explained as a busy robot. ``--timeout``
+    also bounds the wait once the robot goes silent."""
     from robocli.devices.pioneer import Pioneer
 
+    options.setdefault("sip_timeout", options.get("timeout", 5.0))
     with reader_may_leave(), sigterm_as_interrupt(), pioneer_url(port) as url:
         with explain_refusal(url):
             robot = Pioneer.connect(url, **options)

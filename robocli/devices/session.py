@@ -267,6 +267,12 @@ class Session:
         #: called with the monotonic time of every packet sent (a device's own statistics,
         #: cheaper than a listener that sees every frame); must not raise
         self.on_sent: Callable[[float], None] | None = None
+        #: called before every write of :meth:`send`, :meth:`send_many` and :meth:`request`
+        #: with the packets and the seconds since the last packet went out; returns the
+        #: packets to write instead (a device that finds it stalled past the robot's watchdog
+        #: puts a stop in place of stale set-points). Decided right before the write, so that
+        #: no stall between a device's own check and its write can slip through. Must not raise
+        self.before_send: Callable[[Sequence[bytes], float], Sequence[bytes]] | None = None
         self._payload_of = payload_of
         self._name_of = name_of
         self._emergency_stop = emergency_stop
@@ -347,6 +353,11 @@ class Session:
         self._send(packets, timeout)
 
     def _send(self, packets: Sequence[bytes], timeout: float | None) -> None:
+        before = self.before_send
+        if before is not None:
+            packets = before(packets, time.monotonic() - self.last_tx)
+            if not packets:
+                return
         try:
             self.transport.write(packets[0] if len(packets) == 1 else b"".join(packets), timeout)
         except ConnectionLost as exc:
@@ -425,7 +436,8 @@ class Session:
         try:
             data = self.transport.read(65536, timeout)
         except ConnectionLost as exc:
-            why = ConnectionLost(f"{self.transport.url}: link lost ({exc})")
+            url = self.transport.url
+            why = ConnectionLost(f"{url}: link lost ({str(exc).removeprefix(f'{url}: ')})")
             self.fail(why)
             raise why from None
         if not data:

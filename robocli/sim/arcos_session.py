@@ -96,16 +96,19 @@ class ArcosController:
     ``period``: wall seconds between ticks. ``watchdog_s``: wall seconds without a valid
     packet after which the session's robot is stopped (0 disables). ``laser``, ``georef``,
     ``reflectors``: the simulated laser, the world's georeference and its reflective wall
-    segments (:mod:`robocli.sim.arcos_simext`).
+    segments (:mod:`robocli.sim.arcos_simext`). ``state_of_charge``: report the battery's
+    state of charge in the SIP; by default 0, as MobileSim/AMRISim send it (the vendor SDK
+    then shows volts).
     """
 
     def __init__(
         self, model: PioneerModel, *, name: str, subtype: str, sip_ms: float,
         period: float, watchdog_s: float, laser: LaserSpec | None = None,
         georef: Georef | None = None, seed: int = 0,
-        reflectors: Sequence[Sequence[float]] = (),
+        reflectors: Sequence[Sequence[float]] = (), state_of_charge: bool = False,
     ) -> None:  # fmt: skip
         self.model, self.params = model, model.params
+        self.report_soc = state_of_charge
         self.name, self.subtype = name, subtype
         self.sip_ms, self.watchdog_s = sip_ms, watchdog_s
         self._dt, self._period = sip_ms / 1000.0, period
@@ -306,7 +309,8 @@ class ArcosController:
                    "digin": self._digin, "digout": self.digout},
             "battery_x10": int(clamp(volts, 0, 65535)), "charge_state": 0,
             "rotvel": _int16(math.degrees(r.w) * 10.0), "fault_flags": 0, "latvel": 0,
-            "temperature": -127, "state_of_charge": round(r.state_of_charge),
+            "temperature": -127,
+            "state_of_charge": round(r.state_of_charge) if self.report_soc else 0,
         }  # fmt: skip
 
     def _sip(self) -> bytes:

@@ -9,7 +9,9 @@ differences where the real robot behaves better than MobileSim:
   ``watchdog_s`` wall seconds without a valid packet, and obeys the next command;
 * ``CLOSE`` ends the session but keeps the link usable, so a client can re-sync on it, and a
   TCP client disconnect frees the **same** port for the next client (no port hopping);
-* the battery drains and ``state_of_charge`` is reported; IO, encoder and battery packets exist;
+* the battery drains (its state of charge goes in the SIP with ``state_of_charge=True``; by
+  default 0, as MobileSim/AMRISim, so that the vendor SDK shows volts); IO, encoder and
+  battery packets exist;
 * a laser enable shows from the next SIP (AMRISim: the third), MobileSim's commands 35-38
   are laser commands only on a robot with a laser (``laser=None`` keeps ADSEL & co.);
 * CONFIG's tops are the robot's real ones (p3dx: 2200 mm/s, not AMRISim's 9999) and its
@@ -127,6 +129,8 @@ class PioneerSim:
     (deg) and altitude (m) of the world origin, for SIMSTAT's GPS fix (None: no georeference).
     ``reflectors``: wall segments ``(x1, y1, x2, y2)`` (m) covered with reflective tape: the
     laser reports reflectance 32 on them, as MobileSim for a map's ``Reflector`` lines.
+    ``state_of_charge``: report the battery's state of charge (percent) in the SIP; False
+    (the default) sends 0 as MobileSim/AMRISim do, and clients show the voltage.
     """
 
     def __init__(
@@ -144,6 +148,7 @@ class PioneerSim:
         laser: LaserSpec | None = LMS200,
         georef: Georef | None = None,
         reflectors: Sequence[Sequence[float]] = (),
+        state_of_charge: bool = False,
     ) -> None:
         if subtype not in ROBOT_PARAMS:
             known = ", ".join(sorted(ROBOT_PARAMS))
@@ -162,6 +167,7 @@ class PioneerSim:
         self._ctl = ArcosController(
             self._model, name=name, subtype=subtype, sip_ms=sip_ms, period=period,
             watchdog_s=watchdog_s, laser=laser, georef=georef, seed=seed, reflectors=reflectors,
+            state_of_charge=state_of_charge,
         )  # fmt: skip
         self._ticker = Ticker(period, self._tick, "pioneer-sim-ticker")
         self._tcp: Server | None = None

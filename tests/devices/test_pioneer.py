@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.devices.pioneer import Pioneer
+from robocli.devices.pioneer import Pioneer, WatchdogTripped
 from robocli.errors import (
     ConnectionLost,
     InvalidArgument,
@@ -159,6 +159,9 @@ def test_keepalive_holds_the_watchdog_off_and_silence_trips_it() -> None:
             s = sim.wait_until(lambda s: s.watchdog_trips >= 1, timeout=5)
             s = sim.wait_until(lambda s: abs(s.trans_vel) < 1e-9, timeout=5)
             assert s.motors_enabled and s.session_open  # stopped, not disconnected
+            with pytest.raises(WatchdogTripped, match="watchdog"):  # the program is told
+                robot.set_velocity(0.1, 0.0)
+            assert robot.stats.watchdog_trips == 1 and sim.snapshot().trans_vel_set == 0.0
             robot.set_velocity(0.1, 0.0)  # resumes on the next command
             assert sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=5)
 

@@ -64,10 +64,15 @@ def test_moving_with_motors_off_warns_once(
     assert len(warned) == 1
 
 
-def test_an_empty_battery_reads_zero_not_none(sim: PioneerSim) -> None:
-    """A state of charge of 0 % used to come back as None (unknown)."""
-    assert sim.url is not None
-    with Pioneer.connect(sim.url) as robot:
+def test_an_empty_battery_reads_zero_not_none() -> None:
+    """A state of charge of 0 % used to come back as None (unknown), on a robot that models
+    it (it reported non-zero before)."""
+    with PioneerSim("p3dx", time_scale=5.0, state_of_charge=True) as sim:
+        _empty_battery(sim.serve_tcp("127.0.0.1", 0))
+
+
+def _empty_battery(url: str) -> None:
+    with Pioneer.connect(url) as robot:
         robot.send_command(Command.BATTEST, 95)  # the simulator's battery now reads 9.5 V
         state = robot.wait_for_sip()
         for _ in range(5):
@@ -76,3 +81,15 @@ def test_an_empty_battery_reads_zero_not_none(sim: PioneerSim) -> None:
             state = robot.wait_for_sip()
         assert state.battery == pytest.approx(9.5)
         assert state.state_of_charge == 0.0
+
+
+def test_a_robot_that_does_not_model_the_charge_shows_volts(sim: PioneerSim) -> None:
+    """A state of charge of 0 from the start is "not modelled", as MobileSim/AMRISim send it
+    and the vendor SDK reads it: None (views show volts), not an empty battery. The built-in
+    simulator sends it so by default; it used to report 100 %."""
+    assert sim.url is not None
+    with Pioneer.connect(sim.url) as robot:
+        state = robot.wait_for_sip()
+        assert state.battery == pytest.approx(13.0) and state.state_of_charge is None
+        assert robot.snapshot()["state"]["state_of_charge"] is None
+    assert sim.snapshot().state_of_charge > 99.0  # the simulator's truth, kept to itself

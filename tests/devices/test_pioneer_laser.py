@@ -142,6 +142,19 @@ def test_simstatus_of_trace_i_in_si_units() -> None:
         parse_simstatus(body[1:-1], 1.0)
 
 
+@pytest.mark.parametrize(
+    ("th_deg", "expected_deg"), [(-5205, -165), (180, -180), (-180, -180), (725, 5), (90, 90)]
+)
+def test_simstatus_heading_is_normalised(th_deg: int, expected_deg: float) -> None:
+    """AMRISim sends the true heading unwrapped (a robot that turned a while: -5205 deg);
+    true_pose came out as -90.84 rad."""
+    body = next(p for _, p in recorded_rx("i_simstat") if p[0] == arcos.PacketType.SIM_STAT)
+    fields = {**arcos.decode_simstat(body[1:]), "th": th_deg}
+    status = parse_simstatus(arcos.unframe(arcos.encode_simstat(fields))[1:], 1.0)
+    th = status.true_pose[2]
+    assert -math.pi <= th < math.pi and th == pytest.approx(math.radians(expected_deg))
+
+
 # ============================================================================ built-in simulator
 
 

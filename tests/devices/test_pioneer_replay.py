@@ -87,6 +87,7 @@ def test_client_decodes_recorded_session(stem: str) -> None:
     assert state.y == pytest.approx(unwrap[1] * 0.485 / 1000, abs=1e-9)
     assert math.degrees(state.th) == pytest.approx(th_deg, abs=0.01)
     assert state.battery == pytest.approx(13.0)
+    assert state.state_of_charge is None  # AMRISim sends 0: not modelled, as ARIA reads it
     assert state.sonar[:16] == pytest.approx([5.0] * 16) or not state.sonar_enabled
     # the client closed the session as ARIA does: stop, motors off, CLOSE
     time.sleep(0.1)
@@ -102,3 +103,22 @@ def arcos_identity(name: str, type_: str, subtype: str) -> object:
     from robocli.devices.pioneer import RobotIdentity
 
     return RobotIdentity(name, type_, subtype)
+
+
+def test_cli_timeout_bounds_the_wait_for_a_silent_robot() -> None:
+    """``--timeout`` bounded connecting only; a robot that went silent was waited for 8 s,
+    whatever it said."""
+    import subprocess
+    import sys
+
+    server = ReplayServer(DATA / "a_simpleConnect.jsonl")  # its SIPs, then silence
+    proc = subprocess.run(
+        [sys.executable, "-m", "robocli", "connect", "pioneer", server.url, "--json",
+         "--timeout", "2"],
+        capture_output=True, text=True, timeout=60, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    assert proc.returncode == 3, proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert lines == [f"robocli: {server.url}: no SIP for 2 s (robot off, cable unplugged, or "
+                     "session closed)"], proc.stderr  # fmt: skip
+    assert proc.stdout.count("\n") >= 1  # it was connected, and printed SIPs

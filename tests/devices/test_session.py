@@ -126,6 +126,20 @@ def test_link_lost_during_request_config_raises(sim: PioneerSim) -> None:
         assert not robot.connected
 
 
+def test_link_lost_names_the_url_once(sim: PioneerSim) -> None:
+    """It said ``tcp://...: link lost (tcp://...: connection closed by the peer)``."""
+    assert sim.url is not None
+    relay = Relay(sim.url)
+    with Pioneer.connect(relay.url) as robot:
+        relay.cut_on = arcos.encode_command(arcos.Command.CONFIG, 1)
+        with pytest.raises(ConnectionLost) as info:
+            robot.request_config(timeout=5.0)
+        with pytest.raises(ConnectionLost) as later:
+            robot.wait_for_sip()
+    for err in (info.value, later.value):  # (a keep-alive's write may find the loss first)
+        assert str(err).startswith(f"{relay.url}: ") and str(err).count("tcp://") == 1, err
+
+
 def test_a_bug_in_a_client_thread_fails_closed(sim: PioneerSim) -> None:
     """An unexpected exception in the reader stops the robot and reaches the caller with
     its own type and traceback; nothing hangs."""

@@ -159,6 +159,10 @@ def test_replay_trace_answers_like_amrisim(name: str, make_sim: MakeSim, connect
     )
     close_t = _command_times(trace, Command.CLOSE, 1)[-1]
     assert sum(1 for t, _ in our_sips if t > close_t + 0.05) <= 1
+    # the battery as AMRISim reports it: volts, and a state of charge of 0 (not modelled),
+    # so that the vendor SDK shows "Battery=13.0V" rather than "Battery=100%"
+    for sips in (our_sips, their_sips):
+        assert {(s["battery_x10"], s["state_of_charge"]) for _, s in sips} == {(130, 0)}
     assert sim.wait_until(lambda s: not s.session_open, 2.0).sessions == 1
 
     # deliberate: motors stay disabled until ENABLE 1 (AMRISim's first session had them on)
@@ -553,7 +557,7 @@ def test_encoder_io_and_battery_packets(make_sim: MakeSim, connect: Connect) -> 
 
 
 def test_say_battest_and_bumpstall(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim()
+    sim = make_sim(state_of_charge=True)  # not by default: AMRISim sends 0
     client = connect(sim)
     client.open_session()
     client.send(Command.SAY, bytes([5, 60, 10, 80]))

@@ -17,8 +17,12 @@ and silently drops the rest, so longer trajectories are refused before anything 
 unless ``split=True``. Streaming (:meth:`Arm.stream`): points 0..N-1 for servers that execute
 as they receive (industrial_robot_client's streamer); an ABB never executes them. A FAILURE
 reply raises :class:`~robocli.errors.DeviceError`. :meth:`Arm.close` sends STOP (-4) when a
-trajectory runs, unless told not to. :attr:`Arm.alive` and :meth:`Arm.check` tell whether a
-link was lost (a quiet motion port included) without waiting.
+trajectory runs, unless told not to. A motion link lost while a trajectory this client
+activated may run (the last point, -3, went out but its acknowledgement never came) raises a
+:class:`~robocli.errors.ConnectionLost` that says the arm may be moving, after one try to
+reconnect and send STOP over the new connection (its outcome is in the message).
+:attr:`Arm.alive` and :meth:`Arm.check` tell whether a link was lost (a quiet motion port
+included) without waiting.
 """
 
 from __future__ import annotations
@@ -110,6 +114,8 @@ class Arm:
         self._travel = 0.0  # how far (rad) its points lie from the start at most
         self._displaced = False  # a joint sample since the activation was away from the start
         self._stop_frame = stop_frame(robot, byteorder, real)
+        #: (host, port) of the motion server, to reconnect and STOP after a lost link
+        self.motion_address: tuple[str, int] | None = None
         for session, handler in ((motion, self._on_motion_frame), (state, self._on_state_frame)):
             if session is not None:
                 session.on_frame = handler
@@ -155,6 +161,7 @@ class Arm:
                 sessions += [link] if link is not None else []
             arm = cls(links[0], links[1], robot=model, byteorder=wire, real=real, timeout=timeout,
                       history=history)  # fmt: skip
+            arm.motion_address = (host, motion_port) if motion else None
             for listener in listeners:
                 arm.add_listener(listener)
             if arm._state is not None:
@@ -418,17 +425,17 @@ class Arm:
                          self.timeout if timeout is None else timeout)  # fmt: skip
         return time.perf_counter() - start
 
+    def _is_reply(self, frame: bytes) -> bool:
+        """A JOINT_TRAJ_PT SERVICE_REPLY (the acknowledgement of a point)."""
+        try:
+            m = sm.decode(frame, byteorder=self.byteorder, real=self.real)
+        except ProtocolError:
+            return False
+        return m.msg_type == MsgType.JOINT_TRAJ_PT and m.comm_type == CommType.SERVICE_REPLY
+
     def _send_point(self, seq: int, p: Point, timeout: float) -> None:
         s = self._need(self._motion, "motion")
-        order, real = self.byteorder, self.real
-
-        def is_reply(frame: bytes) -> bool:
-            try:
-                m = sm.decode(frame, byteorder=order, real=real)
-            except ProtocolError:
-                return False
-            return m.msg_type == MsgType.JOINT_TRAJ_PT and m.comm_type == CommType.SERVICE_REPLY
-
+        order, real, is_reply = self.byteorder, self.real, self._is_reply
         before = s.stats.decode_errors
         try:
             reply = s.request(self._point_frame(seq, p), is_reply, timeout)
@@ -442,6 +449,8 @@ class Arm:
             reason = find_refusal(s.raw_tail())
             if reason:
                 raise DeviceError(f"{s.transport.url}: {reason}") from None
+            if self.running():  # what went out may have started the arm
+                raise self._lost_while_moving(s, seq, exc) from None
             raise exc from None
         code = sm.decode(reply, byteorder=order, real=real).reply_code
         if code != ReplyCode.SUCCESS:
@@ -530,6 +539,54 @@ class Arm:
             if progress is not None:
                 progress(i + 1, len(points))
         return len(points)
+
+    def _lost_while_moving(self, s: Session, seq: int, exc: ConnectionLost) -> ConnectionLost:
+        """The motion link was lost while a trajectory this client activated may run (the
+        last point, -3, went out but no acknowledgement came back): the arm may be moving.
+        Reconnect once and send STOP (-4); the error says what came of it."""
+        url = s.transport.url
+        what = "the last point (-3)" if seq == SpecialSeq.END_TRAJECTORY else f"point {seq}"
+        head = (f"{url}: {str(exc).removeprefix(f'{url}: ')} after {what} went out, before "
+                "its acknowledgement: the arm may be moving")  # fmt: skip
+        log.warning("%s; reconnecting to send STOP (-4)", head)
+        try:
+            self._stop_over_new_link()
+        except RobocliError as why:
+            return ConnectionLost(f"{head}, and STOP (-4) could not be sent over a new "
+                                  f"connection ({str(why).removeprefix(f'{url}: ')}): stop it "
+                                  "at the controller")  # fmt: skip
+        self._activated_at, self._expected_end, self._target = None, 0.0, None
+        return ConnectionLost(f"{head}: STOP (-4) sent over a new connection, and "
+                              "acknowledged")  # fmt: skip
+
+    def _stop_over_new_link(self) -> None:
+        """Open a new motion link, send STOP (-4), wait for its acknowledgement (within
+        ``timeout`` s in all), close the link. Raises what went wrong."""
+        if self.motion_address is None:
+            raise ConnectionLost("the motion server's address is unknown")
+        host, port = self.motion_address
+        deadline = time.monotonic() + self.timeout
+        try:
+            link = open_session(host, port, "motion", self.byteorder, self.real, self.timeout,
+                                [])  # fmt: skip
+        except TransportError as exc:  # "cannot connect to URL: connection refused (hint)"
+            text = str(exc)
+            raise TransportError((text.partition(": ")[2] or text).partition(" (")[0]) from None
+        try:
+            try:
+                left = max(0.05, deadline - time.monotonic())
+                reply = link.request(self._stop_frame, self._is_reply, left)
+            except ConnectionLost:
+                reason = find_refusal(link.raw_tail())
+                if reason:
+                    raise DeviceError(reason) from None
+                raise
+            code = sm.decode(reply, byteorder=self.byteorder, real=self.real).reply_code
+            if code != ReplyCode.SUCCESS:
+                raise DeviceError(f"the controller refused STOP (reply code {int(code)})",
+                                  code=int(code))  # fmt: skip
+        finally:
+            link.close()
 
     def stop(self, timeout: float | None = None) -> None:
         """STOP (-4): abort the running trajectory, acknowledged within ``timeout`` s."""

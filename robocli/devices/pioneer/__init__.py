@@ -1,6 +1,12 @@
 """Pioneer robots over ARCOS: :class:`Pioneer` (the client), its state and link modules."""
 
-from robocli.devices.pioneer.client import PacketListener, Pioneer, PioneerStats
+from robocli.devices.pioneer.client import (
+    PacketListener,
+    Pioneer,
+    PioneerStats,
+    WatchdogTrip,
+    WatchdogTripped,
+)
 from robocli.devices.pioneer.laser import GpsFix, LaserScan, SimStatus
 from robocli.devices.pioneer.state import PioneerState, RobotIdentity
 
@@ -17,4 +23,6 @@ __all__ = [
     "PioneerStats",
     "RobotIdentity",
     "SimStatus",
+    "WatchdogTrip",
+    "WatchdogTripped",
 ]

@@ -14,6 +14,13 @@ exception or a lost link stops the robot and CLOSEs. No SIP for ``sip_timeout`` 
 raises :class:`robocli.errors.TimeoutError` to the caller. A listener that raises is
 counted (``stats.listener_errors``) and never stops the keep-alive.
 
+A program that stalls past the robot's watchdog while the robot was commanded to move
+(stopped with SIGSTOP or Ctrl-Z, a debugger, a long GC pause, a suspended laptop) has had
+its robot stopped by the watchdog. The client never resumes that motion: the first packet
+after the stall is a stop in place of the stale set-points, which are cleared; the trip
+goes to :meth:`Pioneer.on_watchdog_trip` listeners, and the program's next motion command
+raises :class:`WatchdogTripped`. The robot moves again on the command after that.
+
 Clocks: every ``t`` here is ``time.monotonic()`` at reception on this computer.
 """
 
@@ -24,7 +31,8 @@ import math
 import threading
 import time
 from collections import deque
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from robocli.core import Framer
@@ -38,8 +46,15 @@ from robocli.devices.pioneer.state import (
     sip_essentials,
     sip_motors_on,
 )
-from robocli.devices.session import FrameListener, LinkStats, Session
-from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.devices.session import FrameListener, LinkStats, Listeners, Session
+from robocli.errors import (
+    EXIT_FAILURE,
+    DeviceError,
+    InvalidArgument,
+    ProtocolError,
+    RobocliError,
+    TimeoutError,
+)
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
 from robocli.robots.geometry import wrap_pi
@@ -53,16 +68,52 @@ PacketListener = FrameListener
 
 _HISTORY = 100_000  #: samples kept in each timing history of :class:`PioneerStats`
 _PULSE = arcos.encode_command(Command.PULSE)
+#: The robot's watchdog (s) when its CONFIG does not say (ARCOS' and the simulators' default).
+DEFAULT_WATCHDOG_S = 2.0
+#: Commands that make the robot move (dropped when they would go out after a stall).
+_MOTION_COMMANDS = frozenset(
+    int(c) for c in (Command.VEL, Command.RVEL, Command.VEL2, Command.ROTATE, Command.MOVE,
+                     Command.HEAD, Command.DHEAD, Command.DCHEAD)
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class WatchdogTrip:
+    """The program stalled past the robot's watchdog while the robot was commanded to move.
+
+    ``t``: monotonic time the client found it (the first packet after the stall);
+    ``silence``: seconds during which nothing went out; ``watchdog``: the robot's (s)."""
+
+    t: float
+    silence: float
+    watchdog: float
+
+
+#: Watchdog-trip listener signature: called with each trip, in the thread that found it.
+WatchdogListener = Callable[[WatchdogTrip], None]
+
+
+class WatchdogTripped(RobocliError):
+    """Raised by the first motion command after a :class:`WatchdogTrip`: the program stalled,
+    the robot's watchdog stopped it and the client cleared the set-points. The command is
+    not sent; the next one moves the robot again."""
+
+    exit_code = EXIT_FAILURE
+
+    def __init__(self, message: str, trip: WatchdogTrip) -> None:
+        super().__init__(message)
+        self.trip = trip
 
 
 class PioneerStats(LinkStats):
     """Link counters (see :class:`~robocli.devices.session.LinkStats`) plus the Pioneer's:
-    SIPs received, keep-alives sent, dead-man stops, laser scans completed and dropped
-    (incomplete or garbled), and bounded timing histories."""
+    SIPs received, keep-alives sent, dead-man stops, watchdog trips (this program stalled),
+    laser scans completed and dropped (incomplete or garbled), and bounded timing
+    histories."""
 
     _COUNTERS: tuple[str, ...] = (
-        *LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops", "laser_scans",
-        "laser_dropped",
+        *LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops", "watchdog_trips",
+        "laser_scans", "laser_dropped",
     )  # fmt: skip
 
     def __init__(self) -> None:
@@ -70,6 +121,7 @@ class PioneerStats(LinkStats):
         self.sips = 0
         self.keepalives = 0
         self.deadman_stops = 0
+        self.watchdog_trips = 0  #: stalls of this program past the robot's watchdog
         self.laser_scans = 0
         self.laser_dropped = 0
         #: reader CPU seconds per SIP (decode + state update; thread CPU time, so waiting
@@ -108,6 +160,10 @@ class Pioneer(SimulatorFeatures):
         self.sip_timeout = sip_timeout
         self.keepalive = keepalive
         self.deadman = deadman
+        watchdog_ms = (config or {}).get("watchdog")
+        #: the robot's watchdog (s): CONFIG's, else 2 s. A program that sends nothing for
+        #: longer while the robot was commanded to move has stalled (:class:`WatchdogTrip`)
+        self.watchdog: float = watchdog_ms / 1000.0 if watchdog_ms else DEFAULT_WATCHDOG_S
         self.io: dict[str, Any] | None = None  #: last IO packet (0xF0), raw fields
         self.encoders: tuple[int, int] | None = None  #: last encoder packet (0x90), ticks
         self.battery_info: dict[str, Any] | None = None
@@ -127,12 +183,21 @@ class Pioneer(SimulatorFeatures):
         # set-points re-sent by the keep-alive: list of (command, arg) in send order
         self._setpoints: list[tuple[int, int]] = []
         self._setpoint_lock = threading.Lock()
+        # the last motion command asked the robot to move (cleared by a stop or a trip)
+        self._motion_commanded = False
+        self._trip_pending: WatchdogTrip | None = None  # for the next motion command
+        self._trip_unannounced: WatchdogTrip | None = None  # for the listeners
+        self._trip_listeners: Listeners[WatchdogListener] = Listeners(
+            self.stats, "pioneer watchdog trip"
+        )
+        self._soc_seen = False  # a SIP reported a non-zero state of charge
         self._clamp_warned: set[str] = set()
         self._motors_off_warned = False
         self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
         self._init_simulated()
         session.on_frame = self._on_frame
-        session.on_sent = self.stats.tx_times.append  # the time of every packet sent
+        session.on_sent = self._on_sent  # the time of every packet sent
+        session.before_send = self._before_send
         session.add_task("keepalive", self._keepalive_step)
         self._supervisor = session.add_task("supervisor", self._supervise_step)
         session.start()
@@ -345,6 +410,17 @@ class Pioneer(SimulatorFeatures):
     def remove_listener(self, listener: PacketListener) -> None:
         self._session.listeners.remove(listener)
 
+    def on_watchdog_trip(self, listener: WatchdogListener) -> None:
+        """Call ``listener(trip)`` with each :class:`WatchdogTrip` (this program stalled past
+        the robot's watchdog while the robot was commanded to move), once the stop that
+        replaced the stale set-points went out; in the thread that found the trip (the
+        keep-alive, or the program's own). One that raises is logged once, counted in
+        ``stats.listener_errors``, and never stops the keep-alive."""
+        self._trip_listeners.add(listener)
+
+    def remove_watchdog_trip_listener(self, listener: WatchdogListener) -> None:
+        self._trip_listeners.remove(listener)
+
     # ------------------------------------------------------------------ commands (SI units)
 
     def send_command(self, command: int, arg: int | str | bytes | None = None) -> None:
@@ -359,13 +435,15 @@ class Pioneer(SimulatorFeatures):
 
     def disable_motors(self) -> None:
         """Stop keeping set-points alive and power the motors off (ENABLE 0)."""
-        self._set_setpoints([])
+        self._set_setpoints([], moving=False)
         self._enable_sent = False
         self.send_command(Command.ENABLE, 0)
 
     def set_velocity(self, v: float, w: float = 0.0) -> None:
         """Translational (m/s) and rotational (rad/s, CCW +) velocity; re-sent by the
-        keep-alive until changed.
+        keep-alive until changed. Like every motion command, raises :class:`WatchdogTripped`
+        (and sends nothing) when it is the first one after the program stalled past the
+        robot's watchdog.
 
         Values beyond the robot's limits (CONFIG's ``transvel_top``/``rotvel_top``, else the
         model's) are clamped to them with one warning, as the vendor SDK does: ``200`` is
@@ -432,7 +510,7 @@ class Pioneer(SimulatorFeatures):
 
     def estop(self) -> None:
         """Emergency stop: maximum deceleration."""
-        self._set_setpoints([(Command.VEL, 0), (Command.RVEL, 0)])
+        self._set_setpoints([(Command.VEL, 0), (Command.RVEL, 0)], moving=False)
         self.send_command(Command.ESTOP)
 
     def set_max_velocity(self, v: float | None = None, w: float | None = None) -> None:
@@ -536,15 +614,44 @@ class Pioneer(SimulatorFeatures):
 
     # ------------------------------------------------------------------ internals
 
-    def _set_setpoints(self, setpoints: list[tuple[int, int]]) -> None:
+    def _judge_silence(self) -> None:
+        """Before a command that changes the set-points: after a silence longer than the
+        watchdog, a PULSE first, so that a trip is judged on what the robot was doing
+        during the silence, not on what the command asks."""
+        if time.monotonic() - self._session.last_tx > self.watchdog:
+            self._session.send(_PULSE)
+
+    def _set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None:
+        self._judge_silence()
         with self._setpoint_lock:
             self._setpoints = setpoints
+            self._motion_commanded = moving
 
     def _command_motion(
         self, setpoints: list[tuple[int, int]], once: tuple[int, int] | None = None
     ) -> None:
-        """Send motion commands now; ``setpoints`` are then kept alive, ``once`` is not."""
-        self._session.check()
+        """Send motion commands now; ``setpoints`` are then kept alive, ``once`` is not.
+        The first command that would move the robot after a watchdog trip raises instead."""
+        session = self._session
+        session.check()
+        moving = once is not None or any(arg != 0 for _, arg in setpoints)
+        self._judge_silence()
+        with self._setpoint_lock:
+            trip = self._trip_pending
+            if moving and trip is not None:
+                self._trip_pending = None
+            else:
+                trip = None
+                self._setpoints = setpoints
+                self._motion_commanded = moving
+        if trip is not None:
+            raise WatchdogTripped(
+                f"{self.transport.url}: this program sent nothing for {trip.silence:.1f} s, "
+                f"past the robot's {trip.watchdog:g} s watchdog (it was stopped, suspended or "
+                "paused): the robot was stopped and its set-points cleared; this command was "
+                "not sent, the next one moves the robot again",
+                trip,
+            )
         self._last_app_command = time.monotonic()
         if not (self._motors_off_warned or self._enable_sent or self._motors_on()):
             self._motors_off_warned = True
@@ -553,11 +660,10 @@ class Pioneer(SimulatorFeatures):
                 "enable_motors() first (state.motors_enabled tells; warned once)",
                 self.transport.url,
             )
-        self._set_setpoints(setpoints)
-        for cmd, arg in setpoints:
-            self._session.send(arcos.encode_command(cmd, arg))
+        packets = [arcos.encode_command(cmd, arg) for cmd, arg in setpoints]
         if once is not None:
-            self._session.send(arcos.encode_command(*once))
+            packets.append(arcos.encode_command(*once))
+        session.send_many(packets)  # one write: a stall cannot fall between them
         if self.deadman is not None:
             self._supervisor.wake()
 
@@ -619,9 +725,11 @@ class Pioneer(SimulatorFeatures):
             if self._sip is None:
                 raise TimeoutError(f"{self.transport.url}: no SIP received yet")
             body, now, odo = self._sip
+            sip = arcos.decode_sip(body)
+            self._soc_seen = self._soc_seen or bool(sip["state_of_charge"])
             self._state = build_state(
-                arcos.decode_sip(body), now, odo, tuple(self._sonar), tuple(self._sonar_t),
-                self.params, self.stats.sips,
+                sip, now, odo, tuple(self._sonar), tuple(self._sonar_t),
+                self.params, self.stats.sips, soc_seen=self._soc_seen,
             )  # fmt: skip
         return self._state
 
@@ -636,12 +744,44 @@ class Pioneer(SimulatorFeatures):
             setpoints = list(self._setpoints)
         self.stats.add("keepalives")
         self.stats.keepalive_times.append(now)
-        if setpoints:
-            for cmd, arg in setpoints:
-                self._session.send(arcos.encode_command(cmd, arg))
+        if setpoints:  # one write: after a stall, _before_send replaces all of them
+            self._session.send_many([arcos.encode_command(cmd, arg) for cmd, arg in setpoints])
         else:
             self._session.send(_PULSE)
         return self.keepalive
+
+    def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
+        """Every write, right before it goes out: after ``silence`` s without a packet,
+        longer than the watchdog, while the robot was commanded to move, the program
+        stalled and the robot's watchdog has stopped it. Clear the set-points, note the trip
+        for the next motion command and the listeners, and write a stop in place of any
+        motion command (the keep-alive's stale set-points)."""
+        if silence <= self.watchdog or not self._motion_commanded:
+            return packets
+        with self._setpoint_lock:
+            if not self._motion_commanded:  # another thread found it first
+                return packets
+            trip = WatchdogTrip(time.monotonic(), silence, self.watchdog)
+            self._setpoints = []
+            self._motion_commanded = False
+            self._trip_pending = self._trip_unannounced = trip
+        self.stats.add("watchdog_trips")
+        log.warning(
+            "%s: nothing was sent for %.1f s, past the robot's %g s watchdog (this program "
+            "stalled): the robot was stopped; set-points cleared, it moves again only on a "
+            "new command", self.transport.url, silence, self.watchdog,
+        )  # fmt: skip
+        kept = [p for p in packets if p[3] not in _MOTION_COMMANDS]
+        return [*link.EMERGENCY_STOP, *kept]
+
+    def _on_sent(self, now: float) -> None:
+        """After each packet written: its time; a watchdog trip to announce."""
+        self.stats.tx_times.append(now)
+        if self._trip_unannounced is not None:
+            with self._setpoint_lock:
+                trip, self._trip_unannounced = self._trip_unannounced, None
+            if trip is not None:
+                self._trip_listeners.notify(trip)
 
     def _supervise_step(self) -> float:
         """No SIP for ``sip_timeout``: fail (the session stops the robot). With a dead-man:
@@ -696,4 +836,4 @@ def _clamp_int(value: int) -> int:
     return max(-0x7FFF, min(0x7FFF, value))
 
 
-__all__ = ["Pioneer", "PioneerStats"]
+__all__ = ["Pioneer", "PioneerStats", "WatchdogListener", "WatchdogTrip", "WatchdogTripped"]

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from robocli.errors import ProtocolError
 from robocli.protocols import arcos
+from robocli.robots.geometry import wrap_pi
 
 __all__ = [
     "MAX_READINGS",
@@ -178,9 +179,10 @@ class GpsFix:
 class SimStatus:
     """A simulator's SIMSTAT reply (0x62) in SI units.
 
-    ``true_pose``: where the robot really is in the simulated world (m, m, rad), unlike the
-    odometry. ``sim_interval``/``real_interval``/``last_interval``: simulated seconds per
-    step, the configured and the measured real seconds per step. ``gps``: with a
+    ``true_pose``: where the robot really is in the simulated world (m, m, rad; the heading
+    in [-pi, pi), which AMRISim sends unwrapped), unlike the odometry.
+    ``sim_interval``/``real_interval``/``last_interval``: simulated seconds per step, the
+    configured and the measured real seconds per step. ``gps``: with a
     georeferenced map, else None. ``odometry_error``: the fractional scale errors of the
     odometry (x, y displacement and rotation), None if the simulator does not report them.
     ``t``: monotonic receive time. ``fields``: the raw packet fields.
@@ -210,7 +212,7 @@ def parse_simstatus(body: bytes, t: float) -> SimStatus:
         odo_err = (f["odom_error_x"] / 1e10, f["odom_error_y"] / 1e10,
                    f["odom_error_th"] / (math.degrees(1.0) * 1e7))  # fmt: skip
     return SimStatus(
-        t=t, true_pose=(f["x"] / 1000.0, f["y"] / 1000.0, math.radians(f["th"])),
+        t=t, true_pose=(f["x"] / 1000.0, f["y"] / 1000.0, wrap_pi(math.radians(f["th"]))),
         sim_interval=f["sim_interval"] / 1000.0, real_interval=f["real_interval"] / 1000.0,
         last_interval=f["last_interval"] / 1000.0, gps=gps, odometry_error=odo_err, fields=f,
     )  # fmt: skip

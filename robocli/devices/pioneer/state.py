@@ -34,7 +34,9 @@ class PioneerState:
     left_velocity: float  #: m/s
     right_velocity: float  #: m/s
     battery: float  #: V
-    state_of_charge: float | None  #: 0..1, None when the robot does not model it
+    #: 0..1; None when the robot does not model it (it sends 0, as MobileSim and AMRISim do,
+    #: and has sent nothing else on this link)
+    state_of_charge: float | None
     charge_state: int | None
     motors_enabled: bool
     estop: bool
@@ -163,11 +165,15 @@ def build_state(
     sonar_time: tuple[float, ...],
     params: RobotParams,
     sip_count: int,
+    *,
+    soc_seen: bool = True,
 ) -> PioneerState:
     """A decoded SIP (:func:`robocli.protocols.arcos.decode_sip`) in SI units.
 
     ``odo`` is the unwrapped odometry in position units, ``sonar`` the latest range per
-    sonar index in metres, ``t`` the monotonic receive time.
+    sonar index in metres, ``t`` the monotonic receive time. ``soc_seen``: a SIP of this
+    link reported a non-zero state of charge; until then a 0 means "not modelled" (as
+    MobileSim/AMRISim send it, and the vendor SDK reads it) and comes out as None.
     """
     p = params
     lv = sip["lvel"] * p.vel_conv / 1000.0
@@ -190,7 +196,7 @@ def build_state(
         left_velocity=lv,
         right_velocity=rv,
         battery=(batx10 if batx10 else sip["battery"]) / 10.0,
-        state_of_charge=soc / 100.0 if soc is not None else None,
+        state_of_charge=soc / 100.0 if soc is not None and (soc or soc_seen) else None,
         charge_state=sip["charge_state"],
         motors_enabled=bool(flags & arcos.FLAG_MOTORS_ON),
         estop=bool(flags & arcos.FLAG_ESTOP),
