@@ -127,7 +127,8 @@ class HubServer:
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
-        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl)
+        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
+                       random_ids=token is not None)  # fmt: skip
         self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""

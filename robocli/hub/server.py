@@ -17,8 +17,12 @@ packets. Beyond ros4mat:
   after the 2-byte ``msgConnect`` body of CONNECT (``size`` stays 1); without it, a
   non-silent SUBSCRIBE (it changes the sensor's settings for everyone), SERIAL_CMD and
   DOUT_CTRL get an error reply "unauthorized";
-* reconnecting with an old client id (in CONNECT's header) re-attaches to its buffers; a
-  request from a known, detached id without CONNECT also re-attaches.
+* client ids: CONNECT with the id of a client that is connected gets a new id (the original
+  client sends its old id again after ``close``; it adopts the one in CONNECT_ACK), never
+  that client. CONNECT with the id of a detached client (gone without QUIT) re-attaches to
+  its buffers: without a token, as ros4mat, and so does any request carrying that id
+  without CONNECT (anyone who knows or guesses the id can act as that client); with a token,
+  only a CONNECT that presents the token re-attaches, and ids are random, not sequential.
 """
 
 from __future__ import annotations
@@ -242,14 +246,16 @@ class Ros4matSession:
         if kind == MsgType.CONNECT:
             return self._connect(cid, body)
         if self.state is None:
-            state = self.hub.attach(cid, self.peer) if cid else None
-            if state is None:
+            # ros4mat: a request carrying a detached client's id re-attaches to it; not with a
+            # token (a request cannot present it: CONNECT again with the token)
+            if not cid or self._token is not None or not self.hub.detached(cid):
                 return self._error(kind, "not connected: send CONNECT first")
             refused = self._enter()
             if refused is not None:
-                self.hub.detach(state)
                 return self._error(kind, refused)
-            self.state = state
+            self.state = self.hub.attach(cid, self.peer)
+            if self.state is None:
+                return self._error(kind, "not connected: send CONNECT first")
         state = self.state
         if kind in SENSOR_IDS:
             name = SENSOR_IDS[kind]
@@ -294,13 +300,19 @@ class Ros4matSession:
         refused = self._enter()
         if refused is not None:
             return self._error(MsgType.CONNECT_ACK, refused)
+        given = body[2:]
+        authorized = (
+            self._token is not None and bool(given) and hmac.compare_digest(given, self._token)
+        )
+        # with a token, only its holder may take a detached client's buffers (and rights)
+        resume = self._token is None or authorized
         if self.state is not None:
             self.hub.detach(self.state)
             self.state = None
-        self.state = self.hub.connect(cid, self.peer, body[1] == 1)
-        given = body[2:]
-        if self._token is not None and given:
-            self.state.authorized = hmac.compare_digest(given, self._token)
+        if resume and cid and self.hub.in_use(cid) and self._reap is not None:
+            self._reap()  # its connection may be closed, its end not handled yet
+        self.state = self.hub.connect(cid, self.peer, body[1] == 1, resume=resume)
+        self.state.authorized = authorized
         return self._packet(MsgType.CONNECT_ACK, b"", 0)
 
     def _subscribe(self, body: bytes) -> bytes:

@@ -176,14 +176,41 @@ def test_reconnect_with_client_id_keeps_buffers(hub: HubServer, raw: Any, wait: 
     b.close()
 
 
-def test_second_connection_cannot_take_a_live_client_id(hub: HubServer, raw: Any) -> None:
+def test_a_live_client_id_is_not_taken_over_a_new_one_is_given(hub: HubServer, raw: Any) -> None:
+    """CONNECT naming a connected client's id gets a new id (the original client sends its
+    old id again after ``close``, and adopts the one in CONNECT_ACK), never that client."""
     a, b = raw(hub.port), raw(hub.port)
     cid = a.connect()
+    assert a.subscribe("imu", {"freq_acquisition": 100, "freq_send": 20}).error == 0
     b.send(r4m.encode_request(r4m.MsgType.CONNECT, b"\x03\x00", client_id=cid))
-    err = b.recv()
-    assert err.error and "in use" in err.error_text
+    ack = b.recv()
+    assert (ack.msg_type, ack.error) == (r4m.MsgType.CONNECT_ACK, 0), ack
+    assert ack.client_id not in (0, cid)
+    infos = {c.id: c for c in hub.clients}
+    assert infos[cid].connected and infos[cid].subscriptions == {"imu": 100}
+    assert infos[ack.client_id].subscriptions == {}
+    assert a.pull("imu").error == 0
     a.close()
     b.close()
+
+
+def test_original_client_close_then_connect(raw: Any, wait: Any) -> None:
+    """The original client's ``close`` (QUIT) then an immediate ``connect`` carries the old
+    id while the hub may not have handled the QUIT yet: every CONNECT is answered with an
+    id (a new one), on a hub with room for one client only."""
+    with HubServer(port=0, max_clients=1) as srv:
+        cid = 0
+        for _ in range(30):
+            c = raw(srv.port)
+            connect = bytearray(ORIGINAL["connect"])
+            connect[2:6] = cid.to_bytes(4, "little")  # it never resets its id
+            c.send(bytes(connect))
+            ack = c.recv()
+            assert (ack.msg_type, ack.error) == (r4m.MsgType.CONNECT_ACK, 0), ack.error_text
+            cid = ack.client_id
+            c.send(r4m.encode_request(r4m.MsgType.QUIT, client_id=cid))
+            c.close()
+        wait(lambda: not srv.clients, what="every client to be forgotten")
 
 
 def test_quit_and_errors(hub: HubServer, client_factory: Any) -> None:

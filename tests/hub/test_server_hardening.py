@@ -1,5 +1,5 @@
-"""The hub under attack and load (issue 13): clients that ask without reading, floods of
-idle connections, streams that lose their framing."""
+"""The hub under attack and load (issue 13): client ids and the token, clients that ask
+without reading, floods of idle connections, streams that lose their framing."""
 
 from __future__ import annotations
 
@@ -50,6 +50,84 @@ def _serial_cmd(port: str, data: bytes) -> dict[str, Any]:
            "send_length": len(data), "read_length": 0, "read_timeout_sec": 0,
            "read_timeout_usec": 0, "close_after": 0}  # fmt: skip
     return {"cmd": cmd, "port": port.encode(), "data": data}
+
+
+# ---------------------------------------------------------------------------- 1: ids, token
+
+
+def test_a_dropped_clients_id_does_not_carry_its_rights(
+    raw: Any, wait: Any, pty_port: tuple[str, int]
+) -> None:
+    """A client with the token drops without QUIT. A connection with no token and no
+    CONNECT then sends DOUT_CTRL, SUBSCRIBE and SERIAL_CMD carrying its id: none is obeyed
+    (they were: outputs set, the rate changed for everyone, the serial port written). A
+    CONNECT with that id but no token gets a new client; with the token, the old one."""
+    port, master = pty_port
+    with HubServer(port=0, token="s3cret", serial_ports=[port]) as srv:
+        owner = raw(srv.port)
+        cid = owner.connect(token=b"s3cret")
+        assert owner.subscribe("adc", ADC, buffer=1000).error == 0
+        owner.close()  # gone without QUIT: detached, buffers and rights kept for it
+        wait(lambda: srv.clients and not srv.clients[0].connected, what="detached")
+        outputs = srv.sensors["adc"]["digital_out"]
+        thief = raw(srv.port)
+        attempts = [
+            (r4m.MsgType.DOUT_CTRL, {"d0": 1, "d1": 1, "d2": 1, "d3": 1}),
+            (r4m.MsgType.SUBSCRIBE,
+             {"sensor": "adc", "silent": 0, "buffer_size": 10, "params": {**ADC,
+              "freq_acquisition": 50}}),
+            (r4m.MsgType.SERIAL_CMD, _serial_cmd(port, b"ZAP")),
+        ]  # fmt: skip
+        for kind, body in attempts:
+            thief.send(r4m.encode_request(kind, body, client_id=cid))
+            thief.send(r4m.encode_request("imu", client_id=cid))  # a marker: replies up to it
+            replies = []
+            while not replies or replies[-1].msg_type != r4m.MsgType.IMU:
+                replies.append(thief.recv())
+            assert all(r.error for r in replies), (kind, replies)
+        assert srv.sensors["adc"]["digital_out"] == outputs
+        assert srv.sensors["adc"]["rate"] == 500
+        with pytest.raises(BlockingIOError):
+            os.read(master, 64)  # nothing was written to the serial port
+        ack = thief.request(r4m.MsgType.CONNECT, b"\x03\x00")  # header's id is still cid
+        assert ack.error == 0 and ack.client_id not in (0, cid)
+        thief.client_id = ack.client_id
+        denied = thief.subscribe("adc", {**ADC, "freq_acquisition": 50})
+        assert "unauthorized" in denied.error_text
+        back = raw(srv.port)
+        assert back.connect(client_id=cid, token=b"s3cret") == cid  # its holder gets it back
+        assert back.subscribe("adc", ADC, buffer=1000).error == 0  # and its rights
+        thief.close()
+        back.close()
+
+
+def test_client_ids_of_a_hub_with_a_token_are_not_guessable(raw: Any) -> None:
+    """CONNECT_ACK reveals ids: sequential ones told anyone the next and the previous."""
+    with HubServer(port=0, token="s3cret") as srv:
+        ids = []
+        for _ in range(8):
+            c = raw(srv.port)
+            ids.append(c.connect())
+            c.close()
+    assert len(set(ids)) == 8 and 0 not in ids
+    assert sorted(ids) != list(range(min(ids), min(ids) + 8))
+    assert max(ids) > 1 << 16  # 8 random 31-bit ids all below: probability 2**-120
+
+
+def test_without_a_token_a_detached_id_reattaches_as_in_ros4mat(raw: Any, wait: Any) -> None:
+    """No token (ros4mat compatibility): a request carrying a detached client's id acts as
+    that client, without CONNECT. Documented in the README (what the open mode allows)."""
+    with HubServer(port=0) as srv:
+        owner = raw(srv.port)
+        cid = owner.connect()
+        assert owner.subscribe("adc", ADC, buffer=1000).error == 0
+        owner.close()
+        wait(lambda: srv.clients and not srv.clients[0].connected, what="detached")
+        other = raw(srv.port)
+        other.client_id = cid
+        got = wait(lambda: (m := other.pull("adc")).size and m, what="samples")
+        assert got.client_id == cid and srv.clients[0].connected
+        other.close()
 
 
 # ---------------------------------------------------------------------------- 2: memory
