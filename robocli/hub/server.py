@@ -22,7 +22,9 @@ packets. Beyond ros4mat:
   that client. CONNECT with the id of a detached client (gone without QUIT) re-attaches to
   its buffers: without a token, as ros4mat, and so does any request carrying that id
   without CONNECT (anyone who knows or guesses the id can act as that client); with a token,
-  only a CONNECT that presents the token re-attaches, and ids are random, not sequential.
+  only a CONNECT that presents the token re-attaches, and ids are random, not sequential;
+* a pull of a sensor the client is not subscribed to is an empty reply (size 0), as the
+  original server answered.
 """
 
 from __future__ import annotations
@@ -261,6 +263,8 @@ class Ros4matSession:
             name = SENSOR_IDS[kind]
             if body:
                 return self._error(kind, "a data pull has no body")
+            if name not in state.cursors:  # as the original: nothing queued, size 0
+                return self._packet(kind, b"", 0)
             start = time.perf_counter()
             parts = self._data(kind, self.hub.pull(state, name))
             self._times.add(time.perf_counter() - start)

@@ -67,6 +67,24 @@ def test_original_client_bytes_are_served(hub: HubServer, client_factory: Any, w
     wait(lambda: not hub.clients, what="the client to be forgotten")
 
 
+def test_pull_without_subscribing_is_a_size_0_reply(client_factory: Any) -> None:
+    """The original server answered a pull of a sensor the client is not subscribed to with
+    an empty reply, which lab scripts read as an 8x0 matrix; so does the hub."""
+    c = client_factory()
+    c.send(ORIGINAL["connect"])
+    cid = c.recv().client_id
+    pull = bytearray(ORIGINAL["pull_adc"])
+    pull[2:6] = cid.to_bytes(4, "little")
+    c.send(bytes(pull))
+    raw = c.recv_raw()
+    head = r4m.Header.parse(raw)
+    assert len(raw) == r4m.HEADER_SIZE
+    assert (head.type, head.error, head.size, head.uncompress_size) == (0x20, 0, 0, 0)
+    for sensor in ("imu", "gps", "camera", "laser", "depth", "stereo", "sysinfo", "battery"):
+        reply = c.pull(sensor)
+        assert (reply.error, reply.size) == (0, 0), (sensor, reply)
+
+
 def test_empty_pull_is_a_size_0_reply(client_factory: Any) -> None:
     c = client_factory()
     c.connect()
@@ -218,8 +236,8 @@ def test_quit_and_errors(hub: HubServer, client_factory: Any) -> None:
     err = c.request("adc")  # no CONNECT yet
     assert err.msg_type == r4m.MsgType.ADC and err.error and "CONNECT" in err.error_text
     c.connect()
-    err = c.request("imu")  # not subscribed
-    assert err.msg_type == r4m.MsgType.IMU and "not subscribed" in err.error_text
+    empty = c.request("imu")  # not subscribed: an empty reply, as the original server's
+    assert (empty.msg_type, empty.error, empty.size) == (r4m.MsgType.IMU, 0, 0)
     head = {"sensor": 0x28, "silent": 0, "buffer_size": 1, "params_size": 30}
     err = c.request(r4m.MsgType.SUBSCRIBE, r4m.Subscribe.build(head) + bytes(30))
     assert err.msg_type == r4m.MsgType.SUBSCRIBE_ACK and "not served" in err.error_text
