@@ -14,7 +14,7 @@ from robocli.hub.server import PullTimes, Ros4matSession
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
-from robocli.sim.serving import Server, Ticker
+from robocli.sim.serving import REAP_WAIT_S, Server, Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
@@ -23,13 +23,17 @@ log = logging.getLogger("robocli.hub")
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
 DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
 SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
-CONNECT_TIMEOUT_S = 10.0
-"""A connection that has not sent a complete CONNECT this long after it opened is closed:
-idle or half-sent connections must not hold the ``max_clients`` slots."""
+CONNECT_TIMEOUT_S = 2.0
+"""A connection that has not sent a complete CONNECT this long after it opened is closed (the
+original client sends it at once)."""
+MAX_PENDING = 64  #: connections at once that have not completed CONNECT yet
+MAX_PENDING_PER_ADDRESS = 32  #: the same, from one address
+MAX_BACKLOG = 1 << 20
+"""Bytes a connection may leave unread beyond the one reply it waits on (a connection handles
+no request while a reply waits: a client that asks without reading holds one reply)."""
 REFUSE_HEADROOM = 8
-"""Connections beyond ``max_clients`` answered with a ros4mat error reply ("hub full") rather
-than the serving layer's plain-text refusal line, which a ros4mat client cannot parse."""
-WATCH_PERIOD_S = 0.25  #: how often the connections are checked (handshake, oversize requests)
+"""Connections beyond the clients and pending ones: the serving layer's plain-text refusal
+line comes only beyond these (a full hub answers CONNECT with a ros4mat error reply)."""
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
 BUSY_REASON = "hub full: too many clients"
 HUB_SWITCH_INTERVAL_S = 1e-4
@@ -62,10 +66,17 @@ class HubServer:
     for a reconnect with its id.
     ``connect_timeout``: seconds a new connection has to send a complete CONNECT (or a
     request re-attaching a detached client id) before it is closed.
-    ``sources``: extra or replacement sources by sensor name.
+    ``max_pending``/``max_per_address``: connections at once that have not completed CONNECT,
+    in all and from one address; one more closes the oldest of them that sent nothing (else
+    the oldest). They never take the places of clients: ``max_clients`` counts connections
+    that completed CONNECT; one more gets a ros4mat error reply "hub full".
+    ``output_budget``: bytes of replies that may wait for their clients over all
+    connections (default: two full rings); a connection whose reply would take it over is
+    dropped. ``sources``: extra or replacement sources by sensor name.
 
-    A connection whose first request declares a body over ``max_body`` is closed within
-    :data:`WATCH_PERIOD_S`.
+    A connection whose stream loses its framing (garbage, a request body over ``max_body``,
+    a request left half-sent for 1 s) is closed; a connected client's oversize request gets
+    an error reply first.
     """
 
     def __init__(
@@ -84,6 +95,9 @@ class HubServer:
         send_timeout: float = SEND_TIMEOUT_S,
         detached_ttl: float = DETACHED_TTL_S,
         connect_timeout: float = CONNECT_TIMEOUT_S,
+        max_pending: int = MAX_PENDING,
+        max_per_address: int = MAX_PENDING_PER_ADDRESS,
+        output_budget: int | None = None,
         sources: dict[str, Source] | None = None,
     ) -> None:
         if max_clients < 1:
@@ -92,6 +106,12 @@ class HubServer:
             raise InvalidArgument("max_body must be >= 64 bytes")
         if not connect_timeout > 0:
             raise InvalidArgument("connect_timeout must be > 0 s")
+        if max_pending < 1 or max_per_address < 1:
+            raise InvalidArgument("max_pending and max_per_address must be >= 1")
+        if output_budget is None:
+            output_budget = 2 * ring_budget + MAX_BACKLOG
+        if output_budget < 1:
+            raise InvalidArgument("output_budget must be >= 1 byte")
         self.connect_timeout = connect_timeout
         self.max_clients = max_clients
         self._sessions = 0  # connections admitted as clients (at most max_clients)
@@ -107,22 +127,27 @@ class HubServer:
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
-        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl)
+        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
+                       random_ids=token is not None)  # fmt: skip
         self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
-        self._watch = Ticker(min(WATCH_PERIOD_S, connect_timeout / 4), self._watch_links,
-                             "hub-watch")  # fmt: skip
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
             self._session,
             protocol="ros4mat",
-            max_clients=max_clients + REFUSE_HEADROOM,
+            max_clients=max_clients + max_pending + REFUSE_HEADROOM,
             max_frame=HEADER_SIZE + max_body,
             byte_timeout=1.0,
             send_timeout=send_timeout,
-            max_backlog=ring_budget + (1 << 20),
+            max_backlog=MAX_BACKLOG,
             name="hub",
             busy_reason=BUSY_REASON,
+            pace=True,
+            output_budget=output_budget,
+            strict_framing=True,
+            handshake_timeout=connect_timeout,
+            max_pending=max_pending,
+            max_pending_per_address=max_per_address,
         )
         self._url: str | None = None
         self.warnings: list[str] = []
@@ -132,34 +157,32 @@ class HubServer:
     def _expire(self, _now: float) -> None:
         self.hub.expire()
 
-    def _watch_links(self, now: float) -> None:
-        """Close the connections without a client: those that sent no CONNECT within
-        ``connect_timeout``, and those whose first request declared a body over
-        ``max_body`` (not a ros4mat client: the framer dropped it, no reply can name it).
-        A connected client's oversize request is skipped, as garbage is (the framer
-        resynchronises)."""
-        for link in self._server.links():
-            session = link.session
-            if not isinstance(session, Ros4matSession) or session.state is not None:
-                continue
-            if now - session.opened > self.connect_timeout:
-                log.info("%s: no CONNECT within %g s; closing", link.name, self.connect_timeout)
-                link.close()
-            elif link.stats.oversize:
-                log.info("%s: a request body over %d bytes before CONNECT; closing", link.name,
-                         self._max_body)  # fmt: skip
-                link.close()
-
     def _session(self, link: Link) -> Ros4matSession:
+        return Ros4matSession(
+            link, self.hub, link.name, self._token, self.serial, self.pull_times,
+            admit=self._admit_client, on_end=self._session_ended, reap=self._server.reap,
+            max_body=self._max_body,
+        )  # fmt: skip
+
+    def _take_place(self) -> bool:
         with self._sessions_lock:
-            full = self._sessions >= self.max_clients
-            if not full:
-                self._sessions += 1
-        if full:  # answered in ros4mat: an error reply to each request, then closed
-            log.warning("%s refused: %s", link.name, BUSY_REASON)
-            return Ros4matSession(link, self.hub, link.name, None, None, refuse=BUSY_REASON)
-        return Ros4matSession(link, self.hub, link.name, self._token, self.serial,
-                              self.pull_times, on_end=self._session_ended)  # fmt: skip
+            if self._sessions >= self.max_clients:
+                return False
+            self._sessions += 1
+            return True
+
+    def _admit_client(self) -> str | None:
+        """A client place for a connection completing CONNECT: None, or why not. When the
+        hub is full, the connections whose client has already closed are waited for first
+        (at most :data:`~robocli.sim.serving.REAP_WAIT_S`): the original client's ``close``
+        then ``connect`` must not find its own old connection holding the last place."""
+        if self._take_place():
+            return None
+        self._server.reap(REAP_WAIT_S)
+        if self._take_place():
+            return None
+        log.warning("client refused: %s", BUSY_REASON)
+        return BUSY_REASON
 
     def _session_ended(self) -> None:
         with self._sessions_lock:
@@ -176,7 +199,6 @@ class HubServer:
             log.warning(msg)
         self._url = self._server.serve_tcp(self.bind, self._port)
         self._expiry.start()
-        self._watch.start()
         return self
 
     def exposure_warning(self) -> str | None:
@@ -213,13 +235,23 @@ class HubServer:
         return self.hub.sensors()
 
     @property
+    def output_peak(self) -> int:
+        """The most bytes of replies that ever waited for their clients at once, over all
+        connections (bounded by ``output_budget``)."""
+        return self._server.budget.peak
+
+    @property
+    def evicted(self) -> int:
+        """Connections closed before CONNECT to make room for newer ones."""
+        return self._server.evicted
+
+    @property
     def link_stats(self) -> LinkStats:
         """Byte and frame counters summed over every connection, past and present."""
         return self._server.stats()
 
     def close(self) -> None:
         """Close every connection, stop every sensor (bounded). Idempotent."""
-        self._watch.close()
         self._server.close()
         self._expiry.close()
         self.hub.close()

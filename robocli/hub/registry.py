@@ -7,13 +7,15 @@ polls the source at the source's batch rate and pushes into the sensor's ring. S
 shared: a non-silent subscribe reconfigures the sensor for everyone (last writer wins), as in
 ros4mat. A client that disconnects without QUIT is kept, detached, so that it can re-attach
 with its id and find its buffers; at most ``max_detached`` are kept (the oldest go first),
-each for at most ``detached_ttl`` seconds (:meth:`Hub.expire`).
+each for at most ``detached_ttl`` seconds (:meth:`Hub.expire`). Client ids are sequential, as
+ros4mat's, or random (``random_ids``: a hub with a token, where an id must not be guessable).
 """
 
 from __future__ import annotations
 
 import itertools
 import logging
+import secrets
 import threading
 import time
 from collections.abc import Callable, Mapping
@@ -171,6 +173,7 @@ class Hub:
         max_detached: int = 256,
         detached_ttl: float = 600.0,
         ring_budget: int = 64 << 20,
+        random_ids: bool = False,
     ) -> None:
         self.clock = clock or hub_clock()
         self.channels = {name: Channel(s, self.clock, ring_budget) for name, s in sources.items()}
@@ -178,31 +181,55 @@ class Hub:
         self.detached_ttl = detached_ttl
         self._clients: dict[int, ClientState] = {}
         self._ids = itertools.count(1)
+        self._random_ids = random_ids
         self._lock = threading.Lock()
 
     # ------------------------------------------------------------------ clients
 
-    def connect(self, client_id: int, peer: str, compress: bool) -> ClientState:
-        """Attach a connection: a new client (id 0 or unknown id) or a detached one."""
+    def connect(
+        self, client_id: int, peer: str, compress: bool, *, resume: bool = True
+    ) -> ClientState:
+        """Attach a connection: the detached client ``client_id`` if ``resume``, else a new
+        client. A connected client is never taken over: asking for its id gives a new one
+        (the caller adopts the id it is given, as the original ros4mat client does). The
+        client starts unauthorized."""
         with self._lock:
-            state = self._clients.get(client_id) if client_id else None
-            if state is not None and state.connected:
-                raise DeviceError(f"client id {client_id} is in use by {state.peer}")
-            if state is None:
-                state = ClientState(next(self._ids))
+            state = self._clients.get(client_id) if client_id and resume else None
+            if state is None or state.connected:
+                state = ClientState(self._new_id())
                 self._clients[state.id] = state
             state.peer, state.compress, state.connected = peer, compress, True
             state.authorized = False
             log.info("client %d connected from %s", state.id, peer)
             return state
 
+    def _new_id(self) -> int:
+        """An id no client has (lock held): the next in sequence, or a random 31-bit one."""
+        while True:
+            cid = secrets.randbelow(0x7FFFFFFF) + 1 if self._random_ids else next(self._ids)
+            if cid not in self._clients:
+                return cid
+
+    def in_use(self, client_id: int) -> bool:
+        """Whether a connection holds the client ``client_id`` now."""
+        with self._lock:
+            state = self._clients.get(client_id)
+            return state is not None and state.connected
+
+    def detached(self, client_id: int) -> bool:
+        """Whether ``client_id`` is a known client with no connection."""
+        with self._lock:
+            state = self._clients.get(client_id)
+            return state is not None and not state.connected
+
     def attach(self, client_id: int, peer: str) -> ClientState | None:
-        """Re-attach a detached client by id without CONNECT (None: unknown or in use)."""
+        """Re-attach a detached client by id without CONNECT (None: unknown or in use). It
+        is unauthorized: no token came with this request."""
         with self._lock:
             state = self._clients.get(client_id)
             if state is None or state.connected:
                 return None
-            state.peer, state.connected = peer, True
+            state.peer, state.connected, state.authorized = peer, True, False
             return state
 
     def detach(self, state: ClientState) -> None:

@@ -7,15 +7,24 @@ sensors and clients is in :class:`robocli.hub.registry.Hub`; this module only tr
 packets. Beyond ros4mat:
 
 * every data reply carries the send time on the hub's clock (``packet_timestamp``);
-* a malformed, compressed or unknown request gets an error reply (type = the request's);
-  garbage is skipped by the framer; a client that stops reading is dropped. No other client
-  notices;
+* a malformed, compressed or unknown request gets an error reply (type = the request's); a
+  stream that loses its framing (garbage, a header announcing more than the hub takes, a
+  request left half-sent) is closed, after an error reply naming the request when a
+  connected client's header announced too large a body: ros4mat has no sync marker, and
+  what a rescan finds after garbage may be a phantom request (a QUIT that drops the
+  client's subscriptions). A client that stops reading is dropped. No other client notices;
 * optional shared-token authentication (off by default, as ros4mat had none): the token goes
   after the 2-byte ``msgConnect`` body of CONNECT (``size`` stays 1); without it, a
   non-silent SUBSCRIBE (it changes the sensor's settings for everyone), SERIAL_CMD and
   DOUT_CTRL get an error reply "unauthorized";
-* reconnecting with an old client id (in CONNECT's header) re-attaches to its buffers; a
-  request from a known, detached id without CONNECT also re-attaches.
+* client ids: CONNECT with the id of a client that is connected gets a new id (the original
+  client sends its old id again after ``close``; it adopts the one in CONNECT_ACK), never
+  that client. CONNECT with the id of a detached client (gone without QUIT) re-attaches to
+  its buffers: without a token, as ros4mat, and so does any request carrying that id
+  without CONNECT (anyone who knows or guesses the id can act as that client); with a token,
+  only a CONNECT that presents the token re-attaches, and ids are random, not sequential;
+* a pull of a sensor the client is not subscribed to is an empty reply (size 0), as the
+  original server answered.
 """
 
 from __future__ import annotations
@@ -71,6 +80,12 @@ _REPLY_TYPES: dict[int, int] = {
     MsgType.SERIAL_CMD: MsgType.SERIAL_ANS,
 }
 """Request -> the type of its reply (an error reply has the type of the expected reply)."""
+
+_REQUESTS = frozenset(
+    [MsgType.CONNECT, MsgType.QUIT, MsgType.SUBSCRIBE, MsgType.UNSUBSCRIBE, MsgType.SERIAL_CMD,
+     MsgType.DOUT_CTRL, *SENSOR_IDS]
+)  # fmt: skip
+"""The message ids a client sends."""
 
 _HEADER: struct.Struct = layout.struct_of(Header, "msgHeader")
 
@@ -134,20 +149,23 @@ class Ros4matSession:
         serial: Any,
         times: PullTimes | None = None,
         *,
-        refuse: str | None = None,
+        admit: Callable[[], str | None] | None = None,
         on_end: Callable[[], None] | None = None,
+        reap: Callable[[], object] | None = None,
+        max_body: int | None = None,
     ) -> None:
         self.link, self.hub, self.peer = link, hub, peer
-        self.refuse = refuse
-        """Why every request of this connection gets an error reply (the hub is full)."""
+        self._admit = admit
+        """Takes a client place for this connection: None, or why there is none."""
+        self._admitted = False
         self._on_end = on_end
+        self._reap = reap
+        """Waits (bounded) for the connections whose peer has already closed to end."""
+        self._max_body = max_body
         self._token = token
         self._serial = serial
         self._times = times or PullTimes()
         self.state: ClientState | None = None
-        self.opened = time.monotonic()
-        """When the connection opened (monotonic s): the hub closes it if it has no client
-        (:attr:`state`) ``connect_timeout`` s later."""
 
     # ---------------------------------------------------------------- replies
 
@@ -183,24 +201,42 @@ class Ros4matSession:
     # ---------------------------------------------------------------- session protocol
 
     def on_frame(self, frame: bytes, now: float) -> bytes | None:
-        if self.refuse is not None:  # an error reply the original client can read
-            kind = frame[0] if frame else 0
-            if kind == MsgType.QUIT:
-                self.link.close()
-                return None
-            return self._error(_REPLY_TYPES.get(kind, kind), self.refuse)
         try:
             return self._handle(frame)
         except (ProtocolError, DeviceError, InvalidArgument) as exc:
             kind = frame[0] if frame else 0
             return self._error(_REPLY_TYPES.get(kind, kind), str(exc))
 
+    def on_unframed(self, head: bytes) -> bytes | None:
+        """The stream lost its framing at ``head``; the link closes after this reply. A
+        connected client whose request header announced a body over the hub's limit is told
+        so, by an error reply of its request's type (before CONNECT: closed unanswered)."""
+        if self.state is None or self._max_body is None or len(head) < HEADER_SIZE:
+            return None
+        kind, error, _cid, size, _usize, csize, ctype, _ts = _HEADER.unpack_from(head)
+        body = csize if size else 0
+        if error or ctype > Compression.ZLIB or kind not in _REQUESTS or body <= self._max_body:
+            return None  # not a request too large: garbage
+        return self._error(_REPLY_TYPES.get(kind, kind), f"request body of {body} bytes is "
+                           f"over this hub's limit of {self._max_body}; closing")  # fmt: skip
+
     def on_close(self) -> None:
-        if self._on_end is not None:
-            self._on_end()
         if self.state is not None:
             self.hub.detach(self.state)
             log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)
+        if self._admitted and self._on_end is not None:
+            self._admitted = False
+            self._on_end()
+
+    def _enter(self) -> str | None:
+        """Take a client place for this connection (once): None, or why there is none."""
+        if not self._admitted:
+            refused = self._admit() if self._admit is not None else None
+            if refused is not None:
+                return refused
+            self._admitted = True
+            self.link.establish()
+        return None
 
     # ---------------------------------------------------------------- dispatch
 
@@ -212,7 +248,14 @@ class Ros4matSession:
         if kind == MsgType.CONNECT:
             return self._connect(cid, body)
         if self.state is None:
-            self.state = self.hub.attach(cid, self.peer) if cid else None
+            # ros4mat: a request carrying a detached client's id re-attaches to it; not with a
+            # token (a request cannot present it: CONNECT again with the token)
+            if not cid or self._token is not None or not self.hub.detached(cid):
+                return self._error(kind, "not connected: send CONNECT first")
+            refused = self._enter()
+            if refused is not None:
+                return self._error(kind, refused)
+            self.state = self.hub.attach(cid, self.peer)
             if self.state is None:
                 return self._error(kind, "not connected: send CONNECT first")
         state = self.state
@@ -220,6 +263,8 @@ class Ros4matSession:
             name = SENSOR_IDS[kind]
             if body:
                 return self._error(kind, "a data pull has no body")
+            if name not in state.cursors:  # as the original: nothing queued, size 0
+                return self._packet(kind, b"", 0)
             start = time.perf_counter()
             parts = self._data(kind, self.hub.pull(state, name))
             self._times.add(time.perf_counter() - start)
@@ -256,12 +301,22 @@ class Ros4matSession:
     def _connect(self, cid: int, body: bytes) -> bytes:
         if len(body) < 2:
             return self._error(MsgType.CONNECT_ACK, "CONNECT body is 2 bytes")
+        refused = self._enter()
+        if refused is not None:
+            return self._error(MsgType.CONNECT_ACK, refused)
+        given = body[2:]
+        authorized = (
+            self._token is not None and bool(given) and hmac.compare_digest(given, self._token)
+        )
+        # with a token, only its holder may take a detached client's buffers (and rights)
+        resume = self._token is None or authorized
         if self.state is not None:
             self.hub.detach(self.state)
-        self.state = self.hub.connect(cid, self.peer, body[1] == 1)
-        given = body[2:]
-        if self._token is not None and given:
-            self.state.authorized = hmac.compare_digest(given, self._token)
+            self.state = None
+        if resume and cid and self.hub.in_use(cid) and self._reap is not None:
+            self._reap()  # its connection may be closed, its end not handled yet
+        self.state = self.hub.connect(cid, self.peer, body[1] == 1, resume=resume)
+        self.state.authorized = authorized
         return self._packet(MsgType.CONNECT_ACK, b"", 0)
 
     def _subscribe(self, body: bytes) -> bytes:

@@ -3,11 +3,17 @@
 A :class:`Link` frames what it receives with the C framer (bounded by ``max_frame``), hands
 each complete frame to its session and writes the replies inline from its own thread. A
 partial frame with no new byte for ``byte_timeout`` is abandoned: its first byte is dropped and
-the rest rescanned. :meth:`Link.send` never blocks: output the peer cannot take now waits in a
-bounded backlog, and a peer that leaves it unread for ``send_timeout`` is dropped. With nothing
-queued, a reply is written straight from the caller's buffer and only what the peer could not
-take yet is copied into the backlog (a large reply, a camera frame, is not copied whole). Pushes
-from another thread (a ticker) are flushed by the next push or by the link's own thread.
+the rest rescanned (with ``strict`` framing the link is closed instead). :meth:`Link.send`
+never blocks: output the peer cannot take now waits in a bounded queue, and a peer that leaves
+it unread for ``send_timeout`` is dropped. Nothing is copied to wait: a reply is written
+straight from the caller's buffers and the queue keeps views of what the peer has not taken
+yet (a large reply, a camera frame, is not copied). Pushes from another thread (a ticker) are
+flushed by the next push or by the link's own thread.
+
+With ``pace`` (request/reply protocols) a link reads and handles no request while one of its
+replies waits for the peer: a client that asks without reading holds at most one reply in the
+server, and its next requests wait in the kernel's buffers. An :class:`OutputBudget` bounds the
+output waiting over every link of a server: a link whose output would take it over is dropped.
 
 Used through :class:`robocli.sim.serving.Server`; nothing here is global.
 """
@@ -21,8 +27,10 @@ import select
 import socket
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
+from itertools import islice
 from typing import TYPE_CHECKING
 
 from robocli.core import Framer
@@ -31,13 +39,49 @@ from robocli.errors import TransportError
 if TYPE_CHECKING:
     from robocli.sim.serving import Session
 
-__all__ = ["DONTWAIT", "Link", "LinkLimits", "LinkStats", "PtyLink", "TcpLink"]
+__all__ = ["DONTWAIT", "Link", "LinkLimits", "LinkStats", "OutputBudget", "PtyLink", "TcpLink"]
 
 log = logging.getLogger("robocli.sim.serving")
 
 RECV_SIZE = 65536  #: bytes per recv
 MAX_PARTS = 512  #: buffers one gathered write takes (below every platform's IOV_MAX)
 DONTWAIT = getattr(socket, "MSG_DONTWAIT", 0)  #: 0 where the platform has no such flag
+LINGER_S = 0.5  #: a link ending after a last reply reads (and discards) this long at most
+UNFRAMED_HEAD = 256  #: bytes of a stream that lost its framing shown to the session
+_RDHUP: int = getattr(select, "POLLRDHUP", 0)
+
+
+class OutputBudget:
+    """Bytes of output waiting for their peers, summed over the links of one server.
+
+    ``cap``: the most that may wait at once (None: no bound). A link whose queued output
+    takes the total over it is dropped at once, which frees that output. :attr:`peak` is the
+    most that ever waited at once (within the cap). Thread-safe.
+    """
+
+    def __init__(self, cap: int | None = None) -> None:
+        if cap is not None and cap <= 0:
+            raise ValueError("the output budget must be > 0 bytes")
+        self.cap = cap
+        self.total = 0
+        self.peak = 0
+        self.overflows = 0  #: links dropped because the budget was full
+        self._lock = threading.Lock()
+
+    def add(self, n: int) -> bool:
+        """Count ``n`` more bytes waiting; False when that takes the total over the cap."""
+        with self._lock:
+            self.total += n
+            if self.cap is not None and self.total > self.cap:
+                self.overflows += 1
+                return False
+            self.peak = max(self.peak, self.total)
+            return True
+
+    def sub(self, n: int) -> None:
+        """``n`` bytes stopped waiting (written or discarded)."""
+        with self._lock:
+            self.total -= n
 
 
 @dataclass(frozen=True)
@@ -49,6 +93,15 @@ class LinkLimits:
     byte_timeout: float
     send_timeout: float
     max_backlog: int
+    pace: bool = False
+    """Handle no request while a reply waits for the peer; ``max_backlog`` then bounds what
+    is queued beyond that one reply."""
+    strict: bool = False
+    """A stream that loses its framing (bytes the framer must skip, a partial frame
+    abandoned) is closed rather than rescanned: for protocols without a sync marker."""
+    handshake_timeout: float | None = None
+    """A TCP link not :meth:`~Link.establish`-ed this many seconds after it opened is closed."""
+    budget: OutputBudget | None = None
 
 
 @dataclass
@@ -82,17 +135,28 @@ class Link:
 
     def __init__(self, limits: LinkLimits, name: str, on_end: Callable[[Link], None]) -> None:
         self.name = name
+        self.address = ""
+        """The peer's address without its port (TCP), for per-address limits."""
+        self.opened = time.monotonic()
+        self.established = limits.handshake_timeout is None
+        """False until the session calls :meth:`establish` (when ``handshake_timeout`` is
+        set): the link is pending, closed if the handshake does not come in time."""
         self._limits = limits
         self._on_end = on_end
         self._framer = Framer(limits.protocol, limits.max_frame)
         self._rx_lock = threading.Lock()  # framer and input counters
-        self._tx_lock = threading.Lock()  # output and its backlog
+        self._tx_lock = threading.Lock()  # output and its queue
         self._tail = bytearray()  # the bytes the framer holds (a partial frame)
         self._last_rx = time.monotonic()
-        self._backlog = bytearray()
-        self._backlog_since = 0.0
+        self._out: deque[memoryview] = deque()  # output the peer has not taken yet
+        self._out_bytes = 0
+        self._out_since = 0.0
         self._replies: list[bytes] = []  # replies of the frames being dispatched (link thread)
+        self._held: list[bytes] = []  # frames waiting for a reply to go out (pace)
+        self._unframed: bytes | None = None  # where the stream lost its framing (strict)
+        self._ending = False  # read nothing more; end once the output is out
         self._closed = False
+        self._ended = threading.Event()
         self._stats = LinkStats()
         self.session: Session | None = None
 
@@ -103,55 +167,62 @@ class Link:
         """False once the link was dropped or closed."""
         return not self._closed
 
-    def send(self, data: bytes) -> bool:
+    @property
+    def ended(self) -> bool:
+        """True once the link's thread has finished (and the server forgot the link)."""
+        return self._ended.is_set()
+
+    def wait_ended(self, timeout: float) -> bool:
+        """Wait at most ``timeout`` s for the link's thread to finish; whether it did."""
+        return self._ended.wait(max(0.0, timeout))
+
+    def establish(self) -> None:
+        """The session's handshake is complete: the link is no longer pending."""
+        self.established = True
+
+    def peer_closed(self) -> bool:
+        """Whether the peer has closed its end (the link's thread may not know it yet)."""
+        return False
+
+    def idle(self) -> bool:
+        """Whether the peer has sent nothing at all yet."""
+        return self._stats.bytes_in == 0
+
+    @property
+    def pending_output(self) -> int:
+        """Bytes of output waiting for the peer."""
+        return self._out_bytes
+
+    def send(self, data: bytes | bytearray | memoryview) -> bool:
         """Queue ``data`` and write what the peer can take now; never blocks.
 
         Returns False when the link is gone (the data is then discarded).
         """
         if not data:
             return not self._closed
+        view = memoryview(data if type(data) is bytes else bytes(data))
         with self._tx_lock:
             if self._closed:
-                self._stats.tx_dropped += len(data)
+                self._stats.tx_dropped += view.nbytes
                 return False
-            if self._backlog:
-                self._backlog += data
-                return self._flush_locked(time.monotonic())
-            return self._send_direct(data)
+            return self._send_locked([view])
 
     def send_parts(self, parts: Sequence[bytes | memoryview]) -> bool:
         """Send one reply made of several contiguous buffers (a header, then records) without
-        joining them: one gathered write where the link supports it, and only what the peer
-        did not take is copied into the backlog. Call it from the link's own thread while it
-        dispatches frames (a session's ``on_frame``): the replies already returned for earlier
-        frames go first. Returns False when the link is gone."""
-        if self._replies:
-            self.send(b"".join(self._replies))
-            self._replies.clear()
+        joining them: one gathered write where the link supports it. What the peer does not
+        take now waits as views of these buffers: they must not change afterwards. Call it
+        from the link's own thread while it dispatches frames (a session's ``on_frame``): the
+        replies already returned for earlier frames go first. Returns False when the link is
+        gone."""
         views = [memoryview(p).cast("B") for p in parts]
-        total = sum(v.nbytes for v in views)
+        if self._replies:
+            views.insert(0, memoryview(b"".join(self._replies)))
+            self._replies.clear()
         with self._tx_lock:
             if self._closed:
-                self._stats.tx_dropped += total
+                self._stats.tx_dropped += sum(v.nbytes for v in views)
                 return False
-            if self._backlog or len(views) > MAX_PARTS:
-                for v in views:
-                    self._backlog += v
-                return self._flush_locked(time.monotonic())
-            try:
-                n = self._write_parts(views)
-            except OSError as exc:
-                log.info("%s: write failed (%s); dropping the link", self.name, exc)
-                self._mark_closed("write failed")
-                return False
-            if n == total:
-                return True
-            skip = n
-            for v in views:  # back-log what the peer did not take
-                if skip < v.nbytes:
-                    self._backlog += v[skip:]
-                skip = max(0, skip - v.nbytes)
-            return self._backlog_checked(n, time.monotonic())
+            return self._send_locked(views)
 
     def close(self) -> None:
         """Drop the link: its thread sees the end of the stream and finishes."""
@@ -171,50 +242,83 @@ class Link:
 
     # ---------------------------------------------------------------- output (tx lock held)
 
-    def _write_locked(self, data: bytes | bytearray) -> int | None:
-        """Write what the peer takes now; None (and the link dropped) if the write failed."""
+    def _send_locked(self, views: list[memoryview]) -> bool:
+        """Write ``views`` after what waits already; queue what the peer does not take."""
+        now = time.monotonic()
+        if self._out or len(views) > MAX_PARTS:
+            return self._queue(views, 0, now) and self._flush_locked(now)
         try:
-            return self._write_now(data)
+            n = self._write_parts(views)
         except OSError as exc:
             log.info("%s: write failed (%s); dropping the link", self.name, exc)
             self._mark_closed("write failed")
-            return None
-
-    def _send_direct(self, data: bytes | bytearray) -> bool:
-        """Nothing queued: write from ``data`` itself, back-log only the rest."""
-        n = self._write_locked(data)
-        if n is None:
             return False
-        if n == len(data):
+        if n == sum(v.nbytes for v in views):
             return True
-        self._backlog += memoryview(data)[n:]  # the only copy: what the peer did not take
-        return self._backlog_checked(n, time.monotonic())
+        return self._queue(views, n, now)
 
-    def _flush_locked(self, now: float) -> bool:
-        n = self._write_locked(self._backlog)
-        if n is None:
-            return False
-        del self._backlog[:n]
-        return self._backlog_checked(n, now)
-
-    def _backlog_checked(self, n: int, now: float) -> bool:
-        """After ``n`` bytes went out: restart or enforce the backlog's deadline and bound."""
-        if not self._backlog:
-            self._backlog_since = 0.0
+    def _queue(self, views: list[memoryview], skip: int, now: float) -> bool:
+        """Queue ``views`` but their first ``skip`` bytes (taken by the peer); enforce the
+        link's bound and the server's budget."""
+        exempt = self._limits.pace and not self._out  # one reply waits, whatever its size
+        added = 0
+        for v in views:
+            if skip >= v.nbytes:
+                skip -= v.nbytes
+                continue
+            part = v[skip:] if skip else v
+            skip = 0
+            self._out.append(part)
+            added += part.nbytes
+        if not added:
             return True
-        if n or not self._backlog_since:
-            self._backlog_since = now  # the client read something: its deadline restarts
-        limits = self._limits
-        if len(self._backlog) > limits.max_backlog:
-            log.warning(
-                "%s: %d bytes unread by the client; dropping it", self.name, len(self._backlog)
-            )
+        if not self._out_bytes:
+            self._out_since = now
+        self._out_bytes += added
+        budget = self._limits.budget
+        within = budget.add(added) if budget is not None else True
+        if not exempt and self._out_bytes > self._limits.max_backlog:
+            log.warning("%s: %d bytes unread by the client; dropping it", self.name,
+                        self._out_bytes)  # fmt: skip
             self._mark_closed("backlog full")
             return False
-        if now - self._backlog_since > limits.send_timeout:
-            log.warning(
-                "%s: client has not read for %.1f s; dropping it", self.name, limits.send_timeout
-            )
+        if not within:
+            log.warning("%s: the server's output budget (%s bytes) is full; dropping this "
+                        "client (%d bytes unread)", self.name, budget and budget.cap,
+                        self._out_bytes)  # fmt: skip
+            self._mark_closed("output budget full")
+            return False
+        return True
+
+    def _flush_locked(self, now: float) -> bool:
+        """Write what waits, as far as the peer takes it; enforce ``send_timeout``."""
+        out = self._out
+        if not out:
+            return True
+        try:
+            n = self._write_parts(list(islice(out, MAX_PARTS)))
+        except OSError as exc:
+            log.info("%s: write failed (%s); dropping the link", self.name, exc)
+            self._mark_closed("write failed")
+            return False
+        if n:
+            self._out_bytes -= n
+            if self._limits.budget is not None:
+                self._limits.budget.sub(n)
+            while n:
+                v = out[0]
+                if n >= v.nbytes:
+                    out.popleft()
+                    n -= v.nbytes
+                else:
+                    out[0] = v[n:]
+                    n = 0
+            self._out_since = now  # the client read something: its deadline restarts
+        if not out:
+            return True
+        if now - self._out_since > self._limits.send_timeout:
+            log.warning("%s: client has not read for %.1f s; dropping it", self.name,
+                        self._limits.send_timeout)  # fmt: skip
             self._mark_closed("send timeout")
             return False
         return True
@@ -223,19 +327,22 @@ class Link:
         if self._closed:
             return
         self._closed = True
-        self._stats.tx_dropped += len(self._backlog)
-        self._backlog.clear()
+        self._stats.tx_dropped += self._out_bytes
+        if self._limits.budget is not None and self._out_bytes:
+            self._limits.budget.sub(self._out_bytes)
+        self._out.clear()
+        self._out_bytes = 0
         log.debug("%s: link closing (%s)", self.name, why)
         self._interrupt()
 
-    def _write_now(self, data: bytes | bytearray) -> int:  # pragma: no cover - overridden
+    def _write_now(self, data: bytes | bytearray | memoryview) -> int:  # pragma: no cover
         """Write what can go without blocking; the bytes consumed from ``data``."""
         raise NotImplementedError
 
     def _write_parts(self, views: list[memoryview]) -> int:
         """:meth:`_write_now` of the buffers one after the other (a link with a gathered
         write overrides it)."""
-        return self._write_now(b"".join(views))
+        return self._write_now(views[0] if len(views) == 1 else b"".join(views))
 
     def _interrupt(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
@@ -244,24 +351,50 @@ class Link:
 
     def _feed(self, data: bytes, now: float) -> bytes:
         """Frame ``data``; the session's replies, joined."""
+        strict = self._limits.strict
         with self._rx_lock:
             self._last_rx = now
             self._stats.bytes_in += len(data)
+            before = len(self._tail)
             frames = self._framer.feed(data)
             pending = self._framer.pending
             tail = self._tail
+            lost = strict and before + len(data) - pending - sum(map(len, frames)) > 0
+            stream = bytes(tail) + data if lost else b""  # what the framer scanned
             if pending:
                 tail += data
                 del tail[:-pending]
             elif tail:
                 tail.clear()
+        if lost:
+            return self._lost_framing(stream, frames, now)
         return self._dispatch(frames, now) if frames else b""
+
+    def _lost_framing(self, stream: bytes, frames: list[bytes], now: float) -> bytes:
+        """Strict framing: the framer skipped bytes. The frames before the skip are served,
+        the session may answer the bytes where framing was lost, then the link ends (what
+        the framer found after a skip may be a phantom request)."""
+        pos, good = 0, []
+        for f in frames:
+            if not stream.startswith(f, pos):
+                break  # framed after the skip
+            good.append(f)
+            pos += len(f)
+        self._unframed = stream[pos : pos + UNFRAMED_HEAD]
+        log.info("%s: stream lost its framing at %s; closing after %d requests", self.name,
+                 self._unframed[:8].hex(" "), len(good))  # fmt: skip
+        self._held = good + self._held
+        return self._resume(now)
 
     def _dispatch(self, frames: list[bytes], now: float) -> bytes:
         session = self.session
         assert session is not None  # set before the thread starts
         replies = self._replies  # send_parts sends these first
-        for f in frames:
+        pace = self._limits.pace
+        for i, f in enumerate(frames):
+            if pace and self._out:  # a reply waits for the peer: handle no more for now
+                self._held = frames[i:] + self._held
+                break
             reply = session.on_frame(f, now)
             if reply:
                 replies.append(reply)
@@ -269,17 +402,36 @@ class Link:
         replies.clear()
         return out
 
+    def _resume(self, now: float) -> bytes:
+        """Handle the frames held while a reply waited; then, where the framing was lost,
+        the session's last word before the link ends."""
+        frames, self._held = self._held, []
+        out = self._dispatch(frames, now) if frames else b""
+        if self._held or self._unframed is None:
+            return out
+        head, self._unframed = self._unframed, None
+        hook = getattr(self.session, "on_unframed", None)
+        last = hook(head) if hook is not None else None
+        self._ending = True
+        return out + last if last else out
+
     def _partial_deadline(self) -> float | None:
         """When the partial frame held now is abandoned (None: nothing held)."""
         return self._last_rx + self._limits.byte_timeout if self._tail else None
 
     def _abandon_partial(self, now: float) -> bytes:
-        """Drop the first byte of a partial frame that stopped coming; rescan the rest."""
+        """Drop the first byte of a partial frame that stopped coming; rescan the rest (with
+        strict framing: end the link)."""
         with self._rx_lock:
             stale = bytes(self._tail)
             self._framer.reset()
             self._tail.clear()
             self._stats.abandoned += 1
+        if self._limits.strict:
+            log.info("%s: partial frame abandoned (%s); closing", self.name,
+                     stale[:8].hex(" "))  # fmt: skip
+            self._ending = True
+            return b""
         log.debug("%s: partial frame abandoned: %s", self.name, stale[:8].hex(" "))
         return self._feed(stale[1:], now) if len(stale) > 1 else b""
 
@@ -295,10 +447,13 @@ class Link:
             with self._rx_lock:
                 self._stats.session_errors += 1
         finally:
-            with self._tx_lock:
-                self._mark_closed("link thread ending")
-            self._release()
-            self._on_end(self)
+            try:
+                with self._tx_lock:
+                    self._mark_closed("link thread ending")
+                self._release()
+                self._on_end(self)
+            finally:
+                self._ended.set()
 
     def _release(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
@@ -321,15 +476,52 @@ class TcpLink(Link):
     """A TCP connection; its thread blocks in ``recv`` and replies inline."""
 
     def __init__(
-        self, limits: LinkLimits, sock: socket.socket, name: str, on_end: Callable[[Link], None]
-    ) -> None:
+        self, limits: LinkLimits, sock: socket.socket, name: str, on_end: Callable[[Link], None],
+        address: str = "",
+    ) -> None:  # fmt: skip
         super().__init__(limits, name, on_end)
         self.sock = sock
+        self.address = address
+        self._fd_lock = threading.Lock()  # the socket is not closed while another thread polls
+        self._released = False
         if not DONTWAIT:  # Windows: no per-call non-blocking send; bound a blocking one
             ms = int(limits.send_timeout * 1000)
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, ms)
 
-    def _write_now(self, data: bytes | bytearray) -> int:
+    def _poll_now(self, events: int) -> int:
+        """The socket's poll events now (0 where poll is missing); POLLNVAL once released."""
+        with self._fd_lock:
+            if self._released:
+                return select.POLLNVAL if hasattr(select, "POLLNVAL") else 1
+            if not hasattr(select, "poll"):
+                return 0
+            p = select.poll()
+            p.register(self.sock.fileno(), events)
+            got = p.poll(0)
+            return got[0][1] if got else 0
+
+    def peer_closed(self) -> bool:
+        if not self.alive:
+            return True
+        bad = select.POLLERR | select.POLLHUP | select.POLLNVAL if hasattr(select, "poll") else 0
+        if _RDHUP:
+            return bool(self._poll_now(_RDHUP) & (_RDHUP | bad))
+        with self._fd_lock:  # no POLLRDHUP: the end of the stream, if nothing is unread
+            if self._released:
+                return True
+            try:
+                return self.sock.recv(1, socket.MSG_PEEK | DONTWAIT) == b""
+            except (BlockingIOError, InterruptedError, TimeoutError):
+                return False
+            except OSError:
+                return True
+
+    def idle(self) -> bool:
+        return super().idle() and not (
+            hasattr(select, "poll") and self._poll_now(select.POLLIN) & select.POLLIN
+        )
+
+    def _write_now(self, data: bytes | bytearray | memoryview) -> int:
         try:
             n = self.sock.send(data, DONTWAIT)
         except (TimeoutError, BlockingIOError, InterruptedError):
@@ -356,22 +548,38 @@ class TcpLink(Link):
     def _serve(self) -> None:
         sock, fd, limits = self.sock, self.sock.fileno(), self._limits
         recv, feed, send = sock.recv, self._feed, self.send
+        handshake = limits.handshake_timeout
         while not self._closed:
-            deadline = self._partial_deadline()
-            backlog = bool(self._backlog)
-            if deadline is not None or backlog:
-                # slow path: a partial frame to time out, or output to flush when writable
+            if not self.established and handshake is not None:
+                if time.monotonic() >= self.opened + handshake:
+                    log.info("%s: no handshake within %g s; closing", self.name, handshake)
+                    return
+            pending = bool(self._out)
+            if not pending and (self._held or self._unframed is not None):
+                send(self._resume(time.monotonic()))  # requests held while a reply waited
+                continue
+            if self._ending and not pending:
+                self._linger()
+                return
+            hold = self._ending or (pending and limits.pace)  # read no request meanwhile
+            deadline = None if hold else self._partial_deadline()
+            if deadline is not None or pending or not self.established:
+                # slow path: a deadline to keep, or output to flush when writable
                 now = time.monotonic()
                 ends = [deadline] if deadline is not None else []
-                if backlog:
-                    ends.append(self._backlog_since + limits.send_timeout + 0.001)
-                timeout = max(0.0, min(ends) - now)
-                readable, _ = _wait(fd, read=True, write=backlog, timeout=timeout)
-                if backlog:
+                if pending:
+                    ends.append(self._out_since + limits.send_timeout + 0.001)
+                if not self.established and handshake is not None:
+                    ends.append(self.opened + handshake)
+                timeout = max(0.0, min(ends) - now) if ends else None
+                readable, _ = _wait(fd, read=not hold, write=pending, timeout=timeout)
+                if pending:
                     with self._tx_lock:
-                        if not self._closed and self._backlog:
+                        if not self._closed and self._out:
                             self._flush_locked(time.monotonic())
-                if not readable:
+                    if hold and not self._out:
+                        self._last_rx = time.monotonic()  # we did not read: no partial's fault
+                if hold or not readable:
                     now = time.monotonic()
                     if deadline is not None and now >= deadline:
                         send(self._abandon_partial(now))
@@ -387,8 +595,23 @@ class TcpLink(Link):
             if reply:
                 send(reply)
 
+    def _linger(self) -> None:
+        """End after a last reply: no more output, and read what the peer still sends (at
+        most :data:`LINGER_S`) so that closing does not reset the reply away."""
+        try:
+            self.sock.shutdown(socket.SHUT_WR)
+            end = time.monotonic() + LINGER_S
+            while (left := end - time.monotonic()) > 0:
+                readable, _ = _wait(self.sock.fileno(), read=True, write=False, timeout=left)
+                if not readable or not self.sock.recv(RECV_SIZE):
+                    return
+        except OSError:
+            return  # reset or gone: nothing more to do
+
     def _release(self) -> None:
-        self.sock.close()
+        with self._fd_lock:
+            self._released = True
+            self.sock.close()
 
 
 class PtyLink(Link):
@@ -399,12 +622,13 @@ class PtyLink(Link):
         on_end: Callable[[Link], None],
     ) -> None:  # fmt: skip
         super().__init__(limits, f"pty {path}", on_end)
+        self.established = True  # one line, no handshake to wait for
         self.master, self.slave = master, slave
         self._wake_r, self._wake_w = os.pipe()
 
-    def _write_now(self, data: bytes | bytearray) -> int:
+    def _write_now(self, data: bytes | bytearray | memoryview) -> int:
         """What the pty cannot take now is dropped, as on a serial line with nobody
-        listening: the backlog is always emptied."""
+        listening: the queue is always emptied."""
         view = memoryview(data)
         sent = 0
         try:
@@ -427,6 +651,11 @@ class PtyLink(Link):
     def _serve(self) -> None:
         master, wake = self.master, self._wake_r
         while not self._closed:
+            if self._held or self._unframed is not None:
+                self.send(self._resume(time.monotonic()))
+                continue
+            if self._ending:
+                return
             deadline = self._partial_deadline()
             timeout = None if deadline is None else max(0.0, deadline - time.monotonic())
             ready, _, _ = select.select([master, wake], [], [], timeout)

@@ -10,15 +10,25 @@ socket:
 * **pty**: a pseudo-terminal in raw mode, served by one such link thread.
 * **Limits**: ``max_clients`` links at once; a client beyond it gets
   :func:`~robocli.protocols.common.refusal_line` (``robocli-refused: <reason>``) and is
-  closed. ``max_frame`` bounds every frame (the link's framer drops and counts an oversize
-  one). A partial frame with no new byte for ``byte_timeout`` seconds is abandoned: its first
-  byte is dropped and the rest rescanned, so garbage that looks like a header never holds the
-  commands behind it hostage.
+  closed, unless a link in place has a peer that already closed: the new client waits (a
+  bounded time) for that link to end instead of being told "busy" by a client that is gone.
+  ``max_frame`` bounds every frame (the link's framer drops and counts an oversize one). A
+  partial frame with no new byte for ``byte_timeout`` seconds is abandoned: its first byte is
+  dropped and the rest rescanned, so garbage that looks like a header never holds the commands
+  behind it hostage (``strict_framing``: the link is closed instead, for a protocol without a
+  sync marker, where a rescan can find phantom requests).
+* **Handshakes** (``handshake_timeout``): a link is pending until its session calls
+  :meth:`Link.establish`, and closed if that does not happen in time. ``max_pending`` and
+  ``max_pending_per_address`` bound the pending links; a new connection beyond them closes
+  the oldest pending one that has sent nothing (else the oldest), so idle connections cannot
+  hold the places of clients that complete their handshake.
 * **Writes never block the server.** :meth:`Link.send` is thread-safe and non-blocking: what
-  the kernel cannot take now waits in a bounded backlog, flushed by the next send or by the
-  link's thread. A client whose backlog is older than ``send_timeout`` (or larger than
-  ``max_backlog``) is not reading: it is dropped. On a pty, output the line cannot take is
-  dropped as on a serial line with nobody listening.
+  the kernel cannot take now waits in a bounded queue, flushed by the next send or by the
+  link's thread. A client whose output waits longer than ``send_timeout`` (or more than
+  ``max_backlog`` bytes of it) is not reading: it is dropped. ``pace``: a link handles no
+  request while one of its replies waits. ``output_budget`` bounds the output waiting over
+  all links. On a pty, output the line cannot take is dropped as on a serial line with nobody
+  listening.
 * :class:`Ticker`: periodic work (physics, SIPs, a state stream) on absolute deadlines
   ``t0 + k * period``; it pushes through :meth:`Link.send`.
 
@@ -42,12 +52,21 @@ from typing import Protocol
 from robocli.core import Framer
 from robocli.errors import TransportError
 from robocli.protocols.common import refusal_line
-from robocli.sim.links import DONTWAIT, Link, LinkLimits, LinkStats, PtyLink, TcpLink
+from robocli.sim.links import (
+    DONTWAIT,
+    Link,
+    LinkLimits,
+    LinkStats,
+    OutputBudget,
+    PtyLink,
+    TcpLink,
+)
 
 __all__ = [
     "BUSY_REASON",
     "Link",
     "LinkStats",
+    "OutputBudget",
     "Server",
     "Session",
     "SessionFactory",
@@ -60,6 +79,10 @@ BUSY_REASON = "robot busy: another client holds it"
 JOIN_TIMEOUT_S = 2.0  #: close() waits at most this long for the threads, in total
 REFUSE_LINGER_S = 0.5  #: a refused client has this long to read the refusal line
 MAX_REFUSING = 8  #: refused connections lingering at once; beyond, they are closed bare
+REAP_WAIT_S = 2.0
+"""A new client at a full server waits at most this long for links whose peer has already
+closed to end (their threads handle what the peer sent last, then free the place)."""
+LISTEN_BACKLOG = 64  #: connections the kernel holds before they are accepted
 
 
 class Session(Protocol):
@@ -80,6 +103,15 @@ class Session(Protocol):
         ...
 
 
+class UnframedHook(Protocol):
+    """Optional for a session of a server with ``strict_framing``."""
+
+    def on_unframed(self, head: bytes) -> bytes | None:
+        """The stream lost its framing at ``head`` (the first bytes the framer could not
+        take as a frame, at most 256): return a last reply, if any; the link then ends."""
+        ...
+
+
 SessionFactory = Callable[[Link], Session]
 
 
@@ -95,7 +127,16 @@ class Server:
     single-client robot); one more is sent ``refusal_line(busy_reason)`` and closed.
     ``byte_timeout``: seconds after which a partial frame is abandoned. ``send_timeout``:
     seconds a client may leave output unread before it is dropped; ``max_backlog``: bytes
-    of output it may leave unread. ``name`` prefixes the threads' names.
+    of output it may leave unread (with ``pace``: beyond the one reply that waits).
+    ``name`` prefixes the threads' names.
+
+    ``pace``: a link handles no request while one of its replies waits for the peer.
+    ``output_budget``: bytes of output that may wait over all links at once (None: no
+    bound); a link whose output would take it over is dropped. ``strict_framing``: a link
+    whose stream loses its framing is closed (after the session's optional
+    :meth:`UnframedHook.on_unframed` reply) rather than rescanned. ``handshake_timeout``:
+    seconds a TCP link may stay pending (not :meth:`Link.establish`-ed); ``max_pending`` and
+    ``max_pending_per_address``: pending links at once, in all and from one address.
     """
 
     def __init__(
@@ -110,14 +151,32 @@ class Server:
         max_backlog: int = 1 << 20,
         name: str = "server",
         busy_reason: str = BUSY_REASON,
+        pace: bool = False,
+        output_budget: int | None = None,
+        strict_framing: bool = False,
+        handshake_timeout: float | None = None,
+        max_pending: int | None = None,
+        max_pending_per_address: int | None = None,
     ) -> None:
         if max_clients < 1:
             raise ValueError("max_clients must be >= 1")
         if not (byte_timeout > 0 and send_timeout > 0 and max_backlog > 0):
             raise ValueError("byte_timeout, send_timeout and max_backlog must be > 0")
+        if handshake_timeout is not None and not handshake_timeout > 0:
+            raise ValueError("handshake_timeout must be > 0")
+        for what, v in (("max_pending", max_pending),
+                        ("max_pending_per_address", max_pending_per_address)):  # fmt: skip
+            if v is not None and v < 1:
+                raise ValueError(f"{what} must be >= 1")
         Framer(protocol, max_frame)  # validates both now, not in the first link's thread
-        self.limits = LinkLimits(protocol, max_frame, byte_timeout, send_timeout, max_backlog)
+        self.budget = OutputBudget(output_budget)
+        """The output waiting over every link: its cap, total now and peak."""
+        self.limits = LinkLimits(
+            protocol, max_frame, byte_timeout, send_timeout, max_backlog, pace=pace,
+            strict=strict_framing, handshake_timeout=handshake_timeout, budget=self.budget,
+        )  # fmt: skip
         self.max_clients = max_clients
+        self.max_pending, self.max_pending_per_address = max_pending, max_pending_per_address
         self.name, self.busy_reason = name, busy_reason
         self._factory = session_factory
         self._lock = threading.Lock()
@@ -125,7 +184,7 @@ class Server:
         self._threads: list[threading.Thread] = []
         self._refusing: set[socket.socket] = set()
         self._past = LinkStats()
-        self._accepted = self._refused = 0
+        self._accepted = self._refused = self._evicted = 0
         self._closed = False
         self._listener: socket.socket | None = None
         self._waker: tuple[socket.socket, socket.socket] | None = None
@@ -153,6 +212,21 @@ class Server:
     def refused(self) -> int:
         """Connections refused (limit reached) since the start."""
         return self._refused
+
+    @property
+    def evicted(self) -> int:
+        """Pending links closed to make room for newer connections, since the start."""
+        return self._evicted
+
+    def reap(self, timeout: float = REAP_WAIT_S) -> int:
+        """Wait at most ``timeout`` s for the links whose peer has already closed (or that
+        were dropped) to end, so their places are free; returns how many ended."""
+        with self._lock:
+            gone = [link for link in self._links if link.peer_closed()]
+        end = time.monotonic() + timeout
+        for link in gone:
+            link.wait_ended(end - time.monotonic())
+        return sum(link.ended for link in gone)
 
     def links(self) -> list[Link]:
         """The links open now."""
@@ -282,36 +356,70 @@ class Server:
                 log.debug("%s: accept failed: %s", self.name, exc)
                 time.sleep(0.01)
                 continue
-            peer = f"tcp {addr[0]}:{addr[1]}"
+            self._accept_one(sock, f"tcp {addr[0]}:{addr[1]}", str(addr[0]))
+
+    def _accept_one(self, sock: socket.socket, peer: str, address: str) -> None:
+        """Admit a new connection, or refuse it when the server is full. A client that
+        closed and reconnects at once finds its old link still in place until that link's
+        thread has seen the end of the stream: links whose peer has closed are waited for
+        (at most :data:`REAP_WAIT_S`) before anyone is told "busy"."""
+        end = time.monotonic() + REAP_WAIT_S
+        while True:
             with self._lock:
                 if self._closed:
                     sock.close()
                     return
-                if len(self._links) >= self.max_clients:
+                if len(self._links) < self.max_clients:
+                    self._make_pending_room(address)
+                    sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+                    self._admit(TcpLink(self.limits, sock, peer, self._detach, address))
+                    break
+                gone = [link for link in self._links if link.peer_closed()]
+                if not gone or time.monotonic() >= end:
                     self._refuse(sock, peer)
-                    continue
-                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-                self._admit(TcpLink(self.limits, sock, peer, self._detach))
-            log.info("%s: %s connected", self.name, peer)
+                    return
+            for link in gone:  # not under the lock: the link's end takes it
+                link.wait_ended(end - time.monotonic())
+        log.info("%s: %s connected", self.name, peer)
+
+    def _make_pending_room(self, address: str) -> None:
+        """Close pending links so that one more from ``address`` stays within
+        ``max_pending_per_address`` and ``max_pending`` (server lock held)."""
+        if self.max_pending is None and self.max_pending_per_address is None:
+            return
+        pending = [link for link in self._links if link.alive and not link.established]
+        per_address = self.max_pending_per_address
+        same = [link for link in pending if link.address == address]
+        if per_address is not None and len(same) >= per_address:
+            pending.remove(self._evict(same, f"over {per_address} pending from {address}"))
+        if self.max_pending is not None and len(pending) >= self.max_pending:
+            self._evict(pending, f"over {self.max_pending} pending connections")
+
+    def _evict(self, links: list[Link], why: str) -> Link:
+        """Close the oldest of ``links`` that has sent nothing, else the oldest."""
+        idle = [link for link in links if link.idle()]
+        victim = min(idle or links, key=lambda link: link.opened)
+        log.info("%s: %s closed before its handshake: %s", self.name, victim.name, why)
+        self._evicted += 1
+        victim.close()
+        return victim
 
     def _refuse(self, sock: socket.socket, peer: str) -> None:
         """Send the refusal line and close (server lock held). The socket lingers in a short
         thread, reading until the client closes, so the line is not lost to a reset."""
         self._refused += 1
         log.warning("%s: %s refused (%s)", self.name, peer, self.busy_reason)
-        line = refusal_line(self.busy_reason)
-        if len(self._refusing) >= MAX_REFUSING:
-            try:
-                sock.send(line, DONTWAIT)
-            except OSError:
-                pass  # the peer is gone: nothing to tell
+        try:  # a new socket's buffer takes the line at once; sent here, close() cannot race it
+            sent = sock.send(refusal_line(self.busy_reason), DONTWAIT)
+        except OSError:
+            sent = 0  # the peer is gone: nothing to tell
+        if len(self._refusing) >= MAX_REFUSING or not sent:
             sock.close()
             return
 
         def linger() -> None:
             try:
                 sock.settimeout(REFUSE_LINGER_S)
-                sock.sendall(line)
                 sock.shutdown(socket.SHUT_WR)
                 end = time.monotonic() + REFUSE_LINGER_S
                 while time.monotonic() < end and sock.recv(4096):
@@ -334,7 +442,7 @@ def _shutdown(sock: socket.socket) -> None:
         pass  # not connected any more
 
 
-def listen(host: str, port: int, backlog: int = 8) -> socket.socket:
+def listen(host: str, port: int, backlog: int = LISTEN_BACKLOG) -> socket.socket:
     """A listening TCP socket on ``host:port``; a port in use is a clear
     :class:`~robocli.errors.TransportError`."""
     try:

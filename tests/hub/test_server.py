@@ -67,6 +67,24 @@ def test_original_client_bytes_are_served(hub: HubServer, client_factory: Any, w
     wait(lambda: not hub.clients, what="the client to be forgotten")
 
 
+def test_pull_without_subscribing_is_a_size_0_reply(client_factory: Any) -> None:
+    """The original server answered a pull of a sensor the client is not subscribed to with
+    an empty reply, which lab scripts read as an 8x0 matrix; so does the hub."""
+    c = client_factory()
+    c.send(ORIGINAL["connect"])
+    cid = c.recv().client_id
+    pull = bytearray(ORIGINAL["pull_adc"])
+    pull[2:6] = cid.to_bytes(4, "little")
+    c.send(bytes(pull))
+    raw = c.recv_raw()
+    head = r4m.Header.parse(raw)
+    assert len(raw) == r4m.HEADER_SIZE
+    assert (head.type, head.error, head.size, head.uncompress_size) == (0x20, 0, 0, 0)
+    for sensor in ("imu", "gps", "camera", "laser", "depth", "stereo", "sysinfo", "battery"):
+        reply = c.pull(sensor)
+        assert (reply.error, reply.size) == (0, 0), (sensor, reply)
+
+
 def test_empty_pull_is_a_size_0_reply(client_factory: Any) -> None:
     c = client_factory()
     c.connect()
@@ -176,14 +194,41 @@ def test_reconnect_with_client_id_keeps_buffers(hub: HubServer, raw: Any, wait: 
     b.close()
 
 
-def test_second_connection_cannot_take_a_live_client_id(hub: HubServer, raw: Any) -> None:
+def test_a_live_client_id_is_not_taken_over_a_new_one_is_given(hub: HubServer, raw: Any) -> None:
+    """CONNECT naming a connected client's id gets a new id (the original client sends its
+    old id again after ``close``, and adopts the one in CONNECT_ACK), never that client."""
     a, b = raw(hub.port), raw(hub.port)
     cid = a.connect()
+    assert a.subscribe("imu", {"freq_acquisition": 100, "freq_send": 20}).error == 0
     b.send(r4m.encode_request(r4m.MsgType.CONNECT, b"\x03\x00", client_id=cid))
-    err = b.recv()
-    assert err.error and "in use" in err.error_text
+    ack = b.recv()
+    assert (ack.msg_type, ack.error) == (r4m.MsgType.CONNECT_ACK, 0), ack
+    assert ack.client_id not in (0, cid)
+    infos = {c.id: c for c in hub.clients}
+    assert infos[cid].connected and infos[cid].subscriptions == {"imu": 100}
+    assert infos[ack.client_id].subscriptions == {}
+    assert a.pull("imu").error == 0
     a.close()
     b.close()
+
+
+def test_original_client_close_then_connect(raw: Any, wait: Any) -> None:
+    """The original client's ``close`` (QUIT) then an immediate ``connect`` carries the old
+    id while the hub may not have handled the QUIT yet: every CONNECT is answered with an
+    id (a new one), on a hub with room for one client only."""
+    with HubServer(port=0, max_clients=1) as srv:
+        cid = 0
+        for _ in range(30):
+            c = raw(srv.port)
+            connect = bytearray(ORIGINAL["connect"])
+            connect[2:6] = cid.to_bytes(4, "little")  # it never resets its id
+            c.send(bytes(connect))
+            ack = c.recv()
+            assert (ack.msg_type, ack.error) == (r4m.MsgType.CONNECT_ACK, 0), ack.error_text
+            cid = ack.client_id
+            c.send(r4m.encode_request(r4m.MsgType.QUIT, client_id=cid))
+            c.close()
+        wait(lambda: not srv.clients, what="every client to be forgotten")
 
 
 def test_quit_and_errors(hub: HubServer, client_factory: Any) -> None:
@@ -191,8 +236,8 @@ def test_quit_and_errors(hub: HubServer, client_factory: Any) -> None:
     err = c.request("adc")  # no CONNECT yet
     assert err.msg_type == r4m.MsgType.ADC and err.error and "CONNECT" in err.error_text
     c.connect()
-    err = c.request("imu")  # not subscribed
-    assert err.msg_type == r4m.MsgType.IMU and "not subscribed" in err.error_text
+    empty = c.request("imu")  # not subscribed: an empty reply, as the original server's
+    assert (empty.msg_type, empty.error, empty.size) == (r4m.MsgType.IMU, 0, 0)
     head = {"sensor": 0x28, "silent": 0, "buffer_size": 1, "params_size": 30}
     err = c.request(r4m.MsgType.SUBSCRIBE, r4m.Subscribe.build(head) + bytes(30))
     assert err.msg_type == r4m.MsgType.SUBSCRIBE_ACK and "not served" in err.error_text

@@ -5,8 +5,11 @@ An echo session stands for a robot: every complete ARCOS frame comes back as it 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
+import subprocess
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator
@@ -307,3 +310,54 @@ def test_pty_link_echoes_and_abandons_partials() -> None:
         server.close()
     assert server_threads("ptyecho") == []
     assert events[-1][0] == "close"
+
+
+@contextlib.contextmanager
+def busy_cpu() -> Iterator[None]:
+    """Every core busy with a spinning process (ended by its handle) for the block."""
+    spinners = [
+        subprocess.Popen([sys.executable, "-c", "while True: pass"], stdin=subprocess.DEVNULL)
+        for _ in range(os.cpu_count() or 2)
+    ]
+    try:
+        yield
+    finally:
+        for p in spinners:
+            p.kill()
+        for p in spinners:
+            p.wait(10)
+
+
+def test_a_client_that_closed_does_not_hold_its_place_against_its_reconnect(
+    make_server: Any,
+) -> None:
+    """Connect, close, reconnect at once, 100 times, with every core busy: the old link's
+    thread may not have seen the end of its stream yet, but a peer that has closed does not
+    hold the one place (it was refused "robot busy" 44 times in 100)."""
+    server, events = make_server(max_clients=1)
+    with busy_cpu():
+        for i in range(100):
+            sock = dial(server)
+            sock.settimeout(10.0)
+            f = arcos.frame(bytes((i % 256,)))
+            sock.sendall(f)
+            got = read_exactly(sock, len(f))
+            assert got == f, (i, got)  # not the refusal line
+            sock.close()
+    assert server.refused == 0
+    wait_for(lambda: not server.links())
+    assert sum(1 for e in events if e[0] == "close") == 100
+
+
+def test_a_pioneer_reconnecting_at_once_is_not_busy() -> None:
+    """The same through the Pioneer simulator (one client at a time)."""
+    from robocli.sim.pioneer import PioneerSim
+
+    with PioneerSim() as sim, busy_cpu():
+        url = sim.serve_tcp(port=0)
+        host, port = url.removeprefix("tcp://").rsplit(":", 1)
+        for i in range(50):
+            with socket.create_connection((host, int(port)), timeout=10.0) as sock:
+                sock.sendall(arcos.frame(b"\x00"))  # SYNC0
+                got = read_exactly(sock, 3)
+                assert got[:2] == arcos.SYNC, (i, got + read_to_eof(sock))
