@@ -25,8 +25,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.benchmarks import Run, child_process, wait_for_stdin_eof
-from robocli.errors import DeviceError, InvalidArgument, TransportError
+from robocli.errors import DeviceError, TransportError
 from robocli.protocols.simple_message import PORT_MOTION, SpecialSeq
+from robocli.transports import parse_address
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm, JointSample
@@ -45,16 +46,11 @@ BENCH_STATE_MS = 20.0
 
 
 def parse_url(url: str) -> tuple[str, int, int]:
-    """``HOST``, ``HOST:MOTION`` or ``tcp://HOST:MOTION`` -> (host, motion port, state
-    port); the state port is the motion port + 2, as on an ABB (11000, 11002)."""
-    text = url.removeprefix("tcp://")
-    host, _, port = text.rpartition(":") if ":" in text else (text, "", str(PORT_MOTION))
-    try:
-        motion = int(port)
-    except ValueError:
-        raise InvalidArgument(f"--url {url!r}: give HOST or HOST:MOTION_PORT") from None
-    if not host or not 0 < motion < 65534:
-        raise InvalidArgument(f"--url {url!r}: give HOST or HOST:MOTION_PORT")
+    """``HOST``, ``HOST:MOTION``, ``[IPv6]:MOTION`` or ``tcp://HOST:MOTION`` -> (host,
+    motion port, state port) by :func:`robocli.transports.parse_address`; the state port
+    is the motion port + 2, as on an ABB (11000, 11002)."""
+    host, motion = parse_address(url, PORT_MOTION, what="--url", form="HOST or HOST:MOTION_PORT",
+                                 port_range=(1, 65533))  # fmt: skip
     return host, motion, motion + 2
 
 

@@ -205,10 +205,14 @@ def _dump_file(view: Any, file: Path, protocol: str) -> None:
 
 def _listen_address(text: str) -> tuple[str, int]:
     """``--listen [ADDR:]PORT`` -> (address, motion port); the state port is 2 above."""
-    addr, _, port = text.strip().rpartition(":")
-    if not port.isdigit() or not (int(port) == 0 or 1 <= int(port) <= 65533):
-        raise typer.BadParameter(f"--listen is [ADDR:]PORT with PORT 0 or 1..65533, not {text!r}")
-    return addr or "127.0.0.1", int(port)
+    from robocli.transports import InvalidURL, parse_address
+
+    try:
+        return parse_address(text, None, default_host="127.0.0.1", port_range=(0, 65533))
+    except InvalidURL as exc:
+        raise typer.BadParameter(
+            f"--listen is [ADDR:]PORT with PORT 0 or 1..65533, not {text!r} ({exc.reason})"
+        ) from None
 
 
 def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],

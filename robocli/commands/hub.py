@@ -319,10 +319,12 @@ def dump(
 
     from robocli.devices.hub import parse_hub
     from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
+    from robocli.transports import parse_address
 
     upstream = parse_hub(host)
+    bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
+                               port_range=(0, 65535))  # fmt: skip
     check_upstream(*upstream)
-    bind, port = parse_hub(listen, 1501)
     done = threading.Event()
     broken = threading.Event()
     printed = 0
@@ -429,7 +431,10 @@ def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
     from robocli.hub_bench import hub_process
 
     if url is not None:
-        yield url.removeprefix("tcp://"), None
+        from robocli.devices.hub import parse_hub
+        from robocli.transports import format_address
+
+        yield format_address(*parse_hub(url)), None
         return
     with hub_process() as proc:
         yield proc.address, proc

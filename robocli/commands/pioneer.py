@@ -20,6 +20,7 @@ import typer
 
 from robocli.commands._common import (
     PORT_HELP,
+    bind_address,
     explain_refusal,
     pioneer_url,
     print_json,
@@ -336,7 +337,7 @@ def simulate(
     with sigterm_as_interrupt():
         try:
             sims = serve_many(
-                robots, host=bind, port=port, pty=pty,
+                robots, host=bind_address(bind), port=port, pty=pty,
                 subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
                 **options,
             )  # fmt: skip
