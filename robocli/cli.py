@@ -100,7 +100,7 @@ dump.command("arm", cls=PlainCommand)(arm_extra.dump)
 teleop.command("arm", cls=PlainCommand)(arm_extra.teleop)
 
 app.command("subscribe")(hub_commands.subscribe)
-app.command("serial")(hub_commands.serial)
+app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(hub_commands.dump)
 bench_group.command("throughput")(hub_commands.throughput)

@@ -22,6 +22,13 @@ PORT_HELP = (
 )
 
 
+def from_env(ctx: typer.Context, name: str) -> bool:
+    """Whether parameter ``name`` took its value from its environment variable (so that
+    an explicit choice such as ``--file`` may override it without a conflict)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name == "ENVIRONMENT"
+
+
 def bind_address(text: str) -> str:
     """``--bind``: a host name, IPv4 or IPv6 address (brackets optional) to listen on; a
     usage error (exit 2) for anything else, a port included."""

@@ -28,12 +28,14 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
     from robocli.io.trajlog import TrajectoryLog
 
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.")
+HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
+                         envvar=ARM_ENV, show_envvar=True)  # fmt: skip
 MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
 StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")

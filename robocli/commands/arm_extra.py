@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import reader_may_leave, rounded, sigterm_as_interrupt
+from robocli.commands._common import from_env, reader_may_leave, rounded, sigterm_as_interrupt
 from robocli.commands.arm import (
     MotionPortOpt,
     OrderOpt,
@@ -32,12 +32,14 @@ from robocli.commands.arm import (
     _profile,
     arm_host,
 )
+from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.protocols import simple_message as sm
 
 HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         show_default=False, metavar="HOST")  # fmt: skip
+                         show_default=False, metavar="HOST", envvar=ARM_ENV,
+                         show_envvar=True)  # fmt: skip
 _ARROWS = {"tx": "->", "rx": "<-"}
 _SEQ = {-1: "start", -2: "stream", -3: "end", -4: "STOP"}
 #: Short names in text lines (JSON keeps the protocol's names).
@@ -129,9 +131,10 @@ def _short(value: Any) -> str:
 
 
 def dump(
+    ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
         None, help="Controller address, 'sim' for an embedded simulator; omit with --file.",
-        show_default=False, metavar="HOST",
+        show_default=False, metavar="HOST", envvar=ARM_ENV, show_envvar=True,
     ),  # fmt: skip
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
@@ -161,6 +164,8 @@ def dump(
     from robocli.kinematics import load_model
 
     _check_wire(byte_order, real_size)
+    if file is not None and from_env(ctx, "host"):
+        host = None  # $ROBOCLI_ARM names a controller; --file reads a capture instead
     if (host is None) == (file is None):
         raise typer.BadParameter("give HOST or --file (one of them)")
     if ports not in ("both", "motion", "state"):
