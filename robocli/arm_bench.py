@@ -101,12 +101,15 @@ def state_periods(arm: Arm, run: Run, progress: Progress | None = None,
 
 @contextlib.contextmanager
 def sim_process(paper: bool = False, state_ms: float = BENCH_STATE_MS, profile: str = "abb",
-                cpu: int | None = None,
-                timeout: float = 20.0) -> Iterator[tuple[str, int, int]]:  # fmt: skip
+                cpu: int | None = None, timeout: float = 20.0,
+                wire: tuple[str, int] = ("little", 4),
+                ) -> Iterator[tuple[str, int, int]]:  # fmt: skip
     """Yield ``(host, motion port, state port)`` of an ABB simulator in its own process
-    (pinned to ``cpu`` when given; ``paper``: the paper-like controller model). The child
-    stops at the end of its stdin; it is terminated, then killed, if it does not."""
-    options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu}
+    (pinned to ``cpu`` when given; ``paper``: the paper-like controller model; ``wire``:
+    its byte order, ``"little"`` or ``"big"``, and real size, 4 or 8). The child stops at
+    the end of its stdin; it is terminated, then killed, if it does not."""
+    options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu,
+               "byteorder": ">" if wire[0] == "big" else "<", "real": 8 if wire[1] == 8 else 4}
     code = "from robocli.arm_bench import _child_main; _child_main()"
     with child_process(code, json.dumps(options), timeout=timeout) as (_, first):
         line = first.split()
@@ -128,7 +131,8 @@ def _child_main() -> None:
     if options["cpu"] is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {int(options["cpu"])})
     model = ControllerModel.paper() if options["paper"] else None
-    with AbbSim(profile=options["profile"], state_ms=options["state_ms"], model=model) as sim:
+    with AbbSim(profile=options["profile"], state_ms=options["state_ms"], model=model,
+                byteorder=options["byteorder"], real=options["real"]) as sim:  # fmt: skip
         motion, state = sim.serve_tcp("127.0.0.1", 0, 0)
         ports = [u.rsplit(":", 1)[1] for u in (motion, state)]
         print("127.0.0.1", *ports, flush=True)

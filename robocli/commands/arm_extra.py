@@ -382,10 +382,12 @@ def _status_line() -> Any:
 
 
 def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = False,
-          floor_n: int | None = None, cpu: int | None = None) -> None:  # fmt: skip
+          floor_n: int | None = None, cpu: int | None = None,
+          wire: tuple[str, int] = ("little", 4)) -> None:  # fmt: skip
     """``robocli bench rtt|jitter --target arm``: JOINT_TRAJ_PT round trips (after the C
     floor, as the Pioneer bench) or the state period, against ``url`` or the built-in ABB
-    simulator in its own process (``paper``: its paper-like model), beside Table 5."""
+    simulator in its own process (``paper``: its paper-like model), beside Table 5.
+    ``wire``: (byte order, real size) of the controller, and of that simulator."""
     from robocli import arm_bench as ab
     from robocli import benchmarks as b
     from robocli.commands.bench import EXIT_INTERRUPTED, _cpus, _Progress, _show
@@ -395,7 +397,8 @@ def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = Fals
         raise typer.BadParameter("--paper-model configures the built-in simulator; not with --url")
     same, other = _cpus(cpu) if kind == "rtt" else (None, None)
     progress, runs, interrupted = _Progress(), [], False
-    where = url or f"ABB simulator process{', paper model' if paper else ''}"
+    variant = "" if wire == ("little", 4) else f", {wire[0]}-endian, {wire[1] * 8}-bit reals"
+    where = (url or f"ABB simulator process{', paper model' if paper else ''}") + variant
     name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
     with sigterm_as_interrupt():
         try:
@@ -409,8 +412,9 @@ def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = Fals
             with contextlib.ExitStack() as stack:
                 stack.enter_context(b.pinned(same))
                 h, mp, sp = (ab.parse_url(url) if url is not None else
-                             stack.enter_context(ab.sim_process(paper, cpu=same)))  # fmt: skip
-                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt"))
+                             stack.enter_context(ab.sim_process(paper, cpu=same, wire=wire)))
+                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt",
+                                                      byte_order=wire[0], real_size=wire[1]))
                 update = stack.enter_context(progress.stage(name, n))
                 (ab.rtt if kind == "rtt" else ab.state_periods)(arm, runs[-1], progress=update)
         except KeyboardInterrupt:
