@@ -169,7 +169,7 @@ def check_url(url: str, *, what: str = "PORT") -> str:
     hint = "give a serial port (/dev/ttyUSB0, COM1), tcp://HOST:PORT or a pyserial URL"
     if not text:
         raise InvalidURL(f"{what}: empty; {hint}", "empty")
-    if _is_tcp(text):
+    if is_tcp(text):
         parse_address(text, what=what, form="tcp://HOST:PORT or HOST:PORT")
         return text
     if "://" in text:
@@ -196,8 +196,9 @@ def _is_path(text: str) -> bool:
     return text.startswith(("/", ".", "\\")) or bool(_COM_PORT.match(text))
 
 
-def _is_tcp(text: str) -> bool:
-    """``tcp://...``, or ``HOST:PORT``: a colon in what is neither a path nor another URL."""
+def is_tcp(text: str) -> bool:
+    """Whether :func:`open_transport` takes ``text`` (stripped) as TCP: ``tcp://...``, or
+    ``HOST:PORT``, a colon in what is neither a path nor another URL."""
     return text.startswith("tcp://") or (":" in text and "://" not in text and not _is_path(text))
 
 
@@ -533,7 +534,7 @@ def open_transport(url: str, *, baudrate: int = 9600, timeout: float = 5.0) -> T
     Raises :class:`InvalidURL` for a URL that names no stream (:func:`check_url`),
     :class:`TransportError` when the stream cannot be opened."""
     url = check_url(url)
-    if _is_tcp(url):
+    if is_tcp(url):
         host, port = parse_address(url)
         return SocketTransport.connect(host, port, timeout=timeout)
     return SerialTransport.open(url, baudrate=baudrate)
