@@ -25,8 +25,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.benchmarks import Run, child_process, wait_for_stdin_eof
-from robocli.errors import DeviceError, InvalidArgument, TransportError
+from robocli.errors import DeviceError, TransportError
 from robocli.protocols.simple_message import PORT_MOTION, SpecialSeq
+from robocli.transports import parse_address
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm, JointSample
@@ -45,16 +46,11 @@ BENCH_STATE_MS = 20.0
 
 
 def parse_url(url: str) -> tuple[str, int, int]:
-    """``HOST``, ``HOST:MOTION`` or ``tcp://HOST:MOTION`` -> (host, motion port, state
-    port); the state port is the motion port + 2, as on an ABB (11000, 11002)."""
-    text = url.removeprefix("tcp://")
-    host, _, port = text.rpartition(":") if ":" in text else (text, "", str(PORT_MOTION))
-    try:
-        motion = int(port)
-    except ValueError:
-        raise InvalidArgument(f"--url {url!r}: give HOST or HOST:MOTION_PORT") from None
-    if not host or not 0 < motion < 65534:
-        raise InvalidArgument(f"--url {url!r}: give HOST or HOST:MOTION_PORT")
+    """``HOST``, ``HOST:MOTION``, ``[IPv6]:MOTION`` or ``tcp://HOST:MOTION`` -> (host,
+    motion port, state port) by :func:`robocli.transports.parse_address`; the state port
+    is the motion port + 2, as on an ABB (11000, 11002)."""
+    host, motion = parse_address(url, PORT_MOTION, what="--url", form="HOST or HOST:MOTION_PORT",
+                                 port_range=(1, 65533))  # fmt: skip
     return host, motion, motion + 2
 
 
@@ -105,12 +101,15 @@ def state_periods(arm: Arm, run: Run, progress: Progress | None = None,
 
 @contextlib.contextmanager
 def sim_process(paper: bool = False, state_ms: float = BENCH_STATE_MS, profile: str = "abb",
-                cpu: int | None = None,
-                timeout: float = 20.0) -> Iterator[tuple[str, int, int]]:  # fmt: skip
+                cpu: int | None = None, timeout: float = 20.0,
+                wire: tuple[str, int] = ("little", 4),
+                ) -> Iterator[tuple[str, int, int]]:  # fmt: skip
     """Yield ``(host, motion port, state port)`` of an ABB simulator in its own process
-    (pinned to ``cpu`` when given; ``paper``: the paper-like controller model). The child
-    stops at the end of its stdin; it is terminated, then killed, if it does not."""
-    options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu}
+    (pinned to ``cpu`` when given; ``paper``: the paper-like controller model; ``wire``:
+    its byte order, ``"little"`` or ``"big"``, and real size, 4 or 8). The child stops at
+    the end of its stdin; it is terminated, then killed, if it does not."""
+    options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu,
+               "byteorder": ">" if wire[0] == "big" else "<", "real": 8 if wire[1] == 8 else 4}
     code = "from robocli.arm_bench import _child_main; _child_main()"
     with child_process(code, json.dumps(options), timeout=timeout) as (_, first):
         line = first.split()
@@ -132,7 +131,8 @@ def _child_main() -> None:
     if options["cpu"] is not None and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {int(options["cpu"])})
     model = ControllerModel.paper() if options["paper"] else None
-    with AbbSim(profile=options["profile"], state_ms=options["state_ms"], model=model) as sim:
+    with AbbSim(profile=options["profile"], state_ms=options["state_ms"], model=model,
+                byteorder=options["byteorder"], real=options["real"]) as sim:  # fmt: skip
         motion, state = sim.serve_tcp("127.0.0.1", 0, 0)
         ports = [u.rsplit(":", 1)[1] for u in (motion, state)]
         print("127.0.0.1", *ports, flush=True)

@@ -14,6 +14,7 @@ import typer
 
 from robocli._version import __version__
 from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports
+from robocli.commands import doctor as doctor_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands._common import PlainCommand
@@ -100,11 +101,12 @@ dump.command("arm", cls=PlainCommand)(arm_extra.dump)
 teleop.command("arm", cls=PlainCommand)(arm_extra.teleop)
 
 app.command("subscribe")(hub_commands.subscribe)
-app.command("serial")(hub_commands.serial)
+app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(hub_commands.dump)
 bench_group.command("throughput")(hub_commands.throughput)
 app.command("serve", cls=PlainCommand)(serve_command.serve)
+app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

@@ -1,5 +1,6 @@
-"""Shared pytest configuration: tests/ is importable (``import reference``), Hypothesis runs
-without per-example deadlines, and the CLI processes the tests start can be interrupted."""
+"""Shared pytest configuration: tests/ is importable (``import reference``), the hardware
+variables are read (``hardware.py``), Hypothesis runs without per-example deadlines, and the
+CLI processes the tests start can be interrupted."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ import sys
 from hypothesis import HealthCheck, settings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+
+import hardware  # noqa: E402, F401 - reads ROBOCLI_PIONEER/ARM/HUB, then clears them
 
 # Hypothesis checks properties, not speed: on a loaded 2-vCPU machine one example can take
 # longer than its default 200 ms deadline, which would make a correct test flaky.

@@ -9,8 +9,18 @@ import tty
 
 import pytest
 
-from robocli.errors import ConnectionLost, TransportError
-from robocli.transports import FaultyTransport, SerialTransport, open_transport, pair
+from robocli.errors import ConnectionLost, InvalidArgument, TransportError
+from robocli.transports import (
+    FaultyTransport,
+    InvalidURL,
+    SerialTransport,
+    check_url,
+    format_address,
+    open_transport,
+    pair,
+    parse_address,
+    parse_host,
+)
 
 
 @pytest.fixture
@@ -151,3 +161,111 @@ def test_writes_from_two_threads_never_interleave() -> None:
         for t in threads:
             t.join(5.0)
         assert bytes(got) in (b"A" * n + b"B" * n, b"B" * n + b"A" * n)
+
+
+def _ipv6_loopback() -> bool:
+    """Whether this machine can listen on [::1] (containers often have no IPv6)."""
+    if not socket.has_ipv6:
+        return False
+    try:
+        with socket.socket(socket.AF_INET6, socket.SOCK_STREAM) as s:
+            s.bind(("::1", 0))
+    except OSError:
+        return False
+    return True
+
+
+needs_ipv6 = pytest.mark.skipif(not _ipv6_loopback(), reason="no IPv6 loopback ([::1]) here")
+
+
+@pytest.mark.parametrize(
+    ("text", "kwargs", "expected"),
+    [
+        ("10.0.0.2", {"default_port": 1500}, ("10.0.0.2", 1500)),
+        ("robot.local:8101", {}, ("robot.local", 8101)),
+        ("tcp://h:1600/", {}, ("h", 1600)),
+        ("[::1]:11500", {}, ("::1", 11500)),
+        ("tcp://[fe80::1%eth0]:80", {}, ("fe80::1%eth0", 80)),
+        ("::1", {"default_port": 1500}, ("::1", 1500)),  # a bare IPv6 literal has no port
+        ("[::1]", {"default_port": 1500}, ("::1", 1500)),
+        (":7", {"default_port": 1500, "default_host": "127.0.0.1"}, ("127.0.0.1", 7)),
+        ("1501", {"default_port": 1, "default_host": "127.0.0.1"}, ("127.0.0.1", 1501)),
+        ("0", {"default_host": "h", "port_range": (0, 65533)}, ("h", 0)),
+    ],
+)
+def test_parse_address_reads_every_form(text: str, kwargs: dict, expected: tuple) -> None:
+    assert parse_address(text, **kwargs) == expected
+
+
+@pytest.mark.parametrize(
+    ("text", "reason"),
+    [
+        ("127.0.0.1:11500:99", "more than one ':'"),  # was read as port 99
+        ("h:x", "bad port ('x'"),
+        ("robot:", "bad port (nothing"),
+        ("h:99999", "port 99999 out of range"),
+        ("h:0", "port 0 out of range"),
+        ("h:+80", "bad port"),
+        ("[::1", "brackets hold an IPv6 address"),
+        ("[10.0.0.1]:80", "brackets hold an IPv6 address"),
+        ("[::1]x", "'x' after the address"),
+        ("bad host:80", "not a host name"),
+        (":80", "no host"),
+        ("h", "no port"),
+    ],
+)
+def test_parse_address_refuses_with_a_usage_error(text: str, reason: str) -> None:
+    with pytest.raises(InvalidURL) as info:
+        parse_address(text, what="--hub")
+    assert isinstance(info.value, InvalidArgument) and info.value.exit_code == 2
+    message = str(info.value)
+    assert reason in message and "--hub" in message and repr(text) in message
+
+
+def test_parse_host_and_format_address() -> None:
+    assert parse_host("[::1]") == parse_host(" ::1 ") == "::1"
+    assert parse_host("0.0.0.0") == "0.0.0.0"
+    for bad in ("", "a b", "0.0.0.0:1500", "[::1]:5"):
+        with pytest.raises(InvalidURL):
+            parse_host(bad, what="--bind")
+    assert format_address("::1", 8101) == "[::1]:8101"
+    assert format_address("h", 1) == "h:1"
+    assert parse_address(format_address("fe80::1%eth0", 5)) == ("fe80::1%eth0", 5)
+
+
+@pytest.mark.parametrize(
+    "url", ["/dev/ttyUSB0", "COM3", "tcp://[::1]:8101", "h:1", "loop://", "socket://h:1"]
+)
+def test_check_url_accepts_what_open_transport_opens(url: str) -> None:
+    assert check_url(f" {url} ") == url
+
+
+@pytest.mark.parametrize(
+    ("url", "reason"),
+    [
+        ("bad url", "neither a serial port nor a TCP address"),
+        ("robot", "neither a serial port nor a TCP address"),
+        ("tcp://127.0.0.1:8101:9", "more than one ':'"),
+        ("socket://h", "no port"),
+        ("ftp://x", "unknown URL scheme 'ftp'"),
+        ("  ", "empty"),
+    ],
+)
+def test_check_url_refuses_without_opening(url: str, reason: str) -> None:
+    with pytest.raises(InvalidURL, match=reason):
+        check_url(url, what="pioneer")
+    with pytest.raises(InvalidURL, match=reason):
+        open_transport(url)
+
+
+@needs_ipv6
+@pytest.mark.parametrize("form", ["tcp://[::1]:{}", "[::1]:{}"])
+def test_an_ipv6_literal_connects_to_a_server_on_ipv6_loopback(form: str) -> None:
+    with socket.create_server(("::1", 0), family=socket.AF_INET6) as srv:
+        port = srv.getsockname()[1]
+        with open_transport(form.format(port)) as t:
+            conn, _ = srv.accept()
+            with conn:
+                assert t.url == f"tcp://[::1]:{port}"
+                conn.sendall(b"\xfa\xfb")
+                assert _read_exactly(t, 2) == b"\xfa\xfb"

@@ -22,6 +22,21 @@ PORT_HELP = (
 )
 
 
+def from_env(ctx: typer.Context, name: str) -> bool:
+    """Whether parameter ``name`` took its value from its environment variable (so that
+    an explicit choice such as ``--file`` may override it without a conflict)."""
+    source = ctx.get_parameter_source(name)
+    return source is not None and source.name == "ENVIRONMENT"
+
+
+def bind_address(text: str) -> str:
+    """``--bind``: a host name, IPv4 or IPv6 address (brackets optional) to listen on; a
+    usage error (exit 2) for anything else, a port included."""
+    from robocli.transports import parse_host
+
+    return parse_host(text, what="--bind")
+
+
 _TYPE_HINT = re.compile(r"(?<=\S) <(str|int|float|bool|path|file|text|int range|float range)>")
 #: What an option's value is called instead of Typer's ``<int range>``-style placeholder.
 _VALUE_NAMES = {"int": "INTEGER", "float": "NUMBER", "int range": "INTEGER", "path": "PATH",

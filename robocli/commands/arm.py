@@ -21,18 +21,21 @@ import typer
 
 from robocli.commands._common import (
     SIM,
+    bind_address,
     print_json,
     print_json_line,
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
     from robocli.io.trajlog import TrajectoryLog
 
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.")
+HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
+                         envvar=ARM_ENV, show_envvar=True)  # fmt: skip
 MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
 StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
@@ -58,6 +61,13 @@ def arm_host(
     ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
     needs: an ABB never executes streamed points)."""
     if host != SIM:
+        from robocli.transports import InvalidURL, parse_host
+
+        try:
+            host = parse_host(host, what="HOST")
+        except InvalidURL as exc:  # the ports have their own options
+            raise InvalidURL(f"HOST {host!r}: {exc.reason} (ports: --motion-port, "
+                             "--state-port)", exc.reason) from None  # fmt: skip
         yield host, motion_port, state_port
         return
     from robocli.sim.abb import AbbSim
@@ -157,7 +167,7 @@ def simulate(
         ) as simulator,
     ):
         try:
-            motion, state = simulator.serve_tcp(bind, motion_port, state_port)
+            motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
             typer.echo(
                 f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
                 f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")

@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import reader_may_leave, rounded, sigterm_as_interrupt
+from robocli.commands._common import from_env, reader_may_leave, rounded, sigterm_as_interrupt
 from robocli.commands.arm import (
     MotionPortOpt,
     OrderOpt,
@@ -32,12 +32,14 @@ from robocli.commands.arm import (
     _profile,
     arm_host,
 )
+from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.protocols import simple_message as sm
 
 HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         show_default=False, metavar="HOST")  # fmt: skip
+                         show_default=False, metavar="HOST", envvar=ARM_ENV,
+                         show_envvar=True)  # fmt: skip
 _ARROWS = {"tx": "->", "rx": "<-"}
 _SEQ = {-1: "start", -2: "stream", -3: "end", -4: "STOP"}
 #: Short names in text lines (JSON keeps the protocol's names).
@@ -129,9 +131,10 @@ def _short(value: Any) -> str:
 
 
 def dump(
+    ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
         None, help="Controller address, 'sim' for an embedded simulator; omit with --file.",
-        show_default=False, metavar="HOST",
+        show_default=False, metavar="HOST", envvar=ARM_ENV, show_envvar=True,
     ),  # fmt: skip
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
@@ -161,6 +164,8 @@ def dump(
     from robocli.kinematics import load_model
 
     _check_wire(byte_order, real_size)
+    if file is not None and from_env(ctx, "host"):
+        host = None  # $ROBOCLI_ARM names a controller; --file reads a capture instead
     if (host is None) == (file is None):
         raise typer.BadParameter("give HOST or --file (one of them)")
     if ports not in ("both", "motion", "state"):
@@ -205,10 +210,14 @@ def _dump_file(view: Any, file: Path, protocol: str) -> None:
 
 def _listen_address(text: str) -> tuple[str, int]:
     """``--listen [ADDR:]PORT`` -> (address, motion port); the state port is 2 above."""
-    addr, _, port = text.strip().rpartition(":")
-    if not port.isdigit() or not (int(port) == 0 or 1 <= int(port) <= 65533):
-        raise typer.BadParameter(f"--listen is [ADDR:]PORT with PORT 0 or 1..65533, not {text!r}")
-    return addr or "127.0.0.1", int(port)
+    from robocli.transports import InvalidURL, parse_address
+
+    try:
+        return parse_address(text, None, default_host="127.0.0.1", port_range=(0, 65533))
+    except InvalidURL as exc:
+        raise typer.BadParameter(
+            f"--listen is [ADDR:]PORT with PORT 0 or 1..65533, not {text!r} ({exc.reason})"
+        ) from None
 
 
 def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
@@ -373,10 +382,12 @@ def _status_line() -> Any:
 
 
 def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = False,
-          floor_n: int | None = None, cpu: int | None = None) -> None:  # fmt: skip
+          floor_n: int | None = None, cpu: int | None = None,
+          wire: tuple[str, int] = ("little", 4)) -> None:  # fmt: skip
     """``robocli bench rtt|jitter --target arm``: JOINT_TRAJ_PT round trips (after the C
     floor, as the Pioneer bench) or the state period, against ``url`` or the built-in ABB
-    simulator in its own process (``paper``: its paper-like model), beside Table 5."""
+    simulator in its own process (``paper``: its paper-like model), beside Table 5.
+    ``wire``: (byte order, real size) of the controller, and of that simulator."""
     from robocli import arm_bench as ab
     from robocli import benchmarks as b
     from robocli.commands.bench import EXIT_INTERRUPTED, _cpus, _Progress, _show
@@ -386,7 +397,8 @@ def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = Fals
         raise typer.BadParameter("--paper-model configures the built-in simulator; not with --url")
     same, other = _cpus(cpu) if kind == "rtt" else (None, None)
     progress, runs, interrupted = _Progress(), [], False
-    where = url or f"ABB simulator process{', paper model' if paper else ''}"
+    variant = "" if wire == ("little", 4) else f", {wire[0]}-endian, {wire[1] * 8}-bit reals"
+    where = (url or f"ABB simulator process{', paper model' if paper else ''}") + variant
     name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
     with sigterm_as_interrupt():
         try:
@@ -400,8 +412,9 @@ def bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = Fals
             with contextlib.ExitStack() as stack:
                 stack.enter_context(b.pinned(same))
                 h, mp, sp = (ab.parse_url(url) if url is not None else
-                             stack.enter_context(ab.sim_process(paper, cpu=same)))  # fmt: skip
-                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt"))
+                             stack.enter_context(ab.sim_process(paper, cpu=same, wire=wire)))
+                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt",
+                                                      byte_order=wire[0], real_size=wire[1]))
                 update = stack.enter_context(progress.stage(name, n))
                 (ab.rtt if kind == "rtt" else ab.state_periods)(arm, runs[-1], progress=update)
         except KeyboardInterrupt:

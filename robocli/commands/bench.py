@@ -32,6 +32,10 @@ JitterTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measur
 SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
 UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
 JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
+OrderOpt = typer.Option(
+    None, "--byte-order", help="arm: little (ABB, the default) or big (Fanuc, FS100)."
+)
+RealOpt = typer.Option(None, "--real-size", help="arm: bytes per real, 4 (default) or 8 (FLOAT64).")
 EXIT_INTERRUPTED = 130
 #: Multiples of the same-CPU floor (median, p99) the client must stay under.
 RESPONDER_TARGETS = (3.0, 6.0)
@@ -50,6 +54,20 @@ def _check_target(target: str, also: tuple[str, ...] = ()) -> None:
 def _check_paper_model(target: str, paper: bool) -> None:
     if paper and target != "arm":  # it models the ABB controller only
         raise typer.BadParameter(f"--paper-model is for --target arm, not {target!r}")
+
+
+def _arm_wire(target: str, byte_order: str | None, real_size: int | None) -> tuple[str, int]:
+    """``--byte-order`` and ``--real-size``: the Simple Message variant of an arm target
+    (and of the simulator the bench starts); refused for the other targets."""
+    from robocli.commands.arm import _check_wire
+
+    given = [name for name, value in (("--byte-order", byte_order), ("--real-size", real_size))
+             if value is not None]  # fmt: skip
+    if given and target != "arm":
+        raise typer.BadParameter(f"{given[0]} is for --target arm, not {target!r}")
+    wire = (byte_order or "little", real_size or 4)
+    _check_wire(*wire)
+    return wire
 
 
 class _Progress:
@@ -114,6 +132,8 @@ def rtt(
     ),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    byte_order: str | None = OrderOpt,  # noqa: UP007
+    real_size: int | None = RealOpt,  # noqa: UP007
 ) -> None:
     """Request/acknowledge round trips through the real client, as multiples of the C
     ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
@@ -125,6 +145,7 @@ def rtt(
     from robocli import benchmarks as b
 
     _check_paper_model(target, paper)
+    wire = _arm_wire(target, byte_order, real_size)
     if target == "hub":  # the sensor hub's bench lives with its commands
         from robocli.commands.hub import bench_rtt
 
@@ -132,7 +153,7 @@ def rtt(
     if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5); lives with the arm commands
         from robocli.commands.arm_extra import bench as arm_bench
 
-        return arm_bench("rtt", url, n, json_out, paper, floor_n, cpu)
+        return arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
     _check_target(target, also=("arm", "hub"))
     same, other = _cpus(cpu)
     at = b.cpu_label
@@ -228,15 +249,18 @@ def jitter(
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    byte_order: str | None = OrderOpt,  # noqa: UP007
+    real_size: int | None = RealOpt,  # noqa: UP007
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
     from robocli import benchmarks as b
 
     _check_paper_model(target, paper)
+    wire = _arm_wire(target, byte_order, real_size)
     if target == "arm":  # the state period (Table 5); lives with the arm commands
         from robocli.commands.arm_extra import bench as arm_bench
 
-        return arm_bench("jitter", url, n, json_out, paper)
+        return arm_bench("jitter", url, n, json_out, paper, wire=wire)
     _check_target(target, also=("arm",))
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")

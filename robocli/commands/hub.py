@@ -18,11 +18,14 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import (
+    PlainCommand,
+    from_env,
     print_json,
     print_json_line,
     reader_may_leave,
     sigterm_as_interrupt,
 )
+from robocli.defaults import HUB_ENV
 
 if TYPE_CHECKING:
     import numpy as np
@@ -31,9 +34,13 @@ if TYPE_CHECKING:
     from robocli.hub_bench import HubProcess
 
 EXIT_INTERRUPTED = 130
-HUB_HELP = "Hub address HOST[:PORT] (default $ROBOCLI_HUB, else 127.0.0.1; port 1500)."
-HubOpt = typer.Option(None, "--hub", help=HUB_HELP, show_default=False)
-HubArg = typer.Argument(..., help="Hub address HOST[:PORT].", show_default=False)
+HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
+HubOpt = typer.Option(
+    None, "--hub", help=HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True
+)
+HubArg = typer.Argument(
+    ..., help="Hub address HOST[:PORT].", show_default=False, envvar=HUB_ENV, show_envvar=True
+)
 FORMATS = ("table", "csv", "jsonl")
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
 SENSOR_HELP = (
@@ -50,7 +57,7 @@ TokenOpt = typer.Option(
 
 
 def _address(hub: str | None) -> str:
-    return hub or os.environ.get("ROBOCLI_HUB") or "127.0.0.1"
+    return hub or "127.0.0.1"  # --hub, else $ROBOCLI_HUB (Typer reads it), else this machine
 
 
 def open_hub(
@@ -319,10 +326,12 @@ def dump(
 
     from robocli.devices.hub import parse_hub
     from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
+    from robocli.transports import parse_address
 
     upstream = parse_hub(host)
+    bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
+                               port_range=(0, 65535))  # fmt: skip
     check_upstream(*upstream)
-    bind, port = parse_hub(listen, 1501)
     done = threading.Event()
     broken = threading.Event()
     printed = 0
@@ -389,9 +398,23 @@ def _capture(path: Path) -> Any:
         raise typer.BadParameter(str(exc), param_hint="'--output'") from None
 
 
+class SerialCommand(PlainCommand):
+    """``serial [HUB] PORT``: PORT is needed; HUB may be left out for ``$ROBOCLI_HUB``."""
+
+    def collect_usage_pieces(self, ctx: Any) -> list[str]:
+        return [p.replace("[PORT]", "PORT") for p in super().collect_usage_pieces(ctx)]
+
+
 def serial(
-    hub: str = HubArg,
-    port: str = typer.Argument(..., help="The serial port on the hub, e.g. /dev/ttyUSB0."),
+    ctx: typer.Context,
+    hub: str = typer.Argument(
+        ..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.", metavar="[HUB]",
+        show_default=False, envvar=HUB_ENV, show_envvar=True,
+    ),  # fmt: skip
+    port: str | None = typer.Argument(  # noqa: UP007
+        None, help="The serial port on the hub, e.g. /dev/ttyUSB0.", metavar="PORT",
+        show_default=False,
+    ),  # fmt: skip
     baud: int = typer.Option(9600, "--baud", min=50, help="Baud rate."),
     send: str = typer.Option("", "--send", help="Bytes to send: text, or hex with --hex."),
     recv: int = typer.Option(0, "--recv", min=0, max=1024, help="Bytes to read back."),
@@ -408,6 +431,11 @@ def serial(
     token_file: Path | None = TokenOpt,  # noqa: UP007
 ) -> None:
     """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD)."""
+    if port is None:  # one word: PORT, on the hub of $ROBOCLI_HUB
+        default = os.environ.get(HUB_ENV, "").strip()
+        if not default or from_env(ctx, "hub"):
+            raise typer.BadParameter(f"give HUB PORT, or PORT alone with ${HUB_ENV} set")
+        hub, port = default, hub
     if hex_io:
         try:
             data = bytes.fromhex(send)
@@ -429,7 +457,10 @@ def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
     from robocli.hub_bench import hub_process
 
     if url is not None:
-        yield url.removeprefix("tcp://"), None
+        from robocli.devices.hub import parse_hub
+        from robocli.transports import format_address
+
+        yield format_address(*parse_hub(url)), None
         return
     with hub_process() as proc:
         yield proc.address, proc

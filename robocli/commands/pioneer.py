@@ -20,7 +20,9 @@ import typer
 
 from robocli.commands._common import (
     PORT_HELP,
+    bind_address,
     explain_refusal,
+    from_env,
     pioneer_url,
     print_json,
     print_json_line,
@@ -28,6 +30,7 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer
@@ -43,7 +46,9 @@ def _check_subtype(value: str | None) -> str | None:
     return value
 
 
-PortArg = typer.Argument(..., help=PORT_HELP, show_default=False, metavar="PORT")
+PortArg = typer.Argument(
+    ..., help=PORT_HELP, show_default=False, metavar="PORT", envvar=PIONEER_ENV, show_envvar=True
+)
 SubtypeOpt = typer.Option(
     None, "--subtype", metavar="NAME", callback=_check_subtype,
     help="Override the robot's subtype (p3dx, p3at, ...).",
@@ -181,8 +186,9 @@ def teleop(
 def dump(
     ctx: typer.Context,
     port: str | None = typer.Argument(  # noqa: UP007
-        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT"
-    ),
+        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT",
+        envvar=PIONEER_ENV, show_envvar=True,
+    ),  # fmt: skip
     count: int = typer.Option(
         0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
     ),
@@ -217,6 +223,8 @@ def dump(
     from robocli.commands._packets import PacketView
     from robocli.io.capture import CaptureWriter
 
+    if file is not None and from_env(ctx, "port"):
+        port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
     if port is None and file is None:
         raise typer.BadParameter("give PORT or --file")
     if port is not None and file is not None:
@@ -338,7 +346,7 @@ def simulate(
     with sigterm_as_interrupt():
         try:
             sims = serve_many(
-                robots, host=bind, port=port, pty=pty,
+                robots, host=bind_address(bind), port=port, pty=pty,
                 subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
                 **options,
             )  # fmt: skip

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import sigterm_as_interrupt
+from robocli.commands._common import bind_address, sigterm_as_interrupt
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -79,7 +79,7 @@ def serve(
 
     tune_hub_process()
     srv = HubServer(
-        bind, port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
+        bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
         token=token_from_file(token_file), max_clients=max_clients,
     )  # fmt: skip
     with sigterm_as_interrupt():

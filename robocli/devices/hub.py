@@ -51,7 +51,13 @@ from robocli.protocols.ros4mat import (
     encode_request,
     sensor_type,
 )
-from robocli.transports import InvalidURL, Transport, open_transport
+from robocli.transports import (
+    InvalidURL,
+    Transport,
+    format_address,
+    open_transport,
+    parse_address,
+)
 
 #: Pulls whose round trips the clock filter looks at.
 CLOCK_WINDOW = 64
@@ -66,18 +72,10 @@ _CAMERAS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT, MsgType.KINEC
 
 
 def parse_hub(address: str, default_port: int = PORT) -> tuple[str, int]:
-    """``HOST``, ``HOST:PORT`` or ``tcp://HOST:PORT`` -> (host, port)."""
-    text = address.strip().removeprefix("tcp://")
-    host, sep, port = text.rpartition(":")
-    if not sep:
-        return text or "127.0.0.1", default_port
-    try:
-        number = int(port)
-    except ValueError:
-        raise InvalidArgument(f"hub: bad port in {address!r}") from None
-    if not 0 <= number < 65536:
-        raise InvalidArgument(f"hub: port {number} out of range in {address!r}")
-    return host or "127.0.0.1", number
+    """``HOST``, ``HOST:PORT``, ``[IPv6]:PORT``, ``:PORT`` or ``tcp://HOST:PORT`` ->
+    (host, port), by :func:`robocli.transports.parse_address` (host default 127.0.0.1);
+    :class:`~robocli.transports.InvalidURL` (a usage error) if malformed."""
+    return parse_address(address, default_port, default_host="127.0.0.1", what="hub")
 
 
 def _u16(name: str, value: Any, low: int = 0) -> int:
@@ -279,13 +277,15 @@ class Hub:
         if port is not None:
             p = port
         try:
-            transport = open_transport(f"tcp://{h}:{p}", timeout=timeout)
+            transport = open_transport(f"tcp://{format_address(h, p)}", timeout=timeout)
         except InvalidURL:
             raise
         except TransportError as exc:  # the transport's hint names robots, not hubs
             text = str(exc)
             reason = text.split(": ", 1)[-1].split(" (", 1)[0] if ": " in text else text
-            raise TransportError(f"no hub at {h}:{p} ({reason}); {NO_HUB_HINT}") from None
+            raise TransportError(
+                f"no hub at {format_address(h, p)} ({reason}); {NO_HUB_HINT}"
+            ) from None
         return cls.from_transport(
             transport, compress=compress, timeout=timeout, client_id=client_id,
             clock=clock, hub_clock=hub_clock, token=secret or None,

@@ -1,4 +1,5 @@
-"""Fixtures: a built-in simulator on an ephemeral loopback port (or ROBOCLI_PIONEER_URL)."""
+"""Fixtures: a built-in simulator on an ephemeral loopback port (a robot named by
+ROBOCLI_PIONEER is tested by ``test_hardware.py``)."""
 
 from __future__ import annotations
 

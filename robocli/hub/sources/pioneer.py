@@ -14,9 +14,7 @@ Sonar and odometry have no ros4mat message; they are not served.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import re
 import threading
 import time
 from collections.abc import Mapping
@@ -27,6 +25,7 @@ import numpy as np
 from robocli.errors import DeviceError
 from robocli.hub.sources.base import Batch, Source, rate_param
 from robocli.protocols.ros4mat import BatteryState, record_dtype
+from robocli.transports import check_url
 
 if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer, PioneerState
@@ -36,45 +35,9 @@ __all__ = [
     "PioneerAdcSource",
     "PioneerBatterySource",
     "PioneerLink",
-    "check_url",
 ]
 
 LOW_BATTERY_V = 11.0
-_TCP = re.compile(r"^(?:tcp://)?(?:\[[^\]]+\]|[A-Za-z0-9_.\-]+):(?P<port>\d{1,5})/?$")
-
-
-def check_url(url: str) -> str:
-    """``url`` stripped, when it can name a robot's stream as
-    :func:`robocli.transports.open_transport` reads it (``tcp://HOST:PORT``, ``HOST:PORT``,
-    a serial port, a pyserial URL); else :class:`~robocli.transports.InvalidURL` (a usage
-    error), without connecting: a robot away is retried by the sources, a malformed URL
-    never works."""
-    from robocli.transports import InvalidURL
-
-    text = url.strip()
-    hint = "give tcp://HOST:PORT, a serial port, or a pyserial URL (socket://, rfc2217://...)"
-    if not text:
-        raise InvalidURL(f"pioneer: empty URL; {hint}")
-    match = _TCP.match(text)
-    if match and (text.startswith("tcp://") or not text.startswith("/")):
-        if not 0 < int(match["port"]) < 65536:
-            raise InvalidURL(f"pioneer: bad TCP port in {text!r}: expected 1..65535")
-        return text
-    if text.startswith("tcp://") or (text.endswith(":") and "/" not in text):
-        raise InvalidURL(f"pioneer: bad TCP URL {text!r}; {hint}")
-    scheme = text.split("://", 1)[0] if "://" in text else ""
-    if scheme and not _pyserial_scheme(scheme):
-        raise InvalidURL(f"pioneer: unknown URL scheme {scheme!r} in {text!r}; {hint}")
-    return text
-
-
-def _pyserial_scheme(scheme: str) -> bool:
-    if not scheme.isidentifier():
-        return False
-    try:
-        return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme}") is not None
-    except (ImportError, ValueError):
-        return False
 
 
 class PioneerLink:
@@ -82,7 +45,7 @@ class PioneerLink:
     starts and closed when the last one stops."""
 
     def __init__(self, url: str) -> None:
-        self.url = check_url(url)
+        self.url = check_url(url, what="pioneer")  # malformed: refused; away: retried
         self._robot: Pioneer | None = None
         self._users = 0
         self._lock = threading.Lock()

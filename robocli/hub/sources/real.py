@@ -26,9 +26,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.errors import DeviceError, InvalidArgument
+from robocli.errors import DeviceError
 from robocli.hub.sources.base import Batch, PeriodicSource, Source, rate_param
 from robocli.protocols.ros4mat import ComputerState, GpsState, SerialStatus, record_dtype
+from robocli.transports import parse_address
 
 __all__ = ["GpsdSource", "SerialPorts", "SysinfoSource", "parse_host_port"]
 
@@ -45,15 +46,9 @@ answer well within the client's patience, rather than none)."""
 
 
 def parse_host_port(text: str, default_port: int) -> tuple[str, int]:
-    """``"HOST[:PORT]"`` -> (host, port); :class:`InvalidArgument` if malformed."""
-    host, _, port = text.rpartition(":") if ":" in text else (text, "", "")
-    try:
-        number = int(port) if port else default_port
-    except ValueError:
-        raise InvalidArgument(f"bad port in {text!r}") from None
-    if not host or not 0 < number < 65536:
-        raise InvalidArgument(f"expected HOST[:PORT], not {text!r}")
-    return host, number
+    """``"HOST[:PORT]"`` -> (host, port) by :func:`robocli.transports.parse_address`;
+    :class:`InvalidArgument` if malformed."""
+    return parse_address(text, default_port, what="gpsd")
 
 
 class SysinfoSource(PeriodicSource):
