@@ -442,7 +442,8 @@ class Hub:
             return 0
         ts = np.asarray(hub_t, dtype=np.float64)
         if len(ts) >= 3:  # contiguous samples (one pull): their spacing is the rate's
-            self._period[key] = float(np.median(np.diff(ts)))
+            with np.errstate(all="ignore"):
+                self._period[key] = float(np.median(np.diff(ts)))
         prev = self._last_t.get(key)
         self._last_t[key] = float(ts[-1])
         period = self._period.get(key)
@@ -453,8 +454,10 @@ class Hub:
             ts = np.concatenate(([prev], ts))
         if period is None or not period > 0 or len(ts) < 2:
             return 0
-        gaps = np.diff(ts) / period
-        lost = int(np.sum(np.where(gaps > 1.5, np.rint(gaps) - 1, 0)))
+        with np.errstate(all="ignore"):  # a hub's times may be anything: count finite gaps
+            gaps = np.diff(ts) / period
+            gaps = np.rint(gaps[np.isfinite(gaps) & (gaps > 1.5)])
+        lost = sum(int(g) - 1 for g in gaps.tolist())  # Python ints: no overflow
         if lost:
             self._lost[key] = self._lost.get(key, 0) + lost
         return lost

@@ -317,3 +317,21 @@ def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: 
         right = reading.right[..., -1].astype(float)
         want = scene(160, 120, ti, StereoSource.DISPARITY)
         assert np.abs(right - want).mean() < 3.0
+
+
+def test_kinect_jpeg_readings_of_several_frames(server: HubServer) -> None:
+    """The hub's Kinect RGB frames in JPEG differ in size: a reading of several decodes."""
+    from robocli.hub.sources.imaging import scene
+
+    with Hub.connect("127.0.0.1", server.port) as hub:
+        hub.subscribe("kinect", rate=30, resolution="160x120", quality=90)
+        deadline = time.monotonic() + 30.0
+        while len(reading := hub.read("kinect")) < 3:
+            assert time.monotonic() < deadline, "no reading of 3 frames"
+            time.sleep(0.05 * (1 + len(reading)))  # let frames pile up between pulls
+        hub.unsubscribe("kinect")
+    assert reading.rgb.shape == (120, 160, 3, len(reading))
+    assert reading.depth.shape == (120, 160, len(reading)) and reading.depth.max() > 0
+    for i in (0, -1):
+        want = scene(160, 120, float(reading.hub_t[i]))
+        assert np.abs(reading.rgb[..., i].astype(float) - want).mean() < 3.0
