@@ -63,6 +63,11 @@ NO_HUB_HINT = "start one with `robocli serve --sim`"
 #: Sensors whose subscribe params carry a ``freq_send`` (the driver's batch rate).
 _WITH_FREQ_SEND = (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.BATTERY)
 _CAMERAS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT, MsgType.KINECT_DEPTH)
+#: The fence sent after a request that has no reply in ros4mat (DOUT_CTRL, UNSUBSCRIBE) to a
+#: hub that answers refusals: a pull of 0x28, which ros4mat never serves (robocli's hub
+#: answers it with an error reply and changes nothing). The hub answers in order, so a
+#: refusal of the request arrives before the fence's reply.
+_FENCE = MsgType.KINECT_DEPTH
 
 
 def parse_hub(address: str, default_port: int = PORT) -> tuple[str, int]:
@@ -249,6 +254,10 @@ class Hub:
         self._last_t: dict[str, float] = {}  # hub time of the last sample read, per sensor
         self._period: dict[str, float] = {}  # sample period (s): asked, then as seen
         self._since: dict[str, tuple[float, int]] = {}  # hub time of subscribing, buffer
+        #: whether the hub answers a refused DOUT_CTRL or UNSUBSCRIBE with an error reply
+        #: (robocli's hub, which stamps its CONNECT_ACK; the original server answers neither
+        #: and stamps only data replies): those requests are then fenced, and refusals raise
+        self.answers_refusals = False
 
     # ------------------------------------------------------------------ connecting
 
@@ -339,10 +348,12 @@ class Hub:
             session.close()
             raise
         session._raw_tail = None  # noqa: SLF001 - as Session.start() does: the link is up
-        return cls(
+        hub = cls(
             session, header[2], compress=compress, timeout=timeout, clock=clock,
             hub_clock=hub_clock,
         )  # fmt: skip
+        hub.answers_refusals = bool(header[7])
+        return hub
 
     @property
     def url(self) -> str:
@@ -417,13 +428,35 @@ class Hub:
                 self._since[key] = (float(header[7]), int(body["buffer_size"]))
 
     def unsubscribe(self, name: str) -> None:
-        """Stop receiving ``name`` (no reply, as in the original protocol)."""
+        """Stop receiving ``name``. ros4mat has no reply to it; a hub that answers refusals
+        (:attr:`answers_refusals`) is asked for one more reply, and its refusal raises
+        :class:`DeviceError`."""
         kind = sensor_type(name)
-        self.session.send(
-            encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
-        )
-        self._subscribed.pop(name.lower(), None)
-        self._last_t.pop(name.lower(), None)
+        packet = encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
+        try:
+            self._unanswered(packet, MsgType.UNSUBSCRIBE)
+        finally:
+            self._subscribed.pop(name.lower(), None)
+            self._last_t.pop(name.lower(), None)
+
+    def _unanswered(self, packet: bytes, kind: MsgType) -> None:
+        """Send a request that has no reply in ros4mat. To a hub that answers refusals,
+        the :data:`_FENCE` follows in the same write; the hub answers in order, so its
+        refusal of ``packet``, if any, is read before the fence's reply, and raised."""
+        if not self.answers_refusals:
+            self.session.send(packet)
+            return
+        refused: list[bytes] = []
+
+        def fence_reply(frame: bytes) -> bool:
+            if frame[0] == kind and frame[1]:
+                refused.append(frame)
+            return frame[0] == _FENCE
+
+        fence = HEADER.pack(_FENCE, 0, self.client_id, 0, 0, 0, 0, 0.0)
+        self.session.request(packet + fence, fence_reply, self.timeout)
+        if refused:
+            body_of(refused[0])  # raises DeviceError with the hub's text
 
     @property
     def lost(self) -> dict[str, int]:
@@ -554,9 +587,13 @@ class Hub:
         raise DeviceError(f"hub serial port {port}: {why.get(status, str(status))}", status)
 
     def digital_out(self, d0: int, d1: int, d2: int, d3: int) -> None:
-        """Set the ADC board's digital outputs D0..D3 (no reply)."""
+        """Set the ADC board's digital outputs D0..D3. ros4mat has no reply to it; a hub
+        that answers refusals (:attr:`answers_refusals`, robocli's) is asked for one more
+        reply, and its refusal raises :class:`DeviceError` (a hub with a token refuses a
+        client without it: "unauthorized"; a hub whose ADC has no outputs)."""
         body = {"d0": int(d0), "d1": int(d1), "d2": int(d2), "d3": int(d3)}
-        self.session.send(encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id))
+        packet = encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id)
+        self._unanswered(packet, MsgType.DOUT_CTRL)
 
     def close(self, quit: bool = True) -> None:  # noqa: A002 - the protocol's word
         """Send QUIT (the hub forgets this client; ``quit=False`` keeps its buffers for a

@@ -225,6 +225,40 @@ def _scripted_hub(stamp: float) -> tuple[Any, Any]:
     return hub, b
 
 
+def test_requests_without_a_reply_to_the_original_server_are_its_bytes() -> None:
+    """The original server answers neither DOUT_CTRL nor UNSUBSCRIBE, and stamps no
+    CONNECT_ACK: the client sends the original client's bytes and waits for nothing."""
+    hub, peer = _scripted_hub(0.0)
+    with peer, hub:
+        assert not hub.answers_refusals and hub.clock_offset is None
+        hub.digital_out(1, 0, 1, 0)
+        hub.unsubscribe("adc")
+        want = SPEC["digital_out_1010"] + SPEC["unsubscribe_adc"]
+        got = b""
+        while len(got) < len(want):
+            got += peer.recv(4096)
+        assert got == want
+
+
+def test_a_refused_unsubscribe_raises() -> None:
+    """To a hub that answers refusals, UNSUBSCRIBE (no reply in ros4mat) is followed by a
+    fence, and an error reply before the fence's reply raises DeviceError."""
+    hub, peer = _scripted_hub(1000.0)
+    with peer, hub:
+        assert hub.answers_refusals
+        peer.sendall(r4m.encode_error(r4m.MsgType.UNSUBSCRIBE, "not connected", client_id=7)
+                     + r4m.encode_error(0x28, "unknown message id 0x28", client_id=7))  # fmt: skip
+        with pytest.raises(DeviceError, match="^hub refused UNSUBSCRIBE: not connected"):
+            hub.unsubscribe("adc")
+        fence = r4m.encode_packet(0x28, client_id=7, size=0)
+        sent = b""
+        while len(sent) < len(SPEC["unsubscribe_adc"]) + len(fence):
+            sent += peer.recv(4096)
+        assert sent == SPEC["unsubscribe_adc"] + fence
+        peer.sendall(r4m.encode_error(0x28, "unknown message id 0x28", client_id=7))
+        hub.unsubscribe("imu")  # a fence reply alone: accepted
+
+
 def _jpeg(w: int, h: int, level: int = 128) -> bytes:
     import io
 

@@ -335,3 +335,22 @@ def test_kinect_jpeg_readings_of_several_frames(server: HubServer) -> None:
     for i in (0, -1):
         want = scene(160, 120, float(reading.hub_t[i]))
         assert np.abs(reading.rgb[..., i].astype(float) - want).mean() < 3.0
+
+
+def test_a_refused_digital_out_raises() -> None:
+    """DOUT_CTRL has no reply in ros4mat, but robocli's hub answers a refusal: a client
+    without the hub's token hears "unauthorized" from digital_out itself, the outputs stay
+    as they were, and the link goes on."""
+    with HubServer(bind="127.0.0.1", port=0, sim=True, token=b"s3cret") as srv:
+        with Hub.connect("127.0.0.1", srv.port, token="s3cret") as owner:
+            assert owner.answers_refusals
+            owner.subscribe("adc", 100)
+            owner.digital_out(1, 1, 0, 1)  # fenced: the hub has handled it on return
+            assert srv.sensors["adc"]["digital_out"] == [1, 1, 0, 1]
+            for token in (None, b"guess"):
+                with Hub.connect("127.0.0.1", srv.port, token=token) as other:
+                    with pytest.raises(DeviceError, match=r"refused DOUT_CTRL: unauthorized"):
+                        other.digital_out(0, 0, 0, 0)
+                    other.subscribe("adc")  # the link goes on: silent subscribe, a pull
+                    assert len(wait_for(lambda o=other: o.read("adc"), 1))
+            assert srv.sensors["adc"]["digital_out"] == [1, 1, 0, 1]
