@@ -14,7 +14,8 @@ decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub_decode
 sample ``offset = packet_timestamp - (t_request + t_reply) / 2`` whose error is at most half
 the round trip. The estimate is the sample with the smallest round trip among the last
 :data:`CLOCK_WINDOW` pulls (a min-RTT filter), and ``Reading.t`` is on the client's clock
-(``hub_t - offset``) unless ``hub_clock=True``.
+(``hub_t - offset``) unless ``hub_clock=True``. The offset applied follows the estimate by
+slewing (:data:`CLOCK_SLEW`), so that sample times never step back between reads.
 """
 
 from __future__ import annotations
@@ -55,6 +56,12 @@ from robocli.transports import InvalidURL, Transport, open_transport
 
 #: Pulls whose round trips the clock filter looks at.
 CLOCK_WINDOW = 64
+#: How fast sample times follow a new clock-offset estimate: at most this many seconds per
+#: second of hub time (1 %), so that they never step back between reads (see :meth:`Hub.read`).
+CLOCK_SLEW = 0.01
+#: A new estimate that puts sample times later by more than this is stepped to at once
+#: (times only jump forward); smaller ones, and every one that puts them earlier, are slewed.
+CLOCK_STEP = 0.128
 #: The longest token :meth:`Hub.connect` sends (it rides in CONNECT, under the hub's 64 KiB
 #: request limit).
 MAX_TOKEN = 4096
@@ -254,6 +261,7 @@ class Hub:
         self._last_t: dict[str, float] = {}  # hub time of the last sample read, per sensor
         self._period: dict[str, float] = {}  # sample period (s): asked, then as seen
         self._since: dict[str, tuple[float, int]] = {}  # hub time of subscribing, buffer
+        self._mapped: dict[str, tuple[float, float]] = {}  # last sample: hub t, offset used
         #: whether the hub answers a refused DOUT_CTRL or UNSUBSCRIBE with an error reply
         #: (robocli's hub, which stamps its CONNECT_ACK; the original server answers neither
         #: and stamps only data replies): those requests are then fenced, and refusals raise
@@ -336,7 +344,9 @@ class Hub:
         # that asked (a lost link shows at the next request). Measured with 40 clients
         # pulling 3 sensors at 20 Hz, the idle readers' wake-ups tripled the p99 pull.
         try:
+            t0 = clock()
             reply = session.request(connect, _is(MsgType.CONNECT_ACK), timeout)
+            t1 = clock()
             header, _ = body_of(reply)
         except ConnectionLost:
             reason = find_refusal(session.raw_tail())
@@ -353,6 +363,7 @@ class Hub:
             hub_clock=hub_clock,
         )  # fmt: skip
         hub.answers_refusals = bool(header[7])
+        hub.sync.add(t0, t1, header[7])  # the first clock sample, before any data
         return hub
 
     @property
@@ -365,7 +376,8 @@ class Hub:
 
     @property
     def clock_offset(self) -> float | None:
-        """Hub clock minus client clock (seconds), None before the first data reply."""
+        """Hub clock minus client clock (seconds), None until a reply carried the hub's send
+        time (robocli's hub stamps its CONNECT_ACK already; the original, data replies)."""
         return self.sync.offset
 
     # ------------------------------------------------------------------ requests
@@ -511,10 +523,43 @@ class Hub:
         :class:`Reading` that unpacks as ``data, t`` in the original client's shapes. Its
         ``lost`` counts the samples the hub dropped before them (see :attr:`lost`)."""
         frame = self.pull(name)
-        offset = None if self.hub_clock else (self.sync.offset or 0.0)
-        reading = decode_reading(frame, name.lower(), offset)
-        reading.lost = self._count_lost(name.lower(), reading.hub_t)
+        key = name.lower()
+        reading = decode_reading(frame, key, None)
+        if not self.hub_clock:
+            reading.t = self._client_times(key, reading.hub_t)
+        reading.lost = self._count_lost(key, reading.hub_t)
         return reading
+
+    def _client_times(self, key: str, hub_t: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+        """``hub_t`` on the client's clock, never earlier than the times already returned.
+
+        The clock-offset estimate changes between reads (by up to a few milliseconds early
+        in a session, as faster round trips come in): applied as is, a sample could get an
+        earlier time than the previous read's last one. Each sensor's mapping instead starts
+        from the offset applied to its last sample and moves toward the estimate by at most
+        :data:`CLOCK_SLEW` seconds per second of hub time (a slew: within a reading and
+        across reads, times keep their order and their spacing within 1 %). A first reading
+        takes the estimate as is; an estimate that puts times later by over
+        :data:`CLOCK_STEP` s is stepped to (forward only)."""
+        h: np.ndarray[Any, Any] = np.asarray(hub_t, dtype=np.float64)
+        target = self.sync.offset
+        if target is None:  # nothing to map with yet: the hub's times as they are
+            same: np.ndarray[Any, Any] = h.copy()
+            return same
+        anchor = self._mapped.get(key)
+        if anchor is None or anchor[1] - target > CLOCK_STEP:
+            offsets = np.full(h.shape, target)
+        else:
+            h0, o0 = anchor
+            with np.errstate(invalid="ignore"):  # NaN hub times map to NaN
+                reach = CLOCK_SLEW * np.maximum(h - h0, 0.0)
+                offsets = o0 + np.clip(target - o0, -reach, reach)
+        finite = np.flatnonzero(np.isfinite(h) & np.isfinite(offsets))
+        if len(finite):
+            last = finite[-1]
+            self._mapped[key] = (float(h[last]), float(offsets[last]))
+        t: np.ndarray[Any, Any] = h - offsets
+        return t
 
     def read_aligned(
         self,

@@ -245,7 +245,7 @@ def test_a_refused_unsubscribe_raises() -> None:
     fence, and an error reply before the fence's reply raises DeviceError."""
     hub, peer = _scripted_hub(1000.0)
     with peer, hub:
-        assert hub.answers_refusals
+        assert hub.answers_refusals and hub.clock_offset is not None
         peer.sendall(r4m.encode_error(r4m.MsgType.UNSUBSCRIBE, "not connected", client_id=7)
                      + r4m.encode_error(0x28, "unknown message id 0x28", client_id=7))  # fmt: skip
         with pytest.raises(DeviceError, match="^hub refused UNSUBSCRIBE: not connected"):
