@@ -4,8 +4,9 @@ Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat`
 framers against the reference framer), ``decode-arcos``, ``decode-simple_message``,
 ``decode-ros4mat`` (the Python protocol decoders), ``decode-hub-reply`` (the hub client's
 whole receive path: framing, inflation, records, JPEG frames, clock mapping),
-``hub-server-requests`` (a hub server session fed one client's bytes, in-process) and
-``capture-readers`` (``.jsonl`` and raw capture files). ``list`` prints them. Example::
+``hub-server-requests`` (a hub server session fed one client's bytes, in-process),
+``capture-readers`` (``.jsonl`` and raw capture files) and ``file-readers`` (trajectory logs,
+waypoints, robot models). ``list`` prints them. Example::
 
     python fuzz/run.py decode-ros4mat -max_total_time=600
 
@@ -33,6 +34,7 @@ NAMES = (
     "decode-hub-reply",
     "hub-server-requests",
     "capture-readers",
+    "file-readers",
 )
 
 
@@ -41,6 +43,7 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     :func:`harness.instrumented` to fuzz with coverage)."""
     import fuzz_capture
     import fuzz_decoders
+    import fuzz_files
     import fuzz_framers
     import fuzz_hub
 
@@ -50,6 +53,8 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     if name in fuzz_hub.TARGETS:
         one_input, kinds = fuzz_hub.TARGETS[name]
         return one_input, fuzz_hub.seed_inputs(name, harness.seeds(kinds))
+    if name in fuzz_files.TARGETS:
+        return fuzz_files.fuzz_files, fuzz_files.seed_inputs()
     if name in fuzz_capture.TARGETS:
         one_input, kinds = fuzz_capture.TARGETS[name]
         return one_input, fuzz_capture.seed_inputs({k: harness.seeds((k,)) for k in kinds})

@@ -16,6 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "fuzz"))
 
 import fuzz_capture  # noqa: E402
 import fuzz_decoders  # noqa: E402
+import fuzz_files  # noqa: E402
 import fuzz_framers  # noqa: E402
 import fuzz_hub  # noqa: E402
 import run  # noqa: E402
@@ -28,7 +29,7 @@ def _harness(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
 
 
 def test_every_target_is_runnable() -> None:
-    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture)
+    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture, fuzz_files)
     assert set(run.NAMES) == set().union(*(m.TARGETS for m in modules))
 
 
