@@ -228,7 +228,7 @@ class ClockSync:
 
     def add(self, t_request: float, t_reply: float, hub_time: float) -> None:
         """One exchange: client times around it and the hub's send time in the reply."""
-        if hub_time == 0.0:
+        if hub_time == 0.0 or not math.isfinite(hub_time):  # no send time, or a broken one
             return
         rtt = t_reply - t_request
         with self._lock:
@@ -547,19 +547,23 @@ class Hub:
             same: np.ndarray[Any, Any] = h.copy()
             return same
         anchor = self._mapped.get(key)
-        if anchor is None or anchor[1] - target > CLOCK_STEP:
-            offsets = np.full(h.shape, target)
-        else:
-            h0, o0 = anchor
-            with np.errstate(invalid="ignore"):  # NaN hub times map to NaN
-                reach = CLOCK_SLEW * np.maximum(h - h0, 0.0)
-                offsets = o0 + np.clip(target - o0, -reach, reach)
+        if anchor is None or anchor[1] == target or anchor[1] - target > CLOCK_STEP:
+            t: np.ndarray[Any, Any] = h - target  # the common case: nothing to slew
+            if len(h) and math.isfinite(h[-1]):
+                self._mapped[key] = (float(h[-1]), target)
+            elif len(finite := np.flatnonzero(np.isfinite(h))):
+                self._mapped[key] = (float(h[finite[-1]]), target)
+            return t
+        h0, o0 = anchor
+        with np.errstate(invalid="ignore"):  # NaN hub times map to NaN
+            reach = CLOCK_SLEW * np.maximum(h - h0, 0.0)
+            offsets = o0 + np.clip(target - o0, -reach, reach)
         finite = np.flatnonzero(np.isfinite(h) & np.isfinite(offsets))
         if len(finite):
             last = finite[-1]
             self._mapped[key] = (float(h[last]), float(offsets[last]))
-        t: np.ndarray[Any, Any] = h - offsets
-        return t
+        slewed: np.ndarray[Any, Any] = h - offsets
+        return slewed
 
     def read_aligned(
         self,

@@ -190,6 +190,9 @@ def test_clock_sync_min_rtt() -> None:
     assert sync.offset == pytest.approx(100.0) and sync.rtt == pytest.approx(0.0002)
     sync.add(3.0, 3.0, 0.0)  # packet without a send time: ignored
     assert sync.rtt == pytest.approx(0.0002)
+    for broken in (float("inf"), float("nan")):  # a broken send time is no sample either
+        sync.add(4.0, 4.0, broken)
+        assert sync.offset == pytest.approx(100.0) and sync.rtt == pytest.approx(0.0002)
 
 
 def test_decoding_a_camera_reply_copies_no_image() -> None:
