@@ -146,7 +146,9 @@ FUZZ_SECONDS ?= 60
 FUZZ_TIMEOUT ?= 10
 FUZZ_RSS_MB  ?= 2048
 FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat \
-                decode-arcos decode-simple_message decode-ros4mat
+                decode-arcos decode-simple_message decode-ros4mat \
+                decode-hub-reply hub-server-requests capture-readers \
+                file-readers
 FUZZ_STAMP   := $(VENV)/.fuzz-installed
 
 $(FUZZ_STAMP): $(STAMP)

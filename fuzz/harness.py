@@ -66,8 +66,8 @@ def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes])
 
 
 def instrumented() -> Any:
-    """Context manager: the protocol code, construct and the reference models imported
-    inside it are instrumented for coverage (atheris)."""
+    """Context manager: robocli, construct and the reference models imported inside it are
+    instrumented for coverage (atheris instruments whole top-level packages)."""
     import atheris
 
     return atheris.instrument_imports(include=["robocli.protocols", "reference", "construct"])

@@ -1,8 +1,12 @@
 """Run one fuzz harness with atheris: ``python fuzz/run.py TARGET [libFuzzer options]``.
 
 Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat`` (the C
-framers against the reference framer) and ``decode-arcos``, ``decode-simple_message``,
-``decode-ros4mat`` (the Python decoders). ``list`` prints them. Example::
+framers against the reference framer), ``decode-arcos``, ``decode-simple_message``,
+``decode-ros4mat`` (the Python protocol decoders), ``decode-hub-reply`` (the hub client's
+whole receive path: framing, inflation, records, JPEG frames, clock mapping),
+``hub-server-requests`` (a hub server session fed one client's bytes, in-process),
+``capture-readers`` (``.jsonl`` and raw capture files) and ``file-readers`` (trajectory logs,
+waypoints, robot models). ``list`` prints them. Example::
 
     python fuzz/run.py decode-ros4mat -max_total_time=600
 
@@ -12,6 +16,7 @@ framers against the reference framer) and ``decode-arcos``, ``decode-simple_mess
 from __future__ import annotations
 
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -26,7 +31,35 @@ NAMES = (
     "decode-arcos",
     "decode-simple_message",
     "decode-ros4mat",
+    "decode-hub-reply",
+    "hub-server-requests",
+    "capture-readers",
+    "file-readers",
 )
+
+
+def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
+    """(one-input function, seed corpus) of a target (imported as they are: call it inside
+    :func:`harness.instrumented` to fuzz with coverage)."""
+    import fuzz_capture
+    import fuzz_decoders
+    import fuzz_files
+    import fuzz_framers
+    import fuzz_hub
+
+    if name.startswith("framer-"):
+        one_input, kinds = fuzz_framers.target(name)
+        return one_input, fuzz_framers.seed_inputs(harness.seeds(kinds))
+    if name in fuzz_hub.TARGETS:
+        one_input, kinds = fuzz_hub.TARGETS[name]
+        return one_input, fuzz_hub.seed_inputs(name, harness.seeds(kinds))
+    if name in fuzz_files.TARGETS:
+        return fuzz_files.fuzz_files, fuzz_files.seed_inputs()
+    if name in fuzz_capture.TARGETS:
+        one_input, kinds = fuzz_capture.TARGETS[name]
+        return one_input, fuzz_capture.seed_inputs({k: harness.seeds((k,)) for k in kinds})
+    one_input, kinds = fuzz_decoders.TARGETS[name]
+    return one_input, fuzz_decoders.seed_inputs(name, harness.seeds(kinds))
 
 
 def main() -> None:
@@ -37,14 +70,7 @@ def main() -> None:
         print("\n".join(NAMES))
         return
     with harness.instrumented():
-        import fuzz_decoders
-        import fuzz_framers
-    if name.startswith("framer-"):
-        one_input, kinds = fuzz_framers.target(name)
-        corpus = fuzz_framers.seed_inputs(harness.seeds(kinds))
-    else:
-        one_input, kinds = fuzz_decoders.TARGETS[name]
-        corpus = fuzz_decoders.seed_inputs(name, harness.seeds(kinds))
+        one_input, corpus = load(name)
     for seed in corpus:  # the seeds themselves must pass before fuzzing starts
         one_input(seed)
     harness.run(name, one_input, corpus)

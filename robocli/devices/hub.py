@@ -14,7 +14,8 @@ decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub_decode
 sample ``offset = packet_timestamp - (t_request + t_reply) / 2`` whose error is at most half
 the round trip. The estimate is the sample with the smallest round trip among the last
 :data:`CLOCK_WINDOW` pulls (a min-RTT filter), and ``Reading.t`` is on the client's clock
-(``hub_t - offset``) unless ``hub_clock=True``.
+(``hub_t - offset``) unless ``hub_clock=True``. The offset applied follows the estimate by
+slewing (:data:`CLOCK_SLEW`), so that sample times never step back between reads.
 """
 
 from __future__ import annotations
@@ -61,6 +62,12 @@ from robocli.transports import (
 
 #: Pulls whose round trips the clock filter looks at.
 CLOCK_WINDOW = 64
+#: How fast sample times follow a new clock-offset estimate: at most this many seconds per
+#: second of hub time (1 %), so that they never step back between reads (see :meth:`Hub.read`).
+CLOCK_SLEW = 0.01
+#: A new estimate that puts sample times later by more than this is stepped to at once
+#: (times only jump forward); smaller ones, and every one that puts them earlier, are slewed.
+CLOCK_STEP = 0.128
 #: The longest token :meth:`Hub.connect` sends (it rides in CONNECT, under the hub's 64 KiB
 #: request limit).
 MAX_TOKEN = 4096
@@ -69,6 +76,11 @@ NO_HUB_HINT = "start one with `robocli serve --sim`"
 #: Sensors whose subscribe params carry a ``freq_send`` (the driver's batch rate).
 _WITH_FREQ_SEND = (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.BATTERY)
 _CAMERAS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT, MsgType.KINECT_DEPTH)
+#: The fence sent after a request that has no reply in ros4mat (DOUT_CTRL, UNSUBSCRIBE) to a
+#: hub that answers refusals: a pull of 0x28, which ros4mat never serves (robocli's hub
+#: answers it with an error reply and changes nothing). The hub answers in order, so a
+#: refusal of the request arrives before the fence's reply.
+_FENCE = MsgType.KINECT_DEPTH
 
 
 def parse_hub(address: str, default_port: int = PORT) -> tuple[str, int]:
@@ -214,7 +226,7 @@ class ClockSync:
 
     def add(self, t_request: float, t_reply: float, hub_time: float) -> None:
         """One exchange: client times around it and the hub's send time in the reply."""
-        if hub_time == 0.0:
+        if hub_time == 0.0 or not math.isfinite(hub_time):  # no send time, or a broken one
             return
         rtt = t_reply - t_request
         with self._lock:
@@ -247,6 +259,11 @@ class Hub:
         self._last_t: dict[str, float] = {}  # hub time of the last sample read, per sensor
         self._period: dict[str, float] = {}  # sample period (s): asked, then as seen
         self._since: dict[str, tuple[float, int]] = {}  # hub time of subscribing, buffer
+        self._mapped: dict[str, tuple[float, float]] = {}  # last sample: hub t, offset used
+        #: whether the hub answers a refused DOUT_CTRL or UNSUBSCRIBE with an error reply
+        #: (robocli's hub, which stamps its CONNECT_ACK; the original server answers neither
+        #: and stamps only data replies): those requests are then fenced, and refusals raise
+        self.answers_refusals = False
 
     # ------------------------------------------------------------------ connecting
 
@@ -327,7 +344,9 @@ class Hub:
         # that asked (a lost link shows at the next request). Measured with 40 clients
         # pulling 3 sensors at 20 Hz, the idle readers' wake-ups tripled the p99 pull.
         try:
+            t0 = clock()
             reply = session.request(connect, _is(MsgType.CONNECT_ACK), timeout)
+            t1 = clock()
             header, _ = body_of(reply)
         except ConnectionLost:
             reason = find_refusal(session.raw_tail())
@@ -339,10 +358,13 @@ class Hub:
             session.close()
             raise
         session._raw_tail = None  # noqa: SLF001 - as Session.start() does: the link is up
-        return cls(
+        hub = cls(
             session, header[2], compress=compress, timeout=timeout, clock=clock,
             hub_clock=hub_clock,
         )  # fmt: skip
+        hub.answers_refusals = bool(header[7])
+        hub.sync.add(t0, t1, header[7])  # the first clock sample, before any data
+        return hub
 
     @property
     def url(self) -> str:
@@ -354,7 +376,8 @@ class Hub:
 
     @property
     def clock_offset(self) -> float | None:
-        """Hub clock minus client clock (seconds), None before the first data reply."""
+        """Hub clock minus client clock (seconds), None until a reply carried the hub's send
+        time (robocli's hub stamps its CONNECT_ACK already; the original, data replies)."""
         return self.sync.offset
 
     # ------------------------------------------------------------------ requests
@@ -417,13 +440,35 @@ class Hub:
                 self._since[key] = (float(header[7]), int(body["buffer_size"]))
 
     def unsubscribe(self, name: str) -> None:
-        """Stop receiving ``name`` (no reply, as in the original protocol)."""
+        """Stop receiving ``name``. ros4mat has no reply to it; a hub that answers refusals
+        (:attr:`answers_refusals`) is asked for one more reply, and its refusal raises
+        :class:`DeviceError`."""
         kind = sensor_type(name)
-        self.session.send(
-            encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
-        )
-        self._subscribed.pop(name.lower(), None)
-        self._last_t.pop(name.lower(), None)
+        packet = encode_request(MsgType.UNSUBSCRIBE, {"sensor": kind}, client_id=self.client_id)
+        try:
+            self._unanswered(packet, MsgType.UNSUBSCRIBE)
+        finally:
+            self._subscribed.pop(name.lower(), None)
+            self._last_t.pop(name.lower(), None)
+
+    def _unanswered(self, packet: bytes, kind: MsgType) -> None:
+        """Send a request that has no reply in ros4mat. To a hub that answers refusals,
+        the :data:`_FENCE` follows in the same write; the hub answers in order, so its
+        refusal of ``packet``, if any, is read before the fence's reply, and raised."""
+        if not self.answers_refusals:
+            self.session.send(packet)
+            return
+        refused: list[bytes] = []
+
+        def fence_reply(frame: bytes) -> bool:
+            if frame[0] == kind and frame[1]:
+                refused.append(frame)
+            return frame[0] == _FENCE
+
+        fence = HEADER.pack(_FENCE, 0, self.client_id, 0, 0, 0, 0, 0.0)
+        self.session.request(packet + fence, fence_reply, self.timeout)
+        if refused:
+            body_of(refused[0])  # raises DeviceError with the hub's text
 
     @property
     def lost(self) -> dict[str, int]:
@@ -442,7 +487,8 @@ class Hub:
             return 0
         ts = np.asarray(hub_t, dtype=np.float64)
         if len(ts) >= 3:  # contiguous samples (one pull): their spacing is the rate's
-            self._period[key] = float(np.median(np.diff(ts)))
+            with np.errstate(all="ignore"):
+                self._period[key] = float(np.median(np.diff(ts)))
         prev = self._last_t.get(key)
         self._last_t[key] = float(ts[-1])
         period = self._period.get(key)
@@ -453,8 +499,10 @@ class Hub:
             ts = np.concatenate(([prev], ts))
         if period is None or not period > 0 or len(ts) < 2:
             return 0
-        gaps = np.diff(ts) / period
-        lost = int(np.sum(np.where(gaps > 1.5, np.rint(gaps) - 1, 0)))
+        with np.errstate(all="ignore"):  # a hub's times may be anything: count finite gaps
+            gaps = np.diff(ts) / period
+            gaps = np.rint(gaps[np.isfinite(gaps) & (gaps > 1.5)])
+        lost = sum(int(g) - 1 for g in gaps.tolist())  # Python ints: no overflow
         if lost:
             self._lost[key] = self._lost.get(key, 0) + lost
         return lost
@@ -475,10 +523,47 @@ class Hub:
         :class:`Reading` that unpacks as ``data, t`` in the original client's shapes. Its
         ``lost`` counts the samples the hub dropped before them (see :attr:`lost`)."""
         frame = self.pull(name)
-        offset = None if self.hub_clock else (self.sync.offset or 0.0)
-        reading = decode_reading(frame, name.lower(), offset)
-        reading.lost = self._count_lost(name.lower(), reading.hub_t)
+        key = name.lower()
+        reading = decode_reading(frame, key, None)
+        if not self.hub_clock:
+            reading.t = self._client_times(key, reading.hub_t)
+        reading.lost = self._count_lost(key, reading.hub_t)
         return reading
+
+    def _client_times(self, key: str, hub_t: np.ndarray[Any, Any]) -> np.ndarray[Any, Any]:
+        """``hub_t`` on the client's clock, never earlier than the times already returned.
+
+        The clock-offset estimate changes between reads (by up to a few milliseconds early
+        in a session, as faster round trips come in): applied as is, a sample could get an
+        earlier time than the previous read's last one. Each sensor's mapping instead starts
+        from the offset applied to its last sample and moves toward the estimate by at most
+        :data:`CLOCK_SLEW` seconds per second of hub time (a slew: within a reading and
+        across reads, times keep their order and their spacing within 1 %). A first reading
+        takes the estimate as is; an estimate that puts times later by over
+        :data:`CLOCK_STEP` s is stepped to (forward only)."""
+        h: np.ndarray[Any, Any] = np.asarray(hub_t, dtype=np.float64)
+        target = self.sync.offset
+        if target is None:  # nothing to map with yet: the hub's times as they are
+            same: np.ndarray[Any, Any] = h.copy()
+            return same
+        anchor = self._mapped.get(key)
+        if anchor is None or anchor[1] == target or anchor[1] - target > CLOCK_STEP:
+            t: np.ndarray[Any, Any] = h - target  # the common case: nothing to slew
+            if len(h) and math.isfinite(h[-1]):
+                self._mapped[key] = (float(h[-1]), target)
+            elif len(finite := np.flatnonzero(np.isfinite(h))):
+                self._mapped[key] = (float(h[finite[-1]]), target)
+            return t
+        h0, o0 = anchor
+        with np.errstate(invalid="ignore"):  # NaN hub times map to NaN
+            reach = CLOCK_SLEW * np.maximum(h - h0, 0.0)
+            offsets = o0 + np.clip(target - o0, -reach, reach)
+        finite = np.flatnonzero(np.isfinite(h) & np.isfinite(offsets))
+        if len(finite):
+            last = finite[-1]
+            self._mapped[key] = (float(h[last]), float(offsets[last]))
+        slewed: np.ndarray[Any, Any] = h - offsets
+        return slewed
 
     def read_aligned(
         self,
@@ -551,9 +636,13 @@ class Hub:
         raise DeviceError(f"hub serial port {port}: {why.get(status, str(status))}", status)
 
     def digital_out(self, d0: int, d1: int, d2: int, d3: int) -> None:
-        """Set the ADC board's digital outputs D0..D3 (no reply)."""
+        """Set the ADC board's digital outputs D0..D3. ros4mat has no reply to it; a hub
+        that answers refusals (:attr:`answers_refusals`, robocli's) is asked for one more
+        reply, and its refusal raises :class:`DeviceError` (a hub with a token refuses a
+        client without it: "unauthorized"; a hub whose ADC has no outputs)."""
         body = {"d0": int(d0), "d1": int(d1), "d2": int(d2), "d3": int(d3)}
-        self.session.send(encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id))
+        packet = encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id)
+        self._unanswered(packet, MsgType.DOUT_CTRL)
 
     def close(self, quit: bool = True) -> None:  # noqa: A002 - the protocol's word
         """Send QUIT (the hub forgets this client; ``quit=False`` keeps its buffers for a

@@ -33,6 +33,10 @@ from robocli.protocols.ros4mat import (
 
 #: ``msgHeader`` for the hot path (27 B, little-endian, packed).
 HEADER = struct.Struct("<bbIIIIbd")
+#: The most bytes the JPEG frames of one reply may decode to (a 16 MiB reply of small JPEGs
+#: declaring large images could otherwise take gigabytes): 256 MiB is 45 frames of
+#: 1600 x 1200, the largest ros4mat resolution.
+MAX_DECODED_BYTES = 256 << 20
 
 
 def _view_dtype(n_floats: int, itemsize: int) -> np.dtype[Any]:
@@ -105,9 +109,15 @@ class Reading:
 def body_of(frame: bytes) -> tuple[tuple[Any, ...], bytes | memoryview]:
     """The parsed header of a reply and its body, inflated when compressed (bounded).
     An error reply raises :class:`DeviceError` with the hub's text."""
+    if len(frame) < HEADER_SIZE:
+        raise ProtocolError(f"ros4mat reply of {len(frame)} bytes, shorter than its header")
     header = HEADER.unpack_from(frame, 0)
     mtype, error, _cid, size, usize, csize, ctype, _ts = header
     payload = memoryview(frame)[HEADER_SIZE:]
+    if len(payload) != csize and (error or size):
+        raise ProtocolError(
+            f"ros4mat {_name(mtype)}: {len(payload)} body bytes, header says {csize}"
+        )
     if error:
         text = bytes(payload).split(b"\0", 1)[0].decode("ascii", "replace")
         what = _REQUEST_OF.get(mtype, _name(mtype))
@@ -146,8 +156,9 @@ def _records(body: Any, dtype: np.dtype[Any], n: int, what: str) -> np.ndarray[A
 
 def _copy_rows(rec: np.ndarray[Any, Any], cols: list[tuple[str, int | None]]) -> Any:
     out = np.empty((len(cols), rec.shape[0]), dtype=np.float64)
-    for row, (name, index) in enumerate(cols):
-        out[row] = rec[name] if index is None else rec[name][:, index]
+    with np.errstate(invalid="ignore"):  # a signalling NaN from the hub stays a NaN, quietly
+        for row, (name, index) in enumerate(cols):
+            out[row] = rec[name] if index is None else rec[name][:, index]
     return out
 
 
@@ -185,13 +196,24 @@ def _fixed(mtype: MsgType, body: Any, n: int) -> tuple[Any, Any, dict[str, Any],
     return data, rec["t"], named, None
 
 
+#: The largest image side a reply may declare (ros4mat cameras go up to 1600 x 1200).
+MAX_IMAGE_SIDE = 0xFFFF
+
+
+def _check_dims(w: int, h: int, what: str) -> None:
+    if w > MAX_IMAGE_SIDE or h > MAX_IMAGE_SIDE:
+        raise ProtocolError(f"ros4mat {what}: a {w}x{h} image (sides up to {MAX_IMAGE_SIDE})")
+
+
 def _image_block(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, int]:
     """N images of identical raw size laid end to end from ``offset``: (N, H, W, C) view."""
     w, h, c = int(infos["width"][0]), int(infos["height"][0]), int(infos["channels"][0])
     size = int(infos["size_data"][0])
     n = infos.shape[0]
-    if (infos["size_data"] != size).any() or (infos["width"] != w).any():
+    if any((infos[k] != v).any() for k, v in (("size_data", size), ("width", w),
+                                                 ("height", h), ("channels", c))):
         raise ProtocolError(f"ros4mat {what}: frames of different sizes in one reply")
+    _check_dims(w, h, what)
     if size != w * h * c:
         raise ProtocolError(f"ros4mat {what}: {size} bytes for a raw {w}x{h}x{c} image")
     if offset + n * size > len(body):
@@ -200,8 +222,10 @@ def _image_block(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, in
     return arr.reshape(n, h, w, c), offset + n * size
 
 
-def decode_jpeg(blob: bytes) -> np.ndarray[Any, Any]:
-    """One JPEG frame as an H x W x 3 uint8 array (needs Pillow: ``robocli[camera]``)."""
+def decode_jpeg(blob: bytes, max_bytes: int = MAX_DECODED_BYTES) -> np.ndarray[Any, Any]:
+    """One JPEG frame as an H x W x 3 uint8 array (needs Pillow: ``robocli[camera]``).
+    Raises :class:`ProtocolError` for bytes that are not a JPEG image, or one that would
+    decode to more than ``max_bytes``."""
     try:
         from PIL import Image  # type: ignore[import-not-found,unused-ignore]
     except ImportError:
@@ -210,12 +234,41 @@ def decode_jpeg(blob: bytes) -> np.ndarray[Any, Any]:
             "subscribe with quality=0 (raw)"
         ) from None
     import io
+    import warnings
 
     try:
-        with Image.open(io.BytesIO(blob)) as img:
+        with warnings.catch_warnings():  # Pillow warns of a possible decompression bomb
+            warnings.simplefilter("error", Image.DecompressionBombWarning)
+            img = Image.open(io.BytesIO(blob), formats=["JPEG"])
+        with img:
+            width, height = img.size
+            if width * height * 3 > max_bytes:
+                raise ProtocolError(
+                    f"JPEG frame of {width}x{height} exceeds the {max_bytes >> 20} MiB "
+                    "a reply's frames may decode to"
+                )
             return np.asarray(img.convert("RGB"))
-    except (OSError, ValueError) as exc:
-        raise ProtocolError(f"undecodable JPEG frame: {exc}") from None
+    except ProtocolError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - Pillow's parsers raise many types on bad bytes
+        raise ProtocolError(f"undecodable JPEG frame: {type(exc).__name__}: {exc}") from None
+
+
+def _decode_jpegs(blobs: Any, what: str) -> np.ndarray[Any, Any]:
+    """The JPEG frames of one reply as (N, H, W, 3): all of one size, and at most
+    :data:`MAX_DECODED_BYTES` in all."""
+    frames: list[np.ndarray[Any, Any]] = []
+    left = MAX_DECODED_BYTES
+    for blob in blobs:
+        frame = decode_jpeg(bytes(blob), left)
+        if frames and frame.shape != frames[0].shape:
+            raise ProtocolError(
+                f"ros4mat {what}: JPEG frames of different sizes in one reply "
+                f"({frames[0].shape[1]}x{frames[0].shape[0]}, {frame.shape[1]}x{frame.shape[0]})"
+            )
+        left -= frame.nbytes
+        frames.append(frame)
+    return np.stack(frames)
 
 
 def _images(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, int]:
@@ -224,11 +277,14 @@ def _images(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, int]:
         return np.zeros((0, 0, 0, 3), np.uint8), offset
     if not (infos["compression"] != 0).any():
         return _image_block(body, offset, infos, what)
-    frames = []
+    blobs = []
     for size in infos["size_data"]:
-        frames.append(decode_jpeg(bytes(body[offset : offset + int(size)])))
-        offset += int(size)
-    return np.stack(frames), offset
+        end = offset + int(size)
+        if end > len(body):
+            raise ProtocolError(f"ros4mat {what}: body too short for its JPEG frames")
+        blobs.append(body[offset:end])
+        offset = end
+    return _decode_jpegs(blobs, what), offset
 
 
 def _blobs(mtype: MsgType, body: Any, n: int) -> tuple[Any, Any, dict[str, Any], Any]:
@@ -269,22 +325,35 @@ def _blobs(mtype: MsgType, body: Any, n: int) -> tuple[Any, Any, dict[str, Any],
     if not n:
         empty = np.zeros((0, 0, 3, 0), np.uint8)
         return empty, rgb_i["t"], {"rgb": empty, "depth": np.zeros((0, 0, 0), "<u2")}, None
-    rs, ds = int(rgb_i["size_data"][0]), int(depth_i["size_data"][0])
-    dw, dh = int(depth_i["width"][0]), int(depth_i["height"][0])
-    uniform = (rgb_i["size_data"] == rs).all() and (depth_i["size_data"] == ds).all()
-    if not uniform or ds != dw * dh * 2 or len(body) != head + n * (rs + ds):
-        raise ProtocolError(f"ros4mat {what}: frames of different sizes or a short body")
-    frame_dt = np.dtype([("rgb", np.uint8, (rs,)), ("depth", "<u2", (dh, dw))])
-    frames = np.frombuffer(body, dtype=frame_dt, count=n, offset=head)
-    if (rgb_i["compression"] != 0).any():
-        rgb = np.stack([decode_jpeg(bytes(f)) for f in frames["rgb"]])
-    else:
-        w, h = int(rgb_i["width"][0]), int(rgb_i["height"][0])
-        if rs != w * h * 3:
-            raise ProtocolError(f"ros4mat {what}: {rs} bytes for a raw {w}x{h} RGB image")
+    ds, dw, dh = (int(depth_i[k][0]) for k in ("size_data", "width", "height"))
+    rgb_sizes = rgb_i["size_data"].astype(np.int64)
+    _check_dims(dw, dh, what)
+    same = all((depth_i[k] == v).all() for k, v in (("size_data", ds), ("width", dw)))
+    if not same or ds != dw * dh * 2:
+        raise ProtocolError(f"ros4mat {what}: depth frames of different sizes in one reply")
+    if len(body) != head + int(rgb_sizes.sum()) + n * ds:
+        raise ProtocolError(f"ros4mat {what}: body size does not match its frames")
+    if (rgb_i["compression"] != 0).any():  # JPEG RGB: each frame its own size, decoded
+        blobs, depths, offset = [], [], head
+        for rs in rgb_sizes.tolist():
+            blobs.append(body[offset : offset + rs])
+            offset += rs
+            depths.append(np.frombuffer(body, "<u2", count=dw * dh, offset=offset))
+            offset += ds
+        rgb = _decode_jpegs(blobs, what)
+        depth_frames = np.stack(depths).reshape(n, dh, dw)
+    else:  # raw RGB: every frame a view
+        rs, w, h = (int(rgb_i[k][0]) for k in ("size_data", "width", "height"))
+        _check_dims(w, h, what)
+        if (rgb_sizes != rs).any() or rs != w * h * 3:
+            raise ProtocolError(f"ros4mat {what}: raw RGB frames of different sizes, or "
+                                f"{rs} bytes for a {w}x{h} image")  # fmt: skip
+        frame_dt = np.dtype([("rgb", np.uint8, (rs,)), ("depth", "<u2", (dh, dw))])
+        frames = np.frombuffer(body, dtype=frame_dt, count=n, offset=head)
         rgb = frames["rgb"].reshape(n, h, w, 3)
+        depth_frames = frames["depth"]
     data = rgb.transpose(1, 2, 3, 0)
-    depth = frames["depth"].transpose(1, 2, 0)
+    depth = depth_frames.transpose(1, 2, 0)
     return data, rgb_i["t"], {"rgb": data, "depth": depth}, None
 
 
@@ -292,7 +361,11 @@ def decode_reading(frame: bytes, sensor: str, offset: float | None = None) -> Re
     """A data reply (one whole frame) as a :class:`Reading`. ``offset`` (hub clock minus
     client clock, seconds) moves ``t`` onto the client's clock; None keeps the hub's."""
     header, body = body_of(frame)
-    mtype = MsgType(header[0])
+    try:
+        mtype = MsgType(header[0])
+    except ValueError:
+        what = _name(header[0])
+        raise ProtocolError(f"ros4mat message id {what} is not a sensor reply") from None
     n = header[3]
     if mtype in (MsgType.ADC, MsgType.IMU, MsgType.GPS, MsgType.COMPUTER, MsgType.BATTERY):
         data, hub_t, named, info = _fixed(mtype, body, n)
@@ -300,7 +373,8 @@ def decode_reading(frame: bytes, sensor: str, offset: float | None = None) -> Re
         data, hub_t, named, info = _blobs(mtype, body, n)
     else:
         raise ProtocolError(f"ros4mat {mtype.name} is not a sensor reply robocli decodes")
-    t = hub_t if offset is None else hub_t - offset
+    with np.errstate(invalid="ignore"):  # inf - inf from a hub: NaN, quietly
+        t = hub_t if offset is None else hub_t - offset
     return Reading(sensor, data, t, hub_t, header[7], info, named, len(frame))
 
 

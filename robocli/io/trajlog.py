@@ -15,6 +15,7 @@ import json
 import math
 import os
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -199,6 +200,8 @@ def read_log(path: str | Path) -> TrajectoryLog:
         raise LogFormatError(f"{src}: cannot read ({exc.strerror})") from exc
     except UnicodeDecodeError as exc:
         raise LogFormatError(f"{src}: not UTF-8 text") from exc
+    except (csv.Error, zlib.error) as exc:  # a bare CR in a CSV field, a corrupt NPZ member
+        raise LogFormatError(f"{src}: not a valid {suffix[1:].upper()} log ({exc})") from None
 
 
 def _suffix(path: Path) -> str:

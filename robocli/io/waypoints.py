@@ -48,7 +48,7 @@ def read_waypoints(path: str | Path) -> Waypoints:
         raise LogFormatError(f"{src}: not waypoints (JSON nested too deeply)") from None
     except OSError as exc:
         raise LogFormatError(f"{src}: cannot read ({exc.strerror})") from exc
-    except (UnicodeDecodeError, ValueError) as exc:
+    except (UnicodeDecodeError, ValueError, csv.Error) as exc:  # csv: a bare CR in a field
         if isinstance(exc, LogFormatError):
             if str(exc).startswith(f"{src}:"):
                 raise

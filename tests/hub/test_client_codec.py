@@ -10,7 +10,7 @@ import pytest
 import reference
 
 from robocli.devices.hub import ClockSync, parse_hub, resolution, subscribe_body
-from robocli.devices.hub_decode import decode_reading
+from robocli.devices.hub_decode import decode_jpeg, decode_reading
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
 
@@ -190,6 +190,9 @@ def test_clock_sync_min_rtt() -> None:
     assert sync.offset == pytest.approx(100.0) and sync.rtt == pytest.approx(0.0002)
     sync.add(3.0, 3.0, 0.0)  # packet without a send time: ignored
     assert sync.rtt == pytest.approx(0.0002)
+    for broken in (float("inf"), float("nan")):  # a broken send time is no sample either
+        sync.add(4.0, 4.0, broken)
+        assert sync.offset == pytest.approx(100.0) and sync.rtt == pytest.approx(0.0002)
 
 
 def test_decoding_a_camera_reply_copies_no_image() -> None:
@@ -206,3 +209,122 @@ def test_decoding_a_camera_reply_copies_no_image() -> None:
         tracemalloc.stop()
     assert reading.data.shape == (h, w, 3, n)
     assert peak < 64 * 1024 < len(frame) // 20  # 1.8 MB of frames, views only
+
+
+def _scripted_hub(stamp: float) -> tuple[Any, Any]:
+    """A Hub on a socketpair whose other end plays the hub: its CONNECT_ACK carries
+    ``stamp`` (robocli's hub stamps it; the original server sends 0)."""
+    import socket
+
+    from robocli.devices.hub import Hub
+    from robocli.transports import SocketTransport
+
+    a, b = socket.socketpair()
+    b.settimeout(10.0)
+    b.sendall(r4m.encode_packet(r4m.MsgType.CONNECT_ACK, size=0, client_id=7,
+                                packet_timestamp=stamp))  # fmt: skip
+    hub = Hub.from_transport(SocketTransport(a, "pair://hub"), timeout=10.0)
+    assert b.recv(4096) == SPEC["connect"]
+    return hub, b
+
+
+def test_requests_without_a_reply_to_the_original_server_are_its_bytes() -> None:
+    """The original server answers neither DOUT_CTRL nor UNSUBSCRIBE, and stamps no
+    CONNECT_ACK: the client sends the original client's bytes and waits for nothing."""
+    hub, peer = _scripted_hub(0.0)
+    with peer, hub:
+        assert not hub.answers_refusals and hub.clock_offset is None
+        hub.digital_out(1, 0, 1, 0)
+        hub.unsubscribe("adc")
+        want = SPEC["digital_out_1010"] + SPEC["unsubscribe_adc"]
+        got = b""
+        while len(got) < len(want):
+            got += peer.recv(4096)
+        assert got == want
+
+
+def test_a_refused_unsubscribe_raises() -> None:
+    """To a hub that answers refusals, UNSUBSCRIBE (no reply in ros4mat) is followed by a
+    fence, and an error reply before the fence's reply raises DeviceError."""
+    hub, peer = _scripted_hub(1000.0)
+    with peer, hub:
+        assert hub.answers_refusals and hub.clock_offset is not None
+        peer.sendall(r4m.encode_error(r4m.MsgType.UNSUBSCRIBE, "not connected", client_id=7)
+                     + r4m.encode_error(0x28, "unknown message id 0x28", client_id=7))  # fmt: skip
+        with pytest.raises(DeviceError, match="^hub refused UNSUBSCRIBE: not connected"):
+            hub.unsubscribe("adc")
+        fence = r4m.encode_packet(0x28, client_id=7, size=0)
+        sent = b""
+        while len(sent) < len(SPEC["unsubscribe_adc"]) + len(fence):
+            sent += peer.recv(4096)
+        assert sent == SPEC["unsubscribe_adc"] + fence
+        peer.sendall(r4m.encode_error(0x28, "unknown message id 0x28", client_id=7))
+        hub.unsubscribe("imu")  # a fence reply alone: accepted
+
+
+def _jpeg(w: int, h: int, level: int = 128) -> bytes:
+    import io
+
+    from PIL import Image
+
+    buf = io.BytesIO()
+    Image.fromarray(np.full((h, w, 3), level, np.uint8)).save(buf, format="JPEG", quality=80)
+    return buf.getvalue()
+
+
+def test_undecodable_replies_are_protocol_errors() -> None:
+    """Every way a reply can be wrong is a ProtocolError, never a bare ValueError (found by
+    the decode-hub-reply fuzz target)."""
+    with pytest.raises(ProtocolError, match="0x30 is not a sensor reply"):
+        decode_reading(_reply(0x30, b"\0" * 40, 1), "adc")  # no such message id
+    with pytest.raises(ProtocolError, match="shorter than its header"):
+        decode_reading(b"\x20\x00", "adc")
+    small, large = _jpeg(8, 6), _jpeg(16, 12)
+    body = _cam(8, 6, 3, len(small), 0.0, 80) + _cam(16, 12, 3, len(large), 0.1, 80)
+    with pytest.raises(ProtocolError, match="JPEG frames of different sizes"):
+        decode_reading(_reply(r4m.MsgType.WEBCAM, body + small + large, 2), "camera")
+    huge = bytearray(small)  # a few hundred bytes declaring 60000 x 60000 pixels
+    sof = huge.index(b"\xff\xc0")
+    huge[sof + 5 : sof + 9] = (60000).to_bytes(2, "big") * 2
+    body = _cam(60000, 60000, 3, len(huge), 0.0, 80) + bytes(huge)
+    with pytest.raises(ProtocolError, match="DecompressionBomb"):  # Pillow's own limit
+        decode_reading(_reply(r4m.MsgType.WEBCAM, body, 1), "camera")
+    huge[sof + 5 : sof + 9] = (600).to_bytes(2, "big") * 2  # under it, over a reply's budget
+    with pytest.raises(ProtocolError, match=r"600x600 exceeds the 1 MiB"):
+        decode_jpeg(bytes(huge), max_bytes=1 << 20)
+    body = _cam(8, 6, 3, 20, 0.0, 80) + b"not a JPEG at all...."[:20]
+    with pytest.raises(ProtocolError, match="undecodable JPEG"):
+        decode_reading(_reply(r4m.MsgType.WEBCAM, body, 1), "camera")
+    w, h = 0xFFFF0000, 0xFFFF0000  # zero bytes: w x h x 0 channels
+    with pytest.raises(ProtocolError, match="image"):
+        decode_reading(_reply(r4m.MsgType.WEBCAM, _cam(w, h, 0, 0, 0.0), 1), "camera")
+
+
+def test_kinect_jpeg_frames_of_their_own_sizes() -> None:
+    """A JPEG RGB frame has the size its content compresses to: a Kinect reply's frames
+    differ in size and decode each from its own bytes (the depth blob after each)."""
+    w, h = 8, 6
+    blobs, infos = b"", b""
+    for i, level in enumerate((0, 255, 77)):
+        rgb = _jpeg(w, h, level) + b"\0" * i  # a different size each (JPEG ignores the tail)
+        depth = np.full((h, w), 1000 + i, "<u2").tobytes()
+        infos += _cam(w, h, 3, len(rgb), float(i), 80) + _cam(w, h, 1, len(depth), float(i))
+        blobs += rgb + depth
+    reading = decode_reading(_reply(r4m.MsgType.KINECT, infos + blobs, 3), "kinect")
+    assert reading.rgb.shape == (h, w, 3, 3) and reading.depth.shape == (h, w, 3)
+    assert np.abs(reading.rgb[..., 1].astype(int) - 255).max() <= 3
+    assert reading.depth[0, 0].tolist() == [1000, 1001, 1002]
+
+
+def test_a_hub_sending_infinite_times_is_read() -> None:
+    """Sample times from a hub may be anything: an infinite one is not a lost-sample count
+    of infinity (it raised OverflowError)."""
+    hub, peer = _scripted_hub(1000.0)
+    with peer, hub:
+        peer.sendall(r4m.encode_packet(r4m.MsgType.SUBSCRIBE_ACK, size=0, client_id=7))
+        hub.subscribe("adc", 1000)
+        times = [5.0, 5.001, 5.002, float("inf"), 5.004]
+        adc = [{"channels": [0.0] * 8, "t": t} for t in times]
+        peer.sendall(r4m.encode_records("adc", adc, packet_timestamp=5.01))
+        reading = hub.read("adc")
+        assert reading.hub_t.tolist() == times and reading.lost == 0

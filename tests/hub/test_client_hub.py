@@ -162,8 +162,13 @@ def test_clock_offset_within_half_a_millisecond(server: HubServer) -> None:
             h.read("adc")
         assert h.clock_offset is not None
         assert abs(h.clock_offset - (-injected)) <= 0.5e-3
-        reading = wait_for(lambda: h.read("adc"), 1)[0]
-        np.testing.assert_allclose(reading.t - reading.hub_t, injected, atol=0.5e-3)
+        # the times follow the estimate by slewing (1 % of hub time): they get there
+        deadline = time.monotonic() + 30.0
+        while True:
+            reading = wait_for(lambda: h.read("adc"), 1)[-1]
+            if np.abs(reading.t - reading.hub_t - injected).max() <= 0.5e-3:
+                break
+            assert time.monotonic() < deadline, reading.t[-1] - reading.hub_t[-1] - injected
     with Hub.connect("127.0.0.1", server.port, hub_clock=True) as h:
         h.subscribe("adc", 100)
         reading = wait_for(lambda: h.read("adc"), 1)[0]
@@ -317,3 +322,100 @@ def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: 
         right = reading.right[..., -1].astype(float)
         want = scene(160, 120, ti, StereoSource.DISPARITY)
         assert np.abs(right - want).mean() < 3.0
+
+
+def test_kinect_jpeg_readings_of_several_frames(server: HubServer) -> None:
+    """The hub's Kinect RGB frames in JPEG differ in size: a reading of several decodes."""
+    from robocli.hub.sources.imaging import scene
+
+    with Hub.connect("127.0.0.1", server.port) as hub:
+        hub.subscribe("kinect", rate=30, resolution="160x120", quality=90)
+        deadline = time.monotonic() + 30.0
+        while len(reading := hub.read("kinect")) < 3:
+            assert time.monotonic() < deadline, "no reading of 3 frames"
+            time.sleep(0.05 * (1 + len(reading)))  # let frames pile up between pulls
+        hub.unsubscribe("kinect")
+    assert reading.rgb.shape == (120, 160, 3, len(reading))
+    assert reading.depth.shape == (120, 160, len(reading)) and reading.depth.max() > 0
+    for i in (0, -1):
+        want = scene(160, 120, float(reading.hub_t[i]))
+        assert np.abs(reading.rgb[..., i].astype(float) - want).mean() < 3.0
+
+
+def test_a_refused_digital_out_raises() -> None:
+    """DOUT_CTRL has no reply in ros4mat, but robocli's hub answers a refusal: a client
+    without the hub's token hears "unauthorized" from digital_out itself, the outputs stay
+    as they were, and the link goes on."""
+    with HubServer(bind="127.0.0.1", port=0, sim=True, token=b"s3cret") as srv:
+        with Hub.connect("127.0.0.1", srv.port, token="s3cret") as owner:
+            assert owner.answers_refusals
+            owner.subscribe("adc", 100)
+            owner.digital_out(1, 1, 0, 1)  # fenced: the hub has handled it on return
+            assert srv.sensors["adc"]["digital_out"] == [1, 1, 0, 1]
+            for token in (None, b"guess"):
+                with Hub.connect("127.0.0.1", srv.port, token=token) as other:
+                    with pytest.raises(DeviceError, match=r"refused DOUT_CTRL: unauthorized"):
+                        other.digital_out(0, 0, 0, 0)
+                    other.subscribe("adc")  # the link goes on: silent subscribe, a pull
+                    assert len(wait_for(lambda o=other: o.read("adc"), 1))
+            assert srv.sensors["adc"]["digital_out"] == [1, 1, 0, 1]
+
+
+class ScriptedClock:
+    """The client's clock (time.time), except for the exchange after :meth:`shift`: both
+    its times read ``x`` s early, as a pull with no round trip whose offset sample is ``x``
+    s off. The real estimator takes it (the fastest round trip) and jumps by ``x``."""
+
+    def __init__(self) -> None:
+        self._fake: list[float] = []
+        self._pending: float | None = None
+
+    def shift(self, x: float) -> None:
+        self._pending = x
+
+    def __call__(self) -> float:
+        if self._fake:
+            return self._fake.pop()
+        if self._pending is not None:
+            t = time.time() - self._pending
+            self._pending = None
+            self._fake.append(t)  # the same time after the reply: a zero round trip
+            return t
+        return time.time()
+
+
+def test_sample_times_never_step_back_when_the_offset_estimate_moves(server: HubServer) -> None:
+    """The offset estimate jumps 0.5 s (hub clock further ahead) and later 1 s back: the
+    sample times of successive reads keep increasing; the mapping slews toward the new
+    estimate at most 1 % of hub time."""
+    from robocli.devices.hub import CLOCK_SLEW
+
+    clock = ScriptedClock()
+    with Hub.connect("127.0.0.1", server.port, clock=clock) as h:
+        h.subscribe("adc", 1000)
+        readings = wait_for(lambda: h.read("adc"), 20)
+        before = h.clock_offset
+        assert before is not None
+        h0, applied0 = readings[-1].hub_t[-1], readings[-1].hub_t[-1] - readings[-1].t[-1]
+        clock.shift(0.5)
+        readings += wait_for(lambda: h.read("adc"), 50)
+        after = h.clock_offset
+        assert after is not None and after - before == pytest.approx(0.5, abs=0.05)
+        assert_increasing(readings)
+        h1, applied1 = readings[-1].hub_t[-1], readings[-1].hub_t[-1] - readings[-1].t[-1]
+        assert 0 < applied1 - applied0 <= CLOCK_SLEW * (h1 - h0) + 1e-6  # slewing toward it
+        clock.shift(-1.0)  # and the other way: times jump forward, never back
+        readings += wait_for(lambda: h.read("adc"), 50)
+        assert h.clock_offset is not None and h.clock_offset < before - 0.4
+    steps, hub_steps = assert_increasing(readings)
+    spacing = steps[hub_steps < 0.0015]  # consecutive samples (1 ms apart)
+    assert np.all(spacing > 0.001 * (1 - CLOCK_SLEW) - 1e-6)
+
+
+def assert_increasing(readings: list[Any]) -> tuple[Any, Any]:
+    """The client times of successive readings keep increasing (as their hub times do)."""
+    hub_steps = np.diff(np.concatenate([r.hub_t for r in readings]))
+    steps = np.diff(np.concatenate([r.t for r in readings]))
+    assert np.all(hub_steps > 0)
+    assert np.all(steps > 0), f"times stepped back by {-steps.min():.6f} s"
+    return steps, hub_steps

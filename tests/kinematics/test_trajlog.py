@@ -159,3 +159,24 @@ def test_bad_time_origin(tmp_path: Path) -> None:
     path.write_text(json.dumps({**GOOD, "time_origin": [1, 2]}))
     with pytest.raises(LogFormatError, match="'time_origin' must be one number"):
         read_log(path)
+
+
+def test_corrupt_csv_and_npz_bytes_give_one_typed_line(log: TrajectoryLog, tmp_path: Path) -> None:
+    """Found by the file-readers fuzz target: a bare CR inside a CSV field (csv.Error) and an
+    NPZ member whose deflate stream is corrupt (zlib.error) escaped as untyped errors."""
+    from robocli.io.waypoints import read_waypoints
+
+    bad = tmp_path / "cr.csv"
+    bad.write_bytes(b"time,q1\n0\r1,0\n")
+    with pytest.raises(LogFormatError, match="not a valid CSV log"):
+        read_log(bad)
+    with pytest.raises(LogFormatError, match="not valid CSV"):
+        read_waypoints(bad)
+    path = write_log(log, tmp_path / "log.npz")
+    data = bytearray(path.read_bytes())
+    start = data.index(b"time.npy") + len(b"time.npy")  # the first member's deflated bytes
+    for i in range(start, start + 40):
+        data[i] ^= 0x5A
+    path.write_bytes(bytes(data))
+    with pytest.raises(LogFormatError, match="NPZ"):
+        read_log(path)
