@@ -246,6 +246,9 @@ class _Link:
     def close(self) -> None:
         self.closed = True
 
+    def establish(self) -> None:
+        """The session completed its handshake (a server link stops counting it pending)."""
+
 
 class ServerRig:
     """The hub's registry over the simulated sensors (small rings), shared by all inputs."""
@@ -296,7 +299,7 @@ def fuzz_hub_server(data: bytes) -> None:
         TOKEN if opt & _OPT_TOKEN else None,
         rig.serial if opt & _OPT_SERIAL else None,
         rig.times,
-        refuse="hub full: too many clients" if opt & _OPT_FULL else None,
+        admit=(lambda: "hub full: too many clients") if opt & _OPT_FULL else None,
     )
     framer = Framer("ros4mat", max_frame=HEADER_SIZE + MAX_REQUEST_BODY)
     try:

@@ -238,6 +238,14 @@ def test_error_reply_and_bad_frames() -> None:
         r4m.encode_packet(r4m.MsgType.ADC, b"x", size=0)
 
 
+@pytest.mark.parametrize("kind", [0x80, 0x9F, 0xFF, -1])
+def test_an_error_reply_names_a_request_type_over_0x7f_by_its_byte(kind: int) -> None:
+    """The header's type is a signed char; a server that read it from the wire as 128-255
+    must still be able to answer it (the encoder raised construct's untyped error)."""
+    msg = r4m.decode(r4m.encode_error(kind, "unknown message id"))
+    assert msg.error == 1 and int(msg.msg_type) & 0xFF == kind & 0xFF
+
+
 # ------------------------------------------------------------------------------ C framer
 
 

@@ -187,10 +187,13 @@ def encode_records(
 
 
 def encode_error(msg_type: int, text: str, *, client_id: int = 0) -> bytes:
-    """An error reply: header with ``error = 1`` and a NUL-terminated ASCII text."""
+    """An error reply: header with ``error = 1`` and a NUL-terminated ASCII text.
+
+    ``msg_type`` is the request's type byte, signed (the header's ``char``) or as read from
+    the wire (0-255): a reply to an unknown request type 0x80-0xFF names the same byte."""
     raw = text.encode("ascii", "replace") + b"\0"
     header = {
-        "type": int(msg_type),
+        "type": (int(msg_type) + 128) % 256 - 128,
         "error": 1,
         "client_id": client_id,
         "size": 0,
