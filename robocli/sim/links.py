@@ -31,17 +31,51 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 from itertools import islice
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from robocli.core import Framer
 from robocli.errors import TransportError
 
-if TYPE_CHECKING:
-    from robocli.sim.serving import Session
-
-__all__ = ["DONTWAIT", "Link", "LinkLimits", "LinkStats", "OutputBudget", "PtyLink", "TcpLink"]
+__all__ = [
+    "DONTWAIT",
+    "Link",
+    "LinkLimits",
+    "LinkStats",
+    "OutputBudget",
+    "PtyLink",
+    "Session",
+    "TcpLink",
+    "UnframedHook",
+]
 
 log = logging.getLogger("robocli.sim.serving")
+
+
+class Session(Protocol):
+    """One client's protocol state machine (no sockets).
+
+    Called from its link's thread only: :meth:`on_frame` for each complete frame, in order,
+    then :meth:`on_close` once when the link ends (whatever the reason). A session shared
+    with other threads (a ticker) guards its own state.
+    """
+
+    def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        """Handle one complete frame (header and checksum included) received at ``now``
+        (monotonic seconds); return the bytes to reply at once, if any."""
+        ...
+
+    def on_close(self) -> None:
+        """The link is gone (peer closed, dropped, server closing)."""
+        ...
+
+
+class UnframedHook(Protocol):
+    """Optional for a session of a server with ``strict_framing``."""
+
+    def on_unframed(self, head: bytes) -> bytes | None:
+        """The stream lost its framing at ``head`` (the first bytes the framer could not
+        take as a frame, at most 256): return a last reply, if any; the link then ends."""
+        ...
 
 RECV_SIZE = 65536  #: bytes per recv
 MAX_PARTS = 512  #: buffers one gathered write takes (below every platform's IOV_MAX)

@@ -47,7 +47,6 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from typing import Protocol
 
 from robocli.core import Framer
 from robocli.errors import TransportError
@@ -59,7 +58,9 @@ from robocli.sim.links import (
     LinkStats,
     OutputBudget,
     PtyLink,
+    Session,
     TcpLink,
+    UnframedHook,
 )
 
 __all__ = [
@@ -71,6 +72,7 @@ __all__ = [
     "Session",
     "SessionFactory",
     "Ticker",
+    "UnframedHook",
 ]
 
 log = logging.getLogger("robocli.sim.serving")
@@ -83,33 +85,6 @@ REAP_WAIT_S = 2.0
 """A new client at a full server waits at most this long for links whose peer has already
 closed to end (their threads handle what the peer sent last, then free the place)."""
 LISTEN_BACKLOG = 64  #: connections the kernel holds before they are accepted
-
-
-class Session(Protocol):
-    """One client's protocol state machine (no sockets).
-
-    Called from its link's thread only: :meth:`on_frame` for each complete frame, in order,
-    then :meth:`on_close` once when the link ends (whatever the reason). A session shared
-    with other threads (a ticker) guards its own state.
-    """
-
-    def on_frame(self, frame: bytes, now: float) -> bytes | None:
-        """Handle one complete frame (header and checksum included) received at ``now``
-        (monotonic seconds); return the bytes to reply at once, if any."""
-        ...
-
-    def on_close(self) -> None:
-        """The link is gone (peer closed, dropped, server closing)."""
-        ...
-
-
-class UnframedHook(Protocol):
-    """Optional for a session of a server with ``strict_framing``."""
-
-    def on_unframed(self, head: bytes) -> bytes | None:
-        """The stream lost its framing at ``head`` (the first bytes the framer could not
-        take as a frame, at most 256): return a last reply, if any; the link then ends."""
-        ...
 
 
 SessionFactory = Callable[[Link], Session]

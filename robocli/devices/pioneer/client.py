@@ -30,13 +30,13 @@ import logging
 import math
 import threading
 import time
-from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 from robocli.core import Framer
 from robocli.devices.pioneer import link
+from robocli.devices.pioneer.link import PioneerStats
 from robocli.devices.pioneer.simulated import SimulatorFeatures
 from robocli.devices.pioneer.state import (
     Odometry,
@@ -46,7 +46,7 @@ from robocli.devices.pioneer.state import (
     sip_essentials,
     sip_motors_on,
 )
-from robocli.devices.session import FrameListener, LinkStats, Listeners, Session
+from robocli.devices.session import FrameListener, Listeners, Session
 from robocli.errors import (
     EXIT_FAILURE,
     DeviceError,
@@ -66,7 +66,6 @@ log = logging.getLogger("robocli.devices.pioneer")
 #: Listener signature: (direction "tx"/"rx", payload = type byte + data, monotonic time).
 PacketListener = FrameListener
 
-_HISTORY = 100_000  #: samples kept in each timing history of :class:`PioneerStats`
 _PULSE = arcos.encode_command(Command.PULSE)
 #: The robot's watchdog (s) when its CONFIG does not say (ARCOS' and the simulators' default).
 DEFAULT_WATCHDOG_S = 2.0
@@ -103,36 +102,6 @@ class WatchdogTripped(RobocliError):
     def __init__(self, message: str, trip: WatchdogTrip) -> None:
         super().__init__(message)
         self.trip = trip
-
-
-class PioneerStats(LinkStats):
-    """Link counters (see :class:`~robocli.devices.session.LinkStats`) plus the Pioneer's:
-    SIPs received, keep-alives sent, dead-man stops, watchdog trips (this program stalled),
-    laser scans completed and dropped (incomplete or garbled), and bounded timing
-    histories."""
-
-    _COUNTERS: tuple[str, ...] = (
-        *LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops", "watchdog_trips",
-        "laser_scans", "laser_dropped",
-    )  # fmt: skip
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.sips = 0
-        self.keepalives = 0
-        self.deadman_stops = 0
-        self.watchdog_trips = 0  #: stalls of this program past the robot's watchdog
-        self.laser_scans = 0
-        self.laser_dropped = 0
-        #: reader CPU seconds per SIP (decode + state update; thread CPU time, so waiting
-        #: for the GIL is not counted), most recent last
-        self.sip_work: deque[float] = deque(maxlen=_HISTORY)
-        #: monotonic send times of keep-alive packets (PULSE or set-point refresh)
-        self.keepalive_times: deque[float] = deque(maxlen=_HISTORY)
-        #: monotonic send times of every packet (what the robot's watchdog sees)
-        self.tx_times: deque[float] = deque(maxlen=_HISTORY)
-        #: monotonic receive times of SIPs
-        self.sip_times: deque[float] = deque(maxlen=_HISTORY)
 
 
 class Pioneer(SimulatorFeatures):

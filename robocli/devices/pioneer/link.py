@@ -1,16 +1,18 @@
 """ARCOS on a :class:`~robocli.devices.session.Session`: packet naming, the stop sequences,
-the SYNC handshake and the CONFIG request (used before and after the reader thread runs)."""
+the SYNC handshake and the CONFIG request (used before and after the reader thread runs),
+and the link's counters (:class:`PioneerStats`)."""
 
 from __future__ import annotations
 
 import logging
 import time
+from collections import deque
 from typing import Any
 
 from construct import ConstructError
 
 from robocli.devices.pioneer.state import RobotIdentity
-from robocli.devices.session import Session
+from robocli.devices.session import LinkStats, Session
 from robocli.errors import (
     ConnectionLost,
     DeviceError,
@@ -38,6 +40,39 @@ STOP_SEQUENCE = (
     arcos.encode_command(Command.CLOSE, 1),
 )
 CONFIG_REQUEST = arcos.encode_command(Command.CONFIG, 1)
+
+
+_HISTORY = 100_000  #: samples kept in each timing history of :class:`PioneerStats`
+
+
+class PioneerStats(LinkStats):
+    """Link counters (see :class:`~robocli.devices.session.LinkStats`) plus the Pioneer's:
+    SIPs received, keep-alives sent, dead-man stops, watchdog trips (this program stalled),
+    laser scans completed and dropped (incomplete or garbled), and bounded timing
+    histories."""
+
+    _COUNTERS: tuple[str, ...] = (
+        *LinkStats._COUNTERS, "sips", "keepalives", "deadman_stops", "watchdog_trips",
+        "laser_scans", "laser_dropped",
+    )  # fmt: skip
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sips = 0
+        self.keepalives = 0
+        self.deadman_stops = 0
+        self.watchdog_trips = 0  #: stalls of this program past the robot's watchdog
+        self.laser_scans = 0
+        self.laser_dropped = 0
+        #: reader CPU seconds per SIP (decode + state update; thread CPU time, so waiting
+        #: for the GIL is not counted), most recent last
+        self.sip_work: deque[float] = deque(maxlen=_HISTORY)
+        #: monotonic send times of keep-alive packets (PULSE or set-point refresh)
+        self.keepalive_times: deque[float] = deque(maxlen=_HISTORY)
+        #: monotonic send times of every packet (what the robot's watchdog sees)
+        self.tx_times: deque[float] = deque(maxlen=_HISTORY)
+        #: monotonic receive times of SIPs
+        self.sip_times: deque[float] = deque(maxlen=_HISTORY)
 
 
 def payload_of(frame: bytes) -> bytes:

@@ -29,7 +29,7 @@ from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
 
 if TYPE_CHECKING:
-    from robocli.devices.pioneer.client import PioneerStats
+    from robocli.devices.pioneer.link import PioneerStats
     from robocli.devices.pioneer.state import PioneerState, RobotIdentity
     from robocli.devices.session import Session
     from robocli.transports import Transport
