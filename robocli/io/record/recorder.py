@@ -93,7 +93,8 @@ class Recorder:
     longest a message waits before its chunk is written out (what a SIGKILL can lose).
     ``chunk_size``: bytes of messages after which a chunk is closed sooner.
     ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
-    dropped (counted). Raises :class:`RecordingError` when the file cannot be created.
+    dropped (counted). Raises :class:`InvalidArgument` when the file cannot be created,
+    :class:`RecordingError` without the ``mcap`` package.
     """
 
     def __init__(
@@ -128,8 +129,8 @@ class Recorder:
         self._epoch_ns = time.time_ns() - time.monotonic_ns()
         try:
             self._file: IO[bytes] = self.path.open("wb")
-        except OSError as exc:
-            raise RecordingError(f"cannot write {path}: {exc.strerror or exc}") from None
+        except OSError as exc:  # a path the user gave: a usage error (exit 2)
+            raise InvalidArgument(f"cannot write {path}: {exc.strerror or exc}") from None
         kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
                 "none": CompressionType.NONE}[compression]  # fmt: skip
         try:
@@ -299,6 +300,18 @@ class Recorder:
         """Close the chunk in progress and hand everything to the operating system."""
         self._writer.flush()  # type: ignore[no-untyped-call]
 
+    def check(self) -> None:
+        """Raise :class:`RecordingError` once writing failed (a full disk): recording goes
+        on dropping everything, so a program should stop and :meth:`close`."""
+        if self.error is not None:
+            raise RecordingError(self._failure())
+
+    def _failure(self) -> str:
+        err = self.error
+        why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        return (f"writing {self.path} failed: {why}; what was written before reads back up "
+                "to its last complete chunk")  # fmt: skip
+
     # ------------------------------------------------------------------ closing
 
     def close(self, timeout: float = 30.0) -> None:
@@ -326,10 +339,7 @@ class Recorder:
             raise RecordingError(f"{self.path}: the writer did not finish within {timeout:g} s "
                                  "(a stalled disk?); complete chunks are readable")  # fmt: skip
         if self.error is not None:
-            err = self.error
-            why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
-            raise RecordingError(f"writing {self.path} failed: {why}; what was written before "
-                                 "reads back up to its last complete chunk")  # fmt: skip
+            raise RecordingError(self._failure())
 
     def __enter__(self) -> Recorder:
         return self
