@@ -117,6 +117,7 @@ def record(
                                    dict(byte_order=byte_order, real_size=real_size,
                                         robot=robot, timeout=timeout))  # fmt: skip
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
+                start = time.monotonic()  # --duration counts from here, not from connecting
                 done = _until(rec, start, duration, count, devices)
                 if hub is not None:
                     from robocli.io.record import pull_hub

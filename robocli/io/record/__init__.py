@@ -10,6 +10,7 @@ See :mod:`robocli.io.record.recorder` (threads, bounds, time), :mod:`.sources` (
 and :mod:`.reader`.
 """
 
+from robocli.io.record.hub import pull_hub
 from robocli.io.record.reader import ChannelInfo, RecordingInfo, info, raw_frames
 from robocli.io.record.recorder import (
     COMPRESSIONS,
@@ -18,7 +19,6 @@ from robocli.io.record.recorder import (
     RecorderStats,
     RecordingError,
 )
-from robocli.io.record.sources import pull_hub
 
 __all__ = [
     "COMPRESSIONS",

@@ -29,6 +29,7 @@ receive-minus-robot-time), else the receive time.
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import threading
@@ -41,16 +42,13 @@ from typing import IO, Any
 
 from robocli._version import __version__
 from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.record.links import RAW_ENCODING
 from robocli.io.schemas import schema_bytes
 
 log = logging.getLogger("robocli.io.record")
 
 __all__ = ["COMPRESSIONS", "RAW_ENCODING", "Recorder", "RecorderStats", "RecordingError"]
 
-#: Message encoding of the raw-bytes channels: each message is one whole frame as it went
-#: over the link (framing and checksum included), in the protocol named by the channel's
-#: ``protocol`` metadata.
-RAW_ENCODING = "robocli.raw"
 COMPRESSIONS = ("zstd", "lz4", "none")
 
 #: How long the writer sleeps when the queue is empty (s): listeners never wake it, so that
@@ -93,13 +91,14 @@ class Recorder:
     longest a message waits before its chunk is written out (what a SIGKILL can lose).
     ``chunk_size``: bytes of messages after which a chunk is closed sooner.
     ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
-    dropped (counted). Raises :class:`InvalidArgument` when the file cannot be created,
-    :class:`RecordingError` without the ``mcap`` package.
+    dropped (counted). ``path`` may also be an open binary stream with ``tell``: it is
+    written and flushed, and left open. Raises :class:`InvalidArgument` when the file cannot
+    be created, :class:`RecordingError` without the ``mcap`` package.
     """
 
     def __init__(
         self,
-        path: str | Path,
+        path: str | Path | IO[bytes],
         *,
         compression: str = "zstd",
         chunk_seconds: float = 1.0,
@@ -117,7 +116,8 @@ class Recorder:
         mcap = _mcap()
         from mcap.writer import CompressionType, Writer
 
-        self.path = Path(path)
+        named = path if isinstance(path, (str, Path)) else getattr(path, "name", "<stream>")
+        self.path = Path(named)
         self.compression = compression
         self.chunk_seconds = chunk_seconds
         self.max_queue = max_queue
@@ -127,8 +127,11 @@ class Recorder:
         self.error: BaseException | None = None
         # monotonic -> Unix epoch, fixed at the start: log times never jump with the clock
         self._epoch_ns = time.time_ns() - time.monotonic_ns()
+        self._owned = isinstance(path, (str, Path))
+        if isinstance(path, io.RawIOBase):  # buffered here, so that flushing reaches it
+            path = io.BufferedWriter(path)
         try:
-            self._file: IO[bytes] = self.path.open("wb")
+            self._file: IO[bytes] = self.path.open("wb") if isinstance(path, (str, Path)) else path
         except OSError as exc:  # a path the user gave: a usage error (exit 2)
             raise InvalidArgument(f"cannot write {path}: {exc.strerror or exc}") from None
         kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
@@ -139,7 +142,8 @@ class Recorder:
                                f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
             self._file.flush()
         except Exception as exc:
-            self._file.close()
+            if self._owned:
+                self._file.close()
             raise RecordingError(f"cannot write {path}: {exc}") from None
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
@@ -330,7 +334,7 @@ class Recorder:
             self._closing = True
         self._thread.join(timeout)
         stuck = self._thread.is_alive()
-        if not stuck:
+        if not stuck and self._owned:
             try:
                 self._file.close()
             except OSError as exc:
