@@ -6,9 +6,11 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
+from robocli.devices.pioneer.state import Odometry, build_state
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
 from robocli.io.record.links import RawLink, json_text, new_link
+from robocli.protocols.arcos import Command, decode_sip
 
 if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer
@@ -19,6 +21,7 @@ if TYPE_CHECKING:
 __all__ = ["PioneerDecoder", "attach_pioneer"]
 
 _SONAR_BINS = 360
+_ZEROS = ["0"] * _SONAR_BINS
 
 
 def attach_pioneer(rec: Recorder, robot: Pioneer, name: str | None) -> str:
@@ -53,8 +56,6 @@ class PioneerDecoder:
     the frames sent), so that every recorded pose belongs to the SIP it was decoded from."""
 
     def __init__(self, rec: Recorder, name: str, params: RobotParams) -> None:
-        from robocli.devices.pioneer.state import Odometry
-
         self.rec, self.params = rec, params
         self.odo = Odometry()
         n = max(16, len(params.sonar))
@@ -63,7 +64,12 @@ class PioneerDecoder:
         self.odom, self.base = f"{name}/odom", f"{name}/base_link"
         self.topics = {k: f"/{name}/{k}" for k in ("pose", "tf", "sonar", "laser", "state")}
         self._cids: dict[str, int] = {}
-        self._step = 2 * math.pi / _SONAR_BINS
+        self._step = step = 2 * math.pi / _SONAR_BINS
+        # per transducer: (x, y, cos th, sin th); the scan's JSON around its ranges
+        self._sonar_geometry = [(p.x, p.y, math.cos(p.th), math.sin(p.th)) for p in params.sonar]
+        self._sonar_json = (f',"frame_id":"{self.base}","pose":{json_text(S.pose())},'
+                            f'"start_angle":{-math.pi!r},"end_angle":{math.pi - step!r},'
+                            '"ranges":[')  # fmt: skip
 
     def _cid(self, key: str, schema: str) -> int:
         cid = self._cids.get(key)
@@ -72,8 +78,6 @@ class PioneerDecoder:
         return cid
 
     def __call__(self, direction: str, payload: bytes, ns: int) -> None:
-        from robocli.protocols.arcos import Command
-
         ptype = payload[0]
         if direction == "tx":
             if ptype == Command.SETO:
@@ -84,9 +88,6 @@ class PioneerDecoder:
         self._sip(payload[1:], ns)
 
     def _sip(self, body: bytes, ns: int) -> None:
-        from robocli.devices.pioneer.state import build_state
-        from robocli.protocols.arcos import decode_sip
-
         sip = decode_sip(body)
         odo = self.odo.update(sip["x"], sip["y"])
         conv = self.params.range_conv / 1000.0
@@ -109,7 +110,7 @@ class PioneerDecoder:
                   f'{{"timestamp":{stamp},"parent_frame_id":"{self.odom}","child_frame_id":'
                   f'"{self.base}","translation":{xyz},"rotation":{quat}}}'.encode(),
                   ns)  # fmt: skip
-        rec.write(self._cid("sonar", "foxglove.LaserScan"), self._sonar_scan(ns), ns)
+        rec.write(self._cid("sonar", "foxglove.LaserScan"), self._sonar_scan(stamp), ns)
         state = {
             "timestamp": {"sec": sec, "nsec": nsec}, "x": st.x, "y": st.y, "th": st.th,
             "v": st.v, "w": st.w, "left_velocity": st.left_velocity,
@@ -122,20 +123,19 @@ class PioneerDecoder:
         }  # fmt: skip
         rec.write(self._cid("state", "robocli.pioneer.State"), json_text(state).encode(), ns)
 
-    def _sonar_scan(self, ns: int) -> bytes:
+    def _sonar_scan(self, stamp: str) -> bytes:
         """The latest sonar ranges as a 360-bin scan about base_link: each echo point (from
-        the transducer's position and heading) at its own bearing and distance."""
-        bins = [0.0] * _SONAR_BINS
-        step = self._step
-        for pose, r in zip(self.params.sonar, self.sonar, strict=False):
-            if not 0 < r < math.inf:
-                continue
-            px = pose.x + r * math.cos(pose.th)
-            py = pose.y + r * math.sin(pose.th)
-            k = round((math.atan2(py, px) + math.pi) / step) % _SONAR_BINS
-            bins[k] = round(math.hypot(px, py), 4)
-        scan = S.laser_scan(ns, self.base, -math.pi, math.pi - step, bins)
-        return json_text(scan).encode()
+        the transducer's position and heading) at its own bearing and distance (0 in the
+        bins no sonar looks into). Written as text: this runs for every SIP."""
+        bins = _ZEROS.copy()
+        step, pi, atan2, hypot = self._step, math.pi, math.atan2, math.hypot
+        for (x, y, c, s), r in zip(self._sonar_geometry, self.sonar, strict=False):
+            if 0 < r < math.inf:
+                px, py = x + r * c, y + r * s
+                k = round((atan2(py, px) + pi) / step) % _SONAR_BINS
+                bins[k] = repr(round(hypot(px, py), 4))
+        return (f'{{"timestamp":{stamp}{self._sonar_json}{",".join(bins)}],'
+                '"intensities":[]}').encode()
 
     def scan(self, scan: LaserScan) -> None:
         """A simulator's laser scan (writer thread)."""
