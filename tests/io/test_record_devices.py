@@ -268,3 +268,32 @@ def test_several_sources_one_timeline(pioneer_url: str, abb: tuple[int, int],
     times = [m.log_time for _, _, m in messages(path)]
     assert times == sorted(times)  # the reader merges them on the one timeline
     assert summary.start_ns == min(times) and max(times) == summary.end_ns
+
+
+def test_hub_depth_and_stereo_images(hub_server: HubServer, tmp_path: Path) -> None:
+    path = tmp_path / "depth.mcap"
+    got: dict[str, Any] = {}
+    with Recorder(path) as rec, Hub.connect(f"127.0.0.1:{hub_server.port}") as hub:
+        rec.add(hub)
+        hub.subscribe("depth", rate=5, resolution="160x120")
+        hub.subscribe("stereo", rate=5, resolution="160x120")
+
+        def pulled() -> bool:
+            for name in ("depth", "stereo"):
+                reading = hub.read(name)
+                if len(reading) and name not in got:
+                    got[name] = reading
+            return len(got) == 2
+
+        wait_for(pulled, what="a depth frame and a stereo pair")
+    topics = by_topic(path)
+    depth = decoded(topics["/hub/depth/image"][0])
+    assert (depth["encoding"], depth["step"], depth["width"]) == ("mono16", 320, 160)
+    frame = got["depth"].depth[..., 0]  # H x W uint16, mm
+    assert base64.b64decode(depth["data"]) == frame.astype("<u2").tobytes()
+    rgb = decoded(topics["/hub/depth/rgb"][0])
+    assert base64.b64decode(rgb["data"]) == got["depth"].rgb[..., 0].tobytes()
+    for side in ("left", "right"):
+        image = decoded(topics[f"/hub/stereo/{side}"][0])
+        pixels = getattr(got["stereo"], side)[..., 0]
+        assert base64.b64decode(image["data"]) == pixels.tobytes()

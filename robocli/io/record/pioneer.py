@@ -22,6 +22,8 @@ __all__ = ["PioneerDecoder", "attach_pioneer"]
 
 _SONAR_BINS = 360
 _ZEROS = ["0"] * _SONAR_BINS
+#: Echoes remembered by (sonar, range): ranges come in whole raw units and repeat.
+_ECHO_CACHE = 1 << 16
 
 
 def attach_pioneer(rec: Recorder, robot: Pioneer, name: str | None) -> str:
@@ -67,6 +69,7 @@ class PioneerDecoder:
         self._step = step = 2 * math.pi / _SONAR_BINS
         # per transducer: (x, y, cos th, sin th); the scan's JSON around its ranges
         self._sonar_geometry = [(p.x, p.y, math.cos(p.th), math.sin(p.th)) for p in params.sonar]
+        self._echoes: dict[tuple[int, float], tuple[int, str] | None] = {}
         self._sonar_json = (f',"frame_id":"{self.base}","pose":{json_text(S.pose())},'
                             f'"start_angle":{-math.pi!r},"end_angle":{math.pi - step!r},'
                             '"ranges":[')  # fmt: skip
@@ -128,14 +131,26 @@ class PioneerDecoder:
         the transducer's position and heading) at its own bearing and distance (0 in the
         bins no sonar looks into). Written as text: this runs for every SIP."""
         bins = _ZEROS.copy()
-        step, pi, atan2, hypot = self._step, math.pi, math.atan2, math.hypot
-        for (x, y, c, s), r in zip(self._sonar_geometry, self.sonar, strict=False):
-            if 0 < r < math.inf:
-                px, py = x + r * c, y + r * s
-                k = round((atan2(py, px) + pi) / step) % _SONAR_BINS
-                bins[k] = repr(round(hypot(px, py), 4))
+        cache = self._echoes
+        if len(cache) > _ECHO_CACHE:
+            cache.clear()
+        for i, r in enumerate(self.sonar[: len(self._sonar_geometry)]):
+            echo = cache.get((i, r))
+            if echo is None:
+                echo = cache[(i, r)] = self._echo(i, r)
+            if echo is not None:
+                bins[echo[0]] = echo[1]
         return (f'{{"timestamp":{stamp}{self._sonar_json}{",".join(bins)}],'
                 '"intensities":[]}').encode()
+
+    def _echo(self, i: int, r: float) -> tuple[int, str] | None:
+        """(bin, distance text) of sonar ``i``'s echo at range ``r`` (None: no echo)."""
+        if not 0 < r < math.inf:
+            return None
+        x, y, c, s = self._sonar_geometry[i]
+        px, py = x + r * c, y + r * s
+        k = round((math.atan2(py, px) + math.pi) / self._step) % _SONAR_BINS
+        return k, repr(round(math.hypot(px, py), 4))
 
     def scan(self, scan: LaserScan) -> None:
         """A simulator's laser scan (writer thread)."""

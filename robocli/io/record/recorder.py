@@ -53,7 +53,7 @@ COMPRESSIONS = ("zstd", "lz4", "none")
 
 #: How long the writer sleeps when the queue is empty (s): listeners never wake it, so that
 #: a listener's cost is an append.
-_IDLE_S = 0.02
+_IDLE_S = 0.1
 
 
 class RecordingError(RobocliError):
