@@ -117,3 +117,44 @@ def test_bad_arguments() -> None:
     with pytest.raises(InvalidArgument, match="cannot record"):
         rec.add(object())
     rec.close()
+
+
+def test_a_closed_recorder_never_raises_into_a_device(pioneer_url: str) -> None:
+    """A listener still held after the recorder closed (a program that closes the recorder
+    first) drops quietly: the robot's reader and keep-alive go on."""
+    rec = Recorder(io.BytesIO())
+    with Pioneer.connect(pioneer_url) as robot:
+        link = rec.listener("pioneer", "arcos")
+        robot.add_listener(link)  # held by the device, not detached by the recorder
+        rec.close()
+        sips = robot.stats.sips
+        wait_for(lambda: robot.stats.sips >= sips + 3, what="SIPs after the close")
+        assert robot.connected and robot.stats.as_dict()["listener_errors"] == 0
+        assert rec.stats.dropped >= 3
+
+
+def _bytes_read() -> int:
+    for line in Path("/proc/self/io").read_text().splitlines():
+        if line.startswith("rchar:"):
+            return int(line.split()[1])
+    raise AssertionError("no rchar in /proc/self/io")
+
+
+@pytest.mark.skipif(not Path("/proc/self/io").exists(), reason="Linux /proc only")
+def test_info_reads_the_summary_not_the_file(tmp_path: Path) -> None:
+    import os
+
+    path = tmp_path / "big.mcap"
+    blob = os.urandom(100_000)
+    with Recorder(path, compression="none") as rec:
+
+        def write(i: int) -> None:
+            rec.write(rec.channel("/big", None, encoding="robocli.raw"), blob, 10**18 + i)
+
+        for i in range(500):  # 50 MB
+            assert rec.put(write, (i,), 100)
+    before = _bytes_read()
+    summary = info(path)
+    read = _bytes_read() - before
+    assert summary.summary and summary.messages == 500 and summary.size > 50_000_000
+    assert read < 1_000_000, f"info read {read} bytes of a {summary.size}-byte file"
