@@ -35,7 +35,9 @@ def attach_hub(rec: Recorder, hub: Hub, name: str, sensors: Iterable[str] = ()) 
 
 class HubDecoder:
     """Data replies (writer thread) -> one message per sample, published at the sample's
-    acquisition time on the host clock (the hub's time minus the client's offset estimate)."""
+    acquisition time on the host clock (the hub's time minus the client's offset estimate,
+    as the client puts it on its own clock: Unix time unless ``Hub.connect(clock=...)``
+    gave another). All samples of one reply share its receive time as their log time."""
 
     def __init__(self, rec: Recorder, name: str, hub: Hub) -> None:
         self.rec, self.hub, self.name = rec, hub, name

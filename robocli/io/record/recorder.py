@@ -30,7 +30,6 @@ receive-minus-robot-time), else the receive time.
 from __future__ import annotations
 
 import io
-import json
 import logging
 import threading
 import time
@@ -167,21 +166,19 @@ class Recorder:
         """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
         return int(t_monotonic * 1e9) + self._epoch_ns
 
-    def epoch_ns(self, t_epoch: float) -> int:
-        """A Unix-epoch time in seconds as nanoseconds."""
-        return int(t_epoch * 1e9)
-
     # ------------------------------------------------------------------ sources
 
     def add(self, device: Any, name: str | None = None, **options: Any) -> str:
         """Record ``device`` (a :class:`~robocli.devices.pioneer.Pioneer`, an
         :class:`~robocli.devices.arm.Arm` or a :class:`~robocli.devices.hub.Hub`) under the
         topic prefix ``/name/`` (default ``pioneer``, ``arm``, ``hub``, numbered when taken).
-        Returns the name. Options by device: a hub's ``sensors`` are only named in the file's
-        metadata (the program, or :func:`~robocli.io.record.sources.pull_hub`, pulls them);
-        an arm's ``ports`` (``"both"``)."""
+        Returns the name. Options by device: a hub's ``sensors`` are only named in its raw
+        channels' metadata (the program, or :func:`~robocli.io.record.pull_hub`, pulls them);
+        an arm's ``ports`` (``"both"``). Raises :class:`RecordingError` once closed."""
         from robocli.io.record import sources
 
+        if self._closed:
+            raise RecordingError(f"{self.path}: the recorder is closed")
         return sources.attach(self, device, name, **options)
 
     def listener(self, name: str, protocol: str, **metadata: str) -> Any:
@@ -255,12 +252,6 @@ class Recorder:
         self._writer.add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
                                  seq)  # fmt: skip
         self.stats.messages += 1
-
-    def write_json(self, topic: str, schema: str, message: dict[str, Any], log_ns: int,
-                   publish_ns: int | None = None) -> None:  # fmt: skip
-        """Encode ``message`` as JSON on ``topic`` (writer thread only)."""
-        data = json.dumps(message, separators=(",", ":"), allow_nan=False).encode()
-        self.write(self.channel(topic, schema), data, log_ns, publish_ns)
 
     def decode_failed(self, where: str, exc: BaseException) -> None:
         """A handler could not decode what it was given: count it, log the first per source."""
