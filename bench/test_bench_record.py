@@ -140,3 +140,44 @@ def test_session_cpu_per_sip(benchmark: Any) -> None:
     }
     benchmark.extra_info.update(info)
     print("\n" + "\n".join(f"{k}: {v:.1f}" for k, v in info.items()))
+
+
+@pytest.mark.parametrize("compression", ["zstd", "lz4", "none"])
+def test_camera_write_throughput(benchmark: Any, compression: str) -> None:
+    """Camera replies (320x240 raw RGB, from the simulated hub) through the writer's whole
+    path: the raw channel, the RawImage JSON with its base64 pixels, MCAP, compression.
+    Reported in MB/s of camera replies (target >= 100 MB/s)."""
+    from robocli.devices.hub import Hub
+    from robocli.hub import HubServer
+    from robocli.io.record.links import RawLink
+
+    replies: list[bytes] = []
+    with HubServer(port=0, sim=True) as srv, Hub.connect(f"127.0.0.1:{srv.port}") as hub:
+        hub.subscribe("camera", rate=30, resolution="320x240")
+        hub.session.listeners.add(
+            lambda d, f, t: replies.append(f) if d == "rx" and f[0] == 0x24 and len(f) > 1000
+            else None)  # fmt: skip
+        deadline = time.monotonic() + 30
+        while len(replies) < 5 and time.monotonic() < deadline:
+            hub.read("camera")
+            time.sleep(0.05)
+        assert len(replies) >= 5
+        rec = Recorder(io.BytesIO(), compression=compression, chunk_seconds=3600)
+        try:
+            rec.add(hub)
+            link = next(x for x in hub.session.listeners._items  # noqa: SLF001
+                        if isinstance(x, RawLink))  # fmt: skip
+            handle = link._handle  # noqa: SLF001 - what the writer thread calls
+
+            def write() -> float:
+                start, size = time.perf_counter(), 0
+                for k in range(40):
+                    handle("rx", replies[k % 5], time.monotonic())
+                    size += len(replies[k % 5])
+                return size / (time.perf_counter() - start)
+
+            rate = benchmark.pedantic(write, rounds=3, iterations=1)
+        finally:
+            rec.close()
+    benchmark.extra_info["camera_mb_per_s"] = rate / 1e6
+    print(f"\ncamera replies, {compression}: {rate / 1e6:.0f} MB/s (last round)")
