@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import resource
 import signal
 import subprocess
 from collections.abc import Iterator
@@ -173,6 +172,8 @@ def test_a_lost_link_ends_with_its_error_and_a_whole_file(tmp_path: Path) -> Non
 def test_a_full_disk_is_one_line_and_keeps_what_was_written(tmp_path: Path) -> None:
     path = tmp_path / "full.mcap"
     limit = 250_000  # a few one-second chunks of uncompressed 500 Hz ADC samples
+
+    import resource  # (POSIX)
 
     def small_disk() -> None:  # in the child: files end at `limit` bytes, as a full disk
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
