@@ -13,7 +13,7 @@ from typing import Any
 import typer
 
 from robocli._version import __version__
-from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports
+from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports, record
 from robocli.commands import doctor as doctor_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
@@ -107,6 +107,8 @@ dump.command("hub")(hub_commands.dump)
 bench_group.command("throughput")(hub_commands.throughput)
 app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
+app.command("record", cls=PlainCommand)(record.record)
+app.command("info", cls=PlainCommand)(record.info)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

@@ -11,6 +11,9 @@ Formats, by suffix:
   This is the format of the recorded traces in ``tests/data/arcos`` and of
   ``robocli dump pioneer PORT --output FILE.jsonl``; lines without ``hex`` are events and
   are skipped.
+* ``.mcap``: a recording of ``robocli record`` (:mod:`robocli.io.record`): the frames of
+  the raw channels of one link speaking the protocol asked for, in log-time order, ``t``
+  in seconds since the recording's first message (needs ``robocli[record]``);
 * anything else: raw bytes of one direction (what a serial sniffer or ``cat`` saved).
 
 Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size (even
@@ -68,6 +71,11 @@ def read_capture(
     path = Path(path)
     stats = CaptureStats() if stats is None else stats
     try:
+        if path.suffix == ".mcap":
+            from robocli.io.record import raw_frames
+
+            yield from raw_frames(path, protocol, stats)
+            return
         with path.open("rb") as stream:
             if path.suffix == ".jsonl":
                 yield from _read_jsonl(stream, protocol, stats)

@@ -1,0 +1,302 @@
+"""``robocli record`` and ``robocli info``: thin layers over :mod:`robocli.io.record`.
+
+``record`` connects to every source given (a Pioneer, arms, a hub; ``sim`` starts an embedded
+simulator as everywhere else), records them into one MCAP file on one timeline, and ends on
+``--duration``, ``--count``, Ctrl-C, SIGTERM or a lost link, always closing the file with
+its summary. It says on stderr what it recorded. Exit codes: 0 for a duration or count
+reached, 130 for Ctrl-C/SIGTERM, the link's own code for a lost link (the file is written
+all the same), 1 when the file could not be written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import SIM, print_json, sigterm_as_interrupt
+
+if TYPE_CHECKING:
+    from robocli.io.record import Recorder, RecordingInfo
+
+#: Sample rates (Hz) and settings a hub sensor is subscribed with unless ``NAME:RATE``.
+HUB_DEFAULTS: dict[str, dict[str, Any]] = {
+    "imu": {"rate": 200}, "adc": {"rate": 1000}, "laser": {"rate": 40},
+    "camera": {"rate": 30, "resolution": "320x240"}, "gps": {"rate": 5},
+    "battery": {"rate": 10}, "sysinfo": {"rate": 10},
+    "depth": {"rate": 10, "resolution": "320x240"},
+    "stereo": {"rate": 15, "resolution": "320x240"},
+}  # fmt: skip
+
+
+def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
+    """``imu,adc:500`` -> [("imu", {rate 200}), ("adc", {rate 500})]; usage error otherwise."""
+    out = []
+    for item in (s.strip() for s in text.split(",")):
+        if not item:
+            continue
+        name, _, rate = item.partition(":")
+        name = name.lower()
+        if name not in HUB_DEFAULTS:
+            raise typer.BadParameter(
+                f"{name!r} is not a hub sensor; choose from {', '.join(HUB_DEFAULTS)}",
+                param_hint="'--sensors'",
+            )
+        args = dict(HUB_DEFAULTS[name])
+        if rate:
+            if not rate.isdigit() or not 1 <= int(rate) <= 65535:
+                raise typer.BadParameter(f"{item!r}: the rate is 1..65535 Hz",
+                                         param_hint="'--sensors'")  # fmt: skip
+            args["rate"] = int(rate)
+        out.append((name, args))
+    if not out:
+        raise typer.BadParameter("name at least one sensor", param_hint="'--sensors'")
+    return out
+
+
+def record(
+    output: Path = typer.Option(..., "--output", "-o", dir_okay=False, metavar="FILE.mcap",
+                                help="The recording (MCAP)."),  # fmt: skip
+    pioneer: list[str] = typer.Option(  # noqa: B008
+        [], "--pioneer", metavar="URL", help="A Pioneer (port, URL or 'sim'); repeatable."
+    ),
+    arm: list[str] = typer.Option(  # noqa: B008
+        [], "--arm", metavar="HOST", help="An arm controller (or 'sim'); repeatable."
+    ),
+    hub: str | None = typer.Option(  # noqa: UP007
+        None, "--hub", metavar="HOST[:PORT]", help="A sensor hub (or 'sim')."
+    ),
+    sensors: str = typer.Option(
+        "imu,adc", "--sensors", metavar="NAME[:HZ],...",
+        help="Hub sensors: " + ", ".join(HUB_DEFAULTS) + " (rate in Hz after a colon).",
+    ),  # fmt: skip
+    poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
+    duration: float | None = typer.Option(  # noqa: UP007
+        None, "--duration", "-d", min=0.0, max=1e6, help="Stop after S seconds."
+    ),
+    count: int | None = typer.Option(  # noqa: UP007
+        None, "--count", "-n", min=1, help="Stop after N messages recorded."
+    ),
+    compression: str = typer.Option("zstd", "--compression", help="zstd, lz4 or none."),
+    laser: bool = typer.Option(
+        True, "--laser/--no-laser", help="Start a Pioneer simulator's laser (simulators only)."
+    ),
+    byte_order: str = typer.Option("little", "--byte-order", help="Arms: little or big."),
+    real_size: int = typer.Option(4, "--real-size", help="Arms: bytes per real, 4 or 8."),
+    robot: str = typer.Option("irb120", "--robot", "-r", help="Arms: robot model."),
+    timeout: float = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait."),
+) -> None:
+    """Record Pioneers, arms and a hub into one MCAP file (Foxglove's schemas, raw frames
+    for dump --file) until --duration, --count or Ctrl-C."""
+    from robocli.errors import EXIT_INTERRUPTED
+    from robocli.io.record import COMPRESSIONS, Recorder
+
+    if not (pioneer or arm or hub):
+        raise typer.BadParameter("give at least one of --pioneer, --arm, --hub")
+    if output.suffix != ".mcap":
+        raise typer.BadParameter(f"--output {output}: a recording needs a .mcap name")
+    if compression not in COMPRESSIONS:
+        raise typer.BadParameter(f"--compression is one of {', '.join(COMPRESSIONS)}, "
+                                 f"not {compression!r}")  # fmt: skip
+    if byte_order not in ("little", "big") or real_size not in (4, 8):
+        raise typer.BadParameter("--byte-order is little or big, --real-size 4 or 8")
+    hub_sensors = _sensors(sensors) if hub else []
+    start = time.monotonic()
+    interrupted = False
+    with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
+        rec = Recorder(output, compression=compression)  # the path is checked before connecting
+        try:
+            try:
+                devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, laser,
+                                   dict(byte_order=byte_order, real_size=real_size,
+                                        robot=robot, timeout=timeout))  # fmt: skip
+                typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
+                start = time.monotonic()  # --duration counts from here, not from connecting
+                done = _until(rec, start, duration, count, devices)
+                if hub is not None:
+                    from robocli.io.record import pull_hub
+
+                    pull_hub(devices["hub"], [n for n, _ in hub_sensors], poll, done)
+                else:
+                    while not done():
+                        time.sleep(0.05)
+            except KeyboardInterrupt:
+                interrupted = True
+            finally:
+                with _shielded():
+                    stack.close()  # devices stop first: their stop sequences are recorded
+        finally:
+            with _shielded():
+                _close(rec, output, time.monotonic() - start)
+    if interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
+
+
+@contextlib.contextmanager
+def _shielded() -> Iterator[None]:
+    """Ctrl-C and SIGTERM are ignored while the devices and the file close (both bounded):
+    a second Ctrl-C must not leave the file without its summary."""
+    import signal
+
+    try:
+        saved = [(s, signal.signal(s, signal.SIG_IGN)) for s in (signal.SIGINT, signal.SIGTERM)]
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, handler in saved:
+            signal.signal(sig, handler)
+
+
+def _close(rec: Recorder, output: Path, seconds: float) -> None:
+    """Close the recording and say what it holds (on stderr); a write failure raises."""
+    try:
+        rec.close()
+    finally:
+        why = "not written" if rec.error is not None else "the disk was too slow"
+        dropped = f", {rec.stats.dropped} dropped ({why})" if rec.stats.dropped else ""
+        typer.echo(f"recorded {rec.stats.messages} messages in {seconds:.1f} s to "
+                   f"{output}{dropped}", err=True)  # fmt: skip
+
+
+def _until(rec: Recorder, start: float, duration: float | None, count: int | None,
+           devices: dict[str, Any]) -> Callable[[], bool]:  # fmt: skip
+    """A ``done()`` for the recording loop: True once the duration or count is reached;
+    raises the error of a device whose link was lost."""
+    end = start + duration if duration is not None else math.inf
+
+    def done() -> bool:
+        rec.check()  # the disk is full: stop now, what was written stays readable
+        for name, device in devices.items():
+            if name.startswith("pioneer") and not device.connected:
+                device.wait_for_sip(0)  # raises why the session ended
+            elif name.startswith("arm"):
+                device.check()
+        return time.monotonic() >= end or (count is not None and rec.stats.messages >= count)
+
+    return done
+
+
+def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], arms: list[str],
+             hub: str | None, sensors: list[tuple[str, dict[str, Any]]], laser: bool,
+             arm_options: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    """Connect every source (simulators started on ``stack``) and add it to ``rec``."""
+    from robocli.commands._common import explain_refusal, pioneer_url
+    from robocli.commands.arm import arm_host
+    from robocli.devices.arm import Arm
+    from robocli.devices.pioneer import Pioneer
+
+    devices: dict[str, Any] = {}
+    for port in pioneers:
+        url = stack.enter_context(pioneer_url(port))
+        listener = rec.listener("pioneer", "arcos", url=url)
+        with explain_refusal(url):
+            robot = stack.enter_context(
+                Pioneer.connect(url, listeners=[listener], timeout=arm_options["timeout"])
+            )
+        name = rec.add(robot, listener.name)
+        devices[name] = robot
+        if laser and robot.is_simulator:
+            robot.start_laser()
+    for host in arms:
+        wire = (arm_options["byte_order"], arm_options["real_size"], arm_options["robot"])
+        h, mp, sp = stack.enter_context(arm_host(host, 11000, 11002, *wire))
+        device = stack.enter_context(
+            Arm.connect(h, mp, sp, motion=False, stop_on_failure=False, **arm_options)
+        )
+        devices[rec.add(device)] = device
+    if hub is not None:
+        address = stack.enter_context(_hub_address(hub))
+        from robocli.commands.hub import open_hub
+
+        client = stack.enter_context(open_hub(address, timeout=arm_options["timeout"]))
+        rec.add(client, sensors=[n for n, _ in sensors])
+        for name, args in sensors:
+            client.subscribe(name, **args)
+        devices["hub"] = client
+    return devices
+
+
+@contextlib.contextmanager
+def _hub_address(hub: str) -> Iterator[str]:
+    """``hub`` itself, or for ``sim`` an embedded simulated hub on an ephemeral port."""
+    if hub != SIM:
+        yield hub
+        return
+    from robocli.hub import HubServer
+
+    server = HubServer("127.0.0.1", 0, sim=True).start()
+    try:
+        yield f"127.0.0.1:{server.port}"
+    finally:
+        server.close()
+
+
+# ---------------------------------------------------------------------- info
+
+
+def info(
+    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
+                                help="A recording (.mcap)."),  # fmt: skip
+    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+) -> None:
+    """Summarise a recording like ros2 bag info: duration, start and end, each channel
+    with its schema, count, mean rate and largest gap (from the summary section; a file
+    cut short is scanned)."""
+    from robocli.io.record import info as read_info
+
+    result = read_info(file)
+    if json_out:
+        print_json(result.as_dict())
+        return
+    _print_info(result)
+
+
+def _when(ns: int) -> str:
+    stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(ns // 1_000_000_000))
+    return f"{stamp}.{ns % 1_000_000_000 // 1000:06d} ({ns / 1e9:.6f})"
+
+
+def _size(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n:.1f} {unit}" if unit != "B" else f"{int(n)} B"
+        n /= 1024
+    return f"{n:.1f} GiB"  # pragma: no cover
+
+
+def _print_info(r: RecordingInfo) -> None:
+    out = sys.stdout.write
+    out(f"File:        {r.path}\n")
+    out(f"Size:        {_size(r.size)}\n")
+    if r.library:
+        out(f"Written by:  {r.library}\n")
+    if not r.summary:
+        cut = " (cut short: everything up to the last complete record was read)" \
+            if r.truncated else ""  # fmt: skip
+        out(f"Summary:     none, the file was scanned{cut}\n")
+    out(f"Duration:    {r.duration_s:.3f} s\n")
+    if r.messages:
+        out(f"Start:       {_when(r.start_ns)}\n")
+        out(f"End:         {_when(r.end_ns)}\n")
+    out(f"Messages:    {r.messages}\n")
+    out(f"Chunks:      {r.chunks}" + (f" ({', '.join(r.compression)})" if r.compression else "")
+        + "\n")  # fmt: skip
+    out(f"Channels:    {len(r.channels)}\n")
+    width = max((len(c.topic) for c in r.channels), default=5)
+    swidth = max((len(c.schema or c.encoding) for c in r.channels), default=6)
+    out(f"  {'topic':<{width}}  {'schema':<{swidth}}  {'count':>8}  {'rate Hz':>9}  "
+        f"{'largest gap s':>13}\n")  # fmt: skip
+    for c in r.channels:
+        rate = f"{c.rate_hz:9.2f}" if c.rate_hz is not None else f"{'-':>9}"
+        out(f"  {c.topic:<{width}}  {c.schema or c.encoding:<{swidth}}  {c.count:>8}  {rate}  "
+            f"{c.largest_gap_s:13.3f}\n")  # fmt: skip
+    sys.stdout.flush()

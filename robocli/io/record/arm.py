@@ -1,0 +1,154 @@
+"""The arm's channels: joint states, the flange pose and every link's frame, the status
+(see :mod:`.sources` for the topics)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from robocli.errors import InvalidArgument
+from robocli.io import schemas as S
+from robocli.io.record.links import RawLink, json_text
+
+if TYPE_CHECKING:
+    from robocli.devices.arm import Arm
+    from robocli.io.record.recorder import Recorder
+
+__all__ = ["ArmDecoder", "attach_arm"]
+
+
+def attach_arm(rec: Recorder, arm: Arm, name: str, ports: str = "both") -> str:
+    name = rec.unique_name(name)
+    order = "big" if arm.byteorder == ">" else "little"
+    if ports not in ("both", "motion", "state"):
+        raise InvalidArgument(f"ports must be 'motion', 'state' or 'both', not {ports!r}")
+    decoder = ArmDecoder(rec, name, arm)
+    protocol = "sm-be" if arm.byteorder == ">" else "sm-le"
+    for port in arm.stats:  # the ports this Arm opened
+        if ports not in ("both", port):
+            continue
+        link = RawLink(rec, name, protocol, port=port, byte_order=order, real_size=str(arm.real))
+        if port == "state":
+            link.decoder = decoder
+        arm.add_listener(link, ports=port)
+        rec.on_close(_detach_arm(arm, link, port))
+    return name
+
+
+def _detach_arm(arm: Arm, link: RawLink, port: str) -> Callable[[], None]:
+    return lambda: arm.remove_listener(link, ports=port)
+
+
+class ArmDecoder:
+    """State-port frames (writer thread) -> joint states, flange pose, link frames, status.
+
+    The controller's clock (JOINT_FEEDBACK's time) is put on the host clock by the smallest
+    receive-minus-controller time seen so far (the transport delay's floor is taken as 0)."""
+
+    def __init__(self, rec: Recorder, name: str, arm: Arm) -> None:
+        self.rec, self.model = rec, arm.robot
+        self.order, self.real = arm.byteorder, arm.real
+        n = self.model.n_joints
+        self.names = [f"joint_{i + 1}" for i in range(n)]
+        self.frames = [f"{name}/base", *(f"{name}/link_{i + 1}" for i in range(n))]
+        self.topics = {k: f"/{name}/{k}" for k in
+                       ("joint_states", "joint_feedback", "tcp", "tf", "status")}  # fmt: skip
+        self.offset: float | None = None  #: host epoch s minus controller s (min so far)
+        self._feedback = False  # JOINT_FEEDBACK seen: the frames follow it
+        self._cids: dict[str, int] = {}
+        dh = zip(self.model.a, self.model.d, self.model.alpha, self.model.offset, strict=True)
+        self._dh = [(float(a), float(d), math.cos(al), math.sin(al), float(off))
+                    for a, d, al, off in dh]  # fmt: skip
+
+    def _cid(self, key: str, schema: str) -> int:
+        cid = self._cids.get(key)
+        if cid is None:
+            cid = self._cids[key] = self.rec.channel(self.topics[key], schema)
+        return cid
+
+    def __call__(self, direction: str, frame: bytes, ns: int) -> None:
+        from robocli.protocols import simple_message as sm
+        from robocli.protocols.simple_message import MsgType, ValidFields
+
+        if direction != "rx":
+            return
+        msg = sm.decode(frame, byteorder=self.order, real=self.real)
+        body = msg.body
+        if not isinstance(body, dict):
+            return
+        n = self.model.n_joints
+        if msg.msg_type == MsgType.JOINT_POSITION:
+            self._joints("joint_states", ns, ns, list(body["joints"][:n]), [], None)
+        elif msg.msg_type == MsgType.JOINT_FEEDBACK and body["valid_fields"] & ValidFields.POSITION:
+            valid = body["valid_fields"]
+            rt = float(body["time"]) if valid & ValidFields.TIME else None
+            publish = ns
+            if rt is not None:
+                seen = ns / 1e9 - rt
+                self.offset = seen if self.offset is None else min(self.offset, seen)
+                publish = min(ns, int((rt + self.offset) * 1e9))  # (float rounding)
+            vel = list(body["velocities"][:n]) if valid & ValidFields.VELOCITY else []
+            self._feedback = True
+            self._joints("joint_feedback", ns, publish, list(body["positions"][:n]), vel, rt)
+        elif msg.msg_type == MsgType.STATUS:
+            from robocli.devices.arm.state import ArmStatus
+
+            status = ArmStatus.from_body(body, 0.0).as_dict()
+            status["timestamp"] = S.stamp(ns)
+            cid = self._cid("status", "robocli.arm.Status")
+            self.rec.write(cid, json_text(status).encode(), ns)
+
+    def _joints(self, topic: str, ns: int, publish: int, q: list[float], vel: list[float],
+                robot_time: float | None) -> None:  # fmt: skip
+        rec = self.rec
+        stamp = S.stamp(publish)
+        source = "joint_feedback" if topic == "joint_feedback" else "joint_position"
+        state = {"timestamp": stamp, "name": self.names, "position": q, "velocity": vel,
+                 "effort": [], "source": source, "robot_time": robot_time}  # fmt: skip
+        rec.write(self._cid(topic, "robocli.JointState"), json_text(state).encode(), ns, publish)
+        if self._feedback and topic != "joint_feedback":
+            return  # the frames follow the feedback, on the controller's clock
+        transforms = []
+        rot = np.eye(3)
+        pos = np.zeros(3)
+        for i, (theta, (a, d, ca, sa, off)) in enumerate(zip(q, self._dh, strict=False)):
+            ct, st = math.cos(theta + off), math.sin(theta + off)
+            # standard DH: Rz(theta) Tz(d) Tx(a) Rx(alpha)
+            r = np.array([[ct, -st * ca, st * sa], [st, ct * ca, -ct * sa], [0.0, sa, ca]])
+            t = (a * ct, a * st, d)
+            transforms.append(S.frame_transform(publish, self.frames[i], self.frames[i + 1], t,
+                                                _quaternion(r)))  # fmt: skip
+            pos = pos + rot @ np.array(t)
+            rot = rot @ r
+        rec.write(self._cid("tf", "foxglove.FrameTransforms"),
+                  json_text({"transforms": transforms}).encode(), ns, publish)  # fmt: skip
+        x, y, z = (float(v) for v in pos)
+        tcp = {"timestamp": stamp, "frame_id": self.frames[0],
+               "pose": S.pose(x, y, z, _quaternion(rot))}  # fmt: skip
+        rec.write(self._cid("tcp", "foxglove.PoseInFrame"), json_text(tcp).encode(), ns, publish)
+
+
+def _quaternion(r: Any) -> dict[str, float]:
+    """The unit quaternion of a 3 x 3 rotation matrix (Shepperd's method)."""
+    m00, m11, m22 = float(r[0, 0]), float(r[1, 1]), float(r[2, 2])
+    trace = m00 + m11 + m22
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        w, x = 0.25 * s, (float(r[2, 1]) - float(r[1, 2])) / s
+        y, z = (float(r[0, 2]) - float(r[2, 0])) / s, (float(r[1, 0]) - float(r[0, 1])) / s
+    elif m00 > m11 and m00 > m22:
+        s = 2.0 * math.sqrt(1.0 + m00 - m11 - m22)
+        w, x = (float(r[2, 1]) - float(r[1, 2])) / s, 0.25 * s
+        y, z = (float(r[0, 1]) + float(r[1, 0])) / s, (float(r[0, 2]) + float(r[2, 0])) / s
+    elif m11 > m22:
+        s = 2.0 * math.sqrt(1.0 + m11 - m00 - m22)
+        w, x = (float(r[0, 2]) - float(r[2, 0])) / s, (float(r[0, 1]) + float(r[1, 0])) / s
+        y, z = 0.25 * s, (float(r[1, 2]) + float(r[2, 1])) / s
+    else:
+        s = 2.0 * math.sqrt(1.0 + m22 - m00 - m11)
+        w, x = (float(r[1, 0]) - float(r[0, 1])) / s, (float(r[0, 2]) + float(r[2, 0])) / s
+        y, z = (float(r[1, 2]) + float(r[2, 1])) / s, 0.25 * s
+    return {"x": x, "y": y, "z": z, "w": w}

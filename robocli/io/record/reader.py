@@ -1,0 +1,384 @@
+"""Reading recordings back: ``robocli info``'s summary, and the raw frames ``dump --file``
+decodes.
+
+A finished recording ends with a summary (statistics, channels, chunk indexes, and after
+each chunk its message indexes): :func:`info` reads those and never decompresses a chunk,
+so a large file is summarised in the time of a few thousand small reads. A recording that
+was killed has no summary: :func:`info` then scans it from the start, record by record,
+and stops at the first incomplete record (what a SIGKILL leaves is readable up to its last
+complete chunk), saying so.
+"""
+
+from __future__ import annotations
+
+import heapq
+import logging
+import os
+import struct
+import zlib
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+from robocli.errors import RobocliError
+from robocli.io.record.recorder import RAW_ENCODING, RecordingError
+
+log = logging.getLogger("robocli.io.record")
+
+__all__ = ["ChannelInfo", "RecordingInfo", "info", "iter_messages", "raw_frames"]
+
+#: What a truncated record or chunk raises inside the mcap reader (an EndOfFile, a short
+#: struct read, a chunk that does not decompress or whose CRC fails).
+_TRUNCATED: tuple[type[BaseException], ...] = (EOFError, struct.error, ValueError, zlib.error,
+                                               RuntimeError, KeyError, IndexError)  # fmt: skip
+
+
+def _mcap_errors() -> tuple[type[BaseException], ...]:
+    from mcap.exceptions import McapError
+
+    try:
+        import zstandard
+
+        extra: tuple[type[BaseException], ...] = (zstandard.ZstdError,)
+    except ImportError:  # pragma: no cover - zstandard is in the record extra
+        extra = ()
+    return (McapError, *_TRUNCATED, *extra)
+
+
+@dataclass
+class ChannelInfo:
+    """One channel of a recording: counts and times from its messages' log times."""
+
+    id: int
+    topic: str
+    schema: str
+    encoding: str
+    metadata: dict[str, str]
+    count: int = 0
+    first_ns: int = 0
+    last_ns: int = 0
+    largest_gap_s: float = 0.0
+
+    @property
+    def rate_hz(self) -> float | None:
+        """Mean rate over the channel's own span: (count - 1) / (last - first)."""
+        span = (self.last_ns - self.first_ns) / 1e9
+        return (self.count - 1) / span if self.count > 1 and span > 0 else None
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "topic": self.topic, "schema": self.schema, "encoding": self.encoding,
+            "count": self.count, "rate_hz": self.rate_hz, "largest_gap_s": self.largest_gap_s,
+            "first": self.first_ns / 1e9, "last": self.last_ns / 1e9, "metadata": self.metadata,
+        }  # fmt: skip
+
+
+@dataclass
+class RecordingInfo:
+    """What :func:`info` found. Times are Unix-epoch nanoseconds (``start_ns``, ``end_ns``)."""
+
+    path: str
+    size: int
+    library: str = ""
+    summary: bool = False  #: the file has a summary section (it was closed properly)
+    truncated: bool = False  #: no summary, and the scan met an incomplete record
+    readable_bytes: int = 0  #: bytes up to the last complete record
+    messages: int = 0
+    chunks: int = 0
+    compression: list[str] = field(default_factory=list)
+    start_ns: int = 0
+    end_ns: int = 0
+    channels: list[ChannelInfo] = field(default_factory=list)
+
+    @property
+    def duration_s(self) -> float:
+        return max(0, self.end_ns - self.start_ns) / 1e9
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "path": self.path, "bytes": self.size, "library": self.library,
+            "summary": self.summary, "truncated": self.truncated,
+            "readable_bytes": self.readable_bytes, "messages": self.messages,
+            "chunks": self.chunks, "compression": self.compression,
+            "start": self.start_ns / 1e9 if self.messages else None,
+            "end": self.end_ns / 1e9 if self.messages else None,
+            "duration_s": self.duration_s,
+            "channels": [c.as_dict() for c in self.channels],
+        }  # fmt: skip
+
+
+def _open(path: str | Path) -> IO[bytes]:
+    try:
+        import mcap  # noqa: F401 - the optional extra
+    except ImportError:
+        raise RecordingError("reading MCAP needs the mcap package: pip install "
+                             "'robocli[record]'") from None  # fmt: skip
+    try:
+        return Path(path).open("rb")
+    except OSError as exc:
+        raise RobocliError(f"cannot read {path}: {exc.strerror or exc}") from None
+
+
+def _check_magic(stream: IO[bytes], path: str | Path) -> None:
+    head = stream.read(8)
+    stream.seek(0)
+    if head != b"\x89MCAP0\r\n":
+        raise RobocliError(f"{path} is not an MCAP file (no MCAP magic at its start)")
+
+
+def info(path: str | Path) -> RecordingInfo:
+    """Summarise the recording at ``path`` (see the module docstring). Raises
+    :class:`RobocliError` for a file that is not MCAP or cannot be read."""
+    with _open(path) as stream:
+        _check_magic(stream, path)
+        size = os.fstat(stream.fileno()).st_size
+        result = RecordingInfo(str(path), size)
+        summary = _summary(stream)
+        if summary is not None and summary.chunk_indexes and _from_summary(stream, summary,
+                                                                             result):  # fmt: skip
+            return result
+        stream.seek(0)
+        _scan(stream, result)
+        return result
+
+
+def _summary(stream: IO[bytes]) -> Any:
+    from mcap.reader import SeekingReader
+
+    try:
+        return SeekingReader(stream).get_summary()
+    except _mcap_errors():
+        return None
+
+
+#: MCAP record opcodes read here without the mcap package's record classes.
+_OP_MESSAGE_INDEX = 0x07
+_RECORD_HEAD = struct.Struct("<BQ")
+_INDEX_HEAD = struct.Struct("<HI")
+
+
+def _message_indexes(block: bytes) -> Iterator[tuple[int, Any]]:
+    """(channel id, uint64 array of log time, offset pairs flattened) of each Message Index
+    record in ``block`` (the records that follow a chunk)."""
+    import numpy as np
+
+    pos = 0
+    while pos + _RECORD_HEAD.size <= len(block):
+        opcode, length = _RECORD_HEAD.unpack_from(block, pos)
+        pos += _RECORD_HEAD.size
+        if opcode == _OP_MESSAGE_INDEX and length >= _INDEX_HEAD.size:
+            channel_id, size = _INDEX_HEAD.unpack_from(block, pos)
+            count = min(size, length - _INDEX_HEAD.size) // 16
+            pairs = np.frombuffer(block, dtype="<u8", count=2 * count,
+                                  offset=pos + _INDEX_HEAD.size)  # fmt: skip
+            yield channel_id, pairs
+        pos += length
+
+
+def _times(channel: ChannelInfo, times: list[Any]) -> None:
+    """Fill ``channel``'s count, first, last and largest gap from its log times (ints or
+    arrays of them)."""
+    import numpy as np
+
+    if not times:
+        return
+    parts = [np.asarray(t, dtype=np.int64).ravel() for t in times]
+    arr = np.sort(np.concatenate(parts)) if len(parts) > 1 else np.sort(parts[0])
+    if not arr.size:
+        return
+    channel.count = int(arr.size)
+    channel.first_ns, channel.last_ns = int(arr[0]), int(arr[-1])
+    channel.largest_gap_s = float(np.max(np.diff(arr))) / 1e9 if arr.size > 1 else 0.0
+
+
+def _from_summary(stream: IO[bytes], summary: Any, result: RecordingInfo) -> bool:
+    """Fill ``result`` from the summary and the message indexes; False when the file has no
+    message indexes (then it is scanned)."""
+
+    times: dict[int, list[Any]] = {cid: [] for cid in summary.channels}
+    for chunk in summary.chunk_indexes:
+        if not chunk.message_index_offsets:
+            return False
+        start = min(chunk.message_index_offsets.values())
+        stream.seek(start)
+        block = stream.read(chunk.message_index_length)
+        if len(block) != chunk.message_index_length:
+            return False  # the summary points past the end: scan instead
+        for channel_id, records in _message_indexes(block):
+            times.setdefault(channel_id, []).append(records[0::2].copy())
+        if chunk.compression and chunk.compression not in result.compression:
+            result.compression.append(chunk.compression)
+    result.summary = True
+    result.readable_bytes = result.size
+    result.chunks = len(summary.chunk_indexes)
+    stats = summary.statistics
+    if stats is not None:
+        result.messages = stats.message_count
+        result.start_ns, result.end_ns = stats.message_start_time, stats.message_end_time
+    for cid, channel in sorted(summary.channels.items()):
+        schema = summary.schemas.get(channel.schema_id)
+        item = ChannelInfo(cid, channel.topic, schema.name if schema else "",
+                           channel.message_encoding, dict(channel.metadata))  # fmt: skip
+        _times(item, times.get(cid, []))
+        result.channels.append(item)
+    if stats is None:
+        result.messages = sum(c.count for c in result.channels)
+        firsts = [c.first_ns for c in result.channels if c.count]
+        result.start_ns = min(firsts, default=0)
+        result.end_ns = max((c.last_ns for c in result.channels if c.count), default=0)
+    try:
+        from mcap.reader import SeekingReader
+
+        stream.seek(0)
+        result.library = SeekingReader(stream).get_header().library
+    except _mcap_errors():
+        pass
+    return True
+
+
+def iter_messages(stream: IO[bytes], result: RecordingInfo | None = None) -> Iterator[Any]:
+    """Every record of an MCAP stream in file order, chunks decompressed, stopping quietly
+    at the first incomplete record (``result.truncated`` is then set)."""
+    from mcap.stream_reader import StreamReader
+
+    records = StreamReader(stream).records
+    while True:
+        try:
+            record = next(records)
+        except StopIteration:
+            return
+        except _mcap_errors():
+            if result is not None:
+                result.truncated = True
+            return
+        yield record
+
+
+def _scan(stream: IO[bytes], result: RecordingInfo) -> None:
+    from mcap.records import Channel, Chunk, Footer, Header, Message, Schema
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    schemas: dict[int, str] = {}
+    channels: dict[int, ChannelInfo] = {}
+    times: dict[int, list[Any]] = {}
+    readable = 0
+    records = StreamReader(stream, emit_chunks=True).records  # reads exactly each record
+    while True:
+        try:
+            record = next(records)
+            inner = breakup_chunk(record) if isinstance(record, Chunk) else [record]
+        except StopIteration:
+            break
+        except _mcap_errors():
+            result.truncated = True
+            break
+        if isinstance(record, Chunk):
+            result.chunks += 1
+            if record.compression and record.compression not in result.compression:
+                result.compression.append(record.compression)
+        if isinstance(record, Header):
+            result.library = record.library
+        for rec in inner:
+            if isinstance(rec, Schema):
+                schemas[rec.id] = rec.name
+            elif isinstance(rec, Channel) and rec.id not in channels:
+                schema = schemas.get(rec.schema_id, "")
+                channels[rec.id] = ChannelInfo(rec.id, rec.topic, schema, rec.message_encoding,
+                                               dict(rec.metadata))  # fmt: skip
+            elif isinstance(rec, Message):
+                times.setdefault(rec.channel_id, []).append(rec.log_time)
+        readable = stream.tell()
+        if isinstance(record, Footer):
+            break
+    result.readable_bytes = min(readable, result.size)
+    for cid, channel in sorted(channels.items()):
+        _times(channel, times.get(cid, []))
+        result.channels.append(channel)
+    result.messages = sum(c.count for c in result.channels)
+    result.start_ns = min((c.first_ns for c in result.channels if c.count), default=0)
+    result.end_ns = max((c.last_ns for c in result.channels if c.count), default=0)
+
+
+# ---------------------------------------------------------------------- raw frames
+
+
+def _family(protocol: str) -> str:
+    return "sm" if protocol.startswith("sm") else protocol
+
+
+#: How far (ns) a message may come before an older one in a file without summary: frames
+#: sent and received in different threads are queued in about their time order.
+_REORDER_NS = 2_000_000_000
+
+
+def raw_frames(path: str | Path, protocol: str, stats: Any = None) -> Iterator[Any]:
+    """The frames of the raw channels of one link speaking ``protocol`` (``arcos``,
+    ``sm-le``/``sm-be``: either byte order, ``ros4mat``), in log-time order, as
+    :class:`~robocli.io.capture.CapturedFrame` (``t``: seconds since the first message of
+    the recording; ``direction``: ``tx``/``rx``, with ``:port`` for an arm link). With
+    several such links the first is read and the others are named in a warning log.
+    ``stats`` (a :class:`~robocli.io.capture.CaptureStats`) is updated as it goes."""
+    from robocli.core import Framer
+    from robocli.io.capture import CapturedFrame, CaptureStats
+
+    stats = CaptureStats() if stats is None else stats
+    summary_info = info(path)
+    raws = [c for c in summary_info.channels if c.encoding == RAW_ENCODING
+            and _family(c.metadata.get("protocol", "")) == _family(protocol)]  # fmt: skip
+    links = list(dict.fromkeys(c.metadata.get("link", "") for c in raws))
+    if not links:
+        found = sorted({c.metadata.get("protocol", "?") for c in summary_info.channels
+                        if c.encoding == RAW_ENCODING})  # fmt: skip
+        raise RobocliError(f"{path}: no raw {protocol} channel (raw channels: "
+                           f"{', '.join(found) or 'none'})")  # fmt: skip
+    if len(links) > 1:
+        log.warning("%s: %d %s links (%s); decoding %s", path, len(links), protocol,
+                    ", ".join(links), links[0])  # fmt: skip
+    chosen = {c.id: c for c in raws if c.metadata.get("link") == links[0]}
+    start = summary_info.start_ns
+    framers: dict[int, Framer] = {}
+    try:
+        for channel_id, log_ns, data in _ordered(path, summary_info, set(chosen)):
+            channel = chosen[channel_id]
+            meta = channel.metadata
+            framer = framers.get(channel_id)
+            if framer is None:
+                framer = framers[channel_id] = Framer(meta.get("protocol", protocol))
+            stats.bytes_read += len(data)
+            way = meta.get("direction", "?")
+            if meta.get("port"):
+                way = f"{way}:{meta['port']}"
+            for frame in framer.feed(data):
+                stats.frames += 1
+                yield CapturedFrame((log_ns - start) / 1e9, way, frame)
+    finally:
+        for framer in framers.values():
+            stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def _ordered(path: str | Path, summary_info: RecordingInfo,
+             channels: set[int]) -> Iterator[tuple[int, int, bytes]]:  # fmt: skip
+    """(channel id, log time, data) of ``channels``' messages in log-time order."""
+    from mcap.records import Message
+
+    with _open(path) as stream:
+        if summary_info.summary:
+            from mcap.reader import SeekingReader
+
+            topics = [c.topic for c in summary_info.channels if c.id in channels]
+            for _, _, message in SeekingReader(stream).iter_messages(topics=topics):
+                yield message.channel_id, message.log_time, message.data
+            return
+        heap: list[tuple[int, int, int, bytes]] = []
+        seq = 0
+        for record in iter_messages(stream):
+            if isinstance(record, Message) and record.channel_id in channels:
+                heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
+                seq += 1
+                while heap and heap[0][0] < record.log_time - _REORDER_NS:
+                    t, _, cid, data = heapq.heappop(heap)
+                    yield cid, t, data
+        while heap:
+            t, _, cid, data = heapq.heappop(heap)
+            yield cid, t, data

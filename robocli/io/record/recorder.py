@@ -1,0 +1,346 @@
+"""The MCAP recorder: listeners on the devices feed a bounded queue, one thread writes.
+
+>>> with Recorder("run.mcap") as rec:                      # doctest: +SKIP
+...     rec.add(robot)                                      # a Pioneer, an Arm, a Hub
+...     rec.add(hub, sensors=("imu", "adc"))
+
+**Listeners never wait.** What a device's thread hands over (a frame sent or received, a
+laser scan, a joint sample) is appended to a queue under a short lock, and that is all: no
+decoding, no encoding, no disk. A queue past :attr:`Recorder.max_queue` items or
+:attr:`Recorder.max_queue_bytes` bytes (a stalled disk) drops what comes, counted in
+:attr:`RecorderStats.dropped`: memory stays bounded and the robot's threads never block.
+A listener cannot raise into the device (the devices isolate their listeners anyway).
+
+**One writer thread** takes the queue in batches, decodes what it holds into channels
+(:mod:`robocli.io.record.sources`), encodes JSON and adds the messages to the MCAP writer.
+Chunks are compressed (zstd by default, lz4, or none) and closed every ``chunk_seconds``
+(or once ``chunk_size`` bytes are held), then written through to the operating system: a
+recording killed with SIGKILL loses at most about a second, and every complete chunk before
+it reads back. :meth:`Recorder.close` writes the rest and the summary (statistics, chunk
+and message indexes), so that readers seek instead of scanning.
+
+**Time.** Every message's log time is the host receive time in Unix-epoch nanoseconds: the
+devices' monotonic receive times mapped with one offset taken when the recorder started (so
+log times never jump with the wall clock). Its publish time is the source's own acquisition
+time on the host clock where one is known (the hub's sample times through the client's
+clock-offset estimate; the arm controller's ``robot_time`` through the smallest observed
+receive-minus-robot-time), else the receive time.
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from robocli._version import __version__
+from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.record.links import RAW_ENCODING
+from robocli.io.schemas import schema_bytes
+
+log = logging.getLogger("robocli.io.record")
+
+__all__ = ["COMPRESSIONS", "RAW_ENCODING", "Recorder", "RecorderStats", "RecordingError"]
+
+COMPRESSIONS = ("zstd", "lz4", "none")
+
+#: How long the writer sleeps when the queue is empty (s): listeners never wake it, so that
+#: a listener's cost is an append.
+_IDLE_S = 0.1
+
+
+class RecordingError(RobocliError):
+    """The recording could not be written (no ``mcap``, a full disk, a bad path)."""
+
+
+@dataclass
+class RecorderStats:
+    """What a recorder did: messages and bytes written, items dropped for a full queue,
+    items whose decoding failed (their raw bytes are still recorded), and the longest queue
+    seen (items)."""
+
+    messages: int = 0
+    dropped: int = 0
+    decode_errors: int = 0
+    queue_peak: int = 0
+
+
+def _mcap() -> Any:
+    try:
+        import mcap.writer  # noqa: F401 - the optional extra
+    except ImportError:
+        raise RecordingError(
+            "recording needs the mcap package: pip install 'robocli[record]'"
+        ) from None
+    import mcap
+
+    return mcap
+
+
+class Recorder:
+    """Record devices into one MCAP file on one timeline. See the module docstring.
+
+    ``compression``: ``"zstd"`` (default), ``"lz4"`` or ``"none"``. ``chunk_seconds``: the
+    longest a message waits before its chunk is written out (what a SIGKILL can lose).
+    ``chunk_size``: bytes of messages after which a chunk is closed sooner.
+    ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
+    dropped (counted). ``path`` may also be an open binary stream with ``tell``: it is
+    written and flushed, and left open. Raises :class:`InvalidArgument` when the file cannot
+    be created, :class:`RecordingError` without the ``mcap`` package.
+    """
+
+    def __init__(
+        self,
+        path: str | Path | IO[bytes],
+        *,
+        compression: str = "zstd",
+        chunk_seconds: float = 1.0,
+        chunk_size: int = 4 << 20,
+        max_queue: int = 200_000,
+        max_queue_bytes: int = 256 << 20,
+    ) -> None:
+        if compression not in COMPRESSIONS:
+            raise InvalidArgument(f"compression is one of {', '.join(COMPRESSIONS)}, "
+                                  f"not {compression!r}")  # fmt: skip
+        if not 0 < chunk_seconds <= 3600 or chunk_size < 1024:
+            raise InvalidArgument("chunk_seconds must be in (0, 3600] and chunk_size >= 1024")
+        if max_queue < 1 or max_queue_bytes < 1:
+            raise InvalidArgument("max_queue and max_queue_bytes must be >= 1")
+        mcap = _mcap()
+        from mcap.writer import CompressionType, Writer
+
+        named = path if isinstance(path, (str, Path)) else getattr(path, "name", "<stream>")
+        self.path = Path(named)
+        self.compression = compression
+        self.chunk_seconds = chunk_seconds
+        self.max_queue = max_queue
+        self.max_queue_bytes = max_queue_bytes
+        self.stats = RecorderStats()
+        #: the error that stopped the writer (a full disk), else None
+        self.error: BaseException | None = None
+        # monotonic -> Unix epoch, fixed at the start: log times never jump with the clock
+        self._epoch_ns = time.time_ns() - time.monotonic_ns()
+        self._owned = isinstance(path, (str, Path))
+        if isinstance(path, io.RawIOBase):  # buffered here, so that flushing reaches it
+            path = io.BufferedWriter(path)
+        try:
+            self._file: IO[bytes] = self.path.open("wb") if isinstance(path, (str, Path)) else path
+        except OSError as exc:  # a path the user gave: a usage error (exit 2)
+            raise InvalidArgument(f"cannot write {path}: {exc.strerror or exc}") from None
+        kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}[compression]  # fmt: skip
+        try:
+            self._writer = Writer(self._file, chunk_size=chunk_size, compression=kind)
+            self._writer.start(profile="", library=f"robocli {__version__} (mcap "
+                               f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
+            self._file.flush()
+        except Exception as exc:
+            if self._owned:
+                self._file.close()
+            raise RecordingError(f"cannot write {path}: {exc}") from None
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+        self._sequence: dict[int, int] = {}
+        self._lock = threading.Lock()
+        self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
+        self._queued_bytes = 0
+        self._closing = False
+        self._closed = False
+        self._decode_logged: set[str] = set()
+        self._detach: list[Callable[[], None]] = []
+        self._names: set[str] = set()
+        #: raw links by name (see :meth:`listener`)
+        self.links: dict[str, Any] = {}
+        self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ time
+
+    def log_ns(self, t_monotonic: float) -> int:
+        """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
+        return int(t_monotonic * 1e9) + self._epoch_ns
+
+    # ------------------------------------------------------------------ sources
+
+    def add(self, device: Any, name: str | None = None, **options: Any) -> str:
+        """Record ``device`` (a :class:`~robocli.devices.pioneer.Pioneer`, an
+        :class:`~robocli.devices.arm.Arm` or a :class:`~robocli.devices.hub.Hub`) under the
+        topic prefix ``/name/`` (default ``pioneer``, ``arm``, ``hub``, numbered when taken).
+        Returns the name. Options by device: a hub's ``sensors`` are only named in its raw
+        channels' metadata (the program, or :func:`~robocli.io.record.pull_hub`, pulls them);
+        an arm's ``ports`` (``"both"``). Raises :class:`RecordingError` once closed."""
+        from robocli.io.record import sources
+
+        if self._closed:
+            raise RecordingError(f"{self.path}: the recorder is closed")
+        return sources.attach(self, device, name, **options)
+
+    def listener(self, name: str, protocol: str, **metadata: str) -> Any:
+        """A new raw-frame listener ``(direction, payload, t)`` for a link named ``name``
+        (``name2``... when taken: its ``.name`` says), to hand to a device's
+        ``connect(listeners=[...])`` so that the handshake is recorded too; a later
+        ``add(device, listener.name)`` decodes on top of it. ``protocol``: the framer's name
+        (``arcos``, ``sm-le``, ``sm-be``, ``ros4mat``); ``metadata`` goes into its channels."""
+        from robocli.io.record import sources
+
+        return sources.raw_link(self, name, protocol, **metadata)
+
+    def unique_name(self, base: str) -> str:
+        """``base``, or ``base2``, ``base3``... the first not taken yet."""
+        name, k = base, 1
+        while name in self._names:
+            k += 1
+            name = f"{base}{k}"
+        self._names.add(name)
+        return name
+
+    def on_close(self, detach: Callable[[], None]) -> None:
+        """Call ``detach`` (remove a listener) when the recorder closes."""
+        self._detach.append(detach)
+
+    # ------------------------------------------------------------------ the queue
+
+    def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
+        """Queue ``handler(*args)`` for the writer thread (``size``: bytes it holds). Never
+        blocks; returns False (and counts a drop) when the queue is full or closed."""
+        with self._lock:
+            queue = self._queue
+            if (self._closing or len(queue) >= self.max_queue
+                    or self._queued_bytes + size > self.max_queue_bytes):  # fmt: skip
+                self.stats.dropped += 1
+                return False
+            queue.append((handler, args))
+            self._queued_bytes += size
+            if len(queue) > self.stats.queue_peak:
+                self.stats.queue_peak = len(queue)
+        return True
+
+    def _take(self) -> deque[tuple[Callable[..., None], tuple[Any, ...]]]:
+        with self._lock:
+            items, self._queue = self._queue, deque()
+            self._queued_bytes = 0
+        return items
+
+    # ------------------------------------------------------------------ writing (writer thread)
+
+    def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
+                metadata: dict[str, str] | None = None) -> int:  # fmt: skip
+        """The id of ``topic``'s channel, registered on first use (writer thread only)."""
+        cid = self._channels.get(topic)
+        if cid is not None:
+            return cid
+        sid = 0
+        if schema is not None:
+            sid = self._schemas.get(schema, 0)
+            if not sid:
+                sid = self._writer.register_schema(schema, "jsonschema", schema_bytes(schema))
+                self._schemas[schema] = sid
+        cid = self._writer.register_channel(topic, encoding, sid, dict(metadata or {}))
+        self._channels[topic] = cid
+        return cid
+
+    def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
+        """Add one message to channel ``cid`` (writer thread only)."""
+        seq = self._sequence.get(cid, 0)
+        self._sequence[cid] = seq + 1
+        self._writer.add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
+                                 seq)  # fmt: skip
+        self.stats.messages += 1
+
+    def decode_failed(self, where: str, exc: BaseException) -> None:
+        """A handler could not decode what it was given: count it, log the first per source."""
+        self.stats.decode_errors += 1
+        if where not in self._decode_logged:
+            self._decode_logged.add(where)
+            log.warning("recorder: %s: %s (its raw bytes are kept; later failures are only "
+                        "counted)", where, exc,
+                        exc_info=not isinstance(exc, RobocliError))  # fmt: skip
+
+    def _run(self) -> None:
+        last_chunk = time.monotonic()
+        try:
+            while True:
+                items = self._take()
+                if not items:
+                    if self._closing:
+                        break
+                    time.sleep(_IDLE_S)
+                for handler, args in items:
+                    try:
+                        handler(*args)
+                    except (OSError, MemoryError):
+                        raise
+                    except Exception as exc:  # noqa: BLE001 - bad data: count, go on
+                        self.decode_failed(getattr(handler, "__qualname__", str(handler)), exc)
+                now = time.monotonic()
+                if now - last_chunk >= self.chunk_seconds:
+                    last_chunk = now
+                    self._flush()
+            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._file.flush()
+        except BaseException as exc:  # noqa: BLE001 - a full disk, a closed file: say so at close
+            self.error = exc
+            with self._lock:
+                self._closing = True  # listeners now drop, counted
+                self._queue.clear()
+            log.error("recorder: writing %s failed: %s", self.path, exc)
+
+    def _flush(self) -> None:
+        """Close the chunk in progress and hand everything to the operating system."""
+        self._writer.flush()  # type: ignore[no-untyped-call]
+
+    def check(self) -> None:
+        """Raise :class:`RecordingError` once writing failed (a full disk): recording goes
+        on dropping everything, so a program should stop and :meth:`close`."""
+        if self.error is not None:
+            raise RecordingError(self._failure())
+
+    def _failure(self) -> str:
+        err = self.error
+        why = err.strerror if isinstance(err, OSError) and err.strerror else str(err)
+        return (f"writing {self.path} failed: {why}; what was written before reads back up "
+                "to its last complete chunk")  # fmt: skip
+
+    # ------------------------------------------------------------------ closing
+
+    def close(self, timeout: float = 30.0) -> None:
+        """Stop listening, write what is queued and the summary, close the file. Idempotent.
+        Raises :class:`RecordingError` when writing failed (what was written before stays
+        readable up to its last complete chunk)."""
+        if self._closed:
+            return
+        self._closed = True
+        for detach in self._detach:
+            try:
+                detach()
+            except Exception:  # noqa: BLE001 - a device already closed: nothing to remove
+                log.debug("recorder: detaching a listener failed", exc_info=True)
+        with self._lock:
+            self._closing = True
+        self._thread.join(timeout)
+        stuck = self._thread.is_alive()
+        if not stuck and self._owned:
+            try:
+                self._file.close()
+            except OSError as exc:
+                self.error = self.error or exc
+        if stuck:
+            raise RecordingError(f"{self.path}: the writer did not finish within {timeout:g} s "
+                                 "(a stalled disk?); complete chunks are readable")  # fmt: skip
+        if self.error is not None:
+            raise RecordingError(self._failure())
+
+    def __enter__(self) -> Recorder:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<Recorder {self.path} messages={self.stats.messages}>"

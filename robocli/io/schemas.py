@@ -1,0 +1,351 @@
+"""The JSON schemas of robocli's recordings: Foxglove's well-known ones, and robocli's own.
+
+A channel whose schema is named ``foxglove.PoseInFrame``, ``foxglove.FrameTransform(s)``,
+``foxglove.LaserScan``, ``foxglove.CompressedImage``, ``foxglove.RawImage`` or
+``foxglove.LocationFix`` (schema encoding ``jsonschema``, message encoding ``json``) is shown
+by Foxglove's panels without a plugin. The field names and types here are those Foxglove
+documents for each schema (docs.foxglove.dev, "Message schemas"); the schema documents are
+written for robocli and list only the fields robocli fills. Binary fields (image data) are
+base64 strings with ``"contentEncoding": "base64"``, as Foxglove's JSON encoding wants.
+
+Data with no well-known schema gets a ``robocli.*`` schema that names every field with its
+unit: joint states shaped like ``sensor_msgs/JointState``, IMU like ``sensor_msgs/Imu``, ADC,
+battery, the Pioneer's state, the arm's status, the hub's system information. Units are SI
+(m, rad, s, m/s, rad/s, V, A, T) unless a field's description says otherwise.
+
+No I/O here: :data:`SCHEMAS` maps a schema name to its JSON document, and the builders return
+plain dicts ready for :func:`json.dumps`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+__all__ = [
+    "FOXGLOVE",
+    "SCHEMAS",
+    "compressed_image",
+    "frame_transform",
+    "laser_scan",
+    "location_fix",
+    "pose",
+    "quaternion_z",
+    "raw_image",
+    "schema_bytes",
+    "stamp",
+]
+
+# ---------------------------------------------------------------------- building blocks
+
+
+def _number(description: str) -> dict[str, Any]:
+    return {"type": "number", "description": description}
+
+
+def _integer(description: str) -> dict[str, Any]:
+    return {"type": "integer", "description": description}
+
+
+def _boolean(description: str) -> dict[str, Any]:
+    return {"type": "boolean", "description": description}
+
+
+def _string(description: str) -> dict[str, Any]:
+    return {"type": "string", "description": description}
+
+
+def _numbers(description: str) -> dict[str, Any]:
+    return {"type": "array", "items": {"type": "number"}, "description": description}
+
+
+def _object(title: str, description: str, properties: dict[str, Any],
+            required: tuple[str, ...] | None = None) -> dict[str, Any]:  # fmt: skip
+    return {
+        "title": title,
+        "description": description,
+        "type": "object",
+        "properties": properties,
+        "required": list(properties if required is None else required),
+    }
+
+
+_TIME = {
+    "type": "object",
+    "title": "time",
+    "description": "Seconds and nanoseconds since the Unix epoch",
+    "properties": {
+        "sec": {"type": "integer", "minimum": 0},
+        "nsec": {"type": "integer", "minimum": 0, "maximum": 999_999_999},
+    },
+    "required": ["sec", "nsec"],
+}
+
+
+def _vector3(description: str, unit: str = "m") -> dict[str, Any]:
+    return _object("foxglove.Vector3", description, {
+        "x": _number(f"x, {unit}"), "y": _number(f"y, {unit}"), "z": _number(f"z, {unit}"),
+    })  # fmt: skip
+
+
+_QUATERNION = _object("foxglove.Quaternion", "Orientation as a unit quaternion", {
+    "x": _number("x"), "y": _number("y"), "z": _number("z"), "w": _number("w"),
+})  # fmt: skip
+
+_POSE = _object("foxglove.Pose", "Position (m) and orientation in 3D space", {
+    "position": _vector3("Position"), "orientation": _QUATERNION,
+})  # fmt: skip
+
+
+def _stamped(title: str, description: str, properties: dict[str, Any],
+             required: tuple[str, ...] | None = None) -> dict[str, Any]:  # fmt: skip
+    """A message whose first field is ``timestamp`` (the source's acquisition time)."""
+    props = {"timestamp": dict(_TIME, description="Acquisition time (Unix epoch)")}
+    props.update(properties)
+    return _object(title, description, props, None if required is None else
+                   ("timestamp", *required))  # fmt: skip
+
+
+# ---------------------------------------------------------------------- Foxglove's schemas
+
+_FRAME_TRANSFORM = _stamped(
+    "foxglove.FrameTransform",
+    "Position and orientation of a child frame in its parent frame",
+    {
+        "parent_frame_id": _string("Parent frame"),
+        "child_frame_id": _string("Child frame"),
+        "translation": _vector3("Origin of the child frame in the parent frame"),
+        "rotation": _QUATERNION,
+    },
+)
+
+_BASE64 = {"type": "string", "contentEncoding": "base64"}
+
+FOXGLOVE: dict[str, dict[str, Any]] = {
+    "foxglove.PoseInFrame": _stamped(
+        "foxglove.PoseInFrame", "A pose in a frame of reference",
+        {"frame_id": _string("Frame of reference of the pose"), "pose": _POSE},
+    ),
+    "foxglove.FrameTransform": _FRAME_TRANSFORM,
+    "foxglove.FrameTransforms": _object(
+        "foxglove.FrameTransforms", "Several frame transforms at once",
+        {"transforms": {"type": "array", "items": _FRAME_TRANSFORM,
+                        "description": "The transforms"}},
+    ),  # fmt: skip
+    "foxglove.LaserScan": _stamped(
+        "foxglove.LaserScan",
+        "A planar scan: ranges at equally spaced bearings from start_angle to end_angle "
+        "(counter-clockwise about z, 0 along +x of the pose); robocli writes 0 for a bearing "
+        "with no return",
+        {
+            "frame_id": _string("Frame of reference"),
+            "pose": _POSE,
+            "start_angle": _number("Bearing of the first range, rad"),
+            "end_angle": _number("Bearing of the last range, rad"),
+            "ranges": _numbers("Distances, m (0: no return)"),
+            "intensities": _numbers("Intensity of each return (reflectance), or empty"),
+        },
+    ),
+    "foxglove.CompressedImage": _stamped(
+        "foxglove.CompressedImage", "A compressed image",
+        {
+            "frame_id": _string("Camera frame"),
+            "data": dict(_BASE64, description="Compressed image bytes, base64"),
+            "format": _string("Image format: jpeg or png"),
+        },
+    ),
+    "foxglove.RawImage": _stamped(
+        "foxglove.RawImage", "An uncompressed image",
+        {
+            "frame_id": _string("Camera frame"),
+            "width": _integer("Width, pixels"),
+            "height": _integer("Height, pixels"),
+            "encoding": _string("Pixel layout: rgb8, or mono16 (depth in mm, little-endian)"),
+            "step": _integer("Bytes per row"),
+            "data": dict(_BASE64, description="Pixel bytes, row by row, base64"),
+        },
+    ),
+    "foxglove.LocationFix": _stamped(
+        "foxglove.LocationFix", "A satellite navigation fix",
+        {
+            "frame_id": _string("Frame of the receiver"),
+            "latitude": _number("Latitude, degrees"),
+            "longitude": _number("Longitude, degrees"),
+            "altitude": _number("Altitude, m"),
+            "position_covariance": {"type": "array", "items": {"type": "number"},
+                                    "minItems": 9, "maxItems": 9,
+                                    "description": "ENU covariance, m^2, row-major"},
+            "position_covariance_type": _integer("0 unknown, 1 approximated, 2 diagonal known, "
+                                                 "3 known"),
+        },  # fmt: skip
+    ),
+}
+
+# ---------------------------------------------------------------------- robocli's schemas
+
+_XYZ_ACCEL = _vector3("Linear acceleration", "m/s^2")
+_XYZ_GYRO = _vector3("Angular velocity", "rad/s")
+_XYZ_MAG = _vector3("Magnetic field", "T")
+
+ROBOCLI: dict[str, dict[str, Any]] = {
+    "robocli.pioneer.State": _stamped(
+        "robocli.pioneer.State", "One Pioneer SIP in SI units (odometry pose unwrapped)",
+        {
+            "x": _number("Odometry x, m"), "y": _number("Odometry y, m"),
+            "th": _number("Odometry heading, rad, in [-pi, pi)"),
+            "v": _number("Translational velocity, m/s"),
+            "w": _number("Rotational velocity, rad/s, counter-clockwise positive"),
+            "left_velocity": _number("Left wheel, m/s"),
+            "right_velocity": _number("Right wheel, m/s"),
+            "battery": _number("Battery, V"),
+            "motors_enabled": _boolean("Motors powered"),
+            "estop": _boolean("Emergency stop pressed"),
+            "stall_left": _boolean("Left wheel stalled"),
+            "stall_right": _boolean("Right wheel stalled"),
+            "bumpers_front": _integer("Front bumper switches, bit mask"),
+            "bumpers_rear": _integer("Rear bumper switches, bit mask"),
+            "sonar": {"type": "array", "items": {"type": ["number", "null"]},
+                      "description": "Latest range per sonar index, m (null: none yet)"},
+            "digin": _integer("Digital inputs, bit mask"),
+            "digout": _integer("Digital outputs, bit mask"),
+            "analog": _number("Selected analog input, V"),
+            "sip_count": _integer("SIPs decoded by the recorder"),
+        },  # fmt: skip
+    ),
+    "robocli.JointState": _stamped(
+        "robocli.JointState",
+        "Joint positions, shaped like sensor_msgs/JointState (empty arrays: not reported)",
+        {
+            "name": {"type": "array", "items": {"type": "string"}, "description": "Joints"},
+            "position": _numbers("Positions, rad"),
+            "velocity": _numbers("Velocities, rad/s"),
+            "effort": _numbers("Efforts, N m"),
+            "source": _string("joint_position or joint_feedback"),
+            "robot_time": {"type": ["number", "null"],
+                           "description": "The controller's own clock, s (JOINT_FEEDBACK)"},
+        },  # fmt: skip
+    ),
+    "robocli.arm.Status": _stamped(
+        "robocli.arm.Status", "The controller's STATUS (null: unknown)",
+        {
+            "drives_powered": {"type": ["boolean", "null"], "description": "Drives powered"},
+            "e_stopped": {"type": ["boolean", "null"], "description": "Emergency stop"},
+            "in_error": {"type": ["boolean", "null"], "description": "In error"},
+            "in_motion": {"type": ["boolean", "null"], "description": "Moving"},
+            "motion_possible": {"type": ["boolean", "null"], "description": "Can move"},
+            "mode": _string("MANUAL, AUTO or UNKNOWN"),
+            "error_code": _integer("Controller error code"),
+        },  # fmt: skip
+    ),
+    "robocli.Imu": _stamped(
+        "robocli.Imu", "One IMU sample, shaped like sensor_msgs/Imu (no orientation)",
+        {
+            "frame_id": _string("IMU frame"),
+            "linear_acceleration": _XYZ_ACCEL,
+            "angular_velocity": _XYZ_GYRO,
+            "magnetic_field": _XYZ_MAG,
+        },
+    ),
+    "robocli.Adc": _stamped(
+        "robocli.Adc", "One sample of the hub's 8-channel ADC",
+        {"channels": _numbers("Channels 0..7, V")},
+    ),
+    "robocli.Battery": _stamped(
+        "robocli.Battery", "One battery sample",
+        {
+            "voltage": _number("Pack voltage, V"), "current": _number("Current, A"),
+            "cells": _numbers("Cell voltages, V"),
+            "state": _integer("Charge state code"),
+            "state_of_charge": _number("State of charge, 0..1"),
+        },  # fmt: skip
+    ),
+    "robocli.SysInfo": _stamped(
+        "robocli.SysInfo", "The hub computer's load, memory and temperature",
+        {
+            "cpu_temperature": {"type": ["number", "null"],
+                                "description": "CPU temperature, deg C (null: no sensor)"},
+            "load": _numbers("Unix load averages over 1, 5, 15 min"),
+            "cpu": {"type": "object", "description": "CPU time split, %",
+                    "properties": {k: _number(f"{k}, %") for k in
+                                   ("user", "sys", "nice", "idle", "iowait", "hirq", "sirq")}},
+            "memory": {"type": "object", "description": "Memory, kB",
+                       "properties": {k: _number(f"{k}, kB") for k in ("used", "free", "buffers")}},
+            "state": _integer("Source state code"),
+        },  # fmt: skip
+    ),
+}
+
+#: Every schema a recording may use, by name.
+SCHEMAS: dict[str, dict[str, Any]] = {**FOXGLOVE, **ROBOCLI}
+
+
+def schema_bytes(name: str) -> bytes:
+    """The JSON schema document of ``name``, as stored in a recording."""
+    return json.dumps(SCHEMAS[name], separators=(",", ":")).encode()
+
+
+# ---------------------------------------------------------------------- message builders
+
+
+def stamp(ns: int) -> dict[str, int]:
+    """``{"sec", "nsec"}`` of a time in Unix-epoch nanoseconds."""
+    sec, nsec = divmod(ns, 1_000_000_000)
+    return {"sec": sec, "nsec": nsec}
+
+
+def quaternion_z(th: float) -> dict[str, float]:
+    """The quaternion of a rotation by ``th`` rad about z."""
+    return {"x": 0.0, "y": 0.0, "z": math.sin(th / 2), "w": math.cos(th / 2)}
+
+
+def pose(x: float = 0.0, y: float = 0.0, z: float = 0.0,
+         q: dict[str, float] | None = None) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.Pose``: position (m) and orientation (identity when ``q`` is None)."""
+    return {"position": {"x": x, "y": y, "z": z},
+            "orientation": q or {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}}  # fmt: skip
+
+
+def frame_transform(ns: int, parent: str, child: str, translation: tuple[float, float, float],
+                    rotation: dict[str, float]) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.FrameTransform``."""
+    x, y, z = translation
+    return {"timestamp": stamp(ns), "parent_frame_id": parent, "child_frame_id": child,
+            "translation": {"x": x, "y": y, "z": z}, "rotation": rotation}  # fmt: skip
+
+
+def laser_scan(ns: int, frame_id: str, start: float, end: float, ranges: list[float],
+               intensities: list[float] | None = None) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.LaserScan`` at the frame's origin; infinite or NaN ranges become 0."""
+    return {
+        "timestamp": stamp(ns), "frame_id": frame_id, "pose": pose(),
+        "start_angle": start, "end_angle": end,
+        "ranges": [r if math.isfinite(r) else 0.0 for r in ranges],
+        "intensities": list(intensities or ()),
+    }  # fmt: skip
+
+
+def compressed_image(ns: int, frame_id: str, data: bytes, fmt: str = "jpeg") -> dict[str, Any]:
+    """A ``foxglove.CompressedImage`` (``data`` base64-encoded here)."""
+    import base64
+
+    return {"timestamp": stamp(ns), "frame_id": frame_id,
+            "data": base64.b64encode(data).decode("ascii"), "format": fmt}  # fmt: skip
+
+
+def raw_image(ns: int, frame_id: str, width: int, height: int, encoding: str, step: int,
+              data: bytes | memoryview) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.RawImage`` (``data`` base64-encoded here)."""
+    import base64
+
+    return {"timestamp": stamp(ns), "frame_id": frame_id, "width": width, "height": height,
+            "encoding": encoding, "step": step,
+            "data": base64.b64encode(data).decode("ascii")}  # fmt: skip
+
+
+def location_fix(ns: int, frame_id: str, latitude: float, longitude: float,
+                 altitude: float) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.LocationFix`` without covariance (type 0, unknown)."""
+    return {"timestamp": stamp(ns), "frame_id": frame_id, "latitude": latitude,
+            "longitude": longitude, "altitude": altitude,
+            "position_covariance": [0.0] * 9, "position_covariance_type": 0}  # fmt: skip

@@ -1,0 +1,206 @@
+"""``robocli record`` and ``robocli info`` as a user runs them: real processes against the
+embedded simulators, ended by a duration, a count, Ctrl-C, SIGTERM, SIGKILL, a lost link
+and a full disk; every file is read back with the ``mcap`` package's own readers."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import signal
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from cli.helpers import ROBOCLI, one_line_error, run, running
+
+from robocli.io.capture import CaptureWriter
+from robocli.io.record import Recorder, info
+from robocli.protocols import arcos
+from robocli.sim.pioneer import PioneerSim
+from tests.io.readback import by_topic, decoded, messages, stream_messages, wait_for
+
+
+def _json_dump(*args: str) -> list[dict[str, Any]]:
+    proc = run("dump", *args, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return [json.loads(line) for line in proc.stdout.splitlines()]
+
+
+def test_record_all_three_for_a_duration(tmp_path: Path) -> None:
+    path = tmp_path / "all.mcap"
+    proc = run("record", "--pioneer", "sim", "--arm", "sim", "--hub", "sim", "--sensors",
+               "imu,adc:200,laser,camera,gps", "-d", "2", "-o", str(path))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert f"to {path}" in proc.stderr.splitlines()[-1]
+    out = run("info", str(path), "--json")
+    assert out.returncode == 0, out.stderr
+    summary = json.loads(out.stdout)
+    assert summary["summary"] is True and summary["compression"] == ["zstd"]
+    schemas = {c["topic"]: c["schema"] for c in summary["channels"] if c["count"]}
+    for topic, schema in {
+        "/pioneer/pose": "foxglove.PoseInFrame", "/pioneer/laser": "foxglove.LaserScan",
+        "/arm/joint_feedback": "robocli.JointState", "/arm/tf": "foxglove.FrameTransforms",
+        "/hub/imu": "robocli.Imu", "/hub/adc": "robocli.Adc",
+        "/hub/camera": "foxglove.RawImage", "/hub/gps": "foxglove.LocationFix",
+        "/hub/laser": "foxglove.LaserScan", "/pioneer/raw/rx": "",
+    }.items():  # fmt: skip
+        assert schemas.get(topic) == schema, (topic, sorted(schemas))
+    assert 1.0 < summary["duration_s"] < 30
+    assert summary["start"] < summary["end"]
+    pose = next(c for c in summary["channels"] if c["topic"] == "/pioneer/pose")
+    assert 5 <= pose["rate_hz"] <= 20 and 0.05 < pose["largest_gap_s"] < 1.0
+    text = run("info", str(path))
+    assert text.returncode == 0 and "/hub/camera" in text.stdout and "Duration:" in text.stdout
+
+
+def test_record_stops_after_count(tmp_path: Path) -> None:
+    path = tmp_path / "count.mcap"
+    proc = run("record", "--pioneer", "sim", "-n", "30", "-o", str(path))
+    assert proc.returncode == 0, proc.stderr
+    assert len(messages(path)) >= 30
+
+
+def test_dump_reads_a_recording_as_the_live_capture(tmp_path: Path) -> None:
+    """One session, recorded by the live dump's capture writer and by the recorder: dump
+    --file decodes both into the same packets, each direction in the same order."""
+    from robocli.devices.pioneer import Pioneer
+
+    mcap, jsonl = tmp_path / "s.mcap", tmp_path / "s.jsonl"
+    with PioneerSim("p3dx", time_scale=5.0) as sim:
+        url = sim.serve_tcp("127.0.0.1", 0)
+        with Recorder(mcap) as rec, CaptureWriter(jsonl) as capture:
+            listener = rec.listener("pioneer", "arcos")
+
+            def live(direction: str, payload: bytes, t: float) -> None:
+                capture.write(t, direction, arcos.frame(payload))
+
+            with Pioneer.connect(url, listeners=[listener, live], laser=True) as robot:
+                rec.add(robot, listener.name)
+                robot.set_velocity(0.1, 0.0)
+                for _ in range(5):
+                    robot.wait_for_sip()
+    from_mcap = _json_dump("pioneer", "--file", str(mcap))
+    from_jsonl = _json_dump("pioneer", "--file", str(jsonl))
+    for way in ("tx", "rx"):
+        ours = [(p["type"], p["name"], p["fields"]) for p in from_mcap if p["dir"] == way]
+        live_ = [(p["type"], p["name"], p["fields"]) for p in from_jsonl if p["dir"] == way]
+        assert ours == live_ and len(ours) > 5
+    assert [p["t"] for p in from_mcap] == sorted(p["t"] for p in from_mcap)
+
+
+def test_dump_arm_reads_a_recording_with_its_ports(tmp_path: Path) -> None:
+    path = tmp_path / "arm.mcap"
+    proc = run("record", "--arm", "sim", "-n", "40", "-o", str(path))
+    assert proc.returncode == 0, proc.stderr
+    packets = _json_dump("arm", "--file", str(path), "-n", "20")
+    assert len(packets) == 20
+    assert {p["port"] for p in packets} == {"state"} and {p["dir"] for p in packets} == {"rx"}
+    assert {"JOINT_POSITION", "STATUS", "JOINT_FEEDBACK"} <= {p["name"] for p in packets}
+
+
+def _pose_count(path: Path) -> int:
+    try:
+        channels = info(path).channels
+    except Exception:  # noqa: BLE001 - not even the header written yet
+        return 0
+    return sum(c.count for c in channels if c.topic == "/pioneer/pose")
+
+
+@contextlib.contextmanager
+def _recording(path: Path, *extra: str) -> Iterator[subprocess.Popen[str]]:
+    """A ``robocli record`` process that has written complete chunks holding poses."""
+    with running("record", "--pioneer", "sim", "-o", str(path), *extra) as proc:
+        assert proc.stderr is not None
+        assert "recording to" in proc.stderr.readline()
+        wait_for(lambda: _pose_count(path) >= 5, what="poses written to disk")
+        yield proc
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_and_sigterm_finish_the_file(tmp_path: Path, sig: signal.Signals) -> None:
+    path = tmp_path / "stopped.mcap"
+    with _recording(path) as proc:
+        proc.send_signal(sig)
+        assert proc.wait(30) == 130
+        err = proc.stderr.read()
+    assert "recorded" in err and "Traceback" not in err
+    summary = info(path)
+    assert summary.summary and not summary.truncated  # closed with its summary section
+    items = messages(path)
+    assert len(items) == summary.messages
+    # the robot's stop and CLOSE went out before the file closed, and were recorded
+    tx = [bytes(m.data) for _, c, m in items if c.topic == "/pioneer/raw/tx"]
+    assert tx[-1] == arcos.encode_command(arcos.Command.CLOSE, 1)
+    for item in by_topic(path)["/pioneer/pose"]:
+        decoded(item)
+
+
+def test_sigkill_leaves_every_complete_chunk_readable(tmp_path: Path) -> None:
+    path = tmp_path / "killed.mcap"
+    with _recording(path) as proc:
+        before = _pose_count(path)
+        proc.kill()
+        proc.wait(30)
+    records, _cut = stream_messages(path)  # the mcap package's own stream reader
+    summary = info(path)
+    assert not summary.summary  # no summary: scanned, up to the last complete record
+    poses = [c for c in summary.channels if c.topic == "/pioneer/pose"]
+    assert poses and poses[0].schema == "foxglove.PoseInFrame" and poses[0].count >= before
+    assert len(records) == summary.messages >= before
+    assert summary.readable_bytes <= summary.size
+    out = run("info", str(path))
+    assert out.returncode == 0 and "Summary:     none" in out.stdout
+
+
+def test_a_lost_link_ends_with_its_error_and_a_whole_file(tmp_path: Path) -> None:
+    path = tmp_path / "lost.mcap"
+    with PioneerSim("p3dx") as sim:
+        url = sim.serve_tcp("127.0.0.1", 0)
+        with running("record", "--pioneer", url, "-o", str(path)) as proc:
+            assert "recording to" in proc.stderr.readline()
+            wait_for(lambda: _pose_count(path) >= 3, what="poses on disk")
+            sim.close()  # the robot goes away
+            code = proc.wait(60)
+            err = proc.stderr.read()
+    assert code in (1, 3), err  # the link's own exit code: lost (1) or silent (3)
+    assert "robocli: " in err and "Traceback" not in err and "recorded" in err
+    assert info(path).summary
+
+
+def test_a_full_disk_is_one_line_and_keeps_what_was_written(tmp_path: Path) -> None:
+    path = tmp_path / "full.mcap"
+    limit = 250_000  # a few one-second chunks of uncompressed 500 Hz ADC samples
+
+    import resource  # (POSIX)
+
+    def small_disk() -> None:  # in the child: files end at `limit` bytes, as a full disk
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    proc = subprocess.run(
+        [*ROBOCLI, "record", "--hub", "sim", "--sensors", "adc:500", "--compression", "none",
+         "-d", "120", "-o", str(path)],
+        capture_output=True, text=True, timeout=90, stdin=subprocess.DEVNULL,
+        preexec_fn=small_disk,
+    )  # fmt: skip
+    assert proc.returncode == 1, proc.stderr
+    lines = proc.stderr.strip().splitlines()  # what it recorded, then the one error line
+    assert [line for line in lines if line.startswith("robocli: ")] == lines[-1:]
+    assert "failed" in lines[-1] and "last complete chunk" in lines[-1]
+    assert "Traceback" not in proc.stderr
+    records, _ = stream_messages(path)
+    assert records and path.stat().st_size <= limit
+
+
+def test_usage_errors(tmp_path: Path) -> None:
+    assert run("record", "-o", str(tmp_path / "x.mcap")).returncode == 2
+    assert run("record", "--pioneer", "sim", "-o", str(tmp_path / "x.txt")).returncode == 2
+    bad = run("record", "--hub", "sim", "--sensors", "smell", "-o", str(tmp_path / "x.mcap"))
+    assert bad.returncode == 2 and "smell" in bad.stderr
+    nodir = run("record", "--pioneer", "sim", "-o", str(tmp_path / "no" / "x.mcap"))
+    assert "cannot write" in one_line_error(nodir, 2)
+    notmcap = tmp_path / "notes.mcap"
+    notmcap.write_text("hello")
+    assert "not an MCAP file" in one_line_error(run("info", str(notmcap)), 1)
