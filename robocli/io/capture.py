@@ -72,9 +72,10 @@ def read_capture(
     stats = CaptureStats() if stats is None else stats
     try:
         if path.suffix == ".mcap":
-            from robocli.io.record import raw_frames
+            from robocli.io.record.reader import raw_frames
 
-            yield from raw_frames(path, protocol, stats)
+            for t, direction, frame in raw_frames(path, protocol, stats):
+                yield CapturedFrame(t, direction, frame)
             return
         with path.open("rb") as stream:
             if path.suffix == ".jsonl":

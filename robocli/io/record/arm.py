@@ -11,16 +11,15 @@ import numpy as np
 
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, json_text
+from robocli.io.record.links import RawLink, Sink, json_text
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
-    from robocli.io.record.recorder import Recorder
 
 __all__ = ["ArmDecoder", "attach_arm"]
 
 
-def attach_arm(rec: Recorder, arm: Arm, name: str, ports: str = "both") -> str:
+def attach_arm(rec: Sink, arm: Arm, name: str, ports: str = "both") -> str:
     name = rec.unique_name(name)
     order = "big" if arm.byteorder == ">" else "little"
     if ports not in ("both", "motion", "state"):
@@ -48,7 +47,7 @@ class ArmDecoder:
     The controller's clock (JOINT_FEEDBACK's time) is put on the host clock by the smallest
     receive-minus-controller time seen so far (the transport delay's floor is taken as 0)."""
 
-    def __init__(self, rec: Recorder, name: str, arm: Arm) -> None:
+    def __init__(self, rec: Sink, name: str, arm: Arm) -> None:
         self.rec, self.model = rec, arm.robot
         self.order, self.real = arm.byteorder, arm.real
         n = self.model.n_joints

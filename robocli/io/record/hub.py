@@ -12,11 +12,10 @@ import numpy as np
 
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, json_text
+from robocli.io.record.links import RawLink, Sink, json_text
 
 if TYPE_CHECKING:
     from robocli.devices.hub import Hub
-    from robocli.io.record.recorder import Recorder
 
 __all__ = ["HubDecoder", "attach_hub", "pull_hub"]
 
@@ -24,7 +23,7 @@ _G = 9.80665  #: m/s^2 per g (the hub's IMU reports g, deg/s, uT)
 _CPU = ("user", "sys", "nice", "idle", "iowait", "hirq", "sirq")
 
 
-def attach_hub(rec: Recorder, hub: Hub, name: str, sensors: Iterable[str] = ()) -> str:
+def attach_hub(rec: Sink, hub: Hub, name: str, sensors: Iterable[str] = ()) -> str:
     name = rec.unique_name(name)
     link = RawLink(rec, name, "ros4mat", url=hub.url, sensors=",".join(sensors))
     link.decoder = HubDecoder(rec, name, hub)
@@ -39,7 +38,7 @@ class HubDecoder:
     as the client puts it on its own clock: Unix time unless ``Hub.connect(clock=...)``
     gave another). All samples of one reply share its receive time as their log time."""
 
-    def __init__(self, rec: Recorder, name: str, hub: Hub) -> None:
+    def __init__(self, rec: Sink, name: str, hub: Hub) -> None:
         self.rec, self.hub, self.name = rec, hub, name
         self._cids: dict[str, int] = {}
 

@@ -5,17 +5,48 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
-if TYPE_CHECKING:
-    from robocli.io.record.recorder import Recorder
-
-__all__ = ["RAW_ENCODING", "RawLink", "json_text", "new_link", "raw_link"]
+__all__ = ["RAW_ENCODING", "RawLink", "Sink", "json_text", "new_link", "raw_link"]
 
 #: Message encoding of the raw-bytes channels: each message is one whole frame as it went
 #: over the link (framing and checksum included), in the protocol named by the channel's
 #: ``protocol`` metadata.
 RAW_ENCODING = "robocli.raw"
+
+
+
+class Sink(Protocol):
+    """What a device's recording writes into (:class:`~robocli.io.record.Recorder` is one):
+    named links, a queue to its writer thread, and channels and messages on that thread."""
+
+    links: dict[str, Any]
+
+    def log_ns(self, t_monotonic: float) -> int:
+        """A monotonic time (s) in Unix-epoch ns."""
+        ...
+
+    def unique_name(self, base: str) -> str:
+        """``base``, or ``base2``, ``base3``... the first not taken yet."""
+        ...
+
+    def on_close(self, detach: Callable[[], None]) -> None:
+        """Call ``detach`` when the recording closes."""
+        ...
+
+    def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
+        """Queue ``handler(*args)`` for the writer thread; never blocks."""
+        ...
+
+    def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
+                metadata: dict[str, str] | None = None) -> int:  # fmt: skip
+        """The id of ``topic``'s channel (writer thread only)."""
+        ...
+
+    def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
+        """Add one message to channel ``cid`` (writer thread only)."""
+        ...
+
 
 _ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 
@@ -46,7 +77,7 @@ class RawLink:
     rebuilds the whole frame from what the device's listener gets (the Pioneer's listeners
     see payloads without sync bytes and checksum)."""
 
-    def __init__(self, rec: Recorder, name: str, protocol: str, *,
+    def __init__(self, rec: Sink, name: str, protocol: str, *,
                  reframe: Callable[[bytes], bytes] | None = None, port: str | None = None,
                  **metadata: str) -> None:  # fmt: skip
         self.rec, self.name, self.protocol, self.port = rec, name, protocol, port
@@ -76,14 +107,14 @@ class RawLink:
             self.decoder(direction, payload, ns)
 
 
-def raw_link(rec: Recorder, name: str, protocol: str, **metadata: str) -> RawLink:
+def raw_link(rec: Sink, name: str, protocol: str, **metadata: str) -> RawLink:
     """A new raw link of ``rec`` named ``name`` (``name2``... when taken): see
-    :meth:`Recorder.listener`."""
+    :meth:`Sink.listener`."""
     return new_link(rec, rec.unique_name(name), protocol, **metadata)
 
 
-def new_link(rec: Recorder, name: str, protocol: str, **metadata: str) -> RawLink:
-    """A raw link under ``name`` (reserved with :meth:`Recorder.unique_name`)."""
+def new_link(rec: Sink, name: str, protocol: str, **metadata: str) -> RawLink:
+    """A raw link under ``name`` (reserved with :meth:`Sink.unique_name`)."""
     reframe: Callable[[bytes], bytes] | None = None
     if protocol == "arcos":
         from robocli.protocols.arcos import frame

@@ -9,13 +9,12 @@ from typing import TYPE_CHECKING
 from robocli.devices.pioneer.state import Odometry, build_state
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, json_text, new_link
+from robocli.io.record.links import RawLink, Sink, json_text, new_link
 from robocli.protocols.arcos import Command, decode_sip
 
 if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer
     from robocli.devices.pioneer.laser import LaserScan
-    from robocli.io.record.recorder import Recorder
     from robocli.robots.pioneer import RobotParams
 
 __all__ = ["PioneerDecoder", "attach_pioneer"]
@@ -26,7 +25,7 @@ _ZEROS = ["0"] * _SONAR_BINS
 _ECHO_CACHE = 1 << 16
 
 
-def attach_pioneer(rec: Recorder, robot: Pioneer, name: str | None) -> str:
+def attach_pioneer(rec: Sink, robot: Pioneer, name: str | None) -> str:
     """``name``: the default ``pioneer`` (numbered), or the name of a link made with
     :meth:`Recorder.listener` at connect time, which then gets decoded."""
     link: RawLink | None = rec.links.get(name) if name is not None else None
@@ -57,7 +56,7 @@ class PioneerDecoder:
     Keeps its own odometry (the 15-bit counters unwrapped as the client does, SETO seen in
     the frames sent), so that every recorded pose belongs to the SIP it was decoded from."""
 
-    def __init__(self, rec: Recorder, name: str, params: RobotParams) -> None:
+    def __init__(self, rec: Sink, name: str, params: RobotParams) -> None:
         self.rec, self.params = rec, params
         self.odo = Odometry()
         n = max(16, len(params.sonar))

@@ -312,17 +312,17 @@ def _family(protocol: str) -> str:
 _REORDER_NS = 2_000_000_000
 
 
-def raw_frames(path: str | Path, protocol: str, stats: Any = None) -> Iterator[Any]:
+def raw_frames(path: str | Path, protocol: str, stats: Any = None
+               ) -> Iterator[tuple[float, str, bytes]]:  # fmt: skip
     """The frames of the raw channels of one link speaking ``protocol`` (``arcos``,
     ``sm-le``/``sm-be``: either byte order, ``ros4mat``), in log-time order, as
-    :class:`~robocli.io.capture.CapturedFrame` (``t``: seconds since the first message of
-    the recording; ``direction``: ``tx``/``rx``, with ``:port`` for an arm link). With
-    several such links the first is read and the others are named in a warning log.
-    ``stats`` (a :class:`~robocli.io.capture.CaptureStats`) is updated as it goes."""
+    ``(t, direction, frame)``: ``t`` in seconds since the first message of the recording,
+    ``direction`` ``tx``/``rx`` with ``:port`` for an arm link (what
+    :func:`robocli.io.capture.read_capture` makes its frames of). With several such links
+    the first is read and the others are named in a warning log. ``stats`` (a
+    :class:`~robocli.io.capture.CaptureStats`, optional) is updated as it goes."""
     from robocli.core import Framer
-    from robocli.io.capture import CapturedFrame, CaptureStats
 
-    stats = CaptureStats() if stats is None else stats
     summary_info = info(path)
     raws = [c for c in summary_info.channels if c.encoding == RAW_ENCODING
             and _family(c.metadata.get("protocol", "")) == _family(protocol)]  # fmt: skip
@@ -345,16 +345,19 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None) -> Iterator[A
             framer = framers.get(channel_id)
             if framer is None:
                 framer = framers[channel_id] = Framer(meta.get("protocol", protocol))
-            stats.bytes_read += len(data)
+            if stats is not None:
+                stats.bytes_read += len(data)
             way = meta.get("direction", "?")
             if meta.get("port"):
                 way = f"{way}:{meta['port']}"
             for frame in framer.feed(data):
-                stats.frames += 1
-                yield CapturedFrame((log_ns - start) / 1e9, way, frame)
+                if stats is not None:
+                    stats.frames += 1
+                yield (log_ns - start) / 1e9, way, frame
     finally:
-        for framer in framers.values():
-            stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+        if stats is not None:
+            for framer in framers.values():
+                stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
 
 
 def _ordered(path: str | Path, summary_info: RecordingInfo,

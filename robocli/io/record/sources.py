@@ -27,18 +27,15 @@ Hub        ``imu`` (robocli.Imu), ``adc``, ``battery``, ``sysinfo``, ``gps`` (Lo
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from robocli.errors import InvalidArgument
-from robocli.io.record.links import RawLink, raw_link
-
-if TYPE_CHECKING:
-    from robocli.io.record.recorder import Recorder
+from robocli.io.record.links import RawLink, Sink, raw_link
 
 __all__ = ["RawLink", "attach", "raw_link"]
 
 
-def attach(rec: Recorder, device: Any, name: str | None = None, **options: Any) -> str:
+def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> str:
     """Record ``device`` into ``rec`` (see :meth:`Recorder.add`); returns its name."""
     from robocli.devices.arm import Arm
     from robocli.devices.hub import Hub
