@@ -190,14 +190,21 @@ def dump(
 
 
 def _dump_file(view: Any, file: Path, protocol: str) -> None:
+    """Show the messages of a capture; exit 1 when it holds none, or when
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, read_capture
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
     stats = CaptureStats()
-    for item in read_capture(file, protocol, stats):
-        view.show(item.direction, item.frame, item.t)
-        if view.done:
-            return
+    try:
+        for item in read_capture(file, protocol, stats):
+            view.show(item.direction, item.frame, item.t)
+            if view.done:
+                return
+    except NoFrameError as exc:
+        raise NoFrameError(
+            f"{exc} ({stats.frames} messages decoded, {stats.dropped_bytes} bytes dropped)"
+        ) from None
     if stats.frames == 0:
         raise RobocliError(f"{file}: no Simple Message frame ({stats.dropped_bytes} bytes "
                            "dropped)")  # fmt: skip

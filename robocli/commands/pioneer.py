@@ -245,16 +245,22 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def _dump_file(view: Any, file: Path) -> None:
-    """Show the packets of a capture, streamed; exit 1 when it holds none."""
+    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, read_capture
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
     stats = CaptureStats()
     with reader_may_leave(), sigterm_as_interrupt():
-        for item in read_capture(file, stats=stats):
-            view.show(item.direction, item.frame[3:-2], item.t)
-            if view.done:
-                return
+        try:
+            for item in read_capture(file, stats=stats):
+                view.show(item.direction, item.frame[3:-2], item.t)
+                if view.done:
+                    return
+        except NoFrameError as exc:
+            raise NoFrameError(
+                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
+            ) from None
     summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
     if stats.frames == 0:
         raise RobocliError(f"{file}: {summary}")
