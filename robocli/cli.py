@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, map errors to one line and an exit code."""
     from typer.exceptions import TyperException
 
-    from robocli.errors import EXIT_INTERRUPTED, EXIT_USAGE, RobocliError
+    from robocli.errors import EXIT_INTERRUPTED, InvalidArgument, RobocliError
 
     args = _hoist_verbose(sys.argv[1:] if argv is None else list(argv))
     try:
@@ -137,7 +137,9 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
     except RobocliError as exc:
-        hint = f" Try 'robocli {_command_of(args)} -h'." if exc.exit_code == EXIT_USAGE else ""
+        # -h helps with a value given on the command line (InvalidArgument: a URL, a range),
+        # not with a file's contents (a log with NaN, an unreachable point, a missing folder)
+        hint = f" Try 'robocli {_command_of(args)} -h'." if isinstance(exc, InvalidArgument) else ""
         message = str(exc).rstrip(".") + "." if hint else str(exc)
         typer.echo(f"robocli: {message}{hint}", err=True)
         return exc.exit_code

@@ -127,6 +127,31 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def listening() -> Iterator[None]:
+    """Around a server's bind (``sim``, ``serve``, ``dump --listen``): a port already in use
+    is no robot out of reach (exit 3) but a failure (exit 1); an address that is not this
+    machine's, or no address at all, a usage error (exit 2)."""
+    import errno
+    import socket
+
+    from robocli.errors import InvalidArgument, RobocliError, TransportError
+
+    try:
+        yield
+    except InvalidArgument:
+        raise
+    except TransportError as exc:
+        cause = exc.__cause__
+        if isinstance(cause, (socket.gaierror, UnicodeError)) or (
+            isinstance(cause, OSError) and cause.errno == errno.EADDRNOTAVAIL
+        ):
+            raise InvalidArgument(
+                f"{exc} (give an address of this machine, e.g. 127.0.0.1)"
+            ) from None
+        raise RobocliError(str(exc)) from None
+
+
+@contextlib.contextmanager
 def reader_may_leave() -> Iterator[None]:
     """Around output to a pipe: when its reader goes away (``robocli dump ... | head``),
     stop quietly with exit code 0 (stdout goes to /dev/null, so that the final flush

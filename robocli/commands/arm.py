@@ -21,6 +21,7 @@ import typer
 
 from robocli.commands._common import (
     SIM,
+    listening,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -136,6 +137,11 @@ def simulate(
     _check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
+    if motion_port == state_port != 0:
+        raise typer.BadParameter(
+            f"--motion-port and --state-port are both {motion_port}: the motion and the state "
+            "server each need their own port"
+        )
     if state_ms is None:
         state_ms = 20.0 if paper else 100.0
     model = (
@@ -156,17 +162,15 @@ def simulate(
             feedback=feedback,
         ) as simulator,
     ):
-        try:
+        with listening():
             motion, state = simulator.serve_tcp(bind, motion_port, state_port)
-            typer.echo(
-                f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
-                f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
-            )
-            sys.stdout.flush()
-            while True:
-                time.sleep(3600)
-        except KeyboardInterrupt:
-            typer.echo("simulator stopped", err=True)
+        typer.echo(
+            f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
+            f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
+        )
+        sys.stdout.flush()
+        while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
+            time.sleep(3600)
 
 
 # ------------------------------------------------------------------------------ upload arm
@@ -316,7 +320,8 @@ def monitor(
     timeout: float = TimeoutOpt,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
-    from robocli.devices.arm import Arm
+    from robocli.devices.arm import Arm, TooFewSamples
+    from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.trajlog import check_writable, write_log
 
     _check_wire(byte_order, real_size)
@@ -329,15 +334,23 @@ def monitor(
                          real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
             rec = arm.record() if samples is None else arm.record(2 * samples)
             end = time.monotonic() + (duration if duration is not None else math.inf)
+            interrupted = False
             try:
                 while time.monotonic() < end and (samples is None or _count(rec) < samples):
                     arm.wait_for_state(timeout)
             except KeyboardInterrupt:
-                pass  # keep what was recorded
+                interrupted = True  # keep what was recorded, then exit 130
             rec.stop()
-            log = rec.log()
+            try:
+                log = rec.log()
+            except TooFewSamples:
+                if interrupted:  # too early for a log: interrupted all the same
+                    raise typer.Exit(EXIT_INTERRUPTED) from None
+                raise
     write_log(log, out)
     typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
+    if interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def _count(rec: Any) -> int:

@@ -20,7 +20,12 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import reader_may_leave, rounded, sigterm_as_interrupt
+from robocli.commands._common import (
+    listening,
+    reader_may_leave,
+    rounded,
+    sigterm_as_interrupt,
+)
 from robocli.commands.arm import (
     MotionPortOpt,
     OrderOpt,
@@ -302,10 +307,12 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
     for name, offset, target in (("motion", 0, mp), ("state", 2, sp)):
         if ports not in ("both", name):
             continue
-        proxy = stack.enter_context(RecordingProxy(
-            (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
-            bind=bind, port=port + offset if port else 0, max_clients=2,
-            name=f"arm-dump-{name}").start())  # fmt: skip
+        with listening():  # a port in use: exit 1, an address not this machine's: 2
+            proxy = RecordingProxy(
+                (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
+                bind=bind, port=port + offset if port else 0, max_clients=2,
+                name=f"arm-dump-{name}")  # fmt: skip
+        stack.enter_context(proxy.start())
         said.append(f"{name} {bind}:{proxy.port} -> {host}:{target}")
         relays.append(proxy)
     typer.echo("dump: clients connect to " + ", ".join(said), err=True)

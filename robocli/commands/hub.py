@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import (
+    listening,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -321,12 +322,11 @@ def dump(
     from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
 
     upstream = parse_hub(host)
-    check_upstream(*upstream)
     bind, port = parse_hub(listen, 1501)
+    writer = _capture(output) if output is not None else None  # before connecting
     done = threading.Event()
     broken = threading.Event()
     printed = 0
-    writer = _capture(output) if output is not None else None
 
     def show(msg: Message) -> None:
         nonlocal printed
@@ -357,7 +357,10 @@ def dump(
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with DumpProxy(upstream, show, bind=bind, port=port).start() as proxy:
+            check_upstream(*upstream)
+            with listening():
+                proxy = DumpProxy(upstream, show, bind=bind, port=port)
+            with proxy.start():
                 typer.echo(
                     f"dump: clients connect to {bind}:{proxy.port}, relayed to "
                     f"{upstream[0]}:{upstream[1]}",
@@ -376,17 +379,13 @@ def dump(
 
 def _capture(path: Path) -> Any:
     """A capture writer on ``path`` (JSON Lines); a name or place it cannot have is a usage
-    error (exit 2), before any client connects."""
-    from robocli.errors import RobocliError
+    error (exit 2), before anything connects."""
     from robocli.io.capture import CaptureWriter
 
     if path.suffix != ".jsonl":
         raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
                                  param_hint="'--output'")  # fmt: skip
-    try:
-        return CaptureWriter(path)
-    except RobocliError as exc:
-        raise typer.BadParameter(str(exc), param_hint="'--output'") from None
+    return CaptureWriter(path)  # a missing folder: CaptureFileError, exit 2
 
 
 def serial(

@@ -21,6 +21,7 @@ import typer
 from robocli.commands._common import (
     PORT_HELP,
     explain_refusal,
+    listening,
     pioneer_url,
     print_json,
     print_json_line,
@@ -339,20 +340,19 @@ def simulate(
     if not laser:
         options["laser"] = None
     sims: list[PioneerSim] = []
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
-            sims = serve_many(
-                robots, host=bind, port=port, pty=pty,
-                subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
-                **options,
-            )  # fmt: skip
+            with listening():
+                sims = serve_many(
+                    robots, host=bind, port=port, pty=pty,
+                    subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
+                    **options,
+                )  # fmt: skip
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {subtype} on {simulator.pty_path or simulator.url}")
             sys.stdout.flush()
             while True:
                 time.sleep(3600)
-        except KeyboardInterrupt:
-            typer.echo("simulator stopped", err=True)
         finally:
             for simulator in sims:
                 simulator.close()

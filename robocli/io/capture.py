@@ -209,7 +209,9 @@ class CaptureWriter:
         try:
             self._file = self.path.open("w", encoding="utf-8")
         except OSError as exc:
-            raise RobocliError(f"cannot write capture {path}: {exc.strerror or exc}") from None
+            parent = self.path.parent
+            why = f"no directory {parent}" if not parent.is_dir() else exc.strerror or exc
+            raise CaptureFileError(f"{path}: cannot write ({why})") from None
         self._lock = threading.Lock()
         self.records = 0
 
