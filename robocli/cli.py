@@ -29,7 +29,9 @@ class _Typer(typer.Typer):
 
 app = _Typer(
     name="robocli",
-    help="Drive robots and read their sensors from a laptop: Pioneer (ARCOS), built-in simulators.",
+    help="Drive robots and read their sensors from a laptop, byte for byte: Pioneer mobile "
+    "robots (ARCOS), ABB and other industrial arms (ROS-Industrial Simple Message), the ros4mat "
+    "sensor hub; a built-in simulator for each.",
     no_args_is_help=True,
     add_completion=True,
     pretty_exceptions_enable=False,
@@ -147,7 +149,9 @@ def main(argv: list[str] | None = None) -> int:
         if type(exc).__name__ == "NoArgsIsHelpError":  # a group without its command: help
             typer.echo(exc.format_message())
             return 0
-        message = exc.format_message().rstrip(".") + _given_value(exc, args)
+        # "Value error, ": how pydantic (Typer's coercion) words a rejected choice
+        message = exc.format_message().replace("Value error, ", "").rstrip(".")
+        message += _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
 

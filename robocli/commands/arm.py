@@ -15,7 +15,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -36,6 +36,11 @@ if TYPE_CHECKING:
 HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.")
 MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
 StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
+#: Choices of options (Literal: Typer checks them, lists them in -h and completes them).
+ByteOrder = Literal["little", "big"]
+RealSize = Literal[4, 8]
+Profile = Literal["abb", "generic"]
+Shape = Literal["circle", "rectangle"]
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
 RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
 RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
@@ -86,8 +91,12 @@ def _check_wire(byte_order: str, real_size: int) -> None:
 
 
 def simulate(
-    motion_port: int = typer.Option(11000, "--motion-port", min=0, max=65535),
-    state_port: int = typer.Option(11002, "--state-port", min=0, max=65535),
+    motion_port: int = typer.Option(
+        11000, "--motion-port", min=0, max=65535, help="Motion server's TCP port (0: any)."
+    ),
+    state_port: int = typer.Option(
+        11002, "--state-port", min=0, max=65535, help="State server's TCP port (0: any)."
+    ),
     state_ms: float | None = typer.Option(  # noqa: UP007
         None,
         "--state-ms",
@@ -95,9 +104,9 @@ def simulate(
         max=10_000.0,
         help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
     ),
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
-    profile: str = typer.Option(
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
+    profile: Profile = typer.Option(
         "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
     ),
     robot: str = RobotOpt,
@@ -128,7 +137,9 @@ def simulate(
     feedback: bool = typer.Option(
         False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
     ),
-    time_scale: float = typer.Option(1.0, "--time-scale", min=0.1, max=100.0),
+    time_scale: float = typer.Option(
+        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
+    ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
@@ -237,8 +248,10 @@ class _Progress:
 
 def upload(
     host: str = HostArg,
-    shape: str | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
-    points: int = typer.Option(100, "--points", "-n", min=1, max=100_000),
+    shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
+    points: int = typer.Option(
+        100, "--points", "-n", min=1, max=100_000, help="Points of the --shape."
+    ),
     file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
     duration: float | None = typer.Option(None, "--duration", help="Shape duration, s."),  # noqa: UP007
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
@@ -248,8 +261,8 @@ def upload(
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
     wait: float = typer.Option(
@@ -309,13 +322,15 @@ def upload(
 def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
-    samples: int | None = typer.Option(None, "--samples", min=2, max=1_000_000),  # noqa: UP007
+    samples: int | None = typer.Option(  # noqa: UP007
+        None, "--samples", min=2, max=1_000_000, help="States to record (or --duration)."
+    ),
     duration: float | None = typer.Option(  # noqa: UP007
         None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
     ),
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -395,8 +410,8 @@ def connect(
     json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:

@@ -16,7 +16,7 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -27,9 +27,11 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands.arm import (
+    ByteOrder,
     MotionPortOpt,
     OrderOpt,
     RealOpt,
+    RealSize,
     RobotOpt,
     StatePortOpt,
     TimeoutOpt,
@@ -147,7 +149,9 @@ def dump(
     file: Path | None = typer.Option(  # noqa: UP007
         None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
     ),
-    ports: str = typer.Option("both", "--ports", help="both, motion or state."),
+    ports: Literal["both", "motion", "state"] = typer.Option(
+        "both", "--ports", help="both (two clients), motion or state."
+    ),
     listen: str | None = typer.Option(  # noqa: UP007
         None, "--listen", metavar="[ADDR:]PORT",
         help="Be a recording proxy: other programs connect to the motion port PORT and the "
@@ -155,8 +159,8 @@ def dump(
     ),  # fmt: skip
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -336,8 +340,8 @@ def teleop(
     ),
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:

@@ -13,7 +13,7 @@ import time
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -111,7 +111,7 @@ def subscribe(
         None, "--duration", min=0, help="Stop after S seconds."
     ),
     count: int | None = typer.Option(None, "--count", "-n", min=1, help="Stop after N samples."),  # noqa: UP007
-    fmt: str | None = typer.Option(  # noqa: UP007
+    fmt: Literal["table", "csv", "jsonl"] | None = typer.Option(  # noqa: UP007
         None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
     ),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
@@ -464,7 +464,7 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
 
 
 def throughput(
-    target: str = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
+    target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
     url: str | None = typer.Option(  # noqa: UP007
         None, "--url", help="A running hub HOST[:PORT] (default: a simulated hub process)."
     ),

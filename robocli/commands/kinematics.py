@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -98,7 +98,7 @@ def circle(
     points: int = PointsOpt,
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
     center: str | None = CenterOpt,
-    plane: str = PlaneOpt,  # noqa: UP007
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
     speed: float | None = SpeedOpt,
     duration: float | None = DurationOpt,  # noqa: UP007
     start: str | None = StartOpt,
@@ -129,7 +129,7 @@ def rectangle(
     width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
     height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
     center: str | None = CenterOpt,
-    plane: str = PlaneOpt,  # noqa: UP007
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
     speed: float | None = SpeedOpt,
     duration: float | None = DurationOpt,  # noqa: UP007
     start: str | None = StartOpt,
