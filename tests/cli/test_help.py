@@ -10,6 +10,7 @@ import io
 import os
 import re
 from collections.abc import Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -140,3 +141,21 @@ def test_a_missing_serial_port_says_why_once() -> None:
     assert "robocli ports" in line
     line = one_line_error(run("connect", "pioneer", "/dev/null"), 3)
     assert "/dev/null: not a serial port" in line, line
+
+
+def test_validate_calls_the_alignment_a_time_shift_not_a_delay(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The demo printed "delay 1129 ms" against the exact simulator: that was how long the
+    recording ran before the arm moved (the upload), and it read like a bug."""
+    from robocli.io.trajlog import read_log, write_log
+    from robocli.kinematics.validate import shifted
+
+    sim, real = tmp_path / "sim.json", tmp_path / "real.json"
+    assert main(["traj", "circle", "-o", str(sim)]) == 0
+    write_log(shifted(read_log(sim), 1.2, pad_s=1.2), real)  # 1.2 s standing, then the circle
+    capsys.readouterr()
+    assert main(["validate", str(sim), str(real)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    assert "delay" not in out and "time shift 1200.0 ms" in out, out
+    assert "the measured motion starts 1200.0 ms later in its log" in out, out
