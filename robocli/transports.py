@@ -31,9 +31,9 @@ from typing import Any
 
 from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, TransportError
 
-# a host is any run of characters without space, colon, slash or brackets (an IPv6 address in
-# brackets): a name with non-ASCII letters is resolved (IDNA), not taken for a serial port
-_TCP_URL = re.compile(r"^(?:tcp://)?(?P<host>\[[^\]]+\]|[^\s:/\\\[\]@]+):(?P<port>\d{1,5})/?$")
+_TCP_URL = re.compile(r"^(?:tcp://)?(?P<host>\[[^\]]+\]|[A-Za-z0-9_.\-]+):(?P<port>\d{1,5})/?$")
+#: HOST:PORT with any host: what _TCP_URL refuses for the host alone (``hôst:8101``)
+_ANY_HOST_PORT = re.compile(r"^(?:tcp://)?(?P<host>[^\s:/\\]+):\d{1,5}/?$")
 
 
 class InvalidURL(InvalidArgument, TransportError):
@@ -400,6 +400,12 @@ def open_transport(url: str, *, baudrate: int = 9600, timeout: float = 5.0) -> T
         if not 0 < port < 65536:
             raise InvalidURL(f"bad TCP port {port} in {url!r}: expected 1..65535")
         return SocketTransport.connect(match["host"], port, timeout=timeout)
+    match = _ANY_HOST_PORT.match(url)
+    if match and (url.startswith("tcp://") or not url.startswith("/")):  # the host is wrong
+        raise InvalidURL(
+            f"bad TCP URL {url!r}: {match['host']!r} is not a host name or address (ASCII "
+            "letters, digits, '.', '-', '_'; a name in another script in its xn-- form)"
+        )
     if url.startswith("tcp://") or (url.endswith(":") and "/" not in url):
         raise InvalidURL(f"bad TCP URL {url!r}: expected tcp://HOST:PORT, PORT a number")
     scheme = url.split("://", 1)[0] if "://" in url else ""

@@ -117,15 +117,16 @@ def test_a_number_that_is_not_finite_is_named_so(args: tuple[str, ...], named: s
     assert named in line and "less than" not in line, line
 
 
-@pytest.mark.parametrize("port", ["tcp://hôst:99999", "hôst:99999"])
-def test_a_host_with_non_ascii_letters_is_a_host(port: str) -> None:
-    """It was "expected tcp://HOST:PORT, PORT a number" (and without tcp://, a serial port):
-    now the host is a host, and what is wrong is the port."""
+@pytest.mark.parametrize("port", ["tcp://hôst:8101", "hôst:8101"])
+def test_a_host_with_non_ascii_letters_is_named_as_the_problem(port: str) -> None:
+    """It said "expected tcp://HOST:PORT, PORT a number" (and without tcp://, took it for a
+    serial port and nested errno): the host is what is wrong, and nothing is looked up."""
     line = one_line_error(run("connect", "pioneer", port), 2)
-    assert "bad TCP port 99999 in" in line and "a number" not in line, line
+    assert "'hôst' is not a host name" in line, line
+    assert "PORT a number" not in line and "Errno" not in line, line
 
 
-@pytest.mark.parametrize("host", ["tcp://hôst..lab:8101", "a..b"])
+@pytest.mark.parametrize("host", ["tcp://a..b:8101", "a..b"])
 def test_a_name_that_is_no_host_name_is_a_usage_error(host: str) -> None:
     """An empty DNS label once ended in a UnicodeError traceback."""
     args = ("connect", "pioneer", host) if "://" in host else ("connect", "arm", host)
