@@ -163,10 +163,10 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def listening() -> Iterator[None]:
-    """Around a server's bind (``sim``, ``serve``, ``dump --listen``): a port already in use
-    is no robot out of reach (exit 3) but a failure (exit 1); an address that is not this
-    machine's, or no address at all, a usage error (exit 2)."""
+def listening(address: str) -> Iterator[None]:
+    """Around a server's bind on ``address`` (``sim``, ``serve``, ``dump --listen``): a port
+    already in use is no robot out of reach (exit 3) but a failure (exit 1); an address that
+    is not this machine's, or no address at all, a usage error (exit 2)."""
     import errno
     import socket
 
@@ -176,6 +176,9 @@ def listening() -> Iterator[None]:
         yield
     except InvalidArgument:
         raise
+    except UnicodeError as exc:  # the IDNA codec of the resolver: an empty label ("a..b")
+        why = str(exc.__cause__ or exc.__context__ or exc).removeprefix("UnicodeError: ")
+        raise InvalidArgument(f"cannot listen on {address!r}: not a host name ({why})") from None
     except TransportError as exc:
         cause = exc.__cause__
         if isinstance(cause, (socket.gaierror, UnicodeError)) or (

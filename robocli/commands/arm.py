@@ -173,7 +173,7 @@ def simulate(
             feedback=feedback,
         ) as simulator,
     ):
-        with listening():
+        with listening(bind):
             motion, state = simulator.serve_tcp(bind, motion_port, state_port)
         typer.echo(
             f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "

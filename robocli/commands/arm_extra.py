@@ -311,7 +311,7 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
     for name, offset, target in (("motion", 0, mp), ("state", 2, sp)):
         if ports not in ("both", name):
             continue
-        with listening():  # a port in use: exit 1, an address not this machine's: 2
+        with listening(bind):  # a port in use: exit 1, an address not this machine's: 2
             proxy = RecordingProxy(
                 (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
                 bind=bind, port=port + offset if port else 0, max_clients=2,

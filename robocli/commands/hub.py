@@ -358,7 +358,7 @@ def dump(
     with sigterm_as_interrupt(), reader_may_leave():
         try:
             check_upstream(*upstream)
-            with listening():
+            with listening(bind):
                 proxy = DumpProxy(upstream, show, bind=bind, port=port)
             with proxy.start():
                 typer.echo(

@@ -342,7 +342,7 @@ def simulate(
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
-            with listening():
+            with listening(bind):
                 sims = serve_many(
                     robots, host=bind, port=port, pty=pty,
                     subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,

@@ -84,7 +84,7 @@ def serve(
     )  # fmt: skip
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
-            with listening():
+            with listening(bind):
                 srv.start()
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)

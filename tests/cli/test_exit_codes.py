@@ -98,8 +98,9 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("subscribe", "adc", "--rate", "10", "--format", "xml", hint=True),
         run("sim", "pioneer", "--port", "70000", hint=True),
     ],
-    (2, "a `--bind` or `--listen` address that is not this machine's"): [
+    (2, "a `--bind` or `--listen` address that is not this machine's, or no address at all"): [
         run("sim", "pioneer", "--port", "0", "--bind", "192.0.2.1", hint=True),
+        run("sim", "abb", "--motion-port", "0", "--state-port", "0", "--bind", "a..b", hint=True),
         run("serve", "--port", "0", "--bind", "192.0.2.1", hint=True),
         run("dump", "arm", "sim", "--listen", "192.0.2.1:0", hint=True),
     ],
