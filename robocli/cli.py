@@ -30,7 +30,9 @@ class _Typer(typer.Typer):
 
 app = _Typer(
     name="robocli",
-    help="Drive robots and read their sensors from a laptop: Pioneer (ARCOS), built-in simulators.",
+    help="Drive robots and read their sensors from a laptop, byte for byte: Pioneer mobile "
+    "robots (ARCOS), ABB and other industrial arms (ROS-Industrial Simple Message), the ros4mat "
+    "sensor hub; a built-in simulator for each.",
     no_args_is_help=True,
     add_completion=True,
     pretty_exceptions_enable=False,
@@ -126,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, map errors to one line and an exit code."""
     from typer.exceptions import TyperException
 
-    from robocli.errors import EXIT_INTERRUPTED, EXIT_USAGE, RobocliError
+    from robocli.errors import EXIT_INTERRUPTED, InvalidArgument, RobocliError
 
     args = _hoist_verbose(sys.argv[1:] if argv is None else list(argv))
     try:
@@ -141,7 +143,9 @@ def main(argv: list[str] | None = None) -> int:
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
     except RobocliError as exc:
-        hint = f" Try 'robocli {_command_of(args)} -h'." if exc.exit_code == EXIT_USAGE else ""
+        # -h helps with a value given on the command line (InvalidArgument: a URL, a range),
+        # not with a file's contents (a log with NaN, an unreachable point, a missing folder)
+        hint = f" Try 'robocli {_command_of(args)} -h'." if isinstance(exc, InvalidArgument) else ""
         message = str(exc).rstrip(".") + "." if hint else str(exc)
         typer.echo(f"robocli: {message}{hint}", err=True)
         return exc.exit_code
@@ -149,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
         if type(exc).__name__ == "NoArgsIsHelpError":  # a group without its command: help
             typer.echo(exc.format_message())
             return 0
-        message = exc.format_message().rstrip(".") + _given_value(exc, args)
+        # "Value error, ": how pydantic (Typer's coercion) words a rejected choice
+        message = exc.format_message().replace("Value error, ", "").rstrip(".")
+        message += _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
 

@@ -350,6 +350,9 @@ class SocketTransport(Transport):
             raise TransportError(f"cannot connect to {url}: no answer in {timeout:g} s") from None
         except OSError as exc:
             raise TransportError(f"cannot connect to {url}: {exc.strerror or exc}") from None
+        except UnicodeError as exc:  # the IDNA codec: an empty or over-long label, e.g. "a..b"
+            why = str(exc.__cause__ or exc.__context__ or exc).removeprefix("UnicodeError: ")
+            raise InvalidURL(f"bad host {host!r} in {url!r}: not a host name ({why})") from None
         return cls(sock, url)
 
     def read(self, size: int = 4096, timeout: float | None = None) -> bytes:
@@ -456,7 +459,8 @@ class SerialTransport(Transport):
                     f"{url}: robot busy: another program holds this serial port "
                     f"(find it with `fuser {url}`)"
                 ) from None
-            raise TransportError(f"cannot open {url}: {exc}{_serial_hint(exc)}") from None
+            why = _serial_error(exc) + _serial_hint(exc)
+            raise TransportError(f"cannot open {url}: {why}") from None
         return cls(port, url)
 
     def _read(self, size: int, timeout: float | None) -> bytes:
@@ -513,6 +517,20 @@ class SerialTransport(Transport):
             with contextlib.suppress(OSError):
                 fcntl.flock(self._fd, fcntl.LOCK_UN)
         self.port.close()
+
+
+def _serial_error(exc: BaseException) -> str:
+    """pyserial's reason, once: its message nests the OS error in its own text, each with
+    its errno ("[Errno 2] could not open port X: [Errno 2] No such file or directory: 'X'")."""
+    code = getattr(exc, "errno", None)
+    if code == errno.ENOENT:
+        return f"{os.strerror(code)} (`robocli ports` lists the serial ports of this computer)"
+    if isinstance(code, int) and code > 0:
+        return os.strerror(code)
+    args: tuple[Any, ...] = tuple(getattr(exc.__context__, "args", ()))
+    if len(args) == 2 and args[0] == errno.ENOTTY:  # termios.error: a file, not a tty
+        return f"not a serial port ({args[1]})"
+    return str(exc)
 
 
 def _serial_hint(exc: BaseException) -> str:

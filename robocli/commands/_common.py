@@ -37,20 +37,25 @@ def bind_address(text: str) -> str:
     return parse_host(text, what="--bind")
 
 
-_TYPE_HINT = re.compile(r"(?<=\S) <(str|int|float|bool|path|file|text|int range|float range)>")
+_TYPE_HINT = re.compile(r"(?<=\S) <(int range|float range|[\w.-]+(?:\|[\w.-]+)*)>( *)")
 #: What an option's value is called instead of Typer's ``<int range>``-style placeholder.
 _VALUE_NAMES = {"int": "INTEGER", "float": "NUMBER", "int range": "INTEGER", "path": "PATH",
                 "float range": "NUMBER", "file": "FILE", "str": "TEXT", "text": "TEXT"}  # fmt: skip
 
 
 def _plain_type(match: re.Match[str]) -> str:
-    """A placeholder as plain help shows it, in the same width (columns stay aligned):
-    nothing after a flag or an argument's name, ``INTEGER``-style after an option."""
-    kind = match.group(1)
+    """A placeholder as plain help shows it, the description after it staying in its column:
+    nothing after a flag or an argument's name, ``INTEGER``-style after an option, the
+    choices as ``[little|big]``."""
+    kind, pad = match.group(1), match.group(2)
     name = match.string[: match.start()].rsplit(None, 1)[-1]  # `--port`, or `PORT`
+    width = len(match.group())
     if kind == "bool" or not name.startswith("-"):
-        return " " * len(match.group())
-    return f" {_VALUE_NAMES[kind]}".ljust(len(match.group()))
+        return " " * width
+    value = f" {_VALUE_NAMES[kind]}" if kind in _VALUE_NAMES else f" [{kind}]"  # choices
+    if not pad:  # the description is on the next line
+        return value
+    return value.ljust(max(width, len(value) + 2))  # 2 spaces at least before the description
 
 
 class PlainCommand(TyperCommand):
@@ -61,9 +66,40 @@ class PlainCommand(TyperCommand):
         pieces = super().collect_usage_pieces(ctx)
         return [piece.replace("{", "").replace("}", "").upper() for piece in pieces]
 
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        """First, a number option given ``nan`` or ``inf`` is refused as not a finite number
+        (the range check would say ``nan`` is above the maximum)."""
+        if not ctx.resilient_parsing:
+            _check_finite(self, ctx, args)
+        return super().parse_args(ctx, args)
+
     def format_help(self, ctx: Any, formatter: Any) -> None:
         super().format_help(ctx, formatter)
-        formatter.buffer[:] = [_TYPE_HINT.sub(_plain_type, part) for part in formatter.buffer]
+        # one string: a placeholder and the padding after it are separate pieces of the buffer
+        formatter.buffer[:] = [_TYPE_HINT.sub(_plain_type, "".join(formatter.buffer))]
+
+
+def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
+    """Raise a usage error for a float option given a value that is not a finite number."""
+    floats = [
+        p for p in command.params
+        if getattr(getattr(p, "type_descriptor", None), "annotation", None) is float
+    ]  # fmt: skip
+    if not floats:
+        return
+    try:
+        opts, _, _ = command.make_parser(ctx).parse_args(args=list(args))
+    except typer.TyperException:
+        return  # the real parse reports it
+    for param in floats:
+        values = opts.get(param.name)
+        for value in values if isinstance(values, (list, tuple)) else [values]:
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                continue  # not a number at all: the real parse says so
+            if not math.isfinite(number):
+                raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
 
 
 @contextlib.contextmanager
@@ -139,6 +175,34 @@ def sigterm_as_interrupt() -> Iterator[None]:
         yield
     finally:
         signal.signal(signal.SIGTERM, previous)
+
+
+@contextlib.contextmanager
+def listening(address: str) -> Iterator[None]:
+    """Around a server's bind on ``address`` (``sim``, ``serve``, ``dump --listen``): a port
+    already in use is no robot out of reach (exit 3) but a failure (exit 1); an address that
+    is not this machine's, or no address at all, a usage error (exit 2)."""
+    import errno
+    import socket
+
+    from robocli.errors import InvalidArgument, RobocliError, TransportError
+
+    try:
+        yield
+    except InvalidArgument:
+        raise
+    except UnicodeError as exc:  # the IDNA codec of the resolver: an empty label ("a..b")
+        why = str(exc.__cause__ or exc.__context__ or exc).removeprefix("UnicodeError: ")
+        raise InvalidArgument(f"cannot listen on {address!r}: not a host name ({why})") from None
+    except TransportError as exc:
+        cause = exc.__cause__
+        if isinstance(cause, (socket.gaierror, UnicodeError)) or (
+            isinstance(cause, OSError) and cause.errno == errno.EADDRNOTAVAIL
+        ):
+            raise InvalidArgument(
+                f"{exc} (give an address of this machine, e.g. 127.0.0.1)"
+            ) from None
+        raise RobocliError(str(exc)) from None
 
 
 @contextlib.contextmanager

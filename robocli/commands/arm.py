@@ -15,13 +15,14 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
 from robocli.commands._common import (
     SIM,
     bind_address,
+    listening,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -38,6 +39,11 @@ HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded
                          envvar=ARM_ENV, show_envvar=True)  # fmt: skip
 MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
 StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
+#: Choices of options (Literal: Typer checks them, lists them in -h and completes them).
+ByteOrder = Literal["little", "big"]
+RealSize = Literal[4, 8]
+Profile = Literal["abb", "generic"]
+Shape = Literal["circle", "rectangle"]
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
 RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
 RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
@@ -95,8 +101,12 @@ def _check_wire(byte_order: str, real_size: int) -> None:
 
 
 def simulate(
-    motion_port: int = typer.Option(11000, "--motion-port", min=0, max=65535),
-    state_port: int = typer.Option(11002, "--state-port", min=0, max=65535),
+    motion_port: int = typer.Option(
+        11000, "--motion-port", min=0, max=65535, help="Motion server's TCP port (0: any)."
+    ),
+    state_port: int = typer.Option(
+        11002, "--state-port", min=0, max=65535, help="State server's TCP port (0: any)."
+    ),
     state_ms: float | None = typer.Option(  # noqa: UP007
         None,
         "--state-ms",
@@ -104,9 +114,9 @@ def simulate(
         max=10_000.0,
         help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
     ),
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
-    profile: str = typer.Option(
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
+    profile: Profile = typer.Option(
         "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
     ),
     robot: str = RobotOpt,
@@ -137,7 +147,9 @@ def simulate(
     feedback: bool = typer.Option(
         False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
     ),
-    time_scale: float = typer.Option(1.0, "--time-scale", min=0.1, max=100.0),
+    time_scale: float = typer.Option(
+        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
+    ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
@@ -146,6 +158,11 @@ def simulate(
     _check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
+    if motion_port == state_port != 0:
+        raise typer.BadParameter(
+            f"--motion-port and --state-port are both {motion_port}: the motion and the state "
+            "server each need their own port"
+        )
     if state_ms is None:
         state_ms = 20.0 if paper else 100.0
     model = (
@@ -166,17 +183,15 @@ def simulate(
             feedback=feedback,
         ) as simulator,
     ):
-        try:
+        with listening(bind):
             motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
-            typer.echo(
-                f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
-                f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
-            )
-            sys.stdout.flush()
-            while True:
-                time.sleep(3600)
-        except KeyboardInterrupt:
-            typer.echo("simulator stopped", err=True)
+        typer.echo(
+            f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
+            f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
+        )
+        sys.stdout.flush()
+        while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
+            time.sleep(3600)
 
 
 # ------------------------------------------------------------------------------ upload arm
@@ -243,8 +258,10 @@ class _Progress:
 
 def upload(
     host: str = HostArg,
-    shape: str | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
-    points: int = typer.Option(100, "--points", "-n", min=1, max=100_000),
+    shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
+    points: int = typer.Option(
+        100, "--points", "-n", min=1, max=100_000, help="Points of the --shape."
+    ),
     file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
     duration: float | None = typer.Option(None, "--duration", help="Shape duration, s."),  # noqa: UP007
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
@@ -254,8 +271,8 @@ def upload(
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
     wait: float = typer.Option(
@@ -315,18 +332,21 @@ def upload(
 def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
-    samples: int | None = typer.Option(None, "--samples", min=2, max=1_000_000),  # noqa: UP007
+    samples: int | None = typer.Option(  # noqa: UP007
+        None, "--samples", min=2, max=1_000_000, help="States to record (or --duration)."
+    ),
     duration: float | None = typer.Option(  # noqa: UP007
         None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
     ),
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
-    from robocli.devices.arm import Arm
+    from robocli.devices.arm import Arm, TooFewSamples
+    from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.trajlog import check_writable, write_log
 
     _check_wire(byte_order, real_size)
@@ -339,15 +359,23 @@ def monitor(
                          real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
             rec = arm.record() if samples is None else arm.record(2 * samples)
             end = time.monotonic() + (duration if duration is not None else math.inf)
+            interrupted = False
             try:
                 while time.monotonic() < end and (samples is None or _count(rec) < samples):
                     arm.wait_for_state(timeout)
             except KeyboardInterrupt:
-                pass  # keep what was recorded
+                interrupted = True  # keep what was recorded, then exit 130
             rec.stop()
-            log = rec.log()
+            try:
+                log = rec.log()
+            except TooFewSamples:
+                if interrupted:  # too early for a log: interrupted all the same
+                    raise typer.Exit(EXIT_INTERRUPTED) from None
+                raise
     write_log(log, out)
     typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
+    if interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def _count(rec: Any) -> int:
@@ -392,8 +420,8 @@ def connect(
     json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:

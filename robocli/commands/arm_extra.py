@@ -16,15 +16,23 @@ import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import from_env, reader_may_leave, rounded, sigterm_as_interrupt
+from robocli.commands._common import (
+    from_env,
+    listening,
+    reader_may_leave,
+    rounded,
+    sigterm_as_interrupt,
+)
 from robocli.commands.arm import (
+    ByteOrder,
     MotionPortOpt,
     OrderOpt,
     RealOpt,
+    RealSize,
     RobotOpt,
     StatePortOpt,
     TimeoutOpt,
@@ -145,7 +153,9 @@ def dump(
     file: Path | None = typer.Option(  # noqa: UP007
         None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
     ),
-    ports: str = typer.Option("both", "--ports", help="both, motion or state."),
+    ports: Literal["both", "motion", "state"] = typer.Option(
+        "both", "--ports", help="both (two clients), motion or state."
+    ),
     listen: str | None = typer.Option(  # noqa: UP007
         None, "--listen", metavar="[ADDR:]PORT",
         help="Be a recording proxy: other programs connect to the motion port PORT and the "
@@ -153,8 +163,8 @@ def dump(
     ),  # fmt: skip
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -195,14 +205,21 @@ def dump(
 
 
 def _dump_file(view: Any, file: Path, protocol: str) -> None:
+    """Show the messages of a capture; exit 1 when it holds none, or when
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, read_capture
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
     stats = CaptureStats()
-    for item in read_capture(file, protocol, stats):
-        view.show(item.direction, item.frame, item.t)
-        if view.done:
-            return
+    try:
+        for item in read_capture(file, protocol, stats):
+            view.show(item.direction, item.frame, item.t)
+            if view.done:
+                return
+    except NoFrameError as exc:
+        raise NoFrameError(
+            f"{exc} ({stats.frames} messages decoded, {stats.dropped_bytes} bytes dropped)"
+        ) from None
     if stats.frames == 0:
         raise RobocliError(f"{file}: no Simple Message frame ({stats.dropped_bytes} bytes "
                            "dropped)")  # fmt: skip
@@ -304,10 +321,12 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
     for name, offset, target in (("motion", 0, mp), ("state", 2, sp)):
         if ports not in ("both", name):
             continue
-        proxy = stack.enter_context(RecordingProxy(
-            (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
-            bind=bind, port=port + offset if port else 0, max_clients=2,
-            name=f"arm-dump-{name}").start())  # fmt: skip
+        with listening(bind):  # a port in use: exit 1, an address not this machine's: 2
+            proxy = RecordingProxy(
+                (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
+                bind=bind, port=port + offset if port else 0, max_clients=2,
+                name=f"arm-dump-{name}")  # fmt: skip
+        stack.enter_context(proxy.start())
         said.append(f"{name} {bind}:{proxy.port} -> {host}:{target}")
         relays.append(proxy)
     typer.echo("dump: clients connect to " + ", ".join(said), err=True)
@@ -331,8 +350,8 @@ def teleop(
     ),
     motion_port: int = MotionPortOpt,
     state_port: int = StatePortOpt,
-    byte_order: str = OrderOpt,
-    real_size: int = RealOpt,
+    byte_order: ByteOrder = OrderOpt,
+    real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
     timeout: float = TimeoutOpt,
 ) -> None:

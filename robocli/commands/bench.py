@@ -12,7 +12,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -121,7 +121,7 @@ def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
 
 
 def rtt(
-    target: str = TargetOpt,
+    target: Literal["pioneer", "arm", "hub"] = TargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(1000, "--n", "-n", min=10, max=1_000_000, help="Round trips."),
     floor_n: int | None = typer.Option(  # noqa: UP007
@@ -244,7 +244,7 @@ def _finish(interrupted: bool) -> None:
 
 
 def jitter(
-    target: str = JitterTargetOpt,
+    target: Literal["pioneer", "arm"] = JitterTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
@@ -270,7 +270,7 @@ def jitter(
 
 
 def sip(
-    target: str = SipTargetOpt,
+    target: Literal["pioneer"] = SipTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIPs to collect."),
     json_out: bool = JsonOpt,

@@ -13,13 +13,14 @@ import time
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
 from robocli.commands._common import (
     PlainCommand,
     from_env,
+    listening,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -117,7 +118,7 @@ def subscribe(
         None, "--duration", min=0, help="Stop after S seconds."
     ),
     count: int | None = typer.Option(None, "--count", "-n", min=1, help="Stop after N samples."),  # noqa: UP007
-    fmt: str | None = typer.Option(  # noqa: UP007
+    fmt: Literal["table", "csv", "jsonl"] | None = typer.Option(  # noqa: UP007
         None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
     ),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
@@ -331,11 +332,11 @@ def dump(
     upstream = parse_hub(host)
     bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
                                port_range=(0, 65535))  # fmt: skip
+    writer = _capture(output) if output is not None else None  # before connecting
     check_upstream(*upstream)
     done = threading.Event()
     broken = threading.Event()
     printed = 0
-    writer = _capture(output) if output is not None else None
 
     def show(msg: Message) -> None:
         nonlocal printed
@@ -366,7 +367,10 @@ def dump(
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with DumpProxy(upstream, show, bind=bind, port=port).start() as proxy:
+            check_upstream(*upstream)
+            with listening(bind):
+                proxy = DumpProxy(upstream, show, bind=bind, port=port)
+            with proxy.start():
                 typer.echo(
                     f"dump: clients connect to {bind}:{proxy.port}, relayed to "
                     f"{upstream[0]}:{upstream[1]}",
@@ -385,17 +389,13 @@ def dump(
 
 def _capture(path: Path) -> Any:
     """A capture writer on ``path`` (JSON Lines); a name or place it cannot have is a usage
-    error (exit 2), before any client connects."""
-    from robocli.errors import RobocliError
+    error (exit 2), before anything connects."""
     from robocli.io.capture import CaptureWriter
 
     if path.suffix != ".jsonl":
         raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
                                  param_hint="'--output'")  # fmt: skip
-    try:
-        return CaptureWriter(path)
-    except RobocliError as exc:
-        raise typer.BadParameter(str(exc), param_hint="'--output'") from None
+    return CaptureWriter(path)  # a missing folder: CaptureFileError, exit 2
 
 
 class SerialCommand(PlainCommand):
@@ -496,7 +496,7 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
 
 
 def throughput(
-    target: str = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
+    target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
     url: str | None = typer.Option(  # noqa: UP007
         None, "--url", help="A running hub HOST[:PORT] (default: a simulated hub process)."
     ),

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -98,7 +98,7 @@ def circle(
     points: int = PointsOpt,
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
     center: str | None = CenterOpt,
-    plane: str = PlaneOpt,  # noqa: UP007
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
     speed: float | None = SpeedOpt,
     duration: float | None = DurationOpt,  # noqa: UP007
     start: str | None = StartOpt,
@@ -129,7 +129,7 @@ def rectangle(
     width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
     height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
     center: str | None = CenterOpt,
-    plane: str = PlaneOpt,  # noqa: UP007
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
     speed: float | None = SpeedOpt,
     duration: float | None = DurationOpt,  # noqa: UP007
     start: str | None = StartOpt,
@@ -255,8 +255,8 @@ def _table(result: Any, plot: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"sim vs real: {result.samples} samples, delay "
-                        f"{result.delay_s * 1e3:.1f} ms")  # fmt: skip
+    shift = result.delay_s * 1e3
+    table = Table(title=f"sim vs real: {result.samples} samples, time shift {shift:.1f} ms")
     table.add_column("joint", justify="right")
     for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
         table.add_column(name, justify="right")
@@ -264,6 +264,13 @@ def _table(result: Any, plot: Path | None) -> None:
         table.add_row(str(j + 1), *(_rad(v[j]) for v in (result.rmse, result.mae, result.max_abs)))
     console = Console()
     console.print(table)
+    # not "delay": against the exact simulator it is mostly the upload's time, not a lag
+    console.print(
+        f"time shift: the measured motion starts {abs(shift):.1f} ms "
+        f"{'later' if shift >= 0 else 'earlier'} in its log than in the simulated one (the "
+        "recording ran before the arm moved, e.g. during the upload, plus any controller "
+        "lag); the errors are after this alignment"
+    )
     if result.tcp_rmse_mm is not None:
         console.print(
             f"TCP position error: RMSE {_mm(result.tcp_rmse_mm)} mm, mean "

@@ -23,6 +23,7 @@ from robocli.commands._common import (
     bind_address,
     explain_refusal,
     from_env,
+    listening,
     pioneer_url,
     print_json,
     print_json_line,
@@ -255,16 +256,22 @@ def _same_file(a: Path, b: Path) -> bool:
 
 
 def _dump_file(view: Any, file: Path) -> None:
-    """Show the packets of a capture, streamed; exit 1 when it holds none."""
+    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, read_capture
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
     stats = CaptureStats()
     with reader_may_leave(), sigterm_as_interrupt():
-        for item in read_capture(file, stats=stats):
-            view.show(item.direction, item.frame[3:-2], item.t)
-            if view.done:
-                return
+        try:
+            for item in read_capture(file, stats=stats):
+                view.show(item.direction, item.frame[3:-2], item.t)
+                if view.done:
+                    return
+        except NoFrameError as exc:
+            raise NoFrameError(
+                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
+            ) from None
     summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
     if stats.frames == 0:
         raise RobocliError(f"{file}: {summary}")
@@ -343,20 +350,19 @@ def simulate(
     if not laser:
         options["laser"] = None
     sims: list[PioneerSim] = []
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
-            sims = serve_many(
-                robots, host=bind_address(bind), port=port, pty=pty,
-                subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
-                **options,
-            )  # fmt: skip
+            with listening(bind):
+                sims = serve_many(
+                    robots, host=bind_address(bind), port=port, pty=pty,
+                    subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
+                    **options,
+                )  # fmt: skip
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {subtype} on {simulator.pty_path or simulator.url}")
             sys.stdout.flush()
             while True:
                 time.sleep(3600)
-        except KeyboardInterrupt:
-            typer.echo("simulator stopped", err=True)
         finally:
             for simulator in sims:
                 simulator.close()

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import bind_address, sigterm_as_interrupt
+from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -82,9 +82,10 @@ def serve(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
         token=token_from_file(token_file), max_clients=max_clients,
     )  # fmt: skip
-    with sigterm_as_interrupt():
+    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
-            srv.start()
+            with listening(bind):
+                srv.start()
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
             for note in _replaced(sim, pioneer, gpsd):
@@ -95,8 +96,6 @@ def serve(
                 _live(srv)
             else:
                 _log(srv)
-        except KeyboardInterrupt:
-            typer.echo("hub stopped", err=True)
         finally:
             srv.close()
 

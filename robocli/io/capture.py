@@ -16,9 +16,11 @@ Formats, by suffix:
   in seconds since the recording's first message (needs ``robocli[record]``);
 * anything else: raw bytes of one direction (what a serial sniffer or ``cat`` saved).
 
-Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size (even
-``/dev/zero``) is read in constant memory; a JSON line longer than :data:`MAX_LINE` bytes,
-an undecodable line and bytes that form no frame are counted in :class:`CaptureStats`.
+Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size is read in
+constant memory; a JSON line longer than :data:`MAX_LINE` bytes, an undecodable line and
+bytes that form no frame are counted in :class:`CaptureStats`. Reading gives up, with
+:class:`NoFrameError`, after :data:`MAX_GAP` bytes without a frame: a device file
+(``/dev/zero``, ``/dev/urandom``) or a pipe of noise never ends, and is no capture.
 """
 
 from __future__ import annotations
@@ -31,16 +33,35 @@ from pathlib import Path
 from typing import IO
 
 from robocli.core import Framer
-from robocli.errors import RobocliError
+from robocli.errors import EXIT_USAGE, RobocliError
 
 #: Bytes read from a file at a time.
 CHUNK = 64 * 1024
 #: Longest accepted line of a ``.jsonl`` capture (a longer one is dropped, read in pieces).
 MAX_LINE = 1024 * 1024
+#: Bytes of a capture read without a single frame after which reading gives up
+#: (:class:`NoFrameError`). A frame of ARCOS is at most 258 bytes, of Simple Message 4100.
+MAX_GAP = 16 * 1024 * 1024
 
 #: direction names used in captures -> "tx" (host to robot) / "rx" (robot to host)
 _DIRECTIONS = {"c2s": "tx", "client->server": "tx", "s2c": "rx", "server->client": "rx"}
 _NAMES = {"tx": "c2s", "rx": "s2c"}
+#: what a frame of each protocol is called in messages
+_FRAME_NAMES = {
+    "arcos": "ARCOS packet", "sm-le": "Simple Message frame",
+    "sm-be": "Simple Message frame (big-endian)", "ros4mat": "ros4mat message",
+}  # fmt: skip
+
+
+class CaptureFileError(RobocliError):
+    """A capture file that cannot be opened (no such folder, no permission): the file the
+    caller named is unusable, a usage error (exit 2)."""
+
+    exit_code = EXIT_USAGE
+
+
+class NoFrameError(RobocliError):
+    """:data:`MAX_GAP` bytes of a capture without a frame: reading stopped there (exit 1)."""
 
 
 @dataclass(frozen=True)
@@ -63,11 +84,15 @@ class CaptureStats:
 
 
 def read_capture(
-    path: str | Path, protocol: str = "arcos", stats: CaptureStats | None = None
+    path: str | Path,
+    protocol: str = "arcos",
+    stats: CaptureStats | None = None,
+    max_gap: int = MAX_GAP,
 ) -> Iterator[CapturedFrame]:
     """Frames of a capture file in order, streamed; each direction is framed separately, so
     garbage in one direction never hides the other's frames. ``stats`` (optional) is
-    updated as the file is read. Raises :class:`RobocliError` when the file cannot be read."""
+    updated as the file is read. Raises :class:`CaptureFileError` when the file cannot be
+    read, :class:`NoFrameError` after ``max_gap`` bytes of the file without a frame."""
     path = Path(path)
     stats = CaptureStats() if stats is None else stats
     try:
@@ -77,44 +102,81 @@ def read_capture(
             for t, direction, frame in raw_frames(path, protocol, stats):
                 yield CapturedFrame(t, direction, frame)
             return
-        with path.open("rb") as stream:
-            if path.suffix == ".jsonl":
-                yield from _read_jsonl(stream, protocol, stats)
-            else:
-                yield from _read_raw(stream, protocol, stats)
+        stream = path.open("rb")
     except OSError as exc:
-        raise RobocliError(f"cannot read capture {path}: {exc.strerror or exc}") from None
+        raise CaptureFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    gap = _Gap(path, protocol, stats, max_gap)
+    try:
+        with stream:
+            if path.suffix == ".jsonl":
+                yield from _read_jsonl(stream, protocol, stats, gap)
+            else:
+                yield from _read_raw(stream, protocol, stats, gap)
+    except OSError as exc:
+        raise CaptureFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-def _read_raw(stream: IO[bytes], protocol: str, stats: CaptureStats) -> Iterator[CapturedFrame]:
+class _Gap:
+    """Gives up reading after ``limit`` bytes of the file without a frame."""
+
+    def __init__(self, path: Path, protocol: str, stats: CaptureStats, limit: int) -> None:
+        self.path, self.protocol, self.stats, self.limit = path, protocol, stats, limit
+        self.since = 0  #: ``stats.bytes_read`` after the last frame
+
+    def framed(self) -> None:
+        self.since = self.stats.bytes_read
+
+    def check(self) -> None:
+        if self.stats.bytes_read - self.since > self.limit:
+            what = _FRAME_NAMES.get(self.protocol, f"{self.protocol} frame")
+            raise NoFrameError(
+                f"{self.path}: no {what} in {_size(self.limit)}, up to byte "
+                f"{self.stats.bytes_read}: not a capture of this protocol; stopped reading"
+            )
+
+
+def _size(n: int) -> str:
+    return f"{n / 2**20:g} MiB" if n >= 2**20 else f"{n} bytes"
+
+
+def _read_raw(stream: IO[bytes], protocol: str, stats: CaptureStats,
+              gap: _Gap) -> Iterator[CapturedFrame]:  # fmt: skip
     framer = Framer(protocol)
     try:
         while chunk := stream.read(CHUNK):
             stats.bytes_read += len(chunk)
             for frame in framer.feed(chunk):
                 stats.frames += 1
+                gap.framed()
                 yield CapturedFrame(None, "?", frame)
+            gap.check()
     finally:
         stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
 
 
-def _read_jsonl(stream: IO[bytes], protocol: str, stats: CaptureStats) -> Iterator[CapturedFrame]:
+def _read_jsonl(stream: IO[bytes], protocol: str, stats: CaptureStats,
+                gap: _Gap) -> Iterator[CapturedFrame]:  # fmt: skip
     framers: dict[str, Framer] = {}
     try:
         while line := stream.readline(MAX_LINE):
             stats.bytes_read += len(line)
             if not line.endswith(b"\n") and len(line) == MAX_LINE:
-                stats.dropped_bytes += len(line) + _skip_line(stream, stats)
+                stats.dropped_bytes += len(line)
+                _skip_line(stream, stats, gap)
+                gap.check()
                 continue
             record = _record(line)
             if record is None:
                 stats.dropped_bytes += len(line.strip())
+                gap.check()
                 continue
             t, direction, data = record
             framer = framers.setdefault(direction, Framer(protocol))
             for frame in framer.feed(data):
                 stats.frames += 1
+                gap.framed()
                 yield CapturedFrame(t, direction, frame)
+            gap.check()
     finally:
         for framer in framers.values():
             stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
@@ -135,15 +197,15 @@ def _record(line: bytes) -> tuple[float | None, str, bytes] | None:
     return t, _DIRECTIONS.get(str(record.get("dir")), "?"), data
 
 
-def _skip_line(stream: IO[bytes], stats: CaptureStats) -> int:
-    """Read to the end of an overlong line; return how many bytes that was."""
-    skipped = 0
+def _skip_line(stream: IO[bytes], stats: CaptureStats, gap: _Gap) -> None:
+    """Read to the end of an overlong line, counting it as dropped (a line that never ends,
+    as ``/dev/zero``'s, ends at the gap limit)."""
     while piece := stream.readline(MAX_LINE):
-        skipped += len(piece)
+        stats.bytes_read += len(piece)
+        stats.dropped_bytes += len(piece)
         if piece.endswith(b"\n"):
             break
-    stats.bytes_read += skipped
-    return skipped
+        gap.check()
 
 
 class CaptureWriter:
@@ -156,7 +218,9 @@ class CaptureWriter:
         try:
             self._file = self.path.open("w", encoding="utf-8")
         except OSError as exc:
-            raise RobocliError(f"cannot write capture {path}: {exc.strerror or exc}") from None
+            parent = self.path.parent
+            why = f"no directory {parent}" if not parent.is_dir() else exc.strerror or exc
+            raise CaptureFileError(f"{path}: cannot write ({why})") from None
         self._lock = threading.Lock()
         self.records = 0
 

@@ -87,7 +87,7 @@ def test_ctrl_c_exits_130_with_one_line() -> None:
 
 
 @pytest.mark.parametrize("args,code,text", [
-    (["sim", "--ports", "x"], 2, "--ports is both, motion or state"),
+    (["sim", "--ports", "x"], 2, "'x' is not one of 'both', 'motion', 'state'"),
     ([], 2, "give HOST or --file"),
     (["sim", "--output", "x.txt"], 2, ".jsonl"),
     (["127.0.0.1", "--motion-port", "1", "--state-port", "1"], 3, "connection refused"),

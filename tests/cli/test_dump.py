@@ -3,16 +3,21 @@ handshake names by phase, JSON Lines, recording, a closed pipe, Ctrl-C (issue 7:
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import random
 import re
 import signal
+import subprocess
 import time
 from pathlib import Path
+from typing import BinaryIO
 
 import pytest
 
 from cli.helpers import DATA, bytes_read, one_line_error, peak_rss_kib, run, running
+from robocli.io import capture
 from robocli.io.capture import CaptureStats, read_capture
 
 STAMP = re.compile(r"^\s*(\d+\.\d+) (->|<-)\s+(\S+)")
@@ -35,19 +40,73 @@ def raw_capture(tmp_path: Path, trace: str, direction: str | None) -> Path:
     return path
 
 
-def test_dev_zero_streams_in_bounded_memory_and_stops_on_ctrl_c() -> None:
-    with running("dump", "pioneer", "--file", "/dev/zero") as proc:
-        deadline = time.monotonic() + 30
-        while bytes_read(proc.pid) < 200_000_000 and time.monotonic() < deadline:
+@pytest.mark.parametrize(
+    ("robot", "named", "summary"),
+    [("pioneer", "ARCOS packet", "0 packets decoded"),
+     ("arm", "Simple Message frame", "0 messages decoded")],
+)  # fmt: skip
+def test_dev_zero_is_given_up_after_a_bound_of_bytes_without_a_frame(
+    robot: str, named: str, summary: str
+) -> None:
+    """Once it read /dev/zero for 10 minutes at 80 % CPU; now one line, exit 1, after
+    MAX_GAP bytes (the timeout only bounds a failure)."""
+    line = one_line_error(run("dump", robot, "--file", "/dev/zero", timeout=300), 1)
+    assert f"/dev/zero: no {named} in 16 MiB, up to byte " in line, line
+    assert "stopped reading" in line and summary in line, line
+    dropped = int(re.findall(r"(\d+) bytes dropped", line)[0])
+    assert capture.MAX_GAP < dropped <= capture.MAX_GAP + capture.CHUNK
+
+
+def test_a_gap_without_frames_stops_reading_after_the_frames_before_it(tmp_path: Path) -> None:
+    good = raw_capture(tmp_path, "a_simpleConnect.jsonl", "s2c").read_bytes()
+    path = tmp_path / "gap.bin"
+    path.write_bytes(good + bytes(4 * capture.CHUNK) + good)
+    stats = CaptureStats()
+    frames = []
+    with pytest.raises(capture.NoFrameError, match="no ARCOS packet in 131072 bytes, up to"):
+        frames.extend(read_capture(path, stats=stats, max_gap=2 * capture.CHUNK))
+    assert len(frames) == stats.frames > 30  # the frames before the gap, then the error
+    jsonl = tmp_path / "events.jsonl"  # lines without a frame count as well
+    jsonl.write_text('{"t": 0, "event": "x"}\n' * 10_000)
+    with pytest.raises(capture.NoFrameError):
+        list(read_capture(jsonl, max_gap=50_000))
+
+
+def _writer(fifo: Path, proc: subprocess.Popen[str]) -> BinaryIO:
+    """The writing end of ``fifo``, once ``proc`` has opened its reading end."""
+    deadline = time.monotonic() + 30
+    while True:
+        try:
+            fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+        except OSError as exc:  # ENXIO: no reader yet
+            assert exc.errno == errno.ENXIO and proc.poll() is None and time.monotonic() < deadline
+            time.sleep(0.02)
+            continue
+        os.set_blocking(fd, True)
+        return os.fdopen(fd, "wb")
+
+
+def test_a_long_stream_reads_in_bounded_memory_and_stops_on_ctrl_c(tmp_path: Path) -> None:
+    """A capture from a pipe: gaps shorter than MAX_GAP between packets go on being read,
+    in constant memory, until Ctrl-C."""
+    fifo = tmp_path / "capture.bin"
+    os.mkfifo(fifo)
+    frame = raw_capture(tmp_path, "a_simpleConnect.jsonl", "s2c").read_bytes()
+    gap = bytes(capture.MAX_GAP - 2 * capture.CHUNK)
+    with running("dump", "pioneer", "--file", str(fifo)) as proc:
+        with _writer(fifo, proc) as feed:
+            for _ in range(5):  # 80 MiB: five times the gap limit
+                feed.write(gap + frame)
+                feed.flush()
+            peak = peak_rss_kib(proc.pid)
+            read = bytes_read(proc.pid)
             assert proc.poll() is None, proc.stderr.read() if proc.stderr else ""
-            time.sleep(0.05)
-        read = bytes_read(proc.pid)
-        peak = peak_rss_kib(proc.pid)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=10)
-    assert read >= 50_000_000, f"only {read} bytes read in 30 s"
+            proc.send_signal(signal.SIGINT)
+            out, err = proc.communicate(timeout=30)
+    assert read >= 4 * len(gap), read
     assert peak < 150_000, f"peak RSS {peak} KiB after reading {read} bytes"
     assert proc.returncode == 130 and err.strip() == "robocli: interrupted", err
+    assert "SYNC2-reply" in out
 
 
 @pytest.mark.parametrize("kind", ["empty", "random", "broken-jsonl", "deep-jsonl"])
@@ -176,8 +235,6 @@ def test_simulator_laser_and_simstat_decoded(trace: str, name: str, field: str) 
 
 
 def test_an_overlong_jsonl_line_is_dropped_and_reading_goes_on(tmp_path: Path) -> None:
-    from robocli.io import capture
-
     good = (DATA / "a_simpleConnect.jsonl").read_text()
     huge = '{"t": 0, "dir": "s2c", "hex": "' + "00" * capture.MAX_LINE + '"}\n'
     path = tmp_path / "huge.jsonl"

@@ -126,4 +126,5 @@ def test_verbose_after_the_subcommand() -> None:
 )
 def test_an_unknown_bench_target_lists_what_that_bench_measures(command: str, targets: str) -> None:
     line = one_line_error(run("bench", command, "--target", "robotx"), 2)
-    assert line.endswith(f"choose from {targets}. Try 'robocli bench {command} -h'."), line
+    listed = ", ".join(f"'{t}'" for t in targets.split(", "))
+    assert line.endswith(f"is not one of {listed}. Try 'robocli bench {command} -h'."), line

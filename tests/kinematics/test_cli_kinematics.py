@@ -52,7 +52,7 @@ def test_validate_table_reports_a_known_delay(tmp_path: Path) -> None:
     proc = run(tmp_path, "validate", "sim.npz", "real.csv")
     assert proc.returncode == 0, proc.stderr
     assert "RMSE (rad)" in proc.stdout
-    found = re.search(r"delay (-?[\d.]+) ms", proc.stdout)
+    found = re.search(r"time shift (-?[\d.]+) ms", proc.stdout)
     assert found and abs(float(found.group(1)) - 750.0) < 1e3 * np.median(np.diff(sim.time))
     assert "TCP position error" in proc.stdout
 
@@ -144,4 +144,4 @@ def test_validate_table_title_fits_80_columns(tmp_path: Path) -> None:
     proc = run(tmp_path, "validate", "sim.json", "real.json", env={"COLUMNS": "80"})
     assert proc.returncode == 0, proc.stderr
     title = proc.stdout.splitlines()[0]
-    assert "delay 13624068.1 ms" in title and title.strip().endswith("ms")
+    assert "time shift 13624068.1 ms" in title and title.strip().endswith("ms")
