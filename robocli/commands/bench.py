@@ -8,6 +8,7 @@ stderr (stdout stays clean for ``--json``).
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -150,10 +151,8 @@ def rtt(
         from robocli.commands.hub import bench_rtt
 
         return bench_rtt(url, n, json_out)
-    if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5); lives with the arm commands
-        from robocli.commands.arm_extra import bench as arm_bench
-
-        return arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
+    if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5)
+        return _arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
     _check_target(target, also=("arm", "hub"))
     same, other = _cpus(cpu)
     at = b.cpu_label
@@ -257,10 +256,8 @@ def jitter(
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
-    if target == "arm":  # the state period (Table 5); lives with the arm commands
-        from robocli.commands.arm_extra import bench as arm_bench
-
-        return arm_bench("jitter", url, n, json_out, paper, wire=wire)
+    if target == "arm":  # the state period (Table 5)
+        return _arm_bench("jitter", url, n, json_out, paper, wire=wire)
     _check_target(target, also=("arm",))
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")
@@ -350,3 +347,59 @@ def _print_results(
         typer.echo(f"histogram: {name} ({label})")
         for line in b.histogram(samples, unit=unit, label=label):
             typer.echo(line)
+
+
+def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = False,
+          floor_n: int | None = None, cpu: int | None = None,
+          wire: tuple[str, int] = ("little", 4)) -> None:  # fmt: skip
+    """``robocli bench rtt|jitter --target arm``: JOINT_TRAJ_PT round trips (after the C
+    floor, as the Pioneer bench) or the state period, against ``url`` or the built-in ABB
+    simulator in its own process (``paper``: its paper-like model), beside Table 5.
+    ``wire``: (byte order, real size) of the controller, and of that simulator."""
+    from robocli import arm_bench as ab
+    from robocli import benchmarks as b
+    from robocli.devices.arm import Arm
+
+    if url is not None and paper:
+        raise typer.BadParameter("--paper-model configures the built-in simulator; not with --url")
+    same, other = _cpus(cpu) if kind == "rtt" else (None, None)
+    progress, runs, interrupted = _Progress(), [], False
+    variant = "" if wire == ("little", 4) else f", {wire[0]}-endian, {wire[1] * 8}-bit reals"
+    where = (url or f"ABB simulator process{', paper model' if paper else ''}") + variant
+    name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
+    with sigterm_as_interrupt():
+        try:
+            if kind == "rtt":
+                for label, echo in (("same CPU", same), ("different CPUs", other)):
+                    if label == "same CPU" or other is not None:
+                        runs.append(b.Run(f"C floor, {label}", floor_n or n))
+                        with progress.stage(runs[-1].name, runs[-1].n) as update:
+                            b.c_floor(runs[-1], same, echo, progress=update)
+            runs.append(b.Run(name, n, f"{where}; client on {b.cpu_label(same)}"))
+            with contextlib.ExitStack() as stack:
+                stack.enter_context(b.pinned(same))
+                h, mp, sp = (ab.parse_url(url) if url is not None else
+                             stack.enter_context(ab.sim_process(paper, cpu=same, wire=wire)))
+                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt",
+                                                      byte_order=wire[0], real_size=wire[1]))
+                update = stack.enter_context(progress.stage(name, n))
+                (ab.rtt if kind == "rtt" else ab.state_periods)(arm, runs[-1], progress=update)
+        except KeyboardInterrupt:
+            interrupted = True
+    floor = b.Stats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
+    results = [b.report(r.name, r.values, floor if "floor" not in r.name else None,
+                        where=r.where) for r in runs if r.count]  # fmt: skip
+    paper_row = ab.PAPER_TABLE5["rtt" if kind == "rtt" else "state period"]
+    if json_out:
+        results.append({"name": f"paper Table 5: {name}", "unit": "us", "reference": True,
+                        **{k: v * 1e3 for k, v in paper_row.items()}})  # fmt: skip
+    hist = {name: runs[-1].values} if runs and runs[-1].count else {}
+    _show(results, {} if json_out else hist, json_out,
+          floor_note="x floor = multiple of the same-CPU C floor median" if floor else "")
+    if not json_out:
+        typer.echo("paper's Table 5 (IRB120, ms): " +
+                   "  ".join(f"{k} {v:g}" for k, v in paper_row.items()))  # fmt: skip
+    if interrupted:
+        typer.echo(f"interrupted: partial results ({sum(r.count for r in runs)} samples)",
+                   err=True)  # fmt: skip
+        raise typer.Exit(EXIT_INTERRUPTED)
