@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from robocli import hub_bench
-from robocli.devices.hub import Hub
-from robocli.devices.hub_decode import decode_reading
+from robocli.devices.hub.client import Hub
+from robocli.devices.hub.decode import decode_reading
 from robocli.protocols import ros4mat as r4m
 
 

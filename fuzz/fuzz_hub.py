@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from robocli.core import Framer
-from robocli.devices.hub import Hub
+from robocli.devices.hub.client import Hub
 from robocli.errors import RobocliError
 from robocli.hub.registry import Hub as Registry
 from robocli.hub.server import PullTimes, Ros4matSession

@@ -22,7 +22,7 @@ logging.getLogger("robocli").addHandler(logging.NullHandler())
 
 _LAZY = {
     "Arm": "robocli.devices.arm",
-    "Hub": "robocli.devices.hub",
+    "Hub": "robocli.devices.hub.client",
     "Pioneer": "robocli.devices.pioneer",
     "PioneerState": "robocli.devices.pioneer",
     "RobocliError": "robocli.errors",

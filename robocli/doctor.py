@@ -387,7 +387,7 @@ def _closed_at_once(sock: socket.socket, wait: float) -> bool:
 
 
 def _probe_hub(address: str, timeout: float) -> tuple[bool | None, str]:
-    from robocli.devices.hub import Hub, parse_hub
+    from robocli.devices.hub.client import Hub, parse_hub
 
     host, port = parse_hub(address)
     with Hub.connect(host, port, timeout=timeout) as hub:

@@ -116,7 +116,7 @@ def peak_rss(pid: int) -> int:
 
 def rtt(address: str, run: Run, warmup: int = 20) -> Run:
     """Round trips of empty pulls (a GPS subscribed at 1 Hz: nearly every pull is empty)."""
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
 
     with Hub.connect(address) as hub:
         hub.subscribe("gps", 1)
@@ -143,7 +143,7 @@ def _client(
     address: str, sensors: list[str], pull_hz: float, start: float, end: float,
     out: dict[str, Any], lock: threading.Lock, quit_at_end: bool,
 ) -> None:  # fmt: skip
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
 
     lat: list[float] = []
     tally = {s: _Tally() for s in sensors}
@@ -330,7 +330,7 @@ def _children_cpu() -> float:
 
 def served_sensors(address: str) -> tuple[str, ...]:
     """The ros4mat names of the sensors a hub accepts a subscription to (probed)."""
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
     from robocli.errors import DeviceError
 
     names = []

@@ -1,5 +1,5 @@
 """``robocli dump arm`` and ``robocli teleop arm``: thin layers over
-:class:`robocli.devices.arm.Arm` and :mod:`robocli.devices.arm_teleop`.
+:class:`robocli.devices.arm.Arm` and :mod:`robocli.devices.arm.teleop`.
 
 The dump opens the motion and the state port as two clients (``--ports`` picks one; an ABB
 takes one client per port, so a dump holding the motion port keeps others from uploading)
@@ -359,7 +359,7 @@ def teleop(
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
     from robocli.commands._screens import end_line, raw_terminal
     from robocli.devices.arm import Arm
-    from robocli.devices.arm_teleop import ArmTeleop, run_arm_teleop
+    from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
     _check_wire(byte_order, real_size)
     if not sys.stdin.isatty():

@@ -1,5 +1,5 @@
 """``robocli subscribe``, ``connect hub``, ``dump hub``, ``serial``, ``bench throughput``:
-thin layers over :mod:`robocli.devices.hub` and :mod:`robocli.hub_bench`."""
+thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.hub_bench`."""
 
 from __future__ import annotations
 
@@ -31,7 +31,7 @@ from robocli.defaults import HUB_ENV
 if TYPE_CHECKING:
     import numpy as np
 
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
     from robocli.hub_bench import HubProcess
 
 EXIT_INTERRUPTED = 130
@@ -72,7 +72,7 @@ def open_hub(
     """Connect (with the token in ``token_file``, if any); "nobody listens" is one line with
     a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB."""
     from robocli.commands.serve import token_from_file
-    from robocli.devices.hub import Hub, parse_hub
+    from robocli.devices.hub.client import Hub, parse_hub
     from robocli.errors import TransportError
     from robocli.transports import InvalidURL
 
@@ -126,7 +126,7 @@ def subscribe(
 ) -> None:
     """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
     --count. Times are on this machine's clock (the hub's offset is estimated)."""
-    from robocli.devices.hub_tools import columns_of, rows_of, stream
+    from robocli.devices.hub.tools import columns_of, rows_of, stream
     from robocli.errors import InvalidArgument
     from robocli.protocols.ros4mat import MsgType, adc_freq_send_default, sensor_type
 
@@ -225,7 +225,7 @@ class _Output:
         if self.fmt == "csv":
             np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
         elif self.fmt == "jsonl":
-            from robocli.devices.hub_tools import INTEGER_COLUMNS
+            from robocli.devices.hub.tools import INTEGER_COLUMNS
 
             ints = [c in INTEGER_COLUMNS for c in self.cols[1:]]
             for row in rows.tolist():  # the precision of the wire: float32 fields, us times
@@ -272,7 +272,7 @@ def connect(
     """Survey a hub over ros4mat: running sensors and their rates, round trip, clock offset,
     the client id it gave us (clients seen). Repeats every window until Ctrl-C (--json: one
     object per line)."""
-    from robocli.devices.hub_tools import survey
+    from robocli.devices.hub.tools import survey
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
@@ -325,8 +325,8 @@ def dump(
     printed, named and decoded, and passed on unchanged."""
     import threading
 
-    from robocli.devices.hub import parse_hub
-    from robocli.devices.hub_tools import DumpProxy, Message, check_upstream
+    from robocli.devices.hub.client import parse_hub
+    from robocli.devices.hub.tools import DumpProxy, Message, check_upstream
     from robocli.transports import parse_address
 
     upstream = parse_hub(host)
@@ -457,7 +457,7 @@ def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
     from robocli.hub_bench import hub_process
 
     if url is not None:
-        from robocli.devices.hub import parse_hub
+        from robocli.devices.hub.client import parse_hub
         from robocli.transports import format_address
 
         yield format_address(*parse_hub(url)), None

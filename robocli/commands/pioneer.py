@@ -165,7 +165,7 @@ def teleop(
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
     from robocli.commands._screens import StatusLine, end_line, raw_terminal
-    from robocli.devices.teleop import TeleopController, run_teleop
+    from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")

@@ -30,7 +30,7 @@ def token_from_file(path: Path | None) -> bytes | None:
     (``serve --token-file``) and its clients read token files alike."""
     if path is None:
         return None
-    from robocli.devices.hub import MAX_TOKEN
+    from robocli.devices.hub.client import MAX_TOKEN
 
     try:
         with path.open("rb") as f:  # bounded: a token is short, /dev/zero is not

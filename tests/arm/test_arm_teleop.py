@@ -14,7 +14,7 @@ import pytest
 from cli.helpers import ROBOCLI
 from cli.test_screens import terminal
 
-from robocli.devices.arm_teleop import ArmTeleop, Jog, JogKeys, jog_target, run_arm_teleop
+from robocli.devices.arm.teleop import ArmTeleop, Jog, JogKeys, jog_target, run_arm_teleop
 from robocli.errors import ConnectionLost, TimeoutError
 from robocli.kinematics import LimitError, fk, load_model
 

@@ -7,8 +7,8 @@ import pytest
 from hardware import HARDWARE, VARIABLES
 
 from robocli.devices.arm import Arm
-from robocli.devices.hub import Hub
-from robocli.devices.hub_tools import survey
+from robocli.devices.hub.client import Hub
+from robocli.devices.hub.tools import survey
 from robocli.devices.pioneer import Pioneer
 
 

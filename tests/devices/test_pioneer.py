@@ -269,7 +269,7 @@ def test_wander_example_moves_2m_without_collision() -> None:
 
 
 def test_teleop_with_scripted_keys(sim: PioneerSim) -> None:
-    from robocli.devices.teleop import TeleopController, run_teleop
+    from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
     keys = iter(["up"] * 20 + [None] * 15 + ["q"])
     assert sim.url is not None

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from robocli.devices.teleop import TeleopController
+from robocli.devices.pioneer.teleop import TeleopController
 
 
 def test_held_key_drives_and_release_stops_within_timeout() -> None:

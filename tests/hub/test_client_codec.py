@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import reference
 
-from robocli.devices.hub import ClockSync, parse_hub, resolution, subscribe_body
-from robocli.devices.hub_decode import decode_jpeg, decode_reading
+from robocli.devices.hub.client import ClockSync, parse_hub, resolution, subscribe_body
+from robocli.devices.hub.decode import decode_jpeg, decode_reading
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
 
@@ -216,7 +216,7 @@ def _scripted_hub(stamp: float) -> tuple[Any, Any]:
     ``stamp`` (robocli's hub stamps it; the original server sends 0)."""
     import socket
 
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
     from robocli.transports import SocketTransport
 
     a, b = socket.socketpair()

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from robocli import Hub
-from robocli.devices.hub import subscribe_body
+from robocli.devices.hub.client import subscribe_body
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.protocols.ros4mat import MsgType, encode_request
@@ -388,7 +388,7 @@ def test_sample_times_never_step_back_when_the_offset_estimate_moves(server: Hub
     """The offset estimate jumps 0.5 s (hub clock further ahead) and later 1 s back: the
     sample times of successive reads keep increasing; the mapping slews toward the new
     estimate at most 1 % of hub time."""
-    from robocli.devices.hub import CLOCK_SLEW
+    from robocli.devices.hub.client import CLOCK_SLEW
 
     clock = ScriptedClock()
     with Hub.connect("127.0.0.1", server.port, clock=clock) as h:

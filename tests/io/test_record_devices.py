@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from robocli.devices.arm import Arm
-from robocli.devices.hub import Hub
+from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
 from robocli.io.capture import CaptureStats, read_capture

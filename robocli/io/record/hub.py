@@ -15,7 +15,7 @@ from robocli.io import schemas as S
 from robocli.io.record.links import RawLink, Sink, json_text
 
 if TYPE_CHECKING:
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
 
 __all__ = ["HubDecoder", "attach_hub", "pull_hub"]
 
@@ -49,7 +49,7 @@ class HubDecoder:
         return cid
 
     def __call__(self, direction: str, frame: bytes, ns: int) -> None:
-        from robocli.devices.hub_decode import HEADER, body_of
+        from robocli.devices.hub.decode import HEADER, body_of
         from robocli.protocols.ros4mat import MsgType
 
         if direction != "rx" or len(frame) < HEADER.size:

@@ -170,7 +170,7 @@ class Recorder:
 
     def add(self, device: Any, name: str | None = None, **options: Any) -> str:
         """Record ``device`` (a :class:`~robocli.devices.pioneer.Pioneer`, an
-        :class:`~robocli.devices.arm.Arm` or a :class:`~robocli.devices.hub.Hub`) under the
+        :class:`~robocli.devices.arm.Arm` or a :class:`~robocli.devices.hub.client.Hub`) under the
         topic prefix ``/name/`` (default ``pioneer``, ``arm``, ``hub``, numbered when taken).
         Returns the name. Options by device: a hub's ``sensors`` are only named in its raw
         channels' metadata (the program, or :func:`~robocli.io.record.pull_hub`, pulls them);

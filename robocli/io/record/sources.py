@@ -38,7 +38,7 @@ __all__ = ["RawLink", "attach", "raw_link"]
 def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> str:
     """Record ``device`` into ``rec`` (see :meth:`Recorder.add`); returns its name."""
     from robocli.devices.arm import Arm
-    from robocli.devices.hub import Hub
+    from robocli.devices.hub.client import Hub
     from robocli.devices.pioneer import Pioneer
     from robocli.io.record.arm import attach_arm
     from robocli.io.record.hub import attach_hub

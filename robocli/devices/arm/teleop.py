@@ -39,7 +39,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ArmTeleop", "Jog", "JogKeys", "jog_target", "run_arm_teleop"]
 
-log = logging.getLogger("robocli.devices.arm_teleop")
+log = logging.getLogger("robocli.devices.arm.teleop")
 
 FloatArray = npt.NDArray[np.float64]
 

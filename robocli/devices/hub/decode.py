@@ -1,7 +1,7 @@
 """Zero-copy decoding of ros4mat data replies into :class:`Reading` objects, and their
 alignment on one time base.
 
-Part of :mod:`robocli.devices.hub` (import from there). A data reply's body is viewed in
+Part of :mod:`robocli.devices.hub.client` (import from there). A data reply's body is viewed in
 place with :func:`numpy.frombuffer` and structured dtypes: the matrices the original MATLAB
 client returns (fields x samples) are transposed views over the received bytes, never built
 sample by sample. Only GPS, COMPUTER and BATTERY (mixed integer and float fields, reordered
@@ -72,13 +72,13 @@ class Reading:
     ``data`` is shaped as the original ros4mat client returns it (fields x samples: 8 x N
     ADC, 9 x N IMU, 7 x N GPS with longitude first, 15 x N computer, 13 x N battery; images
     H x W x 3 x N; laser ranges x N). ``t`` (N,) are acquisition times on the client's clock
-    (or the hub's, see :class:`~robocli.devices.hub.Hub`), ``hub_t`` on the hub's.
+    (or the hub's, see :class:`~robocli.devices.hub.client.Hub`), ``hub_t`` on the hub's.
     Named rows and extra arrays are attributes: ``reading.accel`` (3 x N), ``.gyro``,
     ``.mag``, ``.longitude``, ``.ranges``, ``.depth``, ``.right``... (:attr:`fields` lists
     them). ``data, t = reading`` unpacks like the MATLAB call. Arrays over an uncompressed
     reply are read-only views of the received bytes. ``lost``: samples missing before and
     between this reading's samples, from gaps in their times (set by
-    :meth:`~robocli.devices.hub.Hub.read`; the hub dropped them when this client's buffer
+    :meth:`~robocli.devices.hub.client.Hub.read`; the hub dropped them when this client's buffer
     overflowed between pulls).
     """
 

@@ -8,7 +8,7 @@
 Every call is one request, read in the caller's thread (:class:`~robocli.devices.session.
 Session` leader/follower): ros4mat has no unsolicited messages. Requests are byte for byte
 those of the original MATLAB client (``shared/protocols/ros4mat.md`` section 7). Replies are
-decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub_decode`).
+decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub.decode`).
 
 **Clock offset.** Every data reply carries the hub's send time; each pull gives one NTP-style
 sample ``offset = packet_timestamp - (t_request + t_reply) / 2`` whose error is at most half
@@ -30,7 +30,7 @@ from typing import Any
 import numpy as np
 
 from robocli.core import Framer
-from robocli.devices.hub_decode import HEADER, Reading, align_readings, body_of, decode_reading
+from robocli.devices.hub.decode import HEADER, Reading, align_readings, body_of, decode_reading
 from robocli.devices.session import LinkStats, Session
 from robocli.errors import (
     ConnectionLost,

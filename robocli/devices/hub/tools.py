@@ -1,7 +1,7 @@
 """What the hub commands are made of: sample rows, streaming pulls, a survey of a hub and a
 recording proxy that names and decodes every ros4mat message of a session.
 
-Part of the hub client (:mod:`robocli.devices.hub`); the CLI (``robocli subscribe``,
+Part of the hub client (:mod:`robocli.devices.hub.client`); the CLI (``robocli subscribe``,
 ``connect hub``, ``dump hub``) is a thin layer over these.
 """
 
@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 from robocli.devices import proxy
-from robocli.devices.hub import NO_HUB_HINT, Hub, Reading
-from robocli.devices.hub_decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
+from robocli.devices.hub.client import NO_HUB_HINT, Hub, Reading
+from robocli.devices.hub.decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
 from robocli.devices.proxy import Message, RecordingProxy
 from robocli.errors import DeviceError, ProtocolError
 from robocli.protocols.common import plain

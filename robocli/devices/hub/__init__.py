@@ -1,0 +1,6 @@
+"""The sensor hub's client over ros4mat: :class:`Hub` (the client), the reply decoder
+(:mod:`.decode`) and the command-line helpers built on it (:mod:`.tools`)."""
+
+from robocli.devices.hub.client import Hub, Reading
+
+__all__ = ["Hub", "Reading"]
