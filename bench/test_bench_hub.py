@@ -10,7 +10,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 
-from robocli import hub_bench
+from robocli.bench import hub as hub_bench
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.decode import decode_reading
 from robocli.protocols import ros4mat as r4m

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from robocli.benchmarks import Run, Stats, allowed_cpus, c_floor, raw_sip_periods
+from robocli.bench.common import Run, Stats, allowed_cpus, c_floor, raw_sip_periods
 
 
 @pytest.mark.parametrize("placement", ["same CPU", "different CPUs"])

@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from robocli.benchmarks import (
+from robocli.bench.common import (
     Run,
     Stats,
     allowed_cpus,

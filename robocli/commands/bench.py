@@ -25,7 +25,7 @@ from robocli.commands._common import (
 )
 
 if TYPE_CHECKING:
-    from robocli.benchmarks import Run
+    from robocli.bench.common import Run
 
 TARGETS = ("pioneer",)
 TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
@@ -109,7 +109,7 @@ class _Progress:
 def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
     """(the CPU both ends share, another CPU for the cross-CPU floor), None where pinning is
     impossible (another platform, or a single allowed CPU for the second)."""
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
 
     allowed = b.allowed_cpus()
     if not allowed:
@@ -143,7 +143,7 @@ def rtt(
     responder (the client's own cost), then the client against the built-in simulator
     running in its own process; all pinned to one CPU.
     """
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
@@ -223,7 +223,7 @@ def rtt(
 
 def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
     """SIP timing through the client; on Ctrl-C, what was collected and True."""
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
 
     timing: dict[str, Any] = {}
     progress = _Progress()
@@ -252,7 +252,7 @@ def jitter(
     real_size: int | None = RealOpt,  # noqa: UP007
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
@@ -273,7 +273,7 @@ def sip(
     json_out: bool = JsonOpt,
 ) -> None:
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
 
     _check_target(target)
     timing, interrupted = _sip_timing(url, n)
@@ -315,7 +315,7 @@ def _print_results(
 ) -> None:
     import numpy as np
 
-    from robocli import benchmarks as b
+    from robocli.bench import common as b
     from robocli.commands._common import rounded
 
     if json_out:
@@ -356,8 +356,8 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
     floor, as the Pioneer bench) or the state period, against ``url`` or the built-in ABB
     simulator in its own process (``paper``: its paper-like model), beside Table 5.
     ``wire``: (byte order, real size) of the controller, and of that simulator."""
-    from robocli import arm_bench as ab
-    from robocli import benchmarks as b
+    from robocli.bench import arm as ab
+    from robocli.bench import common as b
     from robocli.devices.arm import Arm
 
     if url is not None and paper:

@@ -1,5 +1,5 @@
 """``robocli subscribe``, ``connect hub``, ``dump hub``, ``serial``, ``bench throughput``:
-thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.hub_bench`."""
+thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`."""
 
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ from robocli.defaults import HUB_ENV
 if TYPE_CHECKING:
     import numpy as np
 
+    from robocli.bench.hub import HubProcess
     from robocli.devices.hub.client import Hub
-    from robocli.hub_bench import HubProcess
 
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
@@ -454,7 +454,7 @@ def serial(
 @contextlib.contextmanager
 def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
     """(address, None) for ``url``, else a simulated hub in its own process."""
-    from robocli.hub_bench import hub_process
+    from robocli.bench.hub import hub_process
 
     if url is not None:
         from robocli.devices.hub.client import parse_hub
@@ -468,8 +468,8 @@ def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
 
 def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
     """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
-    from robocli import benchmarks as b
-    from robocli import hub_bench
+    from robocli.bench import common as b
+    from robocli.bench import hub as hub_bench
 
     run = b.Run("hub empty pull", n)
     interrupted = False
@@ -513,7 +513,7 @@ def throughput(
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
     lost samples, and the hub's CPU and peak memory (when it runs here)."""
-    from robocli import hub_bench
+    from robocli.bench import hub as hub_bench
 
     if target != "hub":
         raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")

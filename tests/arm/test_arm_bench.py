@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.arm_bench import parse_url, rtt, state_periods
-from robocli.benchmarks import Run
+from robocli.bench.arm import parse_url, rtt, state_periods
+from robocli.bench.common import Run
 from robocli.errors import InvalidArgument
 from robocli.sim.abb import AbbSim
 

@@ -4,8 +4,8 @@ SERVICE_REPLY round trips (:func:`rtt`) and the state period (:func:`state_perio
 The IRB120 paper's Table 5 measured both between MATLAB/ROS and the controller: RTT mean
 33.9 ms (median 31.8, std 6.76, min 20.4, max 65.8) and a StateServer period of mean 20.3 ms
 (median 15.7, std 18.0, min 0.5, max 63.0); :data:`PAPER_TABLE5` holds them. The statistics
-are :class:`robocli.benchmarks.Stats` (Table 5's plus p90/p99), filled into a
-:class:`robocli.benchmarks.Run` as they come, so Ctrl-C keeps what was measured.
+are :class:`robocli.bench.common.Stats` (Table 5's plus p90/p99), filled into a
+:class:`robocli.bench.common.Run` as they come, so Ctrl-C keeps what was measured.
 
 Round trips never move the arm: each is a download start (sequence -1) at the measured
 joints, which an ABB buffers and never runs without a -3; a streaming server (which answers
@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robocli.benchmarks import Run, child_process, wait_for_stdin_eof
+from robocli.bench.common import Run, child_process, wait_for_stdin_eof
 from robocli.errors import DeviceError, TransportError
 from robocli.protocols.simple_message import PORT_MOTION, SpecialSeq
 from robocli.transports import parse_address
@@ -110,7 +110,7 @@ def sim_process(paper: bool = False, state_ms: float = BENCH_STATE_MS, profile: 
     the end of its stdin; it is terminated, then killed, if it does not."""
     options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu,
                "byteorder": ">" if wire[0] == "big" else "<", "real": 8 if wire[1] == 8 else 4}
-    code = "from robocli.arm_bench import _child_main; _child_main()"
+    code = "from robocli.bench.arm import _child_main; _child_main()"
     with child_process(code, json.dumps(options), timeout=timeout) as (_, first):
         line = first.split()
         if len(line) != 3:

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.benchmarks import Run, child_process, read_line
+from robocli.bench.common import Run, child_process, read_line
 from robocli.errors import RobocliError, TransportError
 
 #: Sensor (as the bench names it) -> (ros4mat name, subscribe arguments).
@@ -74,9 +74,9 @@ class HubProcess:
 
 @contextlib.contextmanager
 def hub_process(timeout: float = 20.0) -> Iterator[HubProcess]:
-    """A simulated hub in a child process (:func:`~robocli.benchmarks.child_process`: it
+    """A simulated hub in a child process (:func:`~robocli.bench.common.child_process`: it
     stops at the end of its stdin)."""
-    code = "from robocli.hub_bench import _hub_child; _hub_child()"
+    code = "from robocli.bench.hub import _hub_child; _hub_child()"
     with child_process(code, timeout=timeout) as (proc, line):
         if not line.startswith("tcp://"):
             raise TransportError(f"the hub process did not start within {timeout:g} s {line}")
@@ -255,7 +255,7 @@ def throughput(
             n = clients // workers + (1 if w < clients % workers else 0)
             job = {"address": address, "sensors": used, "pull_hz": pull_hz, "start": start,
                    "end": end, "clients": n, "quit": hub is None}  # fmt: skip
-            code = "from robocli.hub_bench import _worker_main; _worker_main()"
+            code = "from robocli.bench.hub import _worker_main; _worker_main()"
             procs.append(subprocess.Popen(
                 [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
             ))  # fmt: skip
