@@ -8,11 +8,11 @@
 
 See :mod:`robocli.hub.registry` (sensors and clients), :mod:`robocli.hub.rings` (one ring
 per sensor, a cursor per client), :mod:`robocli.hub.sources` and
-:mod:`robocli.hub.server` (the ros4mat front-end).
+:mod:`robocli.hub.frontends.ros4mat` (the ros4mat front-end).
 """
 
 from __future__ import annotations
 
-from robocli.hub.hubserver import HubServer, tune_hub_process
+from robocli.hub.server import HubServer, tune_hub_process
 
 __all__ = ["HubServer", "tune_hub_process"]

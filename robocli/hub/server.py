@@ -1,362 +1,267 @@
-"""The ros4mat v3 front-end of the hub: TCP (port 1500), many clients, wire-compatible.
-
-Each connection has one thread (:class:`robocli.sim.serving.Server`): it frames requests with
-the C ros4mat framer (bounded by ``max_body``) and answers each one inline, as fast as they
-arrive (the original served one request per connection per 5 ms loop). Everything about
-sensors and clients is in :class:`robocli.hub.registry.Hub`; this module only translates
-packets. Beyond ros4mat:
-
-* every data reply carries the send time on the hub's clock (``packet_timestamp``);
-* a malformed, compressed or unknown request gets an error reply (type = the request's); a
-  stream that loses its framing (garbage, a header announcing more than the hub takes, a
-  request left half-sent) is closed, after an error reply naming the request when a
-  connected client's header announced too large a body: ros4mat has no sync marker, and
-  what a rescan finds after garbage may be a phantom request (a QUIT that drops the
-  client's subscriptions). A client that stops reading is dropped. No other client notices;
-* optional shared-token authentication (off by default, as ros4mat had none): the token goes
-  after the 2-byte ``msgConnect`` body of CONNECT (``size`` stays 1); without it, a
-  non-silent SUBSCRIBE (it changes the sensor's settings for everyone), SERIAL_CMD and
-  DOUT_CTRL get an error reply "unauthorized";
-* client ids: CONNECT with the id of a client that is connected gets a new id (the original
-  client sends its old id again after ``close``; it adopts the one in CONNECT_ACK), never
-  that client. CONNECT with the id of a detached client (gone without QUIT) re-attaches to
-  its buffers: without a token, as ros4mat, and so does any request carrying that id
-  without CONNECT (anyone who knows or guesses the id can act as that client); with a token,
-  only a CONNECT that presents the token re-attaches, and ids are random, not sequential;
-* a pull of a sensor the client is not subscribed to is an empty reply (size 0), as the
-  original server answered.
-"""
+""":class:`HubServer`: the hub's sources and rings served over ros4mat v3 TCP."""
 
 from __future__ import annotations
 
-import hmac
 import logging
-import struct
+import sys
 import threading
-import time
-import zlib
-from collections.abc import Callable, Mapping
 from typing import Any
 
-import numpy as np
+from robocli.errors import InvalidArgument
+from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub.registry import ClientInfo, Hub
+from robocli.hub.rings import DEFAULT_BUDGET
+from robocli.hub.sources import SerialPorts, Source, hub_sources
+from robocli.protocols.ros4mat import HEADER_SIZE, PORT
+from robocli.sim.links import Link, LinkStats
+from robocli.sim.serving import REAP_WAIT_S, Server, Ticker
 
-from robocli.errors import DeviceError, InvalidArgument, ProtocolError
-from robocli.hub.registry import ClientState, Hub, Pulled
-from robocli.protocols import layout
-from robocli.protocols.common import DECODE_ERRORS, undecodable
-from robocli.protocols.ros4mat import (
-    HEADER_SIZE,
-    Compression,
-    DigitalOut,
-    Header,
-    MsgType,
-    SerialCmdRequest,
-    SubscribeRequest,
-    encode_error,
-    plain,
-)
-from robocli.sim.links import Link
-
-__all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "body_parts", "pull_body"]
+__all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
 log = logging.getLogger("robocli.hub")
 
-SENSOR_IDS: dict[int, str] = {
-    MsgType.ADC: "adc",
-    MsgType.IMU: "imu",
-    MsgType.BATTERY: "battery",
-    MsgType.GPS: "gps",
-    MsgType.WEBCAM: "camera",
-    MsgType.COMPUTER: "sysinfo",
-    MsgType.HOKUYO: "laser",
-    MsgType.KINECT: "depth",
-    MsgType.WEBCAM_STEREO: "stereo",
-}
-"""ros4mat sensor id -> the hub's sensor name."""
-
-_REPLY_TYPES: dict[int, int] = {
-    MsgType.CONNECT: MsgType.CONNECT_ACK,
-    MsgType.SUBSCRIBE: MsgType.SUBSCRIBE_ACK,
-    MsgType.SERIAL_CMD: MsgType.SERIAL_ANS,
-}
-"""Request -> the type of its reply (an error reply has the type of the expected reply)."""
-
-_REQUESTS = frozenset(
-    [MsgType.CONNECT, MsgType.QUIT, MsgType.SUBSCRIBE, MsgType.UNSUBSCRIBE, MsgType.SERIAL_CMD,
-     MsgType.DOUT_CTRL, *SENSOR_IDS]
-)  # fmt: skip
-"""The message ids a client sends."""
-
-_HEADER: struct.Struct = layout.struct_of(Header, "msgHeader")
+MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
+DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
+SEND_TIMEOUT_S = 10.0  #: a client may leave a reply unread this long (ros4mat's send timeout)
+CONNECT_TIMEOUT_S = 2.0
+"""A connection that has not sent a complete CONNECT this long after it opened is closed (the
+original client sends it at once)."""
+MAX_PENDING = 64  #: connections at once that have not completed CONNECT yet
+MAX_PENDING_PER_ADDRESS = 32  #: the same, from one address
+MAX_BACKLOG = 1 << 20
+"""Bytes a connection may leave unread beyond the one reply it waits on (a connection handles
+no request while a reply waits: a client that asks without reading holds one reply)."""
+REFUSE_HEADROOM = 8
+"""Connections beyond the clients and pending ones: the serving layer's plain-text refusal
+line comes only beyond these (a full hub answers CONNECT with a ros4mat error reply)."""
+EXPOSED_BINDS = ("0.0.0.0", "::", "")
+BUSY_REASON = "hub full: too many clients"
+HUB_SWITCH_INTERVAL_S = 1e-4
+"""The interpreter's thread switch interval for a process that is mainly a hub."""
 
 
-def body_parts(pulled: Pulled) -> list[Any]:
-    """The pieces of a data reply's body, as buffers over the pulled records (no copy): the
-    records, or their info records then each frame's blobs at their used size."""
-    rec, src = pulled.records, pulled.source
-    if not src.blobs:
-        return [rec.view(np.uint8).reshape(-1).data]
-    parts: list[Any] = [rec["info"].tobytes()]  # stereo: two infos per frame, in order
-    sizes = src.blob_sizes(rec).tolist()
-    blobs = [rec[b] for b in src.blobs]
-    for i, row in enumerate(sizes):
-        for blob, size in zip(blobs, row, strict=True):
-            parts.append(blob[i, :size].data)
-    return parts
+def tune_hub_process() -> None:
+    """Tune this interpreter for serving many clients: a thread waiting for the GIL gets it
+    after :data:`HUB_SWITCH_INTERVAL_S` instead of 5 ms. A connection's thread hands the GIL
+    over several times per pull (socket, C ring, copies); with 40 multi-threaded clients at
+    the throughput target, p99 pull was 40-90 ms at 5 ms and 24-27 ms at 0.1 ms (measured
+    before the self-locking ring, with 2 client processes).
+    Process-wide: ``robocli serve`` calls it; a library user decides."""
+    sys.setswitchinterval(HUB_SWITCH_INTERVAL_S)
 
 
-def pull_body(pulled: Pulled) -> bytes:
-    """The body of a data reply (one copy out of the records)."""
-    return b"".join(body_parts(pulled))
+class HubServer:
+    """The sensor hub: sensor sources, one ring per sensor, the ros4mat front-end.
 
+    ``bind``/``port``: where to listen (port 0: ephemeral; ros4mat's is 1500). ``sim``: serve
+    the simulated sensors. ``serial_ports``: local serial ports a client may use through
+    SERIAL_CMD (no other). ``gpsd``: ``"HOST:PORT"`` of a gpsd daemon for the GPS.
+    ``pioneer``: URL of a Pioneer robot (or simulator) for the battery and ADC.
+    ``token``: shared secret required for the commands that change settings or write to a
+    serial port (None: open, as ros4mat).
+    ``max_clients``: connections at once; ``max_body``: largest request body (bytes).
+    ``ring_budget``: bytes one sensor's ring may hold (also bounds one reply).
+    ``send_timeout``: seconds a client may leave a reply unread before it is dropped.
+    ``detached_ttl``: seconds a client gone without QUIT keeps its subscriptions and buffers
+    for a reconnect with its id.
+    ``connect_timeout``: seconds a new connection has to send a complete CONNECT (or a
+    request re-attaching a detached client id) before it is closed.
+    ``max_pending``/``max_per_address``: connections at once that have not completed CONNECT,
+    in all and from one address; one more closes the oldest of them that sent nothing (else
+    the oldest). They never take the places of clients: ``max_clients`` counts connections
+    that completed CONNECT; one more gets a ros4mat error reply "hub full".
+    ``output_budget``: bytes of replies that may wait for their clients over all
+    connections (default: two full rings); a connection whose reply would take it over is
+    dropped. ``sources``: extra or replacement sources by sensor name.
 
-class PullTimes:
-    """The server-side duration of the last :data:`SIZE` pulls (request framed -> reply
-    built), for percentiles. Thread-safe, fixed memory."""
-
-    SIZE = 1 << 16
-
-    def __init__(self) -> None:
-        self._d = np.zeros(self.SIZE, dtype=np.float64)
-        self._n = 0
-        self._lock = threading.Lock()
-
-    def add(self, seconds: float) -> None:
-        with self._lock:
-            self._d[self._n % self.SIZE] = seconds
-            self._n += 1
-
-    def percentiles(self, qs: tuple[float, ...] = (50, 99, 100)) -> dict[str, float]:
-        """``{"count": n, "p50": s, "p99": s, "p100": s}`` over the pulls kept."""
-        with self._lock:
-            d = self._d[: min(self._n, self.SIZE)].copy()
-            n = self._n
-        out: dict[str, float] = {"count": float(n)}
-        for q in qs:
-            out[f"p{q:g}"] = float(np.percentile(d, q)) if len(d) else 0.0
-        return out
-
-
-class Ros4matSession:
-    """One ros4mat connection (its link's thread calls :meth:`on_frame` in order)."""
+    A connection whose stream loses its framing (garbage, a request body over ``max_body``,
+    a request left half-sent for 1 s) is closed; a connected client's oversize request gets
+    an error reply first.
+    """
 
     def __init__(
         self,
-        link: Link,
-        hub: Hub,
-        peer: str,
-        token: bytes | None,
-        serial: Any,
-        times: PullTimes | None = None,
+        bind: str = "127.0.0.1",
+        port: int = PORT,
         *,
-        admit: Callable[[], str | None] | None = None,
-        on_end: Callable[[], None] | None = None,
-        reap: Callable[[], object] | None = None,
-        max_body: int | None = None,
+        sim: bool = True,
+        serial_ports: tuple[str, ...] | list[str] = (),
+        gpsd: str | None = None,
+        pioneer: str | None = None,
+        token: str | bytes | None = None,
+        max_clients: int = 64,
+        max_body: int = MAX_BODY,
+        ring_budget: int = DEFAULT_BUDGET,
+        send_timeout: float = SEND_TIMEOUT_S,
+        detached_ttl: float = DETACHED_TTL_S,
+        connect_timeout: float = CONNECT_TIMEOUT_S,
+        max_pending: int = MAX_PENDING,
+        max_per_address: int = MAX_PENDING_PER_ADDRESS,
+        output_budget: int | None = None,
+        sources: dict[str, Source] | None = None,
     ) -> None:
-        self.link, self.hub, self.peer = link, hub, peer
-        self._admit = admit
-        """Takes a client place for this connection: None, or why there is none."""
-        self._admitted = False
-        self._on_end = on_end
-        self._reap = reap
-        """Waits (bounded) for the connections whose peer has already closed to end."""
-        self._max_body = max_body
+        if max_clients < 1:
+            raise InvalidArgument("max_clients must be >= 1")
+        if max_body < 64:
+            raise InvalidArgument("max_body must be >= 64 bytes")
+        if not connect_timeout > 0:
+            raise InvalidArgument("connect_timeout must be > 0 s")
+        if max_pending < 1 or max_per_address < 1:
+            raise InvalidArgument("max_pending and max_per_address must be >= 1")
+        if output_budget is None:
+            output_budget = 2 * ring_budget + MAX_BACKLOG
+        if output_budget < 1:
+            raise InvalidArgument("output_budget must be >= 1 byte")
+        self.connect_timeout = connect_timeout
+        self.max_clients = max_clients
+        self._sessions = 0  # connections admitted as clients (at most max_clients)
+        self._sessions_lock = threading.Lock()
+        self.bind, self._port = bind, port
+        self.serial_ports = tuple(serial_ports)
+        self.gpsd, self.pioneer = gpsd, pioneer
+        if isinstance(token, str):
+            token = token.encode()
+        if token is not None and not token:
+            raise InvalidArgument("token must not be empty")
         self._token = token
-        self._serial = serial
-        self._times = times or PullTimes()
-        self.state: ClientState | None = None
-
-    # ---------------------------------------------------------------- replies
-
-    def _cid(self) -> int:
-        return self.state.id if self.state is not None else 0
-
-    def _error(self, msg_type: int, text: str) -> bytes:
-        log.info("%s: %s", self.peer, text)
-        return encode_error(msg_type, text, client_id=self._cid())
-
-    def _packet(self, msg_type: int, payload: bytes, size: int, since: float | None = None
-                ) -> bytes:  # fmt: skip
-        """A reply with ``size`` records, zlib-compressed if the client asked, sent now.
-
-        Its time stamp is the middle of ``since`` (the hub's clock when the request was
-        taken up) and now: the client maps the stamp onto the middle of its round trip, so
-        a stamp taken after a long compression put its clock offset half of that late (4 to
-        7 ms on megabyte camera replies)."""
-        compress = bool(payload) and self.state is not None and self.state.compress
-        wire = zlib.compress(payload) if compress else payload
-        kind = Compression.ZLIB if compress else Compression.NONE
-        now = self.hub.clock()
-        stamp = now if since is None else (since + now) / 2
-        head = _HEADER.pack(msg_type, 0, self._cid(), size, len(payload), len(wire), kind, stamp)
-        return head + wire
-
-    def _data(self, msg_type: int, pulled: Pulled, since: float) -> list[Any]:
-        """A data reply as buffers: its header, then the records (no copy; the link writes
-        them in one gathered write), or the header and the compressed body. Stamped as
-        :meth:`_packet` says, ``since`` being when the pull began."""
-        n = len(pulled.t)
-        assert self.state is not None
-        if self.state.compress and n:
-            return [self._packet(msg_type, pull_body(pulled), n, since)]
-        parts = body_parts(pulled)
-        body = sum(p.nbytes if isinstance(p, memoryview) else len(p) for p in parts)
-        stamp = (since + self.hub.clock()) / 2
-        head = _HEADER.pack(msg_type, 0, self.state.id, n, body, body, 0, stamp)
-        return [head, *parts]
-
-    # ---------------------------------------------------------------- session protocol
-
-    def on_frame(self, frame: bytes, now: float) -> bytes | None:
-        try:
-            return self._handle(frame)
-        except (ProtocolError, DeviceError, InvalidArgument) as exc:
-            kind = frame[0] if frame else 0
-            return self._error(_REPLY_TYPES.get(kind, kind), str(exc))
-
-    def on_unframed(self, head: bytes) -> bytes | None:
-        """The stream lost its framing at ``head``; the link closes after this reply. A
-        connected client whose request header announced a body over the hub's limit is told
-        so, by an error reply of its request's type (before CONNECT: closed unanswered)."""
-        if self.state is None or self._max_body is None or len(head) < HEADER_SIZE:
-            return None
-        kind, error, _cid, size, _usize, csize, ctype, _ts = _HEADER.unpack_from(head)
-        body = csize if size else 0
-        if error or ctype > Compression.ZLIB or kind not in _REQUESTS or body <= self._max_body:
-            return None  # not a request too large: garbage
-        return self._error(_REPLY_TYPES.get(kind, kind), f"request body of {body} bytes is "
-                           f"over this hub's limit of {self._max_body}; closing")  # fmt: skip
-
-    def on_close(self) -> None:
-        if self.state is not None:
-            self.hub.detach(self.state)
-            log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)
-        if self._admitted and self._on_end is not None:
-            self._admitted = False
-            self._on_end()
-
-    def _enter(self) -> str | None:
-        """Take a client place for this connection (once): None, or why there is none."""
-        if not self._admitted:
-            refused = self._admit() if self._admit is not None else None
-            if refused is not None:
-                return refused
-            self._admitted = True
-            self.link.establish()
-        return None
-
-    # ---------------------------------------------------------------- dispatch
-
-    def _handle(self, frame: bytes) -> bytes | None:
-        kind, error, cid, size, usize, csize, ctype, _ts = _HEADER.unpack_from(frame)
-        body = frame[HEADER_SIZE:]
-        if error or ctype != Compression.NONE or (size and usize != len(body)):
-            return self._error(_REPLY_TYPES.get(kind, kind), "malformed request header")
-        if kind == MsgType.CONNECT:
-            return self._connect(cid, body)
-        if self.state is None:
-            # ros4mat: a request carrying a detached client's id re-attaches to it; not with a
-            # token (a request cannot present it: CONNECT again with the token)
-            if not cid or self._token is not None or not self.hub.detached(cid):
-                return self._error(kind, "not connected: send CONNECT first")
-            refused = self._enter()
-            if refused is not None:
-                return self._error(kind, refused)
-            self.state = self.hub.attach(cid, self.peer)
-            if self.state is None:
-                return self._error(kind, "not connected: send CONNECT first")
-        state = self.state
-        if kind in SENSOR_IDS:
-            name = SENSOR_IDS[kind]
-            if body:
-                return self._error(kind, "a data pull has no body")
-            if name not in state.cursors:  # as the original: nothing queued, size 0
-                return self._packet(kind, b"", 0)
-            start, since = time.perf_counter(), self.hub.clock()
-            parts = self._data(kind, self.hub.pull(state, name), since)
-            self._times.add(time.perf_counter() - start)
-            self.link.send_parts(parts)  # after the replies to earlier frames
-            return None
-        if kind == MsgType.SUBSCRIBE:
-            return self._subscribe(body)
-        if kind == MsgType.UNSUBSCRIBE:
-            if len(body) != 1:
-                return self._error(kind, "UNSUBSCRIBE takes 1 byte")
-            sensor = SENSOR_IDS.get(body[0])
-            if sensor is not None:
-                self.hub.unsubscribe(state, sensor)
-            return None
-        if kind == MsgType.QUIT:
-            self.hub.quit(state)
-            self.state = None
-            self.link.close()
-            return None
-        if kind == MsgType.DOUT_CTRL:
-            self._authorize(kind)
-            levels = _parse(DigitalOut, body, "DOUT_CTRL")
-            self.hub.digital_out([levels[k] for k in ("d0", "d1", "d2", "d3")])
-            return None
-        if kind == MsgType.SERIAL_CMD:
-            self._authorize(kind)
-            return self._serial_cmd(body)
-        return self._error(kind, f"unknown message id 0x{kind & 0xFF:02x}")
-
-    def _authorize(self, kind: int) -> None:
-        if self._token is not None and not (self.state is not None and self.state.authorized):
-            raise DeviceError(f"unauthorized: {MsgType(kind).name} needs the hub's token")
-
-    def _connect(self, cid: int, body: bytes) -> bytes:
-        if len(body) < 2:
-            return self._error(MsgType.CONNECT_ACK, "CONNECT body is 2 bytes")
-        refused = self._enter()
-        if refused is not None:
-            return self._error(MsgType.CONNECT_ACK, refused)
-        given = body[2:]
-        authorized = (
-            self._token is not None and bool(given) and hmac.compare_digest(given, self._token)
+        self._max_body = max_body
+        all_sources = hub_sources(sim, gpsd, pioneer)
+        all_sources.update(sources or {})
+        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
+                       random_ids=token is not None)  # fmt: skip
+        self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
+        self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
+        """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
+        self._server = Server(
+            self._session,
+            protocol="ros4mat",
+            max_clients=max_clients + max_pending + REFUSE_HEADROOM,
+            max_frame=HEADER_SIZE + max_body,
+            byte_timeout=1.0,
+            send_timeout=send_timeout,
+            max_backlog=MAX_BACKLOG,
+            name="hub",
+            busy_reason=BUSY_REASON,
+            pace=True,
+            output_budget=output_budget,
+            strict_framing=True,
+            handshake_timeout=connect_timeout,
+            max_pending=max_pending,
+            max_pending_per_address=max_per_address,
         )
-        # with a token, only its holder may take a detached client's buffers (and rights)
-        resume = self._token is None or authorized
-        if self.state is not None:
-            self.hub.detach(self.state)
-            self.state = None
-        if resume and cid and self.hub.in_use(cid) and self._reap is not None:
-            self._reap()  # its connection may be closed, its end not handled yet
-        self.state = self.hub.connect(cid, self.peer, body[1] == 1, resume=resume)
-        self.state.authorized = authorized
-        return self._packet(MsgType.CONNECT_ACK, b"", 0)
+        self._url: str | None = None
+        self.warnings: list[str] = []
+        self.pull_times = PullTimes()
+        """Server-side pull durations (request framed -> reply built): percentiles."""
 
-    def _subscribe(self, body: bytes) -> bytes:
-        kind = MsgType.SUBSCRIBE_ACK
-        req = _parse(SubscribeRequest, body, "SUBSCRIBE")
-        name = SENSOR_IDS.get(req["sensor"])
-        if name is None:
-            return self._error(kind, f"sensor 0x{req['sensor']:02x} is not served")
-        params = req["params"]
-        silent = bool(req["silent"])
-        if not silent:
-            self._authorize(MsgType.SUBSCRIBE)
-            if not isinstance(params, Mapping):
-                return self._error(kind, f"{name}: {req['params_size']} bytes of parameters "
-                                   "do not match the sensor's")  # fmt: skip
-        assert self.state is not None
-        self.hub.subscribe(self.state, name, None if silent else params, req["buffer_size"])
-        return self._packet(kind, b"", 0)
+    def _expire(self, _now: float) -> None:
+        self.hub.expire()
 
-    def _serial_cmd(self, body: bytes) -> bytes:
-        req = _parse(SerialCmdRequest, body, "SERIAL_CMD")
-        if self._serial is None:
-            raise DeviceError("this hub serves no serial port")
-        status, data = self._serial.command(req)
-        payload = struct.pack("<bI", status, len(data)) + data
-        return self._packet(MsgType.SERIAL_ANS, payload, 1)
+    def _session(self, link: Link) -> Ros4matSession:
+        return Ros4matSession(
+            link, self.hub, link.name, self._token, self.serial, self.pull_times,
+            admit=self._admit_client, on_end=self._session_ended, reap=self._server.reap,
+            max_body=self._max_body,
+        )  # fmt: skip
 
+    def _take_place(self) -> bool:
+        with self._sessions_lock:
+            if self._sessions >= self.max_clients:
+                return False
+            self._sessions += 1
+            return True
 
-def _parse(decl: Any, body: bytes, what: str) -> dict[str, Any]:
-    """A request body decoded with its declaration; :class:`ProtocolError` if it does not."""
-    try:
-        value: dict[str, Any] = plain(decl.parse(body))
-    except DECODE_ERRORS as exc:
-        undecodable(f"ros4mat {what}", body, exc)
-    return value
+    def _admit_client(self) -> str | None:
+        """A client place for a connection completing CONNECT: None, or why not. When the
+        hub is full, the connections whose client has already closed are waited for first
+        (at most :data:`~robocli.sim.serving.REAP_WAIT_S`): the original client's ``close``
+        then ``connect`` must not find its own old connection holding the last place."""
+        if self._take_place():
+            return None
+        self._server.reap(REAP_WAIT_S)
+        if self._take_place():
+            return None
+        log.warning("client refused: %s", BUSY_REASON)
+        return BUSY_REASON
+
+    def _session_ended(self) -> None:
+        with self._sessions_lock:
+            self._sessions -= 1
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> HubServer:
+        """Listen and serve; returns self. Binding every interface logs a loud warning (also
+        kept in :attr:`warnings`)."""
+        msg = self.exposure_warning()
+        if msg is not None:
+            self.warnings.append(msg)
+            log.warning(msg)
+        self._url = self._server.serve_tcp(self.bind, self._port)
+        self._expiry.start()
+        return self
+
+    def exposure_warning(self) -> str | None:
+        """What a hub bound to every interface exposes, said loudly (None on a specific
+        address)."""
+        if self.bind not in EXPOSED_BINDS:
+            return None
+        what = ", ".join(sorted(self.hub.channels)) or "no sensor"
+        extra = f"; serial ports {', '.join(self.serial_ports)}" if self.serial_ports else ""
+        auth = "token required for settings and serial" if self._token else "NO authentication"
+        return (f"hub listening on ALL interfaces ({self.bind or '*'}): anyone on the network "
+                f"can read {what}{extra} ({auth})")  # fmt: skip
+
+    @property
+    def url(self) -> str:
+        """``tcp://HOST:PORT`` (after :meth:`start`)."""
+        if self._url is None:
+            raise InvalidArgument("the hub is not started")
+        return self._url
+
+    @property
+    def port(self) -> int:
+        """The bound TCP port (after :meth:`start`)."""
+        return int(self.url.rsplit(":", 1)[1])
+
+    @property
+    def clients(self) -> list[ClientInfo]:
+        """Every known client: connected, or detached with its buffers kept."""
+        return self.hub.clients()
+
+    @property
+    def sensors(self) -> dict[str, dict[str, Any]]:
+        """Sensor name -> its settings, rate, ring and subscriber count."""
+        return self.hub.sensors()
+
+    @property
+    def output_peak(self) -> int:
+        """The most bytes of replies that ever waited for their clients at once, over all
+        connections (bounded by ``output_budget``)."""
+        return self._server.budget.peak
+
+    @property
+    def evicted(self) -> int:
+        """Connections closed before CONNECT to make room for newer ones."""
+        return self._server.evicted
+
+    @property
+    def link_stats(self) -> LinkStats:
+        """Byte and frame counters summed over every connection, past and present."""
+        return self._server.stats()
+
+    def close(self) -> None:
+        """Close every connection, stop every sensor (bounded). Idempotent."""
+        self._server.close()
+        self._expiry.close()
+        self.hub.close()
+        if self.serial is not None:
+            self.serial.close()
+
+    def __enter__(self) -> HubServer:
+        if self._url is None:
+            self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

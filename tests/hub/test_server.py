@@ -316,8 +316,8 @@ def test_original_client_subscribes_to_every_sensor(
 
 def test_reply_with_partly_filled_blobs_decodes() -> None:
     """JPEG frames fill only part of their slot: the reply carries each at its own size."""
+    from robocli.hub.frontends.ros4mat import pull_body
     from robocli.hub.registry import Pulled
-    from robocli.hub.server import pull_body
     from robocli.hub.sources import StereoSource
 
     src = StereoSource()
