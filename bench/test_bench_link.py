@@ -33,7 +33,7 @@ def test_c_floor_pinned(benchmark: Any, placement: str) -> None:
 
 
 def test_sim_sip_period_raw_reader(benchmark: Any) -> None:
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim() as sim:
         url = sim.serve_tcp("127.0.0.1", 0)

@@ -94,7 +94,7 @@ def _session(record: bool, n: int = 300) -> dict[str, float]:
     """A session against the simulator (100 SIPs/s, in this process): CPU seconds per SIP
     of the client's reader thread, of the recorder's writer thread, and of the process."""
     from robocli.devices.pioneer import Pioneer
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim("p3dx", sip_ms=10.0) as sim:
         url = sim.serve_tcp("127.0.0.1", 0)

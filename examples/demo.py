@@ -16,7 +16,7 @@ from pathlib import Path
 
 from robocli import Pioneer
 from robocli.cli import main as robocli
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from wander import wander  # noqa: E402

@@ -124,7 +124,7 @@ def _child_main() -> None:
     import os
     import signal
 
-    from robocli.sim.abb import AbbSim, ControllerModel
+    from robocli.sim.abb.server import AbbSim, ControllerModel
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops us
     options: dict[str, Any] = json.loads(sys.argv[1])

@@ -116,7 +116,7 @@ def pioneer_url(port: str, **sim_options: Any) -> Iterator[str]:
     if port != SIM:
         yield port
         return
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim(**sim_options) as simulator:
         yield simulator.serve_tcp("127.0.0.1", 0)
@@ -152,7 +152,7 @@ def sim_child_main() -> None:
     if cpu and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {int(cpu)})  # before any thread starts: they all inherit it
     from robocli.bench.common import wait_for_stdin_eof
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim() as simulator:
         print(simulator.serve_tcp("127.0.0.1", 0), flush=True)

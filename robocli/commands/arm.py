@@ -1,5 +1,5 @@
 """``robocli sim abb``, ``upload arm``, ``monitor arm``, ``connect arm``: thin layers over
-:class:`robocli.devices.arm.Arm` and :class:`robocli.sim.abb.AbbSim`.
+:class:`robocli.devices.arm.Arm` and :class:`robocli.sim.abb.server.AbbSim`.
 
 ``HOST`` may be ``sim``: an embedded simulator in exact mode, reporting the controller time
 (JOINT_FEEDBACK) every 5 ms, so that a monitored run validates to the float; with
@@ -76,7 +76,7 @@ def arm_host(
                              "--state-port)", exc.reason) from None  # fmt: skip
         yield host, motion_port, state_port
         return
-    from robocli.sim.abb import AbbSim
+    from robocli.sim.abb.server import AbbSim
 
     with AbbSim(robot, profile=profile, state_ms=EMBEDDED_STATE_MS, feedback=True,
                 real=8 if real_size == 8 else 4,
@@ -153,7 +153,7 @@ def simulate(
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
-    from robocli.sim.abb import PROFILES, AbbSim, ControllerModel
+    from robocli.sim.abb.server import PROFILES, AbbSim, ControllerModel
 
     _check_wire(byte_order, real_size)
     if profile not in PROFILES:

@@ -340,7 +340,7 @@ def simulate(
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
     from robocli.robots.pioneer import ROBOT_PARAMS
-    from robocli.sim.pioneer import PioneerSim, serve_many
+    from robocli.sim.pioneer.server import PioneerSim, serve_many
     from robocli.sim.world import World
 
     if subtype not in ROBOT_PARAMS:

@@ -33,7 +33,7 @@ __all__ = ["LMS200", "LaserGeometry", "LaserSpec", "cast", "reflectance"]
 
 FloatArray = npt.NDArray[np.float64]
 
-log = logging.getLogger("robocli.sim.pioneer")
+log = logging.getLogger("robocli.sim.pioneer.server")
 
 
 def cast(

@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from robocli.devices.arm import Arm
-from robocli.sim.abb import AbbSim
+from robocli.sim.abb.server import AbbSim
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "simple_message"
 VARIANTS = {"le": ("<", 4), "bswap": (">", 4), "float64": ("<", 8)}

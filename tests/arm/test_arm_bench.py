@@ -16,7 +16,7 @@ import pytest
 from robocli.bench.arm import parse_url, rtt, state_periods
 from robocli.bench.common import Run
 from robocli.errors import InvalidArgument
-from robocli.sim.abb import AbbSim
+from robocli.sim.abb.server import AbbSim
 
 BENCH = [sys.executable, "-m", "robocli", "bench"]
 TABLE5 = {"n", "mean", "median", "std", "min", "max", "p90", "p99"}
@@ -141,7 +141,7 @@ def test_paper_model_is_for_the_arm_only(kind: str, target: str) -> None:
 def test_state_period_model_has_the_shape_of_table5() -> None:
     """The model's state period (the paper's σ, 18 ms, around 20 ms) in the shape Table 5
     reports: mean 20.3, median 15.7, σ 18.0, min 0.5, max 63.0 ms."""
-    from robocli.sim.abb import ControllerModel
+    from robocli.sim.abb.server import ControllerModel
 
     rng = np.random.default_rng(7)
     draws = np.array([ControllerModel.paper().state_period_ms(rng, 20.0) for _ in range(20_000)])
@@ -155,7 +155,7 @@ def test_state_period_model_has_the_shape_of_table5() -> None:
 
 
 def test_state_periods_on_the_wire_follow_the_model(make_sim: Any, make_arm: Any) -> None:
-    from robocli.sim.abb import ControllerModel
+    from robocli.sim.abb.server import ControllerModel
 
     scale = 2.0
     sim, mp, sp = make_sim(state_ms=20.0, time_scale=scale,

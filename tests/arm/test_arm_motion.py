@@ -46,7 +46,7 @@ def test_download_circle_matches_simulation(make_sim, make_arm) -> None:
 def test_paper_model_gives_paper_like_errors(make_sim, make_arm) -> None:
     """The paper-like controller model: round trips of 20+ ms, and after alignment joint
     errors in the range of the paper's Table 4 (RMSE <= 7.5 mrad, MAE <= 6.5 mrad)."""
-    from robocli.sim.abb import ControllerModel
+    from robocli.sim.abb.server import ControllerModel
 
     sim, mp, sp = make_sim(state_ms=10.0, feedback=True, model=ControllerModel.paper())
     arm = make_arm(mp, sp)
@@ -200,7 +200,7 @@ def test_send_point_returns_the_round_trip(make_sim, make_arm) -> None:
 
 def test_streaming_queue_is_bounded(make_sim, make_arm, monkeypatch) -> None:
     """A streaming server holds a bounded queue ahead of the arm: beyond it, FAILURE."""
-    import robocli.sim.abb_session as abb_session
+    import robocli.sim.abb.session as abb_session
 
     monkeypatch.setattr(abb_session, "MAX_QUEUE", 5)
     sim, mp, sp = make_sim(profile="generic")

@@ -12,8 +12,8 @@ import pytest
 
 from cli.helpers import one_line_error, run, running
 from robocli.hub import HubServer
-from robocli.sim.abb import AbbSim
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 def _ipv6_loopback() -> bool:

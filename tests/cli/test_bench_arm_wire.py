@@ -11,7 +11,7 @@ import pytest
 
 from cli.helpers import one_line_error, run
 from robocli.errors import TransportError
-from robocli.sim.abb import AbbSim
+from robocli.sim.abb.server import AbbSim
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ import pytest
 from cli.helpers import one_line_error, run, running
 from robocli.commands._common import RESOLUTION
 from robocli.devices.pioneer import Pioneer
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 @pytest.fixture

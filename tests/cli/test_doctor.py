@@ -19,8 +19,8 @@ from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import RobocliError
 from robocli.hub import HubServer
-from robocli.sim.abb import AbbSim
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.pioneer.server import PioneerSim
 
 PROBES = ("pioneer", "arm_motion", "arm_state", "hub")
 

@@ -15,8 +15,8 @@ import pytest
 from cli.helpers import one_line_error, run
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 from robocli.hub import HubServer
-from robocli.sim.abb import AbbSim
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.pioneer.server import PioneerSim
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 ARM_DATA = Path(__file__).resolve().parents[1] / "data" / "simple_message"

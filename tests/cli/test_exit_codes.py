@@ -168,7 +168,7 @@ def places(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]
     """A free port, a busy one, a silent server (accepts, never answers), a Pioneer
     simulator held by a client, and files."""
     from robocli import Pioneer
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     tmp = tmp_path_factory.mktemp("exit-codes")
     (tmp / "empty.bin").write_bytes(b"")
@@ -224,7 +224,7 @@ def _run(case: Run, places: dict[str, Any], capsys: pytest.CaptureFixture[str]) 
         code = main(args)
         return code, capsys.readouterr().err
     if case.how == "lost":
-        from robocli.sim.pioneer import PioneerSim
+        from robocli.sim.pioneer.server import PioneerSim
 
         sim = PioneerSim()
         try:
@@ -279,7 +279,7 @@ def test_the_readme_exit_code_table(row: tuple[int, str], case: Run | None, plac
 
 def test_a_recorder_writes_what_it_has_on_ctrl_c(tmp_path: Path) -> None:
     """``monitor arm`` on Ctrl-C: the log is written, then exit 130 (it was 0)."""
-    from robocli.sim.abb import AbbSim
+    from robocli.sim.abb.server import AbbSim
 
     out = tmp_path / "m.json"
     with AbbSim(state_ms=5.0) as sim:

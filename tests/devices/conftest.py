@@ -7,7 +7,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 
 

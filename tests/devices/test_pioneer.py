@@ -23,7 +23,7 @@ from robocli.errors import (
 )
 from robocli.protocols import arcos
 from robocli.robots.pioneer import ROBOT_PARAMS
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import FaultyTransport, SocketTransport
 

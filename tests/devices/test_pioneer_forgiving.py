@@ -10,7 +10,7 @@ import pytest
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import InvalidArgument
 from robocli.protocols.arcos import Command
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 @pytest.mark.parametrize(

@@ -28,7 +28,7 @@ from robocli.devices.pioneer.laser import (
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"

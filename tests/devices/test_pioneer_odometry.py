@@ -11,7 +11,7 @@ from robocli.devices.pioneer import Pioneer
 from robocli.devices.pioneer.state import Odometry, sip_essentials
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
 SETO = arcos.encode_command(arcos.Command.SETO)

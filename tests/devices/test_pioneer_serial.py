@@ -9,7 +9,7 @@ import errno
 import pytest
 
 from robocli.devices.pioneer import Pioneer
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.transports import _serial_hint
 
 

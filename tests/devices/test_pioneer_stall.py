@@ -17,7 +17,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from robocli.sim.pioneer import PioneerSim, SimState
+from robocli.sim.pioneer.server import PioneerSim, SimState
 from robocli.sim.world import World
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="POSIX signals")

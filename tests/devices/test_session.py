@@ -13,7 +13,7 @@ import pytest
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import ConnectionLost, TransportError
 from robocli.protocols import arcos
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 class Relay:

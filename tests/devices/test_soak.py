@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robocli.devices.pioneer import Pioneer
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from robocli.hub import HubServer
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 @pytest.fixture

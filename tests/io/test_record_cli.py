@@ -18,7 +18,7 @@ from cli.helpers import ROBOCLI, one_line_error, run, running
 from robocli.io.capture import CaptureWriter
 from robocli.io.record import Recorder, info
 from robocli.protocols import arcos
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from tests.io.readback import by_topic, decoded, messages, stream_messages, wait_for
 
 

@@ -245,7 +245,7 @@ def test_hub_jpeg_frames_are_compressed_images(hub_server: HubServer, tmp_path: 
 
 def test_several_sources_one_timeline(pioneer_url: str, abb: tuple[int, int],
                                       hub_server: HubServer, tmp_path: Path) -> None:  # fmt: skip
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     path = tmp_path / "all.mcap"
     with Recorder(path) as rec, PioneerSim("p3dx", time_scale=5.0) as second:

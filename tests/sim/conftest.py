@@ -16,7 +16,7 @@ from typing import Any
 import pytest
 
 from robocli.protocols import arcos
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 class RawClient:

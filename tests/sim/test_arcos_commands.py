@@ -6,7 +6,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 from robocli.protocols.arcos import Command, PacketType
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 
 if TYPE_CHECKING:
     from conftest import RawClient

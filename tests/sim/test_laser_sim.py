@@ -15,7 +15,7 @@ from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
 from robocli.sim.laser import LMS200, LaserGeometry, LaserSpec, cast, reflectance
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 
 if TYPE_CHECKING:

@@ -24,7 +24,7 @@ from robocli.errors import TimeoutError, TransportError
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
 from robocli.protocols.common import find_refusal
-from robocli.sim.pioneer import PioneerSim, SimState, serve_many, sonar_batch
+from robocli.sim.pioneer.server import PioneerSim, SimState, serve_many, sonar_batch
 from robocli.sim.world import MapError, World
 
 pytestmark = pytest.mark.timeout(30)
@@ -249,7 +249,7 @@ def test_out_of_order_sync_restarts(make_sim: MakeSim, connect: Connect) -> None
 def test_half_open_handshake_times_out(
     make_sim: MakeSim, connect: Connect, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr("robocli.sim.arcos_session.HANDSHAKE_TIMEOUT_S", 0.2)
+    monkeypatch.setattr("robocli.sim.pioneer.session.HANDSHAKE_TIMEOUT_S", 0.2)
     sim = make_sim()
     client = connect(sim)
     client.send_raw(arcos.frame(b"\x00") + arcos.frame(b"\x01"))

@@ -351,7 +351,7 @@ def test_a_client_that_closed_does_not_hold_its_place_against_its_reconnect(
 
 def test_a_pioneer_reconnecting_at_once_is_not_busy() -> None:
     """The same through the Pioneer simulator (one client at a time)."""
-    from robocli.sim.pioneer import PioneerSim
+    from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim() as sim, busy_cpu():
         url = sim.serve_tcp(port=0)

@@ -14,8 +14,8 @@ from robocli import Pioneer
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
-from robocli.sim.arcos_simext import lat_lon
-from robocli.sim.pioneer import PioneerSim
+from robocli.sim.pioneer.server import PioneerSim
+from robocli.sim.pioneer.simext import lat_lon
 from robocli.sim.world import World
 
 if TYPE_CHECKING:

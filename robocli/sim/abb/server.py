@@ -22,7 +22,7 @@ joint beyond its limit, out of order), PING answered, any other request refused 
 header-only FAILURE (like ``MessageManager``).
 
 Time: ``time_scale`` simulated seconds run per wall second (tests run faster than real time).
-With :class:`~robocli.sim.abb_session.ControllerModel` all zero (the default) execution is
+With :class:`~robocli.sim.abb.session.ControllerModel` all zero (the default) execution is
 exact and states are sampled at their nominal instants ``k * state_ms``.
 """
 
@@ -42,7 +42,7 @@ from robocli.errors import TimeoutError, TransportError
 from robocli.kinematics import load_model
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
-from robocli.sim.abb_session import (
+from robocli.sim.abb.session import (
     PROFILES,
     ArmController,
     ControllerModel,
@@ -53,7 +53,7 @@ from robocli.sim.serving import Link, Server
 
 __all__ = ["PROFILES", "AbbSim", "ArmSimState", "ControllerModel"]
 
-log = logging.getLogger("robocli.sim.abb")
+log = logging.getLogger("robocli.sim.abb.server")
 
 SEND_TIMEOUT_S = 2.0
 MAX_CATCH_UP_S = 5.0  #: exact mode sends samples this many wall seconds late; older are skipped

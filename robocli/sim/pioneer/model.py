@@ -1,7 +1,7 @@
 """The Pioneer's body in the simulator: unicycle physics, odometry, collisions, battery, sonar.
 
 No protocol and no sockets: :class:`PioneerModel` takes commands in SI units and is stepped by
-the simulator's ticker; ``robocli.sim.arcos_session`` turns ARCOS commands into calls on it and
+the simulator's ticker; ``robocli.sim.pioneer.session`` turns ARCOS commands into calls on it and
 its state into packets. Robot data (``RobotParams``) comes from ``robocli.robots.pioneer``;
 the walls it drives among and its sonar's ray casting come from :class:`~robocli.sim.world.World`.
 """

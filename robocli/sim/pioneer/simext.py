@@ -1,7 +1,7 @@
 """The simulator-only part of the built-in Pioneer's ARCOS: simulated laser, SIMSTAT, teleports
 and the cycle on which SETO takes effect (``shared/protocols/arcos_sim_laser.md``).
 
-:class:`SimExtensions` is used by :class:`~robocli.sim.arcos_session.ArcosController` under its
+:class:`SimExtensions` is used by :class:`~robocli.sim.pioneer.session.ArcosController` under its
 lock: it contributes command handlers and the packets that go out around each SIP. Timing,
 as AMRISim (which reads client input once per cycle, just after it sent the SIP batch):
 
@@ -33,11 +33,11 @@ from robocli.protocols.arcos import (
     encode_simstat,
 )
 from robocli.sim.laser import LaserGeometry, LaserSpec, cast, reflectance
-from robocli.sim.pioneer_model import PioneerModel
+from robocli.sim.pioneer.model import PioneerModel
 
 __all__ = ["Georef", "SimExtensions", "lat_lon"]
 
-log = logging.getLogger("robocli.sim.pioneer")
+log = logging.getLogger("robocli.sim.pioneer.server")
 
 #: A map's georeference: latitude, longitude (degrees) and altitude (m) of the world origin.
 Georef = tuple[float, float, float]

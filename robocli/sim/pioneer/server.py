@@ -20,12 +20,12 @@ differences where the real robot behaves better than MobileSim:
 
 As MobileSim/AMRISim it reports itself as a simulator (CONFIG serial ``SIM``) and serves the
 simulated laser (0x60/0x61 after every SIP), SIMSTAT (0x62) with the true pose and, with a
-georeference, a GPS fix, SIM_SET_POSE and SIM_RESET (``robocli.sim.arcos_simext``); SETO shows
+georeference, a GPS fix, SIM_SET_POSE and SIM_RESET (``robocli.sim.pioneer.simext``); SETO shows
 in the second SIP after it, as in AMRISim.
 
-The simulator glues three parts: the robot model (``robocli.sim.pioneer_model``: physics,
+The simulator glues three parts: the robot model (``robocli.sim.pioneer.model``: physics,
 odometry, collisions, battery, sonar in a ``World``), the ARCOS firmware
-(``robocli.sim.arcos_session``: handshake, commands, packets, watchdog; no sockets) and the
+(``robocli.sim.pioneer.session``: handshake, commands, packets, watchdog; no sockets) and the
 shared serving layer (``robocli.sim.serving``: a thread per TCP link replying inline, the pty,
 one client per robot, a second one refused with ``robocli-refused: robot busy: ...``).
 
@@ -45,10 +45,10 @@ from typing import Any
 
 from robocli.errors import InvalidArgument, TimeoutError, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
-from robocli.sim.arcos_session import PRE_SYNC, ArcosController, sonar_batch
-from robocli.sim.arcos_simext import Georef
 from robocli.sim.laser import LMS200, LaserSpec
-from robocli.sim.pioneer_model import PioneerModel, Pose
+from robocli.sim.pioneer.model import PioneerModel, Pose
+from robocli.sim.pioneer.session import PRE_SYNC, ArcosController, sonar_batch
+from robocli.sim.pioneer.simext import Georef
 from robocli.sim.serving import Server, Ticker
 from robocli.sim.world import World
 

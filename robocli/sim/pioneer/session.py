@@ -1,14 +1,14 @@
 """The ARCOS side of the simulated Pioneer: what its microcontroller does, without sockets.
 
 :class:`ArcosController` is the robot's firmware: the handshake state machine, the command
-handlers driving a :class:`~robocli.sim.pioneer_model.PioneerModel`, the server packets (SIP,
+handlers driving a :class:`~robocli.sim.pioneer.model.PioneerModel`, the server packets (SIP,
 CONFIG, IO, encoder, battery), the watchdog, and the rule that one client at a time holds the
 session. :class:`ArcosSession` is one link's protocol state (a
 :class:`~robocli.sim.serving.Session`): the serving layer hands it complete frames from the
 link's thread and writes its replies; the simulator's ticker calls :meth:`ArcosController.tick`
 and pushes the packets it returns. Every method that touches state takes the controller's lock.
 
-Deliberate differences from MobileSim/AMRISim are listed in ``robocli.sim.pioneer``.
+Deliberate differences from MobileSim/AMRISim are listed in ``robocli.sim.pioneer.server``.
 """
 
 from __future__ import annotations
@@ -39,14 +39,14 @@ from robocli.protocols.arcos import (
     frame,
     split_two_bytes,
 )
-from robocli.sim.arcos_simext import Georef, SimExtensions
 from robocli.sim.laser import LaserSpec
-from robocli.sim.pioneer_model import NUM_BUMPERS, TICKS_PER_MM, PioneerModel, clamp
+from robocli.sim.pioneer.model import NUM_BUMPERS, TICKS_PER_MM, PioneerModel, clamp
+from robocli.sim.pioneer.simext import Georef, SimExtensions
 from robocli.sim.serving import Link
 
 __all__ = ["ArcosController", "ArcosSession", "sonar_batch"]
 
-log = logging.getLogger("robocli.sim.pioneer")
+log = logging.getLogger("robocli.sim.pioneer.server")
 
 HANDSHAKE_TIMEOUT_S = 10.0  #: wall seconds of silence after which a half-open handshake resets
 
@@ -96,7 +96,7 @@ class ArcosController:
     ``period``: wall seconds between ticks. ``watchdog_s``: wall seconds without a valid
     packet after which the session's robot is stopped (0 disables). ``laser``, ``georef``,
     ``reflectors``: the simulated laser, the world's georeference and its reflective wall
-    segments (:mod:`robocli.sim.arcos_simext`). ``state_of_charge``: report the battery's
+    segments (:mod:`robocli.sim.pioneer.simext`). ``state_of_charge``: report the battery's
     state of charge in the SIP; by default 0, as MobileSim/AMRISim send it (the vendor SDK
     then shows volts).
     """

@@ -43,7 +43,7 @@ __all__ = [
     "StateSession",
 ]
 
-log = logging.getLogger("robocli.sim.abb")
+log = logging.getLogger("robocli.sim.abb.server")
 
 FloatArray = npt.NDArray[np.float64]
 
