@@ -11,7 +11,9 @@ from typing import Any
 
 import pytest
 
-from robocli.bench.common import Run, Stats, allowed_cpus, c_floor, raw_sip_periods
+from robocli.bench.harness import allowed_cpus, c_floor
+from robocli.bench.pioneer import raw_sip_periods
+from robocli.bench.stats import Run, Stats
 
 
 @pytest.mark.parametrize("placement", ["same CPU", "different CPUs"])

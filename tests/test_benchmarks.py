@@ -10,18 +10,14 @@ import sys
 import numpy as np
 import pytest
 
-from robocli.bench.common import (
-    Run,
-    Stats,
-    allowed_cpus,
+from robocli.bench.harness import allowed_cpus, c_floor
+from robocli.bench.pioneer import (
     arcos_responder,
     arcos_responder_table,
-    c_floor,
-    histogram,
     pioneer_on_responder,
     pioneer_rtt,
-    report,
 )
+from robocli.bench.stats import Run, Stats, histogram, report
 from robocli.core import PingPong, Responder, pin_supported
 from robocli.errors import TransportError
 from robocli.protocols import arcos

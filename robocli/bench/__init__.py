@@ -1,2 +1,3 @@
-"""Every benchmark of robocli: shared statistics and child processes (:mod:`.common`), the
-Pioneer (:mod:`.pioneer` once split), the arm (:mod:`.arm`) and the hub (:mod:`.hub`)."""
+"""Every benchmark of robocli: statistics and reports (:mod:`.stats`), child processes, CPU
+pinning and the C floor (:mod:`.harness`), and one module per device (:mod:`.pioneer`,
+:mod:`.arm`, :mod:`.hub`)."""

@@ -4,8 +4,8 @@ SERVICE_REPLY round trips (:func:`rtt`) and the state period (:func:`state_perio
 The IRB120 paper's Table 5 measured both between MATLAB/ROS and the controller: RTT mean
 33.9 ms (median 31.8, std 6.76, min 20.4, max 65.8) and a StateServer period of mean 20.3 ms
 (median 15.7, std 18.0, min 0.5, max 63.0); :data:`PAPER_TABLE5` holds them. The statistics
-are :class:`robocli.bench.common.Stats` (Table 5's plus p90/p99), filled into a
-:class:`robocli.bench.common.Run` as they come, so Ctrl-C keeps what was measured.
+are :class:`robocli.bench.stats.Stats` (Table 5's plus p90/p99), filled into a
+:class:`robocli.bench.stats.Run` as they come, so Ctrl-C keeps what was measured.
 
 Round trips never move the arm: each is a download start (sequence -1) at the measured
 joints, which an ABB buffers and never runs without a -3; a streaming server (which answers
@@ -24,7 +24,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from robocli.bench.common import Run, child_process, wait_for_stdin_eof
+from robocli.bench.harness import child_process, wait_for_stdin_eof
+from robocli.bench.stats import Run
 from robocli.errors import DeviceError, TransportError
 from robocli.protocols.simple_message import PORT_MOTION, SpecialSeq
 from robocli.transports import parse_address

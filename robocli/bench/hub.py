@@ -29,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from robocli.bench.common import Run, child_process, read_line
+from robocli.bench.harness import child_process, read_line
+from robocli.bench.stats import Run
 from robocli.errors import RobocliError, TransportError
 
 #: Sensor (as the bench names it) -> (ros4mat name, subscribe arguments).
@@ -74,7 +75,7 @@ class HubProcess:
 
 @contextlib.contextmanager
 def hub_process(timeout: float = 20.0) -> Iterator[HubProcess]:
-    """A simulated hub in a child process (:func:`~robocli.bench.common.child_process`: it
+    """A simulated hub in a child process (:func:`~robocli.bench.harness.child_process`: it
     stops at the end of its stdin)."""
     code = "from robocli.bench.hub import _hub_child; _hub_child()"
     with child_process(code, timeout=timeout) as (proc, line):

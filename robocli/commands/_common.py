@@ -128,7 +128,7 @@ def pioneer_sim_process(cpu: int | None = None, timeout: float = 20.0) -> Iterat
     when given), so that a benchmark measures the client against a server that does not
     share its interpreter. The child ignores Ctrl-C (the parent stops it: end of its stdin,
     then SIGTERM, then SIGKILL, each bounded)."""
-    from robocli.bench.common import child_process
+    from robocli.bench.harness import child_process
     from robocli.errors import TransportError
 
     code = "from robocli.commands._common import sim_child_main; sim_child_main()"
@@ -151,7 +151,7 @@ def sim_child_main() -> None:
     cpu = sys.argv[1] if len(sys.argv) > 1 else ""
     if cpu and hasattr(os, "sched_setaffinity"):
         os.sched_setaffinity(0, {int(cpu)})  # before any thread starts: they all inherit it
-    from robocli.bench.common import wait_for_stdin_eof
+    from robocli.bench.harness import wait_for_stdin_eof
     from robocli.sim.pioneer.server import PioneerSim
 
     with PioneerSim() as simulator:

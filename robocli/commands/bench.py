@@ -25,7 +25,7 @@ from robocli.commands._common import (
 )
 
 if TYPE_CHECKING:
-    from robocli.bench.common import Run
+    from robocli.bench.stats import Run
 
 TARGETS = ("pioneer",)
 TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
@@ -109,9 +109,9 @@ class _Progress:
 def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
     """(the CPU both ends share, another CPU for the cross-CPU floor), None where pinning is
     impossible (another platform, or a single allowed CPU for the second)."""
-    from robocli.bench import common as b
+    from robocli.bench import harness as bh
 
-    allowed = b.allowed_cpus()
+    allowed = bh.allowed_cpus()
     if not allowed:
         return None, None
     if cpu is not None and cpu not in allowed:
@@ -143,7 +143,9 @@ def rtt(
     responder (the client's own cost), then the client against the built-in simulator
     running in its own process; all pinned to one CPU.
     """
-    from robocli.bench import common as b
+    from robocli.bench import harness as bh
+    from robocli.bench import pioneer as bp
+    from robocli.bench import stats as bs
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
@@ -155,7 +157,7 @@ def rtt(
         return _arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
     _check_target(target, also=("arm", "hub"))
     same, other = _cpus(cpu)
-    at = b.cpu_label
+    at = bh.cpu_label
     progress = _Progress()
     runs: list[tuple[Run, tuple[float, float] | None]] = []
     interrupted = False
@@ -163,7 +165,7 @@ def rtt(
     def stage(
         name: str, where: str, targets: tuple[float, float] | None = None, count: int = n
     ) -> Run:
-        run = b.Run(name, count, where)
+        run = bs.Run(name, count, where)
         runs.append((run, targets))
         return run
 
@@ -172,43 +174,43 @@ def rtt(
             fn = floor_n or n
             run = stage("C floor, same CPU", f"both ends on {at(same)}", count=fn)
             with progress.stage(run.name, fn) as update:
-                b.c_floor(run, same, same, progress=update)
+                bh.c_floor(run, same, same, progress=update)
             if other is not None:
                 where = f"ends on {at(same)} and {at(other)}"
                 run = stage("C floor, different CPUs", where, count=fn)
                 with progress.stage(run.name, fn) as update:
-                    b.c_floor(run, same, other, progress=update)
+                    bh.c_floor(run, same, other, progress=update)
             if url is not None:
                 run = stage(f"{target} CONFIG, {url}", f"client on {at(same)}")
-                with progress.stage(run.name, n) as update, b.pinned(same):
-                    with b.pioneer_at(url) as robot:
-                        b.pioneer_rtt(robot, run, progress=update)
+                with progress.stage(run.name, n) as update, bh.pinned(same):
+                    with bp.pioneer_at(url) as robot:
+                        bp.pioneer_rtt(robot, run, progress=update)
             else:
                 run = stage("bare socket vs C responder", f"both on {at(same)}")
-                with progress.stage(run.name, n) as update, b.pinned(same):
-                    with b.arcos_responder(same) as responder:
-                        b.bare_rtt(responder.port, run, progress=update)
+                with progress.stage(run.name, n) as update, bh.pinned(same):
+                    with bp.arcos_responder(same) as responder:
+                        bp.bare_rtt(responder.port, run, progress=update)
                 run = stage(
                     "client vs C responder", f"client, responder on {at(same)}", RESPONDER_TARGETS
                 )
-                with progress.stage(run.name, n) as update, b.pinned(same):
-                    with b.arcos_responder(same) as responder:
-                        with b.pioneer_on_responder(responder) as robot:
-                            b.pioneer_rtt(robot, run, progress=update)
+                with progress.stage(run.name, n) as update, bh.pinned(same):
+                    with bp.arcos_responder(same) as responder:
+                        with bp.pioneer_on_responder(responder) as robot:
+                            bp.pioneer_rtt(robot, run, progress=update)
                 run = stage(
                     "client vs simulator process",
                     f"client, simulator on {at(same)}",
                     SIM_TARGETS,
                 )
-                with progress.stage(run.name, n) as update, b.pinned(same):
-                    with pioneer_sim_process(same) as sim_url, b.pioneer_at(sim_url) as robot:
-                        b.pioneer_rtt(robot, run, progress=update)
+                with progress.stage(run.name, n) as update, bh.pinned(same):
+                    with pioneer_sim_process(same) as sim_url, bp.pioneer_at(sim_url) as robot:
+                        bp.pioneer_rtt(robot, run, progress=update)
         except KeyboardInterrupt:
             interrupted = True
     floor_run = runs[0][0]
-    floor = b.Stats.of(floor_run.values) if floor_run.count else None
+    floor = bs.Stats.of(floor_run.values) if floor_run.count else None
     results = [
-        b.report(run.name, run.values, floor if i else None, targets, run.where)
+        bs.report(run.name, run.values, floor if i else None, targets, run.where)
         for i, (run, targets) in enumerate(runs)
         if run.count
     ]
@@ -223,14 +225,14 @@ def rtt(
 
 def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
     """SIP timing through the client; on Ctrl-C, what was collected and True."""
-    from robocli.bench import common as b
+    from robocli.bench import pioneer as bp
 
     timing: dict[str, Any] = {}
     progress = _Progress()
     with sigterm_as_interrupt():
         try:
             with pioneer_url(url or "sim") as where, progress.stage("SIPs", n) as update:
-                b.pioneer_sip_timing(where, n, progress=update, into=timing)
+                bp.pioneer_sip_timing(where, n, progress=update, into=timing)
         except KeyboardInterrupt:
             return timing, True
     return timing, False
@@ -252,7 +254,7 @@ def jitter(
     real_size: int | None = RealOpt,  # noqa: UP007
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
-    from robocli.bench import common as b
+    from robocli.bench import stats as bs
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
@@ -262,7 +264,7 @@ def jitter(
     timing, interrupted = _sip_timing(url, n)
     period = timing.get("period")
     if period is not None and period.size:
-        _show([b.report("SIP period", period)], {"period": period}, json_out)
+        _show([bs.report("SIP period", period)], {"period": period}, json_out)
     _finish(interrupted)
 
 
@@ -273,17 +275,17 @@ def sip(
     json_out: bool = JsonOpt,
 ) -> None:
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
-    from robocli.bench import common as b
+    from robocli.bench import stats as bs
 
     _check_target(target)
     timing, interrupted = _sip_timing(url, n)
     results = []
     work = timing.get("work")
     if work is not None and work.size:
-        results.append(b.report("client CPU per SIP", work))
+        results.append(bs.report("client CPU per SIP", work))
     keep = timing.get("keepalive")
     if keep is not None and keep.size > 1:
-        results.append(b.report("keep-alive period", keep))
+        results.append(bs.report("keep-alive period", keep))
     if results:
         _show(results, {"work": work} if work is not None and work.size else {}, json_out)
     _finish(interrupted)
@@ -315,7 +317,7 @@ def _print_results(
 ) -> None:
     import numpy as np
 
-    from robocli.bench import common as b
+    from robocli.bench import stats as bs
     from robocli.commands._common import rounded
 
     if json_out:
@@ -345,7 +347,7 @@ def _print_results(
     for name, samples in hist.items():
         unit, label = _unit(float(np.median(samples)) * 1e6)
         typer.echo(f"histogram: {name} ({label})")
-        for line in b.histogram(samples, unit=unit, label=label):
+        for line in bs.histogram(samples, unit=unit, label=label):
             typer.echo(line)
 
 
@@ -357,7 +359,8 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
     simulator in its own process (``paper``: its paper-like model), beside Table 5.
     ``wire``: (byte order, real size) of the controller, and of that simulator."""
     from robocli.bench import arm as ab
-    from robocli.bench import common as b
+    from robocli.bench import harness as bh
+    from robocli.bench import stats as bs
     from robocli.devices.arm import Arm
 
     if url is not None and paper:
@@ -372,12 +375,12 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
             if kind == "rtt":
                 for label, echo in (("same CPU", same), ("different CPUs", other)):
                     if label == "same CPU" or other is not None:
-                        runs.append(b.Run(f"C floor, {label}", floor_n or n))
+                        runs.append(bs.Run(f"C floor, {label}", floor_n or n))
                         with progress.stage(runs[-1].name, runs[-1].n) as update:
-                            b.c_floor(runs[-1], same, echo, progress=update)
-            runs.append(b.Run(name, n, f"{where}; client on {b.cpu_label(same)}"))
+                            bh.c_floor(runs[-1], same, echo, progress=update)
+            runs.append(bs.Run(name, n, f"{where}; client on {bh.cpu_label(same)}"))
             with contextlib.ExitStack() as stack:
-                stack.enter_context(b.pinned(same))
+                stack.enter_context(bh.pinned(same))
                 h, mp, sp = (ab.parse_url(url) if url is not None else
                              stack.enter_context(ab.sim_process(paper, cpu=same, wire=wire)))
                 arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt",
@@ -386,8 +389,8 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
                 (ab.rtt if kind == "rtt" else ab.state_periods)(arm, runs[-1], progress=update)
         except KeyboardInterrupt:
             interrupted = True
-    floor = b.Stats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
-    results = [b.report(r.name, r.values, floor if "floor" not in r.name else None,
+    floor = bs.Stats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
+    results = [bs.report(r.name, r.values, floor if "floor" not in r.name else None,
                         where=r.where) for r in runs if r.count]  # fmt: skip
     paper_row = ab.PAPER_TABLE5["rtt" if kind == "rtt" else "state period"]
     if json_out:

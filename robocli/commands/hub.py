@@ -468,10 +468,10 @@ def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
 
 def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
     """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
-    from robocli.bench import common as b
     from robocli.bench import hub as hub_bench
+    from robocli.bench import stats as bs
 
-    run = b.Run("hub empty pull", n)
+    run = bs.Run("hub empty pull", n)
     interrupted = False
     with sigterm_as_interrupt():
         try:
@@ -481,7 +481,7 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
         except KeyboardInterrupt:
             interrupted = True
     if run.count:
-        result = b.report(run.name, run.values, where=run.where)
+        result = bs.report(run.name, run.values, where=run.where)
         if json_out:
             print_json([result])
         else:

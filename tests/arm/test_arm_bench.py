@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from robocli.bench.arm import parse_url, rtt, state_periods
-from robocli.bench.common import Run
+from robocli.bench.stats import Run
 from robocli.errors import InvalidArgument
 from robocli.sim.abb.server import AbbSim
 

@@ -35,7 +35,7 @@ def test_keepalive_period_in_ms_and_json_rounded() -> None:
 
 def test_histogram_edges_are_told_apart() -> None:
     """A narrow spread once printed three bins all labelled ``99.9 - 99.9 ms``."""
-    from robocli.bench.common import histogram
+    from robocli.bench.stats import histogram
 
     lines = histogram([0.09990, 0.09991, 0.09993, 0.09995], bins=4, unit=1e-3, label="ms")
     edges = [(line.split()[0], line.split()[2]) for line in lines]

@@ -1,229 +1,23 @@
-"""Latency, jitter and per-packet cost, measured through the real client code paths.
-
-Statistics follow the IRB120 paper's Table 5 (n, mean, median, std, min, max) plus p90/p99,
-and every latency is also given as a multiple of the machine's floor: a C ping-pong over
-loopback TCP measured in the same run (:class:`robocli.core.PingPong`) with **both ends
-pinned to one CPU**, so figures mean the same on any machine (unpinned, the two ends land on
-one CPU or on two from run to run, and the floor changes by an order of magnitude).
-
-Every measurement fills a :class:`Run` as it goes, so a run stopped by Ctrl-C keeps what it
-collected; long loops call a ``progress(done)`` callback. All samples are in seconds.
+"""Pioneer benchmarks through the real client code paths: CONFIG round trips (the client,
+and a bare socket as the baseline) against a minimal C ARCOS responder or a simulator, and
+SIP periods as the client and as a raw socket see them.
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
-import os
-import selectors
-import subprocess
-import sys
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import numpy.typing as npt
 
+from robocli.bench.stats import Progress, Run
+
 if TYPE_CHECKING:
     from robocli.core import Responder
     from robocli.devices.pioneer import Pioneer
-
-Progress = Callable[[int], None]
-#: Longest a single C call of the floor may last (seconds), so Ctrl-C is seen quickly.
-CHUNK_SECONDS = 0.1
-#: Largest number of round trips in one C call of the floor.
-MAX_CHUNK = 10_000
-
-
-@dataclass(frozen=True)
-class Stats:
-    """Table-5 statistics of a sample set (seconds, or whatever unit the samples are in)."""
-
-    n: int
-    mean: float
-    median: float
-    std: float
-    min: float
-    max: float
-    p90: float
-    p99: float
-
-    @classmethod
-    def of(cls, samples: npt.ArrayLike) -> Stats:
-        a = np.asarray(samples, dtype=np.float64)
-        if a.size == 0:
-            raise ValueError("no samples")
-        p50, p90, p99 = np.percentile(a, [50, 90, 99])
-        return cls(
-            n=int(a.size),
-            mean=float(a.mean()),
-            median=float(p50),
-            std=float(a.std(ddof=1)) if a.size > 1 else 0.0,
-            min=float(a.min()),
-            max=float(a.max()),
-            p90=float(p90),
-            p99=float(p99),
-        )
-
-    def as_dict(self, scale: float = 1.0) -> dict[str, float]:
-        """Fields as a dict, values multiplied by ``scale`` (``n`` untouched)."""
-        return {k: (v if k == "n" else v * scale) for k, v in asdict(self).items()}
-
-
-@dataclass
-class Run:
-    """One measurement being collected: up to ``n`` samples, ``count`` of them taken so far.
-
-    ``where`` says on which CPUs the ends ran (e.g. ``"client CPU 0, responder CPU 0"``).
-    """
-
-    name: str
-    n: int
-    where: str = ""
-    samples: npt.NDArray[np.float64] = field(init=False, repr=False)
-    count: int = 0
-
-    def __post_init__(self) -> None:
-        if self.n <= 0:
-            raise ValueError("n must be positive")
-        self.samples = np.empty(self.n, dtype=np.float64)
-
-    @property
-    def values(self) -> npt.NDArray[np.float64]:
-        """The samples taken so far."""
-        return self.samples[: self.count]
-
-    @property
-    def complete(self) -> bool:
-        return self.count == self.n
-
-
-def histogram(
-    samples: npt.ArrayLike, bins: int = 12, width: int = 40, unit: float = 1e-6, label: str = "us"
-) -> list[str]:
-    """A text histogram: one line per bin, ``[lo, hi) count bar``."""
-    a = np.asarray(samples, dtype=np.float64) / unit
-    if a.size == 0:
-        return []
-    lo, hi = float(a.min()), float(a.max())
-    if hi == lo:
-        hi = lo + 1.0
-    counts, edges = np.histogram(a, bins=bins, range=(lo, hi))
-    top = max(int(counts.max()), 1)
-    # enough decimals that neighbouring edges differ (a 0.02 ms spread: 99.91 - 99.93)
-    digits = min(6, max(1, 1 - math.floor(math.log10((hi - lo) / bins))))
-    return [
-        f"{edges[i]:10.{digits}f} - {edges[i + 1]:10.{digits}f} {label} {int(c):7d} "
-        + "#" * max(int(c) and 1, round(width * int(c) / top))
-        for i, c in enumerate(counts)
-    ]
-
-
-@contextlib.contextmanager
-def child_process(
-    code: str, *args: str, timeout: float = 20.0
-) -> Iterator[tuple[subprocess.Popen[str], str]]:
-    """A Python child running ``code`` (``args`` as its argv), stdin and stdout piped, in its
-    own session (a Ctrl-C reaches only us; we stop it). Yields it and the first line it
-    printed within ``timeout`` s ("" if none). On the way out: the end of its stdin (children
-    wait for it: :func:`wait_for_stdin_eof`), then SIGTERM, then SIGKILL, 1 s each."""
-    proc = subprocess.Popen(
-        [sys.executable, "-c", code, *args], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-        text=True, start_new_session=True,
-    )  # fmt: skip
-    try:
-        yield proc, read_line(proc, timeout)
-    finally:
-        with contextlib.suppress(OSError):
-            if proc.stdin is not None:
-                proc.stdin.close()
-        for stop in (None, proc.terminate, proc.kill):
-            if stop is not None:
-                stop()
-            with contextlib.suppress(subprocess.TimeoutExpired):
-                proc.wait(1.0)
-                break
-        if proc.stdout is not None:
-            proc.stdout.close()
-
-
-def read_line(proc: subprocess.Popen[str], timeout: float) -> str:
-    """The next line a child prints within ``timeout`` s, stripped ("" if none)."""
-    assert proc.stdout is not None
-    with selectors.DefaultSelector() as sel:
-        sel.register(proc.stdout, selectors.EVENT_READ)
-        ready = sel.select(timeout)
-    return proc.stdout.readline().strip() if ready else ""
-
-
-def wait_for_stdin_eof() -> None:
-    """Block until standard input ends: how a benchmark's child process learns that its
-    parent is done (or gone). Reads in fixed chunks, so a chatty parent costs no memory."""
-    while sys.stdin.buffer.read(4096):
-        pass
-
-
-# ---------------------------------------------------------------------------- CPUs
-
-
-def allowed_cpus() -> list[int]:
-    """CPUs this process may run on (empty where the platform cannot pin threads)."""
-    from robocli.core import pin_supported
-
-    if not pin_supported() or not hasattr(os, "sched_getaffinity"):
-        return []
-    return sorted(os.sched_getaffinity(0))
-
-
-@contextlib.contextmanager
-def pinned(cpu: int | None) -> Iterator[None]:
-    """Pin the calling thread to ``cpu`` (None: leave it) for the block, then restore its
-    affinity. Threads started inside the block inherit the pinning (Linux)."""
-    if cpu is None or not hasattr(os, "sched_setaffinity"):
-        yield
-        return
-    before = os.sched_getaffinity(0)
-    os.sched_setaffinity(0, {cpu})
-    try:
-        yield
-    finally:
-        os.sched_setaffinity(0, before)
-
-
-def cpu_label(cpu: int | None) -> str:
-    return "unpinned" if cpu is None else f"CPU {cpu}"
-
-
-# ---------------------------------------------------------------------------- C floor
-
-
-def c_floor(
-    run: Run,
-    cpu: int | None = None,
-    echo_cpu: int | None = None,
-    msg_size: int = 16,
-    progress: Progress | None = None,
-) -> Run:
-    """Fill ``run`` with C ping-pong round trips, the caller's end on ``cpu`` and the echo
-    thread on ``echo_cpu``. Runs in chunks of at most :data:`CHUNK_SECONDS` (and
-    :data:`MAX_CHUNK` round trips) so Ctrl-C stops it between two chunks."""
-    from robocli.core import PingPong
-
-    with PingPong(msg_size, echo_cpu) as pp:
-        chunk = 200
-        while run.count < run.n:
-            k = min(chunk, run.n - run.count)
-            start = time.perf_counter()
-            run.samples[run.count : run.count + k] = pp.run(k, cpu)
-            run.count += k
-            took = max(time.perf_counter() - start, 1e-6)
-            chunk = max(50, min(MAX_CHUNK, int(k * CHUNK_SECONDS / took)))
-            if progress is not None:
-                progress(run.count)
-    return run
-
 
 # ---------------------------------------------------------------------------- client RTT
 
@@ -424,33 +218,3 @@ def raw_sip_periods(host: str, port: int, n: int = 200, timeout: float = 5.0) ->
             run.samples[: periods.size] = periods
             run.count = int(periods.size)
     return run
-
-
-# ---------------------------------------------------------------------------- reporting
-
-
-def report(
-    name: str,
-    samples: npt.ArrayLike,
-    floor: Stats | None = None,
-    targets: tuple[float, float] | None = None,
-    where: str = "",
-) -> dict[str, Any]:
-    """JSON-ready summary of one measurement, in microseconds, with floor multiples.
-
-    ``targets``: (median, p99) limits as multiples of the floor's median; the summary then
-    says whether each is met.
-    """
-    stats = Stats.of(samples)
-    out: dict[str, Any] = {"name": name, "unit": "us", **stats.as_dict(1e6)}
-    if where:
-        out["where"] = where
-    if floor is not None and floor.median > 0:
-        out["x_floor_median"] = stats.median / floor.median
-        out["x_floor_p99"] = stats.p99 / floor.median
-        if targets is not None:
-            out["target_median_x"], out["target_p99_x"] = targets
-            out["target_met"] = bool(
-                out["x_floor_median"] <= targets[0] and out["x_floor_p99"] <= targets[1]
-            )
-    return out
