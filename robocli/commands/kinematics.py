@@ -6,7 +6,11 @@ NumPy and the kinematics package are imported inside the commands, so that
 
 from __future__ import annotations
 
+import inspect
 import math
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -93,134 +97,136 @@ def _finish(
     )
 
 
+@dataclass(frozen=True)
+class Timing:
+    """What every trajectory shares, as the options gave it: the model, the start pose (rad,
+    ``None``: the model's work pose), the number of points, and the TCP speed (m/s) or the
+    total duration (s)."""
+
+    model: RobotModel
+    q_start: list[float] | None
+    points: int
+    speed: float | None
+    duration: float | None
+
+
+#: The options of every ``traj`` command, after the shape's own ones.
+_SHARED = [
+    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+    for name, kind, option in (
+        ("robot", str, RobotOpt),
+        ("points", int, PointsOpt),
+        ("speed", float | None, SpeedOpt),
+        ("duration", float | None, DurationOpt),
+        ("start", str | None, StartOpt),
+        ("out", Path, OutOpt),
+        ("plot", Path | None, PlotOpt),
+        ("json_out", bool, JsonOpt),
+    )
+]
+
+
+def trajectory_command(shape: str, points: bool = True) -> Callable[[Any], Callable[..., None]]:
+    """Make a ``traj`` command of a shape's builder.
+
+    The builder takes a :class:`Timing` and the shape's own options, and returns the log. The
+    command has the shape's options followed by those every trajectory shares (``--robot``,
+    ``--points`` unless ``points`` is false, ``--speed``, ``--duration``, ``--start``,
+    ``--out``, ``--plot``, ``--json``), and does the steps around the builder: load the model,
+    parse the start pose, then write the log and print its summary."""
+
+    def decorate(build: Any) -> Callable[..., None]:
+        scope = vars(sys.modules[build.__module__])
+        own = [
+            p.replace(kind=inspect.Parameter.KEYWORD_ONLY, annotation=eval(p.annotation, scope))
+            for p in list(inspect.signature(build).parameters.values())[1:]
+        ]
+        shared = [p for p in _SHARED if points or p.name != "points"]
+
+        def command(**options: Any) -> None:
+            model = _model(options.pop("robot"))
+            out, plot, json_out = options.pop("out"), options.pop("plot"), options.pop("json_out")
+            timing = Timing(model, _start(model, options.pop("start")),
+                            options.pop("points", 0), options.pop("speed"),
+                            options.pop("duration"))  # fmt: skip
+            _finish(model, build(timing, **options), shape, out, plot, json_out)
+
+        command.__name__, command.__doc__ = build.__name__, build.__doc__
+        command.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
+        return command
+
+    return decorate
+
+
+@trajectory_command("circle")
 def circle(
-    robot: str = RobotOpt,
-    points: int = PointsOpt,
+    timing: Timing,
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
     center: str | None = CenterOpt,
-    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt,
-    duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt,
-    out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt,
-    json_out: bool = JsonOpt,  # noqa: UP007
-) -> None:
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,
+) -> TrajectoryLog:
     """A circle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import circle as make
 
-    model = _model(robot)
-    log = make(
-        model,
-        points,
-        radius,
-        _floats(center, 3, "--center"),
-        plane,
-        _start(model, start),
-        speed,
-        duration,
-    )
-    _finish(model, log, "circle", out, plot, json_out)
+    t = timing
+    return make(t.model, t.points, radius, _floats(center, 3, "--center"), plane, t.q_start,
+                t.speed, t.duration)  # fmt: skip
 
 
+@trajectory_command("rectangle")
 def rectangle(
-    robot: str = RobotOpt,
-    points: int = PointsOpt,
+    timing: Timing,
     width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
     height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
     center: str | None = CenterOpt,
-    plane: Literal["xy", "yz", "xz"] = PlaneOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt,
-    duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt,
-    out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt,
-    json_out: bool = JsonOpt,  # noqa: UP007
-) -> None:
+    plane: Literal["xy", "yz", "xz"] = PlaneOpt,
+) -> TrajectoryLog:
     """A rectangle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import rectangle as make
 
-    model = _model(robot)
-    log = make(
-        model,
-        points,
-        width,
-        height,
-        _floats(center, 3, "--center"),
-        plane,
-        _start(model, start),
-        speed,
-        duration,
-    )
-    _finish(model, log, "rectangle", out, plot, json_out)
+    t = timing
+    return make(t.model, t.points, width, height, _floats(center, 3, "--center"), plane,
+                t.q_start, t.speed, t.duration)  # fmt: skip
 
 
+@trajectory_command("ptp-joint")
 def ptp_joint(
+    timing: Timing,
     to: str = typer.Option(..., "--to", help="Goal joint angles, comma-separated, deg."),
-    robot: str = RobotOpt,
-    points: int = PointsOpt,
-    speed: float | None = SpeedOpt,
-    duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt,
-    out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt,
-    json_out: bool = JsonOpt,  # noqa: UP007
-) -> None:
+) -> TrajectoryLog:
     """Joint-space point-to-point move with a quintic profile."""
     from robocli.kinematics.trajectory import ptp_joint as make
 
-    model = _model(robot)
-    goal = [math.radians(v) for v in _floats(to, model.n_joints, "--to") or []]
-    log = make(model, goal, points, _start(model, start), speed, duration)
-    _finish(model, log, "ptp-joint", out, plot, json_out)
+    t = timing
+    goal = [math.radians(v) for v in _floats(to, t.model.n_joints, "--to") or []]
+    return make(t.model, goal, t.points, t.q_start, t.speed, t.duration)
 
 
+@trajectory_command("ptp-cartesian")
 def ptp_cartesian(
+    timing: Timing,
     to: str = typer.Option(..., "--to", help="Goal TCP position x,y,z, m."),
-    robot: str = RobotOpt,
-    points: int = PointsOpt,
-    speed: float | None = SpeedOpt,
-    duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt,
-    out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt,
-    json_out: bool = JsonOpt,  # noqa: UP007
-) -> None:
+) -> TrajectoryLog:
     """Straight TCP line to a point, keeping the start orientation, through IK."""
     from robocli.kinematics.trajectory import ptp_cartesian as make
 
-    model = _model(robot)
-    goal = _floats(to, 3, "--to") or []
-    log = make(model, goal, points, _start(model, start), speed, duration)
-    _finish(model, log, "ptp-cartesian", out, plot, json_out)
+    t = timing
+    return make(t.model, _floats(to, 3, "--to") or [], t.points, t.q_start, t.speed, t.duration)
 
 
+@trajectory_command("file", points=False)
 def file(
+    timing: Timing,
     waypoints: Path = typer.Argument(..., help="Waypoints: .json or .csv (joints or x,y,z)."),
-    robot: str = RobotOpt,
-    speed: float | None = SpeedOpt,
-    duration: float | None = DurationOpt,  # noqa: UP007
-    start: str | None = StartOpt,
-    out: Path = OutOpt,  # noqa: UP007
-    plot: Path | None = PlotOpt,
-    json_out: bool = JsonOpt,  # noqa: UP007
-) -> None:
+) -> TrajectoryLog:
     """User waypoints from a file; times from the file, else from --speed or --duration."""
     from robocli.io.waypoints import read_waypoints
     from robocli.kinematics.trajectory import waypoints as make
 
-    model = _model(robot)
+    t = timing
     wp = read_waypoints(waypoints)
-    log = make(
-        model,
-        wp.joints,
-        wp.points,
-        wp.time if speed is None and duration is None else None,
-        _start(model, start),
-        speed,
-        duration,
-    )
-    _finish(model, log, "file", out, plot, json_out)
+    file_times = wp.time if t.speed is None and t.duration is None else None
+    return make(t.model, wp.joints, wp.points, file_times, t.q_start, t.speed, t.duration)
 
 
 def validate(
