@@ -62,7 +62,8 @@ def test_serve_sim_logs_clients_and_stops_on_ctrl_c(raw: Any) -> None:
         cid = c.connect()
         params = {"freq_acquisition": 100, "freq_send": 35, "channels": 255}
         assert c.subscribe("adc", params, buffer=100).error == 0
-        assert "adc[100]" in lines.until(f"client {cid} ")
+        # the status may show the client before its subscription: wait for the line that has it
+        assert f"client {cid} " in lines.until("adc[100]")
         lines.until("sensor adc: 100 Hz")
         c.close()
         lines.until("detached")
