@@ -1,52 +1,23 @@
-"""Links of the serving layer: one client's byte stream (TCP or pty) and its thread.
+"""The link every byte stream of the serving layer is: :class:`Link` (framing, dispatch to
+its session, the output queue and its bounds, the link thread's end), and the protocols of the
+sessions it serves (:class:`Session`, :class:`UnframedHook`).
 
-A :class:`Link` frames what it receives with the C framer (bounded by ``max_frame``), hands
-each complete frame to its session and writes the replies inline from its own thread. A
-partial frame with no new byte for ``byte_timeout`` is abandoned: its first byte is dropped and
-the rest rescanned (with ``strict`` framing the link is closed instead). :meth:`Link.send`
-never blocks: output the peer cannot take now waits in a bounded queue, and a peer that leaves
-it unread for ``send_timeout`` is dropped. Nothing is copied to wait: a reply is written
-straight from the caller's buffers and the queue keeps views of what the peer has not taken
-yet (a large reply, a camera frame, is not copied). Pushes from another thread (a ticker) are
-flushed by the next push or by the link's own thread.
-
-With ``pace`` (request/reply protocols) a link reads and handles no request while one of its
-replies waits for the peer: a client that asks without reading holds at most one reply in the
-server, and its next requests wait in the kernel's buffers. An :class:`OutputBudget` bounds the
-output waiting over every link of a server: a link whose output would take it over is dropped.
-
-Used through :class:`robocli.sim.serving.Server`; nothing here is global.
+Part of :mod:`robocli.sim.links` (import from there).
 """
 
 from __future__ import annotations
 
-import errno
 import logging
-import os
-import select
-import socket
 import threading
 import time
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, fields
+from dataclasses import fields
 from itertools import islice
 from typing import Protocol
 
 from robocli.core import Framer
-from robocli.errors import TransportError
-
-__all__ = [
-    "DONTWAIT",
-    "Link",
-    "LinkLimits",
-    "LinkStats",
-    "OutputBudget",
-    "PtyLink",
-    "Session",
-    "TcpLink",
-    "UnframedHook",
-]
+from robocli.sim.links.limits import LinkLimits, LinkStats
 
 log = logging.getLogger("robocli.sim.serving")
 
@@ -77,87 +48,10 @@ class UnframedHook(Protocol):
         take as a frame, at most 256): return a last reply, if any; the link then ends."""
         ...
 
+
 RECV_SIZE = 65536  #: bytes per recv
 MAX_PARTS = 512  #: buffers one gathered write takes (below every platform's IOV_MAX)
-DONTWAIT = getattr(socket, "MSG_DONTWAIT", 0)  #: 0 where the platform has no such flag
-LINGER_S = 0.5  #: a link ending after a last reply reads (and discards) this long at most
 UNFRAMED_HEAD = 256  #: bytes of a stream that lost its framing shown to the session
-_RDHUP: int = getattr(select, "POLLRDHUP", 0)
-
-
-class OutputBudget:
-    """Bytes of output waiting for their peers, summed over the links of one server.
-
-    ``cap``: the most that may wait at once (None: no bound). A link whose queued output
-    takes the total over it is dropped at once, which frees that output. :attr:`peak` is the
-    most that ever waited at once (within the cap). Thread-safe.
-    """
-
-    def __init__(self, cap: int | None = None) -> None:
-        if cap is not None and cap <= 0:
-            raise ValueError("the output budget must be > 0 bytes")
-        self.cap = cap
-        self.total = 0
-        self.peak = 0
-        self.overflows = 0  #: links dropped because the budget was full
-        self._lock = threading.Lock()
-
-    def add(self, n: int) -> bool:
-        """Count ``n`` more bytes waiting; False when that takes the total over the cap."""
-        with self._lock:
-            self.total += n
-            if self.cap is not None and self.total > self.cap:
-                self.overflows += 1
-                return False
-            self.peak = max(self.peak, self.total)
-            return True
-
-    def sub(self, n: int) -> None:
-        """``n`` bytes stopped waiting (written or discarded)."""
-        with self._lock:
-            self.total -= n
-
-
-@dataclass(frozen=True)
-class LinkLimits:
-    """What every link of one server obeys (see :class:`robocli.sim.serving.Server`)."""
-
-    protocol: str
-    max_frame: int | None
-    byte_timeout: float
-    send_timeout: float
-    max_backlog: int
-    pace: bool = False
-    """Handle no request while a reply waits for the peer; ``max_backlog`` then bounds what
-    is queued beyond that one reply."""
-    strict: bool = False
-    """A stream that loses its framing (bytes the framer must skip, a partial frame
-    abandoned) is closed rather than rescanned: for protocols without a sync marker."""
-    handshake_timeout: float | None = None
-    """A TCP link not :meth:`~Link.establish`-ed this many seconds after it opened is closed."""
-    budget: OutputBudget | None = None
-
-
-@dataclass
-class LinkStats:
-    """Counters of one link, or summed over a server's links (:meth:`Server.stats`)."""
-
-    frames: int = 0  #: complete frames handed to the session
-    bytes_in: int = 0
-    bytes_out: int = 0  #: bytes the kernel (or the pty) accepted
-    dropped_bytes: int = 0  #: input bytes skipped: garbage, bad frames, abandoned partials
-    bad_checksums: int = 0
-    oversize: int = 0  #: frame headers announcing more than ``max_frame`` (dropped)
-    abandoned: int = 0  #: partial frames given up after ``byte_timeout``
-    tx_dropped: int = 0  #: output bytes discarded (pty line full, link dropped)
-    session_errors: int = 0  #: exceptions raised by the session (the link is then dropped)
-
-    def add(self, other: LinkStats) -> None:
-        for f in fields(self):
-            setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))
-
-
-# ============================================================================ links
 
 
 class Link:
@@ -491,228 +385,3 @@ class Link:
 
     def _release(self) -> None:  # pragma: no cover - overridden
         raise NotImplementedError
-
-
-def _wait(fd: int, *, read: bool, write: bool, timeout: float | None) -> tuple[bool, bool]:
-    """Wait until ``fd`` is readable/writable or ``timeout`` passes (None: forever)."""
-    if hasattr(select, "poll"):
-        p = select.poll()
-        p.register(fd, (select.POLLIN if read else 0) | (select.POLLOUT if write else 0))
-        events = p.poll(None if timeout is None else max(0, int(timeout * 1000.0 + 0.999)))
-        mask = events[0][1] if events else 0
-        bad = select.POLLERR | select.POLLHUP | select.POLLNVAL
-        return bool(mask & (select.POLLIN | bad)), bool(mask & (select.POLLOUT | bad))
-    r, w, _ = select.select([fd] if read else [], [fd] if write else [], [], timeout)
-    return bool(r), bool(w)
-
-
-class TcpLink(Link):
-    """A TCP connection; its thread blocks in ``recv`` and replies inline."""
-
-    def __init__(
-        self, limits: LinkLimits, sock: socket.socket, name: str, on_end: Callable[[Link], None],
-        address: str = "",
-    ) -> None:  # fmt: skip
-        super().__init__(limits, name, on_end)
-        self.sock = sock
-        self.address = address
-        self._fd_lock = threading.Lock()  # the socket is not closed while another thread polls
-        self._released = False
-        if not DONTWAIT:  # Windows: no per-call non-blocking send; bound a blocking one
-            ms = int(limits.send_timeout * 1000)
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDTIMEO, ms)
-
-    def _poll_now(self, events: int) -> int:
-        """The socket's poll events now (0 where poll is missing); POLLNVAL once released."""
-        with self._fd_lock:
-            if self._released:
-                return select.POLLNVAL if hasattr(select, "POLLNVAL") else 1
-            if not hasattr(select, "poll"):
-                return 0
-            p = select.poll()
-            p.register(self.sock.fileno(), events)
-            got = p.poll(0)
-            return got[0][1] if got else 0
-
-    def peer_closed(self) -> bool:
-        if not self.alive:
-            return True
-        bad = select.POLLERR | select.POLLHUP | select.POLLNVAL if hasattr(select, "poll") else 0
-        if _RDHUP:
-            return bool(self._poll_now(_RDHUP) & (_RDHUP | bad))
-        with self._fd_lock:  # no POLLRDHUP: the end of the stream, if nothing is unread
-            if self._released:
-                return True
-            try:
-                return self.sock.recv(1, socket.MSG_PEEK | DONTWAIT) == b""
-            except (BlockingIOError, InterruptedError, TimeoutError):
-                return False
-            except OSError:
-                return True
-
-    def idle(self) -> bool:
-        return super().idle() and not (
-            hasattr(select, "poll") and self._poll_now(select.POLLIN) & select.POLLIN
-        )
-
-    def _write_now(self, data: bytes | bytearray | memoryview) -> int:
-        try:
-            n = self.sock.send(data, DONTWAIT)
-        except (TimeoutError, BlockingIOError, InterruptedError):
-            return 0
-        self._stats.bytes_out += n
-        return n
-
-    def _write_parts(self, views: list[memoryview]) -> int:
-        if not DONTWAIT or not hasattr(self.sock, "sendmsg"):
-            return super()._write_parts(views)
-        try:
-            n = self.sock.sendmsg(views, (), DONTWAIT)
-        except (TimeoutError, BlockingIOError, InterruptedError):
-            return 0
-        self._stats.bytes_out += n
-        return n
-
-    def _interrupt(self) -> None:
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)  # wakes the thread blocked in recv
-        except OSError:
-            pass  # already disconnected
-
-    def _serve(self) -> None:
-        sock, fd, limits = self.sock, self.sock.fileno(), self._limits
-        recv, feed, send = sock.recv, self._feed, self.send
-        handshake = limits.handshake_timeout
-        while not self._closed:
-            if not self.established and handshake is not None:
-                if time.monotonic() >= self.opened + handshake:
-                    log.info("%s: no handshake within %g s; closing", self.name, handshake)
-                    return
-            pending = bool(self._out)
-            if not pending and (self._held or self._unframed is not None):
-                send(self._resume(time.monotonic()))  # requests held while a reply waited
-                continue
-            if self._ending and not pending:
-                self._linger()
-                return
-            hold = self._ending or (pending and limits.pace)  # read no request meanwhile
-            deadline = None if hold else self._partial_deadline()
-            if deadline is not None or pending or not self.established:
-                # slow path: a deadline to keep, or output to flush when writable
-                now = time.monotonic()
-                ends = [deadline] if deadline is not None else []
-                if pending:
-                    ends.append(self._out_since + limits.send_timeout + 0.001)
-                if not self.established and handshake is not None:
-                    ends.append(self.opened + handshake)
-                timeout = max(0.0, min(ends) - now) if ends else None
-                readable, _ = _wait(fd, read=not hold, write=pending, timeout=timeout)
-                if pending:
-                    with self._tx_lock:
-                        if not self._closed and self._out:
-                            self._flush_locked(time.monotonic())
-                    if hold and not self._out:
-                        self._last_rx = time.monotonic()  # we did not read: no partial's fault
-                if hold or not readable:
-                    now = time.monotonic()
-                    if deadline is not None and now >= deadline:
-                        send(self._abandon_partial(now))
-                    continue
-            try:
-                data = recv(RECV_SIZE)  # the fast path: blocked here, reply inline below
-            except OSError as exc:
-                log.debug("%s: recv failed: %s", self.name, exc)
-                return
-            if not data:
-                return
-            reply = feed(data, time.monotonic())
-            if reply:
-                send(reply)
-
-    def _linger(self) -> None:
-        """End after a last reply: no more output, and read what the peer still sends (at
-        most :data:`LINGER_S`) so that closing does not reset the reply away."""
-        try:
-            self.sock.shutdown(socket.SHUT_WR)
-            end = time.monotonic() + LINGER_S
-            while (left := end - time.monotonic()) > 0:
-                readable, _ = _wait(self.sock.fileno(), read=True, write=False, timeout=left)
-                if not readable or not self.sock.recv(RECV_SIZE):
-                    return
-        except OSError:
-            return  # reset or gone: nothing more to do
-
-    def _release(self) -> None:
-        with self._fd_lock:
-            self._released = True
-            self.sock.close()
-
-
-class PtyLink(Link):
-    """The master side of a pseudo-terminal in raw mode (a serial line)."""
-
-    def __init__(
-        self, limits: LinkLimits, master: int, slave: int, path: str,
-        on_end: Callable[[Link], None],
-    ) -> None:  # fmt: skip
-        super().__init__(limits, f"pty {path}", on_end)
-        self.established = True  # one line, no handshake to wait for
-        self.master, self.slave = master, slave
-        self._wake_r, self._wake_w = os.pipe()
-
-    def _write_now(self, data: bytes | bytearray | memoryview) -> int:
-        """What the pty cannot take now is dropped, as on a serial line with nobody
-        listening: the queue is always emptied."""
-        view = memoryview(data)
-        sent = 0
-        try:
-            while sent < len(view):
-                sent += os.write(self.master, view[sent:])
-        except BlockingIOError:
-            self._stats.tx_dropped += len(view) - sent
-            log.debug("%s: line full: dropped %d bytes", self.name, len(view) - sent)
-        finally:
-            view.release()
-        self._stats.bytes_out += sent
-        return len(data)
-
-    def _interrupt(self) -> None:
-        try:
-            os.write(self._wake_w, b"x")
-        except OSError:
-            pass  # already released
-
-    def _serve(self) -> None:
-        master, wake = self.master, self._wake_r
-        while not self._closed:
-            if self._held or self._unframed is not None:
-                self.send(self._resume(time.monotonic()))
-                continue
-            if self._ending:
-                return
-            deadline = self._partial_deadline()
-            timeout = None if deadline is None else max(0.0, deadline - time.monotonic())
-            ready, _, _ = select.select([master, wake], [], [], timeout)
-            now = time.monotonic()
-            if not ready:
-                if deadline is not None and now >= deadline:
-                    self.send(self._abandon_partial(now))
-                continue
-            if wake in ready:
-                return
-            try:
-                data = os.read(master, RECV_SIZE)
-            except BlockingIOError:
-                continue
-            except OSError as exc:  # EIO: no process holds the slave end right now
-                if exc.errno != errno.EIO:
-                    raise TransportError(f"{self.name}: read failed: {exc}") from exc
-                if select.select([wake], [], [], 0.05)[0]:
-                    return
-                continue
-            if data:
-                self.send(self._feed(data, now))
-
-    def _release(self) -> None:
-        for fd in (self.master, self.slave, self._wake_r, self._wake_w):
-            os.close(fd)
