@@ -7,13 +7,15 @@ A :class:`Session` owns a transport and a framer and gives a device:
   takes the read side, writes the request and reads until the reply, handling every other
   frame that arrives meanwhile exactly as the reader thread would. No thread hands the
   reply over, which keeps a round trip near the machine's floor;
-- **listeners** (:class:`Listeners`) that see every frame sent and received. A listener that
-  raises is isolated: the first failure of each listener is logged with its traceback, every
-  failure is counted in :attr:`LinkStats.listener_errors`, the listener stays registered,
+- **listeners** (:class:`~robocli.devices.listeners.Listeners`) that see every frame sent and
+  received. A listener that raises is isolated: the first failure of each listener is logged
+  with its traceback, every failure is counted in
+  :attr:`~robocli.devices.stats.LinkStats.listener_errors`, the listener stays registered,
   and the thread that called it goes on. A printing listener whose pipe closed cannot stop
   the keep-alive that keeps a robot safe;
-- **periodic tasks** (:class:`PeriodicTask`) that sleep on an event until they are due, in
-  the manner of python-can's cyclic send tasks: keep-alives, supervisors, dead-man checks;
+- **periodic tasks** (:class:`~robocli.devices.tasks.PeriodicTask`) that sleep on an event
+  until they are due, in the manner of python-can's cyclic send tasks: keep-alives,
+  supervisors, dead-man checks;
 - **writes with a deadline** (:attr:`Transport.write_timeout`, 1 s by default);
 - **a close that always finishes**: :meth:`Session.close` sends the device's stop sequence
   from a ``finally``, within ``close_timeout`` seconds in all, shuts the transport down even
@@ -24,7 +26,12 @@ deadline) and any unexpected exception there (a bug) end the session: the device
 emergency stop is sent (best effort, bounded), every waiting caller is woken, and the next
 call on the device raises that error, with its traceback for a bug. A frame that does not
 decode (:class:`~robocli.errors.ProtocolError`) is counted in
-:attr:`LinkStats.decode_errors` and logged (the first with its traceback); the session goes on.
+:attr:`~robocli.devices.stats.LinkStats.decode_errors` and logged (the first with its
+traceback); the session goes on.
+
+This module holds the :class:`Session` (reader, request/reply, writes, failing and closing);
+its parts have their own: :mod:`robocli.devices.listeners`, :mod:`robocli.devices.tasks` and
+:mod:`robocli.devices.stats` (the link's counters). All of them are importable from here.
 """
 
 from __future__ import annotations
@@ -34,20 +41,16 @@ import os
 import select
 import threading
 import time
-from collections import Counter
 from collections.abc import Callable, Sequence
-from typing import Any, Generic, TypeVar
 
 from robocli.core import Framer
+from robocli.devices.listeners import FrameListener, Listeners
+from robocli.devices.stats import LinkStats
+from robocli.devices.tasks import PeriodicTask
 from robocli.errors import ConnectionLost, ProtocolError, RobocliError, TimeoutError
 from robocli.transports import Transport
 
 log = logging.getLogger("robocli.devices.session")
-
-#: Listener signature: (direction "tx"/"rx", payload, monotonic time of send/receipt).
-FrameListener = Callable[[str, bytes, float], None]
-
-F = TypeVar("F", bound=Callable[..., Any])
 
 #: How long the reader thread waits for bytes before it looks at its stop flag again
 #: (a closed socket wakes it at once; a closed serial port may not).
@@ -58,172 +61,6 @@ _LEADER_LINGER = 0.002
 _PARK_S = 0.005
 #: Raw bytes kept before the first frame, to show why a server refused the link.
 _RAW_TAIL = 512
-
-
-class LinkStats:
-    """Counters of one link, safe to update from any thread and to read at any time.
-
-    ``sent``/``received`` count packets by name; ``bad_checksums`` and ``dropped_bytes`` come
-    from the framer's resynchronisation; ``decode_errors`` are frames that did not decode;
-    ``listener_errors`` are exceptions raised by listeners; ``write_timeouts`` are writes
-    that missed their deadline.
-    """
-
-    _COUNTERS: tuple[str, ...] = (
-        "bad_checksums",
-        "dropped_bytes",
-        "decode_errors",
-        "listener_errors",
-        "write_timeouts",
-    )
-
-    def __init__(self) -> None:
-        self._lock = threading.Lock()
-        self.sent: Counter[str] = Counter()
-        self.received: Counter[str] = Counter()
-        self.decode_errors = 0
-        self.listener_errors = 0
-        self.write_timeouts = 0
-
-    def add(self, name: str, n: int = 1) -> None:
-        """Add ``n`` to the counter ``name`` (thread-safe)."""
-        with self._lock:
-            setattr(self, name, getattr(self, name) + n)
-
-    def count_sent(self, name: str) -> None:
-        with self._lock:
-            self.sent[name] += 1
-
-    def count_received(self, name: str) -> None:
-        with self._lock:
-            self.received[name] += 1
-
-    #: the framer whose resynchronisation counters these are (read when asked, so that
-    #: the per-frame path does not pay for them)
-    framer: Framer | None = None
-
-    @property
-    def bad_checksums(self) -> int:
-        return self.framer.stats.bad_checksums if self.framer is not None else 0
-
-    @property
-    def dropped_bytes(self) -> int:
-        return self.framer.stats.dropped_bytes if self.framer is not None else 0
-
-    def as_dict(self) -> dict[str, Any]:
-        """A consistent, JSON-ready copy of every counter."""
-        with self._lock:
-            out: dict[str, Any] = {name: getattr(self, name) for name in self._counter_names()}
-            out["sent"] = dict(self.sent)
-            out["received"] = dict(self.received)
-        return out
-
-    def _counter_names(self) -> tuple[str, ...]:
-        return self._COUNTERS
-
-    def __repr__(self) -> str:
-        data = self.as_dict()
-        counts = " ".join(f"{k}={v}" for k, v in data.items() if not isinstance(v, dict))
-        return (
-            f"<{type(self).__name__} {counts} sent={sum(self.sent.values())} "
-            f"received={sum(self.received.values())}>"
-        )
-
-
-class Listeners(Generic[F]):
-    """Callbacks that cannot kill the thread that calls them.
-
-    :meth:`notify` calls each listener in the order added. An exception from a listener is
-    caught, counted in ``stats.listener_errors`` and logged, with its traceback the first time
-    that listener fails; the listener stays registered and the next one is still called.
-    """
-
-    def __init__(self, stats: LinkStats, where: str) -> None:
-        self._stats = stats
-        self._where = where
-        self._items: tuple[F, ...] = ()
-        self._failed: set[int] = set()
-        self._lock = threading.Lock()
-
-    def add(self, listener: F) -> None:
-        with self._lock:
-            self._items = (*self._items, listener)
-
-    def remove(self, listener: F) -> None:
-        """Remove ``listener``; a listener that was not added is ignored."""
-        with self._lock:
-            self._items = tuple(x for x in self._items if x is not listener)
-
-    def __len__(self) -> int:
-        return len(self._items)
-
-    def notify(self, *args: Any) -> None:
-        for listener in self._items:
-            try:
-                listener(*args)
-            except Exception:  # noqa: BLE001 - the isolation policy above: count, log, go on
-                self._stats.add("listener_errors")
-                if id(listener) not in self._failed:
-                    self._failed.add(id(listener))
-                    log.error(
-                        "%s: listener %r raised; it stays registered, later failures are "
-                        "only counted (stats.listener_errors)",
-                        self._where,
-                        listener,
-                        exc_info=True,
-                    )
-
-
-class PeriodicTask:
-    """A thread that runs ``step()`` whenever it is due, sleeping on an event in between.
-
-    ``step`` does its work and returns the seconds until it wants to run again (its next
-    deadline, e.g. "0.4 s after the last packet sent"). :meth:`stop` wakes the thread at once;
-    :meth:`wake` makes it run ``step`` now. An exception from ``step`` ends the task and goes
-    to ``on_error`` (the session fails closed); it never disappears silently.
-    """
-
-    def __init__(
-        self,
-        name: str,
-        step: Callable[[], float],
-        on_error: Callable[[BaseException], None],
-    ) -> None:
-        self.name = name
-        self._step = step
-        self._on_error = on_error
-        self._stop = threading.Event()
-        self._wake = threading.Event()
-        self.thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        self.thread.start()
-
-    def stop(self) -> None:
-        self._stop.set()
-        self._wake.set()
-
-    def wake(self) -> None:
-        self._wake.set()
-
-    @property
-    def stopped(self) -> bool:
-        return self._stop.is_set()
-
-    def _run(self) -> None:
-        delay = 0.0
-        while not self._stop.is_set():
-            if delay > 0:
-                self._wake.wait(delay)
-                self._wake.clear()
-                if self._stop.is_set():
-                    return
-            try:
-                delay = self._step()
-            except BaseException as exc:  # noqa: BLE001 - handed on: the session fails closed
-                if not self._stop.is_set():
-                    self._on_error(exc)
-                return
 
 
 class Session:

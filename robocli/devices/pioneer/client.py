@@ -30,34 +30,27 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from collections.abc import Iterable
 from typing import Any
 
 from robocli.core import Framer
 from robocli.devices.pioneer import link
+from robocli.devices.pioneer.commands import Commands, _finite
+from robocli.devices.pioneer.decode import Decoding
+from robocli.devices.pioneer.keepalive import (
+    DEFAULT_WATCHDOG_S,
+    KeepAlive,
+    WatchdogListener,
+    WatchdogTrip,
+    WatchdogTripped,
+)
 from robocli.devices.pioneer.link import PioneerStats
 from robocli.devices.pioneer.simulated import SimulatorFeatures
-from robocli.devices.pioneer.state import (
-    Odometry,
-    PioneerState,
-    RobotIdentity,
-    build_state,
-    sip_essentials,
-    sip_motors_on,
-)
+from robocli.devices.pioneer.state import Odometry, PioneerState, RobotIdentity
 from robocli.devices.session import FrameListener, Listeners, Session
-from robocli.errors import (
-    EXIT_FAILURE,
-    DeviceError,
-    InvalidArgument,
-    ProtocolError,
-    RobocliError,
-    TimeoutError,
-)
+from robocli.errors import DeviceError, InvalidArgument, TimeoutError
 from robocli.protocols import arcos
-from robocli.protocols.arcos import Command, PacketType
-from robocli.robots.geometry import wrap_pi
+from robocli.protocols.arcos import Command
 from robocli.robots.pioneer import RobotParams
 from robocli.transports import Transport, open_transport
 
@@ -66,47 +59,14 @@ log = logging.getLogger("robocli.devices.pioneer")
 #: Listener signature: (direction "tx"/"rx", payload = type byte + data, monotonic time).
 PacketListener = FrameListener
 
-_PULSE = arcos.encode_command(Command.PULSE)
-#: The robot's watchdog (s) when its CONFIG does not say (ARCOS' and the simulators' default).
-DEFAULT_WATCHDOG_S = 2.0
-#: Commands that make the robot move (dropped when they would go out after a stall).
-_MOTION_COMMANDS = frozenset(
-    int(c) for c in (Command.VEL, Command.RVEL, Command.VEL2, Command.ROTATE, Command.MOVE,
-                     Command.HEAD, Command.DHEAD, Command.DCHEAD)
-)  # fmt: skip
 
-
-@dataclass(frozen=True)
-class WatchdogTrip:
-    """The program stalled past the robot's watchdog while the robot was commanded to move.
-
-    ``t``: monotonic time the client found it (the first packet after the stall);
-    ``silence``: seconds during which nothing went out; ``watchdog``: the robot's (s)."""
-
-    t: float
-    silence: float
-    watchdog: float
-
-
-#: Watchdog-trip listener signature: called with each trip, in the thread that found it.
-WatchdogListener = Callable[[WatchdogTrip], None]
-
-
-class WatchdogTripped(RobocliError):
-    """Raised by the first motion command after a :class:`WatchdogTrip`: the program stalled,
-    the robot's watchdog stopped it and the client cleared the set-points. The command is
-    not sent; the next one moves the robot again."""
-
-    exit_code = EXIT_FAILURE
-
-    def __init__(self, message: str, trip: WatchdogTrip) -> None:
-        super().__init__(message)
-        self.trip = trip
-
-
-class Pioneer(SimulatorFeatures):
+class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
     """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
 
+    Here: connecting, the state, listeners and closing. Its commands come from
+    :class:`~robocli.devices.pioneer.commands.Commands`; keeping it safe and alive (set-points,
+    watchdog trips, dead-man) from :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
+    frames it receives are decoded by :class:`~robocli.devices.pioneer.decode.Decoding`.
     With a simulator also: its laser (:meth:`start_laser`, :attr:`laser`, :meth:`on_laser`)
     and its status (:meth:`sim_status`), from :class:`SimulatorFeatures`."""
 
@@ -379,191 +339,6 @@ class Pioneer(SimulatorFeatures):
     def remove_listener(self, listener: PacketListener) -> None:
         self._session.listeners.remove(listener)
 
-    def on_watchdog_trip(self, listener: WatchdogListener) -> None:
-        """Call ``listener(trip)`` with each :class:`WatchdogTrip` (this program stalled past
-        the robot's watchdog while the robot was commanded to move), once the stop that
-        replaced the stale set-points went out; in the thread that found the trip (the
-        keep-alive, or the program's own). One that raises is logged once, counted in
-        ``stats.listener_errors``, and never stops the keep-alive."""
-        self._trip_listeners.add(listener)
-
-    def remove_watchdog_trip_listener(self, listener: WatchdogListener) -> None:
-        self._trip_listeners.remove(listener)
-
-    # ------------------------------------------------------------------ commands (SI units)
-
-    def send_command(self, command: int, arg: int | str | bytes | None = None) -> None:
-        """Send one raw ARCOS command (numbers in :class:`~robocli.protocols.arcos.Command`)."""
-        self._session.send(arcos.encode_command(command, arg))
-
-    def enable_motors(self) -> None:
-        """Power the motors (ENABLE 1). A robot starts with them off, and ignores motion
-        commands until they are on; the e-stop button also turns them off."""
-        self.send_command(Command.ENABLE, 1)
-        self._enable_sent = True
-
-    def disable_motors(self) -> None:
-        """Stop keeping set-points alive and power the motors off (ENABLE 0)."""
-        self._set_setpoints([], moving=False)
-        self._enable_sent = False
-        self.send_command(Command.ENABLE, 0)
-
-    def set_velocity(self, v: float, w: float = 0.0) -> None:
-        """Translational (m/s) and rotational (rad/s, CCW +) velocity; re-sent by the
-        keep-alive until changed. Like every motion command, raises :class:`WatchdogTripped`
-        (and sends nothing) when it is the first one after the program stalled past the
-        robot's watchdog.
-
-        Values beyond the robot's limits (CONFIG's ``transvel_top``/``rotvel_top``, else the
-        model's) are clamped to them with one warning, as the vendor SDK does: ``200`` is
-        mm/s in the vendor's units but 200 m/s here. Raises
-        :class:`~robocli.errors.InvalidArgument` for anything that is not a finite number.
-        """
-        v = self._limited("v", v, self.max_velocity, "m/s")
-        w = self._limited("w", w, self.max_rot_velocity, "rad/s")
-        vel = _clamp_int(round(v * 1000.0))
-        rvel = _clamp_int(round(math.degrees(w)))
-        self._command_motion([(Command.VEL, vel), (Command.RVEL, rvel)])
-
-    @property
-    def max_velocity(self) -> float:
-        """The robot's top translational speed (m/s): CONFIG's ``transvel_top``, else the
-        model's."""
-        top = (self.config or {}).get("transvel_top")
-        return top / 1000.0 if top else self.params.max_velocity
-
-    @property
-    def max_rot_velocity(self) -> float:
-        """The robot's top rotational speed (rad/s): CONFIG's ``rotvel_top``, else the
-        model's."""
-        top = (self.config or {}).get("rotvel_top")
-        return math.radians(top) if top else self.params.max_rot_velocity
-
-    def _limited(self, name: str, value: float, limit: float, unit: str) -> float:
-        value = _finite(name, value)
-        if abs(value) <= limit:
-            return value
-        if name not in self._clamp_warned:
-            self._clamp_warned.add(name)
-            log.warning(
-                "%s=%g %s is beyond the robot's limit of %g %s: clamped (robocli takes SI "
-                "units; this warning is given once)", name, value, unit, limit, unit,
-            )  # fmt: skip
-        return math.copysign(limit, value)
-
-    def set_wheel_velocities(self, left: float, right: float) -> None:
-        """Independent wheel speeds (m/s) with VEL2, in steps of ``vel2_divisor`` mm/s."""
-        div = self.params.vel2_divisor
-        hi = max(-128, min(127, round(left * 1000.0 / div)))
-        lo = max(-128, min(127, round(right * 1000.0 / div)))
-        value = int.from_bytes(bytes((lo & 0xFF, hi & 0xFF)), "little", signed=True)
-        self._command_motion([(Command.VEL2, value)])
-
-    def move(self, distance: float) -> None:
-        """Drive ``distance`` metres (negative: backwards) at the SETV speed, then stop."""
-        self._command_motion([], (Command.MOVE, _clamp_int(round(distance * 1000.0))))
-
-    def set_heading(self, th: float) -> None:
-        """Turn to absolute odometry heading ``th`` (rad)."""
-        deg = round(math.degrees(wrap_pi(th)))
-        self._command_motion([], (Command.HEAD, deg))
-
-    def turn(self, dth: float) -> None:
-        """Turn by ``dth`` radians relative to the current heading (CCW +)."""
-        self._command_motion([], (Command.DHEAD, _clamp_int(round(math.degrees(dth)))))
-
-    def stop(self) -> None:
-        """Stop translation and rotation with the normal deceleration (VEL 0 + RVEL 0,
-        as the vendor SDK does; the zero set-points are kept alive)."""
-        self._command_motion([(Command.VEL, 0), (Command.RVEL, 0)])
-
-    def estop(self) -> None:
-        """Emergency stop: maximum deceleration."""
-        self._set_setpoints([(Command.VEL, 0), (Command.RVEL, 0)], moving=False)
-        self.send_command(Command.ESTOP)
-
-    def set_max_velocity(self, v: float | None = None, w: float | None = None) -> None:
-        """Maximum translational (m/s, also MOVE speed) and rotational (rad/s) velocity."""
-        if v is not None:
-            self.send_command(Command.SETV, _clamp_int(round(abs(v) * 1000.0)))
-        if w is not None:
-            self.send_command(Command.SETRV, _clamp_int(round(math.degrees(abs(w)))))
-
-    def set_acceleration(
-        self,
-        trans: float | None = None,
-        rot: float | None = None,
-        *,
-        trans_decel: float | None = None,
-        rot_decel: float | None = None,
-    ) -> None:
-        """Accelerations in m/s² and rad/s²; decelerations default to the accelerations."""
-        for cmd, acc, dec in (
-            (
-                Command.SETA,
-                trans,
-                trans_decel,
-            ),
-            (Command.SETRA, rot, rot_decel),
-        ):
-            scale = 1000.0 if cmd == Command.SETA else math.degrees(1.0)
-            if acc is not None:
-                self.send_command(cmd, _clamp_int(round(abs(acc) * scale)))
-            dec = acc if dec is None else dec
-            if dec is not None:
-                self.send_command(cmd, -_clamp_int(round(abs(dec) * scale)))
-
-    def enable_sonar(self, on: bool = True) -> None:
-        self.send_command(Command.SONAR, 1 if on else 0)
-
-    def reset_odometry(self) -> None:
-        """Zero the robot's odometry (SETO); the client pose restarts at (0, 0) at once,
-        and follows the robot's counters again once it has applied the reset."""
-        self.send_command(Command.SETO)
-        with self._session.cond:
-            self._odo.expect_reset()
-
-    def set_digital_out(self, mask: int, values: int) -> None:
-        """Change the user digital outputs selected by ``mask`` to ``values``."""
-        value = int.from_bytes(bytes((values & 0xFF, mask & 0xFF)), "little", signed=True)
-        self.send_command(Command.DIGOUT, value)
-
-    def select_analog(self, port: int) -> None:
-        """Choose the analog port reported in every SIP (``state.analog``). Not on a
-        simulator with a laser: there ADSEL's number (35) switches the laser."""
-        self.send_command(Command.ADSEL, port)
-
-    def request_io(self, mode: int = 1) -> None:
-        """IO packets: 0 stop, 1 one, 2 continuous (decoded into :attr:`io`)."""
-        self.send_command(Command.IOREQUEST, mode)
-
-    def request_encoders(self, mode: int = 1) -> None:
-        """Encoder packets: 0 stop, 1 one, 2 continuous (decoded into :attr:`encoders`)."""
-        self.send_command(Command.ENCODER, mode)
-
-    def say(self, tones: Iterable[tuple[float, int]]) -> None:
-        """Play tones on the piezo: (duration s, tone 0..127) pairs, at most 20."""
-        data = bytearray()
-        for duration, tone in list(tones)[:20]:
-            data += bytes((max(1, min(255, round(duration / 0.020))), tone & 0xFF))
-        self.send_command(Command.SAY, bytes(data))
-
-    def request_config(self, timeout: float = 1.0) -> dict[str, Any]:
-        """Ask for a CONFIG packet and return its fields (raw units, as the robot sends).
-        The caller reads the reply itself; raises :class:`TimeoutError` or the link's error,
-        never returns an older CONFIG."""
-        frame = self._session.request(link.CONFIG_REQUEST, link.is_config, timeout)
-        if frame[3:-2] != self._config_raw:  # it did not decode (counted in decode_errors)
-            raise ProtocolError(f"{self.transport.url}: the CONFIG reply did not decode")
-        assert self.config is not None  # stored from this very frame by _on_frame
-        return self.config
-
-    def set_simulator_pose(self, x: float, y: float, th: float) -> None:
-        """Simulators only (MobileSim, robocli sim): teleport the true pose (m, m, rad)."""
-        self._session.send(
-            arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th)))
-        )
-
     # ------------------------------------------------------------------ closing
 
     def close(self) -> None:
@@ -581,213 +356,6 @@ class Pioneer(SimulatorFeatures):
         i = self.identity
         return f"<Pioneer {i.name} {i.subtype} on {self.transport.url}>"
 
-    # ------------------------------------------------------------------ internals
-
-    def _judge_silence(self) -> None:
-        """Before a command that changes the set-points: after a silence longer than the
-        watchdog, a PULSE first, so that a trip is judged on what the robot was doing
-        during the silence, not on what the command asks."""
-        if time.monotonic() - self._session.last_tx > self.watchdog:
-            self._session.send(_PULSE)
-
-    def _set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None:
-        self._judge_silence()
-        with self._setpoint_lock:
-            self._setpoints = setpoints
-            self._motion_commanded = moving
-
-    def _command_motion(
-        self, setpoints: list[tuple[int, int]], once: tuple[int, int] | None = None
-    ) -> None:
-        """Send motion commands now; ``setpoints`` are then kept alive, ``once`` is not.
-        The first command that would move the robot after a watchdog trip raises instead."""
-        session = self._session
-        session.check()
-        moving = once is not None or any(arg != 0 for _, arg in setpoints)
-        self._judge_silence()
-        with self._setpoint_lock:
-            trip = self._trip_pending
-            if moving and trip is not None:
-                self._trip_pending = None
-            else:
-                trip = None
-                self._setpoints = setpoints
-                self._motion_commanded = moving
-        if trip is not None:
-            raise WatchdogTripped(
-                f"{self.transport.url}: this program sent nothing for {trip.silence:.1f} s, "
-                f"past the robot's {trip.watchdog:g} s watchdog (it was stopped, suspended or "
-                "paused): the robot was stopped and its set-points cleared; this command was "
-                "not sent, the next one moves the robot again",
-                trip,
-            )
-        self._last_app_command = time.monotonic()
-        if not (self._motors_off_warned or self._enable_sent or self._motors_on()):
-            self._motors_off_warned = True
-            log.warning(
-                "%s: the motors are disabled, so the robot will not move: call "
-                "enable_motors() first (state.motors_enabled tells; warned once)",
-                self.transport.url,
-            )
-        packets = [arcos.encode_command(cmd, arg) for cmd, arg in setpoints]
-        if once is not None:
-            packets.append(arcos.encode_command(*once))
-        session.send_many(packets)  # one write: a stall cannot fall between them
-        if self.deadman is not None:
-            self._supervisor.wake()
-
-    def _motors_on(self) -> bool:
-        """The motors flag of the latest SIP (no decode: one byte of the body)."""
-        sip = self._sip
-        if sip is None:
-            return True
-        return sip_motors_on(sip[0])
-
-    def _on_frame(self, frame: bytes, now: float) -> None:
-        """Every received frame, in the reader thread or a caller waiting for a reply."""
-        ptype = frame[3]
-        if ptype & 0xF0 == 0x30:
-            start = time.thread_time()
-            self._on_sip(frame, now)
-            self.stats.sip_work.append(time.thread_time() - start)
-        elif ptype == PacketType.CONFIG:
-            self._store_config(link.payload_of(frame))
-        elif ptype == PacketType.IO:
-            self.io = link.parse_body(arcos.IO, link.payload_of(frame), "IO")
-        elif ptype == PacketType.ENCODER:
-            enc = link.parse_body(arcos.ENCODER, link.payload_of(frame), "ENCODER")
-            self.encoders = (int(enc["left"]), int(enc["right"]))
-        elif ptype == PacketType.BATTERY:
-            self.battery_info = link.parse_body(arcos.BATTERY, link.payload_of(frame), "BATTERY")
-        elif ptype in (PacketType.SIM_LASER, PacketType.SIM_LASER_A):
-            self._on_laser(ptype, frame[4:-2], now)
-
-    def _store_config(self, payload: bytes) -> None:
-        if payload != self._config_raw:  # construct is slow; CONFIG rarely changes
-            self.config = dict(link.parse_body(arcos.CONFIG, payload, "CONFIG"))
-            self._config_raw = payload
-
-    def _on_sip(self, frame: bytes, now: float) -> None:
-        # The per-SIP work is kept to the odometry counters and the sonar readings; the rest
-        # of the SIP is decoded, and the SI-unit state built, when the program asks for it.
-        body = frame[4:-2]
-        x, y, readings = sip_essentials(body)
-        conv = self.params.range_conv / 1000.0
-        sonar, sonar_t = self._sonar, self._sonar_t
-        n_sonar = len(sonar)
-        cond = self._session.cond
-        with cond:
-            for number, rng in readings:
-                if number < n_sonar:
-                    sonar[number] = rng * conv
-                    sonar_t[number] = now
-            self._sip = (body, now, self._odo.update(x, y))
-            self.stats.sips += 1
-            self.stats.sip_times.append(now)
-            self._state = None
-            self._last_sip = now
-            cond.notify_all()
-
-    def _current_state(self) -> PioneerState:
-        """The latest SIP as a :class:`PioneerState` (built once per SIP; hold the cond)."""
-        if self._state is None:
-            if self._sip is None:
-                raise TimeoutError(f"{self.transport.url}: no SIP received yet")
-            body, now, odo = self._sip
-            sip = arcos.decode_sip(body)
-            self._soc_seen = self._soc_seen or bool(sip["state_of_charge"])
-            self._state = build_state(
-                sip, now, odo, tuple(self._sonar), tuple(self._sonar_t),
-                self.params, self.stats.sips, soc_seen=self._soc_seen,
-            )  # fmt: skip
-        return self._state
-
-    def _keepalive_step(self) -> float:
-        """Re-send the set-points (PULSE when there are none) once nothing was sent for
-        ``keepalive`` s; sleep until then."""
-        now = time.monotonic()
-        due = self._session.last_tx + self.keepalive
-        if now < due:
-            return due - now
-        with self._setpoint_lock:
-            setpoints = list(self._setpoints)
-        self.stats.add("keepalives")
-        self.stats.keepalive_times.append(now)
-        if setpoints:  # one write: after a stall, _before_send replaces all of them
-            self._session.send_many([arcos.encode_command(cmd, arg) for cmd, arg in setpoints])
-        else:
-            self._session.send(_PULSE)
-        return self.keepalive
-
-    def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
-        """Every write, right before it goes out: after ``silence`` s without a packet,
-        longer than the watchdog, while the robot was commanded to move, the program
-        stalled and the robot's watchdog has stopped it. Clear the set-points, note the trip
-        for the next motion command and the listeners, and write a stop in place of any
-        motion command (the keep-alive's stale set-points)."""
-        if silence <= self.watchdog or not self._motion_commanded:
-            return packets
-        with self._setpoint_lock:
-            if not self._motion_commanded:  # another thread found it first
-                return packets
-            trip = WatchdogTrip(time.monotonic(), silence, self.watchdog)
-            self._setpoints = []
-            self._motion_commanded = False
-            self._trip_pending = self._trip_unannounced = trip
-        self.stats.add("watchdog_trips")
-        log.warning(
-            "%s: nothing was sent for %.1f s, past the robot's %g s watchdog (this program "
-            "stalled): the robot was stopped; set-points cleared, it moves again only on a "
-            "new command", self.transport.url, silence, self.watchdog,
-        )  # fmt: skip
-        kept = [p for p in packets if p[3] not in _MOTION_COMMANDS]
-        return [*link.EMERGENCY_STOP, *kept]
-
-    def _on_sent(self, now: float) -> None:
-        """After each packet written: its time; a watchdog trip to announce."""
-        self.stats.tx_times.append(now)
-        if self._trip_unannounced is not None:
-            with self._setpoint_lock:
-                trip, self._trip_unannounced = self._trip_unannounced, None
-            if trip is not None:
-                self._trip_listeners.notify(trip)
-
-    def _supervise_step(self) -> float:
-        """No SIP for ``sip_timeout``: fail (the session stops the robot). With a dead-man:
-        stop a moving robot ``deadman`` s after the last motion command."""
-        now = time.monotonic()
-        silent_at = self._last_sip + self.sip_timeout
-        if now > silent_at:
-            self._session.fail(
-                TimeoutError(
-                    f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
-                    "(robot off, cable unplugged, or session closed)"
-                )
-            )
-            return self.sip_timeout
-        wait = silent_at - now
-        if self.deadman is not None:
-            with self._setpoint_lock:
-                moving = any(arg != 0 for _, arg in self._setpoints)
-            due = self._last_app_command + self.deadman
-            if moving and now >= due:
-                log.warning("dead-man: no motion command for %.2f s, stopping", now - due
-                            + self.deadman)  # fmt: skip
-                self.stats.add("deadman_stops")
-                self.stop()
-            elif moving:
-                wait = min(wait, due - now)
-        return max(0.001, wait)
-
-
-def _finite(name: str, value: object) -> float:
-    """``value`` as a finite float, or :class:`InvalidArgument` naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidArgument(f"{name} must be a number, not {value!r}")
-    if not math.isfinite(value):
-        raise InvalidArgument(f"{name} must be a finite number, not {value!r}")
-    return float(value)
-
 
 def _check_seconds(**durations: float) -> None:
     """Each duration a number of seconds in (0, :data:`MAX_WAIT_S`], or
@@ -799,10 +367,6 @@ def _check_seconds(**durations: float) -> None:
 
 #: The longest wait a duration argument may ask for (s): 11 days.
 MAX_WAIT_S = 1e6
-
-
-def _clamp_int(value: int) -> int:
-    return max(-0x7FFF, min(0x7FFF, value))
 
 
 __all__ = ["Pioneer", "PioneerStats", "WatchdogListener", "WatchdogTrip", "WatchdogTripped"]

@@ -1,0 +1,247 @@
+"""What keeps a commanded Pioneer safe and alive, mixed into
+:class:`~robocli.devices.pioneer.Pioneer`: the set-points the keep-alive re-sends (PULSE
+when there are none), the watchdog trip of a program that stalled (:class:`WatchdogTrip`,
+:class:`WatchdogTripped`, :meth:`KeepAlive.on_watchdog_trip`), the dead-man and the SIP
+supervisor. Every motion command goes out through :meth:`KeepAlive._command_motion`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+from robocli.devices.pioneer import link
+from robocli.devices.pioneer.state import sip_motors_on
+from robocli.errors import EXIT_FAILURE, RobocliError, TimeoutError
+from robocli.protocols import arcos
+from robocli.protocols.arcos import Command
+
+if TYPE_CHECKING:
+    import threading
+
+    from robocli.devices.pioneer.link import PioneerStats
+    from robocli.devices.session import Listeners, PeriodicTask, Session
+    from robocli.transports import Transport
+
+log = logging.getLogger("robocli.devices.pioneer")
+
+_PULSE = arcos.encode_command(Command.PULSE)
+#: The robot's watchdog (s) when its CONFIG does not say (ARCOS' and the simulators' default).
+DEFAULT_WATCHDOG_S = 2.0
+#: Commands that make the robot move (dropped when they would go out after a stall).
+_MOTION_COMMANDS = frozenset(
+    int(c) for c in (Command.VEL, Command.RVEL, Command.VEL2, Command.ROTATE, Command.MOVE,
+                     Command.HEAD, Command.DHEAD, Command.DCHEAD)
+)  # fmt: skip
+
+
+@dataclass(frozen=True)
+class WatchdogTrip:
+    """The program stalled past the robot's watchdog while the robot was commanded to move.
+
+    ``t``: monotonic time the client found it (the first packet after the stall);
+    ``silence``: seconds during which nothing went out; ``watchdog``: the robot's (s)."""
+
+    t: float
+    silence: float
+    watchdog: float
+
+
+#: Watchdog-trip listener signature: called with each trip, in the thread that found it.
+WatchdogListener = Callable[[WatchdogTrip], None]
+
+
+class WatchdogTripped(RobocliError):
+    """Raised by the first motion command after a :class:`WatchdogTrip`: the program stalled,
+    the robot's watchdog stopped it and the client cleared the set-points. The command is
+    not sent; the next one moves the robot again."""
+
+    exit_code = EXIT_FAILURE
+
+    def __init__(self, message: str, trip: WatchdogTrip) -> None:
+        super().__init__(message)
+        self.trip = trip
+
+
+class KeepAlive:
+    """Set-points kept alive, watchdog trips, dead-man and SIP supervision (see the module
+    docstring)."""
+
+    # provided by Pioneer
+    _session: Session
+    transport: Transport
+    stats: PioneerStats
+    sip_timeout: float
+    keepalive: float
+    deadman: float | None
+    watchdog: float
+    _sip: tuple[bytes, float, tuple[int, int]] | None
+    _last_sip: float
+    _last_app_command: float
+    _setpoints: list[tuple[int, int]]
+    _setpoint_lock: threading.Lock
+    _motion_commanded: bool
+    _trip_pending: WatchdogTrip | None
+    _trip_unannounced: WatchdogTrip | None
+    _trip_listeners: Listeners[WatchdogListener]
+    _motors_off_warned: bool
+    _enable_sent: bool
+    _supervisor: PeriodicTask
+
+    if TYPE_CHECKING:
+
+        def stop(self) -> None: ...
+
+    def on_watchdog_trip(self, listener: WatchdogListener) -> None:
+        """Call ``listener(trip)`` with each :class:`WatchdogTrip` (this program stalled past
+        the robot's watchdog while the robot was commanded to move), once the stop that
+        replaced the stale set-points went out; in the thread that found the trip (the
+        keep-alive, or the program's own). One that raises is logged once, counted in
+        ``stats.listener_errors``, and never stops the keep-alive."""
+        self._trip_listeners.add(listener)
+
+    def remove_watchdog_trip_listener(self, listener: WatchdogListener) -> None:
+        self._trip_listeners.remove(listener)
+
+    def _judge_silence(self) -> None:
+        """Before a command that changes the set-points: after a silence longer than the
+        watchdog, a PULSE first, so that a trip is judged on what the robot was doing
+        during the silence, not on what the command asks."""
+        if time.monotonic() - self._session.last_tx > self.watchdog:
+            self._session.send(_PULSE)
+
+    def _set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None:
+        self._judge_silence()
+        with self._setpoint_lock:
+            self._setpoints = setpoints
+            self._motion_commanded = moving
+
+    def _command_motion(
+        self, setpoints: list[tuple[int, int]], once: tuple[int, int] | None = None
+    ) -> None:
+        """Send motion commands now; ``setpoints`` are then kept alive, ``once`` is not.
+        The first command that would move the robot after a watchdog trip raises instead."""
+        session = self._session
+        session.check()
+        moving = once is not None or any(arg != 0 for _, arg in setpoints)
+        self._judge_silence()
+        with self._setpoint_lock:
+            trip = self._trip_pending
+            if moving and trip is not None:
+                self._trip_pending = None
+            else:
+                trip = None
+                self._setpoints = setpoints
+                self._motion_commanded = moving
+        if trip is not None:
+            raise WatchdogTripped(
+                f"{self.transport.url}: this program sent nothing for {trip.silence:.1f} s, "
+                f"past the robot's {trip.watchdog:g} s watchdog (it was stopped, suspended or "
+                "paused): the robot was stopped and its set-points cleared; this command was "
+                "not sent, the next one moves the robot again",
+                trip,
+            )
+        self._last_app_command = time.monotonic()
+        if not (self._motors_off_warned or self._enable_sent or self._motors_on()):
+            self._motors_off_warned = True
+            log.warning(
+                "%s: the motors are disabled, so the robot will not move: call "
+                "enable_motors() first (state.motors_enabled tells; warned once)",
+                self.transport.url,
+            )
+        packets = [arcos.encode_command(cmd, arg) for cmd, arg in setpoints]
+        if once is not None:
+            packets.append(arcos.encode_command(*once))
+        session.send_many(packets)  # one write: a stall cannot fall between them
+        if self.deadman is not None:
+            self._supervisor.wake()
+
+    def _motors_on(self) -> bool:
+        """The motors flag of the latest SIP (no decode: one byte of the body)."""
+        sip = self._sip
+        if sip is None:
+            return True
+        return sip_motors_on(sip[0])
+
+    def _keepalive_step(self) -> float:
+        """Re-send the set-points (PULSE when there are none) once nothing was sent for
+        ``keepalive`` s; sleep until then."""
+        now = time.monotonic()
+        due = self._session.last_tx + self.keepalive
+        if now < due:
+            return due - now
+        with self._setpoint_lock:
+            setpoints = list(self._setpoints)
+        self.stats.add("keepalives")
+        self.stats.keepalive_times.append(now)
+        if setpoints:  # one write: after a stall, _before_send replaces all of them
+            self._session.send_many([arcos.encode_command(cmd, arg) for cmd, arg in setpoints])
+        else:
+            self._session.send(_PULSE)
+        return self.keepalive
+
+    def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
+        """Every write, right before it goes out: after ``silence`` s without a packet,
+        longer than the watchdog, while the robot was commanded to move, the program
+        stalled and the robot's watchdog has stopped it. Clear the set-points, note the trip
+        for the next motion command and the listeners, and write a stop in place of any
+        motion command (the keep-alive's stale set-points)."""
+        if silence <= self.watchdog or not self._motion_commanded:
+            return packets
+        with self._setpoint_lock:
+            if not self._motion_commanded:  # another thread found it first
+                return packets
+            trip = WatchdogTrip(time.monotonic(), silence, self.watchdog)
+            self._setpoints = []
+            self._motion_commanded = False
+            self._trip_pending = self._trip_unannounced = trip
+        self.stats.add("watchdog_trips")
+        log.warning(
+            "%s: nothing was sent for %.1f s, past the robot's %g s watchdog (this program "
+            "stalled): the robot was stopped; set-points cleared, it moves again only on a "
+            "new command", self.transport.url, silence, self.watchdog,
+        )  # fmt: skip
+        kept = [p for p in packets if p[3] not in _MOTION_COMMANDS]
+        return [*link.EMERGENCY_STOP, *kept]
+
+    def _on_sent(self, now: float) -> None:
+        """After each packet written: its time; a watchdog trip to announce."""
+        self.stats.tx_times.append(now)
+        if self._trip_unannounced is not None:
+            with self._setpoint_lock:
+                trip, self._trip_unannounced = self._trip_unannounced, None
+            if trip is not None:
+                self._trip_listeners.notify(trip)
+
+    def _supervise_step(self) -> float:
+        """No SIP for ``sip_timeout``: fail (the session stops the robot). With a dead-man:
+        stop a moving robot ``deadman`` s after the last motion command."""
+        now = time.monotonic()
+        silent_at = self._last_sip + self.sip_timeout
+        if now > silent_at:
+            self._session.fail(
+                TimeoutError(
+                    f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
+                    "(robot off, cable unplugged, or session closed)"
+                )
+            )
+            return self.sip_timeout
+        wait = silent_at - now
+        if self.deadman is not None:
+            with self._setpoint_lock:
+                moving = any(arg != 0 for _, arg in self._setpoints)
+            due = self._last_app_command + self.deadman
+            if moving and now >= due:
+                log.warning("dead-man: no motion command for %.2f s, stopping", now - due
+                            + self.deadman)  # fmt: skip
+                self.stats.add("deadman_stops")
+                self.stop()
+            elif moving:
+                wait = min(wait, due - now)
+        return max(0.001, wait)
+
+
+__all__ = ["KeepAlive", "WatchdogListener", "WatchdogTrip", "WatchdogTripped"]
