@@ -32,6 +32,7 @@ from robocli.devices.hub.link import (
     MAX_TOKEN,
     NO_HUB_HINT,
     handshake,
+    header_only,
     is_reply,
     open_hub,
     open_session,
@@ -252,7 +253,7 @@ class Hub:
         """One data pull of ``name``: the raw reply frame (header + body). Feeds the clock
         filter."""
         kind = sensor_type(name)
-        packet = HEADER.pack(kind, 0, self.client_id, 0, 0, 0, 0, 0.0)
+        packet = header_only(kind, self.client_id)
         t0 = self.clock()
         frame = self._request(packet, kind)
         t1 = self.clock()
@@ -353,7 +354,7 @@ class Hub:
     def close(self, quit: bool = True) -> None:  # noqa: A002 - the protocol's word
         """Send QUIT (the hub forgets this client; ``quit=False`` keeps its buffers for a
         reconnect with :attr:`client_id`) and close the link, bounded."""
-        stop = (HEADER.pack(MsgType.QUIT, 0, self.client_id, 0, 0, 0, 0, 0.0),) if quit else ()
+        stop = (header_only(MsgType.QUIT, self.client_id),) if quit else ()
         self.session.close(stop)
 
     def __enter__(self) -> Hub:

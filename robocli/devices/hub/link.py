@@ -1,7 +1,7 @@
 """ros4mat on a :class:`~robocli.devices.session.Session`: the hub's address and token,
 opening the link and the CONNECT handshake, one request and its reply (a reply too long to
-frame fails the link), the fence after a request that has no reply, packet names for the
-statistics.
+frame fails the link), header-only requests, the fence after a request that has no reply,
+packet names for the statistics.
 
 Part of the hub client (:mod:`robocli.devices.hub.client`, which re-exports
 :func:`parse_hub`, :data:`MAX_TOKEN` and :data:`NO_HUB_HINT`).
@@ -40,7 +40,7 @@ from robocli.transports import (
 )
 
 __all__ = [
-    "MAX_TOKEN", "NO_HUB_HINT", "handshake", "is_reply", "open_hub", "open_session",
+    "MAX_TOKEN", "NO_HUB_HINT", "handshake", "header_only", "is_reply", "open_hub", "open_session",
     "packet_name", "parse_hub", "request", "token_bytes", "unanswered",
 ]  # fmt: skip
 
@@ -180,10 +180,16 @@ def unanswered(
             refused.append(frame)
         return frame[0] == _FENCE
 
-    fence = HEADER.pack(_FENCE, 0, client_id, 0, 0, 0, 0, 0.0)
+    fence = header_only(_FENCE, client_id)
     session.request(packet + fence, fence_reply, timeout)
     if refused:
         body_of(refused[0])  # raises DeviceError with the hub's text
+
+
+def header_only(kind: int, client_id: int) -> bytes:
+    """A request that is a header alone (a data pull, QUIT, the fence), packed directly:
+    a pull is on every read's path."""
+    return HEADER.pack(kind, 0, client_id, 0, 0, 0, 0, 0.0)
 
 
 def _ignore(frame: bytes, t: float) -> None:
