@@ -1,5 +1,6 @@
-"""The bytes of the Arm's links: sessions on the motion and state ports, JOINT_TRAJ_PT frames,
-packet names for the statistics."""
+"""The bytes of the Arm's links: sessions on the motion and state ports and the first reads
+on them (a refusal, another protocol), JOINT_TRAJ_PT frames, packet names for the
+statistics."""
 
 from __future__ import annotations
 
@@ -9,13 +10,23 @@ from collections.abc import Callable
 from robocli.core import Framer
 from robocli.devices.arm.state import Point
 from robocli.devices.session import Session
-from robocli.errors import TransportError
+from robocli.errors import (
+    ConnectionLost,
+    DeviceError,
+    InvalidArgument,
+    RobocliError,
+    TimeoutError,
+    TransportError,
+)
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
+from robocli.protocols.common import find_refusal
 from robocli.protocols.simple_message import CommType, MsgType, SpecialSeq
 from robocli.transports import SocketTransport
 
-__all__ = ["namer", "open_session", "point_frame", "stop_frame"]
+__all__ = [
+    "first_state", "namer", "need", "no_refusal", "open_session", "point_frame", "stop_frame",
+]  # fmt: skip
 
 
 def open_session(host: str, port: int, name: str, order: sm.ByteOrder, real: sm.RealSize,
@@ -60,3 +71,48 @@ def namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]
             return f"TYPE_{msg_type}"
 
     return name_of
+
+
+def first_state(s: Session, timeout: float) -> None:
+    """Read until the first valid state message (before the reader starts, so that a
+    refusal line or another protocol is seen)."""
+    url = s.transport.url
+    wrong = TransportError(f"{url}: the port answers, but not in Simple Message "
+                           "(another protocol, or the wrong byte order or real size)")
+    try:
+        s.request(None, lambda f: True, timeout)
+        # a stream in the other byte order frames 3 bytes late (small ints even decode)
+        if s.stats.dropped_bytes or s.stats.decode_errors:
+            raise wrong
+    except ConnectionLost:
+        reason = find_refusal(s.raw_tail())
+        if reason is not None:
+            raise DeviceError(f"{url}: {reason}") from None
+        raise
+    except TimeoutError:
+        if s.raw_tail() or s.stats.decode_errors:
+            raise wrong from None
+        raise TimeoutError(f"{url}: no state message within {timeout:g} s") from None
+
+
+def no_refusal(s: Session, wait: float) -> None:
+    """Raise :class:`DeviceError` when the motion port refused this client (a busy
+    server says why on connecting, then closes): its motion port is quiet otherwise, so
+    read what came within ``wait`` s before the reader starts (and would swallow it)."""
+    try:
+        s.request(None, lambda f: False, wait)
+    except TimeoutError:
+        return  # nothing said: a controller's motion port speaks only when spoken to
+    except RobocliError:
+        reason = find_refusal(s.raw_tail())
+        if reason is not None:
+            raise DeviceError(f"{s.transport.url}: {reason}") from None
+        raise
+
+
+def need(session: Session | None, name: str) -> Session:
+    """``session``, checked alive: the port an operation needs."""
+    if session is None:
+        raise InvalidArgument(f"this Arm was connected without its {name} port")
+    session.check()
+    return session

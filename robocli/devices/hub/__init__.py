@@ -1,5 +1,6 @@
-"""The sensor hub's client over ros4mat: :class:`Hub` (the client), the reply decoder
-(:mod:`.decode`) and the command-line helpers built on it (:mod:`.tools`)."""
+"""The sensor hub's client over ros4mat: :class:`Hub` (the client), its link (:mod:`.link`),
+the SUBSCRIBE settings (:mod:`.subscription`), the hub's clock (:mod:`.clock`), the reply
+decoder (:mod:`.decode`) and the command-line helpers built on it (:mod:`.tools`)."""
 
 from robocli.devices.hub.client import Hub, Reading
 
