@@ -17,6 +17,7 @@ from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports, 
 from robocli.commands import doctor as doctor_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
+from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
 
 
@@ -77,7 +78,7 @@ sim = _group("sim", "Run a built-in simulator speaking the robot's real protocol
 bench_group = _group("bench", "Measure latency, jitter and per-packet cost.")
 
 connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
-teleop.command("pioneer", cls=PlainCommand)(pioneer.teleop)
+teleop.command("pioneer", cls=PlainCommand)(teleop_commands.pioneer)
 dump.command("pioneer", cls=PlainCommand)(pioneer.dump)
 sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
 app.command("ports", cls=PlainCommand)(ports.ports)
@@ -100,7 +101,7 @@ upload.command("arm", cls=PlainCommand)(arm.upload)
 monitor.command("arm", cls=PlainCommand)(arm.monitor)
 connect.command("arm", cls=PlainCommand)(arm.connect)
 dump.command("arm", cls=PlainCommand)(arm_extra.dump)
-teleop.command("arm", cls=PlainCommand)(arm_extra.teleop)
+teleop.command("arm", cls=PlainCommand)(teleop_commands.arm)
 
 app.command("subscribe")(hub_commands.subscribe)
 app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)

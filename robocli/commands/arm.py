@@ -85,12 +85,12 @@ def arm_host(
         yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
 
 
-def _profile(stream: bool) -> str:
+def sim_profile(stream: bool) -> str:
     """The embedded simulator's profile for a command's ``--stream``."""
     return "generic" if stream else "abb"
 
 
-def _check_wire(byte_order: str, real_size: int) -> None:
+def check_wire(byte_order: str, real_size: int) -> None:
     if byte_order not in ("little", "big"):
         raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
     if real_size not in (4, 8):
@@ -155,7 +155,7 @@ def simulate(
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
     from robocli.sim.abb.server import PROFILES, AbbSim, ControllerModel
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
     if motion_port == state_port != 0:
@@ -284,14 +284,14 @@ def upload(
     from robocli.devices.arm import Arm, StillMoving
     from robocli.io.trajlog import check_writable, write_log
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     if monitor is not None and wait == 0:
         raise typer.BadParameter("--monitor records until the end: give --wait > 0")
     if monitor is not None:
         check_writable(monitor)  # before the arm moves: not after the whole run
     traj = _trajectory(robot, shape, points, file, duration, radius, center)
     with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
-                                          robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
+                                          robot, sim_profile(stream)) as (h, mp, sp):  # fmt: skip
         with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
                          timeout=timeout) as arm:  # fmt: skip
             arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
@@ -349,7 +349,7 @@ def monitor(
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.trajlog import check_writable, write_log
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     if (samples is None) == (duration is None):
         raise typer.BadParameter("give --samples or --duration")
     check_writable(out)  # before recording: not after the whole --duration
@@ -428,7 +428,7 @@ def connect(
     """Show the arm's live joints (deg, rad), TCP position and status."""
     from robocli.devices.arm import Arm
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     with reader_may_leave(), sigterm_as_interrupt(), arm_host(
             host, 11000, state_port, byte_order, real_size, robot) as (h, _, sp):  # fmt: skip
         with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,

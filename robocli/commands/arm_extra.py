@@ -1,5 +1,4 @@
-"""``robocli dump arm`` and ``robocli teleop arm``: thin layers over
-:class:`robocli.devices.arm.Arm` and :mod:`robocli.devices.arm.teleop`.
+"""``robocli dump arm``: a thin layer over :class:`robocli.devices.arm.Arm`.
 
 The dump opens the motion and the state port as two clients (``--ports`` picks one; an ABB
 takes one client per port, so a dump holding the motion port keeps others from uploading)
@@ -36,9 +35,8 @@ from robocli.commands.arm import (
     RobotOpt,
     StatePortOpt,
     TimeoutOpt,
-    _check_wire,
-    _profile,
     arm_host,
+    check_wire,
 )
 from robocli.defaults import ARM_ENV
 
@@ -173,7 +171,7 @@ def dump(
     from robocli.io.capture import CaptureWriter
     from robocli.kinematics import load_model
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     if file is not None and from_env(ctx, "host"):
         host = None  # $ROBOCLI_ARM names a controller; --file reads a capture instead
     if (host is None) == (file is None):
@@ -331,67 +329,3 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
         relays.append(proxy)
     typer.echo("dump: clients connect to " + ", ".join(said), err=True)
     return relays
-
-
-# ------------------------------------------------------------------------------ teleop
-
-
-def teleop(
-    host: str = HostArg,
-    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    joint_speed: float = typer.Option(
-        0.1, "--joint-speed", min=0.01, max=1.0, help="Fraction of the joint speed limits."
-    ),
-    cart_speed: float = typer.Option(
-        0.05, "--cart-speed", min=0.001, max=1.0, help="TCP speed, m/s."
-    ),
-    release: float = typer.Option(
-        0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
-    ),
-    motion_port: int = MotionPortOpt,
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = TimeoutOpt,
-) -> None:
-    """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
-    +/- speed, space stops, q quits. Letting go of the key sends STOP."""
-    from robocli.commands._screens import end_line, raw_terminal
-    from robocli.devices.arm import Arm
-    from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
-
-    _check_wire(byte_order, real_size)
-    if not sys.stdin.isatty():
-        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
-                                          robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
-                         timeout=timeout) as arm:  # fmt: skip
-            arm.wait_for_state()
-            typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
-                       "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
-            typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
-            jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
-                            release_timeout=release)  # fmt: skip
-            try:
-                with raw_terminal() as read_key:
-                    run_arm_teleop(jog, read_key, on_update=_status_line())
-            finally:
-                end_line()
-
-
-def _status_line() -> Any:
-    """``on_update`` that redraws the teleop's status in place at 10 Hz."""
-    from robocli.commands._screens import STATUS_PERIOD
-
-    last = [-1.0]
-
-    def draw(jog: Any) -> None:
-        now = time.monotonic()
-        if now - last[0] >= STATUS_PERIOD:
-            last[0] = now
-            sys.stdout.write("\r" + jog.status()[:79] + "\x1b[K")
-            sys.stdout.flush()
-
-    return draw

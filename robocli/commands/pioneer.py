@@ -1,4 +1,5 @@
-"""``robocli connect|teleop|dump|sim pioneer``: thin layers over robocli.devices.pioneer.
+"""``robocli connect|sim pioneer``, and what ``teleop pioneer`` and ``dump pioneer`` share
+(the port argument and link options, connecting): thin layers over robocli.devices.pioneer.
 
 Human views show metres, m/s, degrees and deg/s; JSON output is SI (m, rad, m/s, rad/s),
 rounded to the protocol's resolution.
@@ -62,7 +63,7 @@ TimeoutOpt = typer.Option(
 
 
 @contextlib.contextmanager
-def _connected(port: str, **options: Any) -> Iterator[Pioneer]:
+def connected(port: str, **options: Any) -> Iterator[Pioneer]:
     """A connected Pioneer on ``port`` (``sim``: an embedded simulator), Ctrl-C and SIGTERM
     stopping it; a reset during the handshake is explained as a busy robot. ``--timeout``
     also bounds the wait once the robot goes silent."""
@@ -93,9 +94,9 @@ def connect(
     snapshot; --json: machine-readable, SI units)."""
     from robocli.commands._screens import live_view
 
-    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         if laser:
-            _start_laser(robot, wait=once)
+            start_laser(robot, wait=once)
         if once:
             if json_out:
                 print_json(rounded(_snapshot(robot)))
@@ -109,7 +110,7 @@ def connect(
             live_view(robot)
 
 
-def _start_laser(robot: Pioneer, wait: bool) -> None:
+def start_laser(robot: Pioneer, wait: bool) -> None:
     """On a simulator (MobileSim, robocli sim), ask for its laser; with ``wait``, wait up
     to a second for the first scan. Real robots are left alone (their laser has its own
     port)."""
@@ -136,52 +137,6 @@ def _snapshot(robot: Pioneer) -> dict[str, Any]:
             "ranges": [None if math.isinf(r) else r for r in scan.ranges],
         }
     return data
-
-
-def teleop(
-    port: str = PortArg,
-    max_v: float = typer.Option(
-        0.4, "--max-v", min=0.0, max=2.0, metavar="M/S", help="Top speed, m/s."
-    ),
-    max_w: float = typer.Option(
-        1.0,
-        "--max-w",
-        min=0.0,
-        max=5.0,
-        metavar="RAD/S",
-        help="Top turn rate, rad/s (shown in deg/s).",
-    ),  # fmt: skip
-    release: float = typer.Option(
-        0.45,
-        "--release",
-        min=0.05,
-        max=0.5,
-        metavar="SECONDS",
-        help="Stop this long after the last key, s.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-) -> None:
-    """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
-    from robocli.commands._screens import StatusLine, end_line, raw_terminal
-    from robocli.devices.pioneer.teleop import TeleopController, run_teleop
-
-    if not sys.stdin.isatty():
-        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-    controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
-    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
-        robot.enable_motors()
-        typer.echo(
-            f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
-            "space stops, q or Ctrl-C quits"
-        )
-        status = StatusLine(robot)
-        try:
-            with raw_terminal() as read_key:
-                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
-        finally:
-            end_line()
 
 
 def dump(
@@ -301,9 +256,9 @@ def _dump_live(view: Any, port: str, laser: bool, **options: Any) -> None:
                 view.add(*seen.get_nowait())
 
     try:
-        with _connected(port, listeners=[listener], **options) as robot:
+        with connected(port, listeners=[listener], **options) as robot:
             if laser:
-                _start_laser(robot, wait=False)
+                start_laser(robot, wait=False)
             while not view.done:
                 take(_REORDER)
                 view.flush(before=time.monotonic() - start - _REORDER)
