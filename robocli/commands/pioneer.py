@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
-import queue
 import sys
 import time
 from collections.abc import Iterator
@@ -23,7 +21,6 @@ from robocli.commands._common import (
     PORT_HELP,
     bind_address,
     explain_refusal,
-    from_env,
     listening,
     pioneer_url,
     print_json,
@@ -137,137 +134,6 @@ def _snapshot(robot: Pioneer) -> dict[str, Any]:
             "ranges": [None if math.isinf(r) else r for r in scan.ranges],
         }
     return data
-
-
-def dump(
-    ctx: typer.Context,
-    port: str | None = typer.Argument(  # noqa: UP007
-        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT",
-        envvar=PIONEER_ENV, show_envvar=True,
-    ),  # fmt: skip
-    count: int = typer.Option(
-        0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
-    ),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
-    output: Path | None = typer.Option(  # noqa: UP007
-        None,
-        "--output",
-        "-o",
-        metavar="FILE.jsonl",
-        dir_okay=False,
-        help="Also record the packets to a .jsonl capture (what --file reads).",
-    ),  # fmt: skip
-    laser: bool = typer.Option(
-        False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
-    ),
-    file: Path | None = typer.Option(  # noqa: UP007
-        None,
-        "--file",
-        "-f",
-        metavar="CAPTURE",
-        exists=True,
-        dir_okay=False,
-        help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-) -> None:
-    """Print every packet in both directions, in time order, with its name and decoded
-    fields (raw units; lines cut at 160 characters unless -v)."""
-    from robocli.commands._packets import PacketView
-    from robocli.io.capture import CaptureWriter
-
-    if file is not None and from_env(ctx, "port"):
-        port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
-    if port is None and file is None:
-        raise typer.BadParameter("give PORT or --file")
-    if port is not None and file is not None:
-        raise typer.BadParameter("give PORT or --file, not both")
-    if output is not None and output.suffix != ".jsonl":
-        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
-    if output is not None and file is not None and _same_file(output, file):
-        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
-    full = bool(ctx.find_root().params.get("verbose"))
-    writer = CaptureWriter(output) if output is not None else None
-    try:
-        view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
-        if file is not None:
-            _dump_file(view, file)
-        else:
-            assert port is not None
-            _dump_live(view, port, laser, subtype=subtype, baud=baud, timeout=timeout)
-    finally:
-        if writer is not None:
-            writer.close()
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet)
-        return False
-
-
-def _dump_file(view: Any, file: Path) -> None:
-    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
-    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
-    from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
-
-    stats = CaptureStats()
-    with reader_may_leave(), sigterm_as_interrupt():
-        try:
-            for item in read_capture(file, stats=stats):
-                view.show(item.direction, item.frame[3:-2], item.t)
-                if view.done:
-                    return
-        except NoFrameError as exc:
-            raise NoFrameError(
-                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
-            ) from None
-    summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
-    if stats.frames == 0:
-        raise RobocliError(f"{file}: {summary}")
-    if stats.dropped_bytes:
-        typer.echo(f"robocli: {file}: {summary}", err=True)
-
-
-#: How long a packet waits for older ones from another thread before it is printed (s).
-_REORDER = 0.05
-
-
-def _dump_live(view: Any, port: str, laser: bool, **options: Any) -> None:
-    """Show a live session's packets in time order (sent and received ones come from
-    different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
-    stop the robot and close the session."""
-    start = time.monotonic()
-    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
-
-    def listener(direction: str, payload: bytes, t: float) -> None:
-        seen.put((direction, payload, t - start))
-
-    def take(timeout: float = 0.0) -> None:
-        with contextlib.suppress(queue.Empty):
-            if timeout:
-                view.add(*seen.get(timeout=timeout))
-            while True:
-                view.add(*seen.get_nowait())
-
-    try:
-        with connected(port, listeners=[listener], **options) as robot:
-            if laser:
-                start_laser(robot, wait=False)
-            while not view.done:
-                take(_REORDER)
-                view.flush(before=time.monotonic() - start - _REORDER)
-                if not robot.connected:
-                    robot.wait_for_sip(0)  # raises the reason the session ended
-    finally:
-        with reader_may_leave():
-            take()  # what was still queued, and the close sequence
-            view.flush()
 
 
 def simulate(

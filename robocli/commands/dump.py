@@ -1,29 +1,32 @@
-"""``robocli dump arm``: a thin layer over :class:`robocli.devices.arm.Arm`.
+"""``robocli dump pioneer|arm|hub``: every packet of a session, named and decoded, like a
+protocol analyser; thin layers over the devices' links and :mod:`robocli.io.capture`.
 
-The dump opens the motion and the state port as two clients (``--ports`` picks one; an ABB
-takes one client per port, so a dump holding the motion port keeps others from uploading)
-and shows every Simple Message both ways, in time order, named and decoded. ``--file``
-decodes a ``.jsonl`` capture (what ``--output`` records, or a trace) instead.
+``dump pioneer`` and ``dump arm`` open the robot's link(s) as a client and show both
+directions in time order (sent and received packets come from different threads, so each
+waits :data:`REORDER` s for older ones); ``--file`` decodes a capture instead, ``--output``
+records one. ``dump arm`` opens the motion and the state port as two clients (``--ports``
+picks one; an ABB takes one client per port, so a dump holding the motion port keeps others
+from uploading), or with ``--listen`` relays other programs' sessions as a recording proxy.
+The views that name and render the packets are in :mod:`robocli.commands._packets`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
+import os
 import queue
-import sys
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import typer
 
 from robocli.commands._common import (
+    PORT_HELP,
     from_env,
     listening,
     reader_may_leave,
-    rounded,
     sigterm_as_interrupt,
 )
 from robocli.commands.arm import (
@@ -34,109 +37,147 @@ from robocli.commands.arm import (
     RealSize,
     RobotOpt,
     StatePortOpt,
-    TimeoutOpt,
     arm_host,
     check_wire,
 )
-from robocli.defaults import ARM_ENV
+from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
+from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
+from robocli.defaults import ARM_ENV, PIONEER_ENV
 
-if TYPE_CHECKING:
-    from robocli.protocols import simple_message as sm
-
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         show_default=False, metavar="HOST", envvar=ARM_ENV,
-                         show_envvar=True)  # fmt: skip
-_ARROWS = {"tx": "->", "rx": "<-"}
-_SEQ = {-1: "start", -2: "stream", -3: "end", -4: "STOP"}
-#: Short names in text lines (JSON keeps the protocol's names).
-_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
-          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
-          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
-_VALID_BITS = {"time": 1, "positions": 2, "velocities": 4, "accelerations": 8}
 #: Messages queued for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-#: How long a message waits for older ones from the other port's thread (s).
-_REORDER = 0.05
+#: How long a packet waits for older ones from another thread before it is printed (s).
+REORDER = 0.05
 
 
-def describe(frame: bytes, order: sm.ByteOrder = "<", real: sm.RealSize = 4,
-             n_joints: int = 6) -> tuple[str, dict[str, Any]]:  # fmt: skip
-    """Name and decoded fields of one whole Simple Message frame (joints cut to
-    ``n_joints``). A frame that does not decode is named ``undecodable`` with the reason."""
-    from robocli.errors import FramingError, ProtocolError
-    from robocli.protocols import simple_message as sm
-    from robocli.protocols.simple_message import CommType, MsgType, ReplyCode
+def pioneer(
+    ctx: typer.Context,
+    port: str | None = typer.Argument(  # noqa: UP007
+        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT",
+        envvar=PIONEER_ENV, show_envvar=True,
+    ),  # fmt: skip
+    count: int = typer.Option(
+        0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
+    ),
+    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
+    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
+    output: Path | None = typer.Option(  # noqa: UP007
+        None,
+        "--output",
+        "-o",
+        metavar="FILE.jsonl",
+        dir_okay=False,
+        help="Also record the packets to a .jsonl capture (what --file reads).",
+    ),  # fmt: skip
+    laser: bool = typer.Option(
+        False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
+    ),
+    file: Path | None = typer.Option(  # noqa: UP007
+        None,
+        "--file",
+        "-f",
+        metavar="CAPTURE",
+        exists=True,
+        dir_okay=False,
+        help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
+    ),  # fmt: skip
+    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    baud: int = BaudOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Print every packet in both directions, in time order, with its name and decoded
+    fields (raw units; lines cut at 160 characters unless -v)."""
+    from robocli.commands._packets import PacketView
+    from robocli.io.capture import CaptureWriter
+
+    if file is not None and from_env(ctx, "port"):
+        port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
+    if port is None and file is None:
+        raise typer.BadParameter("give PORT or --file")
+    if port is not None and file is not None:
+        raise typer.BadParameter("give PORT or --file, not both")
+    if output is not None and output.suffix != ".jsonl":
+        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
+    if output is not None and file is not None and _same_file(output, file):
+        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
+    full = bool(ctx.find_root().params.get("verbose"))
+    writer = CaptureWriter(output) if output is not None else None
+    try:
+        view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
+        if file is not None:
+            _pioneer_file(view, file)
+        else:
+            assert port is not None
+            _pioneer_live(view, port, laser, subtype=subtype, baud=baud, timeout=timeout)
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet)
+        return False
+
+
+def _pioneer_file(view: Any, file: Path) -> None:
+    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
+    from robocli.errors import RobocliError
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
+
+    stats = CaptureStats()
+    with reader_may_leave(), sigterm_as_interrupt():
+        try:
+            for item in read_capture(file, stats=stats):
+                view.show(item.direction, item.frame[3:-2], item.t)
+                if view.done:
+                    return
+        except NoFrameError as exc:
+            raise NoFrameError(
+                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
+            ) from None
+    summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
+    if stats.frames == 0:
+        raise RobocliError(f"{file}: {summary}")
+    if stats.dropped_bytes:
+        typer.echo(f"robocli: {file}: {summary}", err=True)
+
+
+def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
+    """Show a live session's packets in time order (sent and received ones come from
+    different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
+    stop the robot and close the session."""
+    start = time.monotonic()
+    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
+
+    def listener(direction: str, payload: bytes, t: float) -> None:
+        seen.put((direction, payload, t - start))
+
+    def take(timeout: float = 0.0) -> None:
+        with contextlib.suppress(queue.Empty):
+            if timeout:
+                view.add(*seen.get(timeout=timeout))
+            while True:
+                view.add(*seen.get_nowait())
 
     try:
-        msg = sm.decode(frame, byteorder=order, real=real)
-    except (FramingError, ProtocolError) as exc:
-        return "undecodable", {"error": str(exc)}
-    name = msg.msg_type.name if isinstance(msg.msg_type, MsgType) else f"TYPE_{msg.msg_type}"
-    if msg.comm_type == CommType.SERVICE_REQUEST:
-        name += " req"
-    elif msg.comm_type == CommType.SERVICE_REPLY:
-        code = msg.reply_code
-        name += " " + (code.name if isinstance(code, ReplyCode) else f"reply {code}")
-    body = msg.body
-    if not isinstance(body, dict):
-        return name, ({"bytes": len(body)} if isinstance(body, bytes) and body else {})
-    valid = body.get("valid_fields")
-    fields: dict[str, Any] = {}
-    for key, value in body.items():
-        if valid is not None and key in _VALID_BITS and not valid & _VALID_BITS[key]:
-            continue  # JOINT_FEEDBACK / JOINT_TRAJ_PT_FULL: only the fields it says are valid
-        if isinstance(value, list):
-            value = value[:n_joints]
-        if key == "sequence" and value in _SEQ:
-            value = f"{value}({_SEQ[value]})"
-        fields[key] = value
-    return name, fields
+        with connected(port, listeners=[listener], **options) as robot:
+            if laser:
+                start_laser(robot, wait=False)
+            while not view.done:
+                take(REORDER)
+                view.flush(before=time.monotonic() - start - REORDER)
+                if not robot.connected:
+                    robot.wait_for_sip(0)  # raises the reason the session ended
+    finally:
+        with reader_may_leave():
+            take()  # what was still queued, and the close sequence
+            view.flush()
 
 
-def packet_view(order: sm.ByteOrder, real: sm.RealSize, n_joints: int, **options: Any) -> Any:
-    """A :class:`~robocli.commands._packets.PacketView` (its time ordering and ``--count``)
-    that shows Simple Message frames; each queued direction is ``"tx:motion"``-style
-    (direction and port). Built on first use, so that ``robocli --help`` stays fast."""
-    from robocli.commands._packets import LINE_MAX, PacketView, ellipsis
-
-    class ArmPacketView(PacketView):
-        def show(self, direction: str, payload: bytes, t: float | None) -> None:
-            """Print one frame now (``payload``: the whole frame, ``direction``: dir:port)."""
-            way, _, port = direction.partition(":")
-            name, fields = describe(payload, order, real, n_joints)
-            if self.writer is not None:
-                self.writer.write(t or 0.0, way, payload)
-            if self.json_out:
-                record = {"t": t, "port": port or None, "dir": way, "name": name,
-                          "fields": fields}  # fmt: skip
-                if self.hex_out:
-                    record["hex"] = payload.hex()
-                sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
-            else:
-                text = " ".join(f"{_SHORT.get(k, k)}={_short(v)}" for k, v in fields.items())
-                stamp = f"{t:9.3f} " if t is not None else ""
-                line = f"{stamp}{port or '-':<6} {_ARROWS.get(way, '  ')} {name:<22} {text}"
-                line = line.rstrip()
-                mark = ellipsis()
-                cut = line if len(line) <= LINE_MAX else line[: LINE_MAX - len(mark)] + mark
-                sys.stdout.write(cut + "\n")
-                if self.hex_out:
-                    sys.stdout.write(f"{'':13}{payload.hex(' ')}\n")
-            sys.stdout.flush()
-            self.printed += 1
-
-    return ArmPacketView(**options)
-
-
-def _short(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list):
-        return "[" + ",".join(_short(v) for v in value) + "]"
-    return str(value)
-
-
-def dump(
+def arm(
     ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
         None, help="Controller address, 'sim' for an embedded simulator; omit with --file.",
@@ -164,10 +205,11 @@ def dump(
     byte_order: ByteOrder = OrderOpt,
     real_size: RealSize = RealOpt,
     robot: str = RobotOpt,
-    timeout: float = TimeoutOpt,
+    timeout: float = ArmTimeoutOpt,
 ) -> None:
     """Print every Simple Message on the motion and state ports, in time order, named and
     decoded (joints in rad)."""
+    from robocli.commands._packets import ArmPacketView
     from robocli.io.capture import CaptureWriter
     from robocli.kinematics import load_model
 
@@ -186,15 +228,15 @@ def dump(
     order = ">" if byte_order == "big" else "<"
     n = load_model(robot).n_joints
     writer = CaptureWriter(output) if output is not None else None
-    view = packet_view(order, real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
-                       count=count, writer=writer)  # fmt: skip
+    view = ArmPacketView(order, real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
+                         count=count, writer=writer)  # fmt: skip
     try:
         with reader_may_leave(), sigterm_as_interrupt():
             if file is not None:
-                _dump_file(view, file, "sm-be" if order == ">" else "sm-le")
+                _arm_file(view, file, "sm-be" if order == ">" else "sm-le")
             else:
                 assert host is not None
-                _dump_live(view, host, ports, (motion_port, state_port),
+                _arm_live(view, host, ports, (motion_port, state_port),
                            dict(byte_order=byte_order, real_size=real_size, robot=robot,
                                 timeout=timeout), bind_to)  # fmt: skip
     finally:
@@ -202,7 +244,7 @@ def dump(
             writer.close()
 
 
-def _dump_file(view: Any, file: Path, protocol: str) -> None:
+def _arm_file(view: Any, file: Path, protocol: str) -> None:
     """Show the messages of a capture; exit 1 when it holds none, or when
     :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
@@ -235,7 +277,7 @@ def _listen_address(text: str) -> tuple[str, int]:
         ) from None
 
 
-def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
+def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                options: dict[str, Any], listen: tuple[str, int] | None) -> None:  # fmt: skip
     """Both ports as two clients (or, with ``listen``, as two recording proxies), their
     frames queued by their threads and printed here in time order until ``--count`` or
@@ -278,8 +320,8 @@ def _dump_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                 opened.append(arm)
                 state = arm if name == "state" else state
             while not view.done:
-                take(_REORDER)
-                view.flush(before=time.monotonic() - start - _REORDER)
+                take(REORDER)
+                view.flush(before=time.monotonic() - start - REORDER)
                 for arm in opened:  # raises when a link was lost (the motion port is quiet)
                     arm.check()
                 for relay in relays:  # a client came, the controller could not be reached
