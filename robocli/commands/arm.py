@@ -97,6 +97,24 @@ def check_wire(byte_order: str, real_size: int) -> None:
         raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
 
 
+@contextlib.contextmanager
+def connected(host: str, motion_port: int | None, state_port: int, byte_order: str,
+              real_size: int, robot: str, timeout: float,
+              stream: bool = False) -> Iterator[Arm]:  # fmt: skip
+    """The arm at ``host`` (``sim``: an embedded simulator, the streaming one with
+    ``stream``), SIGTERM stopping it as Ctrl-C does; with ``motion_port`` None, its state
+    port alone."""
+    from robocli.devices.arm import Arm
+
+    motion = motion_port is not None
+    ports = (11000 if motion_port is None else motion_port, state_port)
+    with sigterm_as_interrupt(), arm_host(host, *ports, byte_order, real_size, robot,
+                                          sim_profile(stream)) as (h, mp, sp):  # fmt: skip
+        with Arm.connect(h, mp, sp, motion=motion, byte_order=byte_order, real_size=real_size,
+                         robot=robot, timeout=timeout) as arm:  # fmt: skip
+            yield arm
+
+
 # ------------------------------------------------------------------------------ sim abb
 
 
@@ -281,7 +299,7 @@ def upload(
     ),  # fmt: skip
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
-    from robocli.devices.arm import Arm, StillMoving
+    from robocli.devices.arm import StillMoving
     from robocli.io.trajlog import check_writable, write_log
 
     check_wire(byte_order, real_size)
@@ -290,39 +308,37 @@ def upload(
     if monitor is not None:
         check_writable(monitor)  # before the arm moves: not after the whole run
     traj = _trajectory(robot, shape, points, file, duration, radius, center)
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
-                                          robot, sim_profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
-                         timeout=timeout) as arm:  # fmt: skip
-            arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
-            here = arm.wait_for_state().joints
-            gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
-            if not stream and gap > 1e-3:
-                typer.echo("moving to the first point")
-                arm.move_to(traj.positions[0])
-                arm.wait_until_idle(max(wait, 600.0))
-            rec = arm.record() if monitor is not None else None
-            with _Progress() as progress:
-                send = arm.stream if stream else arm.download
-                kw: dict[str, Any] = {} if stream else {"split": split}
-                sent = send(traj, progress=progress, **kw)
-            if wait == 0:  # fire and forget: the activated trajectory runs on
-                arm.close(stop=False)
-                typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
-                return
-            try:
-                arm.wait_until_idle(wait)
-            except StillMoving:
-                arm.close(stop=False)  # --wait bounds the waiting, not the motion
-                raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
-                                  f"{wait:g} s and keeps moving (not waiting longer)") from None
-            finally:
-                if rec is not None and monitor is not None:
-                    rec.stop()
+    with connected(host, motion_port, state_port, byte_order, real_size, robot, timeout,
+                   stream) as arm:  # fmt: skip
+        arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
+        here = arm.wait_for_state().joints
+        gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
+        if not stream and gap > 1e-3:
+            typer.echo("moving to the first point")
+            arm.move_to(traj.positions[0])
+            arm.wait_until_idle(max(wait, 600.0))
+        rec = arm.record() if monitor is not None else None
+        with _Progress() as progress:
+            send = arm.stream if stream else arm.download
+            kw: dict[str, Any] = {} if stream else {"split": split}
+            sent = send(traj, progress=progress, **kw)
+        if wait == 0:  # fire and forget: the activated trajectory runs on
+            arm.close(stop=False)
+            typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
+            return
+        try:
+            arm.wait_until_idle(wait)
+        except StillMoving:
+            arm.close(stop=False)  # --wait bounds the waiting, not the motion
+            raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
+                              f"{wait:g} s and keeps moving (not waiting longer)") from None
+        finally:
             if rec is not None and monitor is not None:
-                log = rec.log()
-                write_log(log, monitor)
-                typer.echo(f"recorded {len(log)} samples -> {monitor}")
+                rec.stop()
+        if rec is not None and monitor is not None:
+            log = rec.log()
+            write_log(log, monitor)
+            typer.echo(f"recorded {len(log)} samples -> {monitor}")
     typer.echo(f"uploaded {sent} points; arm idle")
 
 
@@ -345,7 +361,7 @@ def monitor(
     timeout: float = TimeoutOpt,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
-    from robocli.devices.arm import Arm, TooFewSamples
+    from robocli.devices.arm import TooFewSamples
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.trajlog import check_writable, write_log
 
@@ -353,25 +369,22 @@ def monitor(
     if (samples is None) == (duration is None):
         raise typer.BadParameter("give --samples or --duration")
     check_writable(out)  # before recording: not after the whole --duration
-    with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
-                                          robot) as (h, _, sp):  # fmt: skip
-        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
-                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
-            rec = arm.record() if samples is None else arm.record(2 * samples)
-            end = time.monotonic() + (duration if duration is not None else math.inf)
-            interrupted = False
-            try:
-                while time.monotonic() < end and (samples is None or _count(rec) < samples):
-                    arm.wait_for_state(timeout)
-            except KeyboardInterrupt:
-                interrupted = True  # keep what was recorded, then exit 130
-            rec.stop()
-            try:
-                log = rec.log()
-            except TooFewSamples:
-                if interrupted:  # too early for a log: interrupted all the same
-                    raise typer.Exit(EXIT_INTERRUPTED) from None
-                raise
+    with connected(host, None, state_port, byte_order, real_size, robot, timeout) as arm:
+        rec = arm.record() if samples is None else arm.record(2 * samples)
+        end = time.monotonic() + (duration if duration is not None else math.inf)
+        interrupted = False
+        try:
+            while time.monotonic() < end and (samples is None or _count(rec) < samples):
+                arm.wait_for_state(timeout)
+        except KeyboardInterrupt:
+            interrupted = True  # keep what was recorded, then exit 130
+        rec.stop()
+        try:
+            log = rec.log()
+        except TooFewSamples:
+            if interrupted:  # too early for a log: interrupted all the same
+                raise typer.Exit(EXIT_INTERRUPTED) from None
+            raise
     write_log(log, out)
     typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
     if interrupted:
@@ -426,26 +439,22 @@ def connect(
     timeout: float = TimeoutOpt,
 ) -> None:
     """Show the arm's live joints (deg, rad), TCP position and status."""
-    from robocli.devices.arm import Arm
-
     check_wire(byte_order, real_size)
-    with reader_may_leave(), sigterm_as_interrupt(), arm_host(
-            host, 11000, state_port, byte_order, real_size, robot) as (h, _, sp):  # fmt: skip
-        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
-                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
-            arm.wait_for_state()
-            shown, last = 0, 0.0
-            while True:  # Ctrl-C: exit 130 (the link is closed on the way out)
-                d = describe(arm)
-                if once:
-                    print_json(rounded(d)) if json_out else typer.echo(_line(d))
-                    return
-                if json_out:
-                    print_json_line(rounded(d))
-                    shown += 1
-                elif d["t"] - last >= 0.1:
-                    typer.echo(_line(d))
-                    shown, last = shown + 1, d["t"]
-                if count is not None and shown >= count:
-                    return
-                arm.wait_for_state(timeout)
+    with reader_may_leave(), connected(host, None, state_port, byte_order, real_size, robot,
+                                       timeout) as arm:  # fmt: skip
+        arm.wait_for_state()
+        shown, last = 0, 0.0
+        while True:  # Ctrl-C: exit 130 (the link is closed on the way out)
+            d = describe(arm)
+            if once:
+                print_json(rounded(d)) if json_out else typer.echo(_line(d))
+                return
+            if json_out:
+                print_json_line(rounded(d))
+                shown += 1
+            elif d["t"] - last >= 0.1:
+                typer.echo(_line(d))
+                shown, last = shown + 1, d["t"]
+            if count is not None and shown >= count:
+                return
+            arm.wait_for_state(timeout)

@@ -13,7 +13,6 @@ from typing import Any
 
 import typer
 
-from robocli.commands._common import sigterm_as_interrupt
 from robocli.commands.arm import (
     ByteOrder,
     MotionPortOpt,
@@ -22,11 +21,10 @@ from robocli.commands.arm import (
     RealSize,
     RobotOpt,
     StatePortOpt,
-    arm_host,
     check_wire,
-    sim_profile,
 )
 from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
+from robocli.commands.arm import connected as connected_arm
 from robocli.commands.pioneer import BaudOpt, PortArg, SubtypeOpt, TimeoutOpt, connected
 from robocli.defaults import ARM_ENV
 
@@ -103,27 +101,24 @@ def arm(
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
     from robocli.commands._screens import end_line, raw_terminal
-    from robocli.devices.arm import Arm
     from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
     check_wire(byte_order, real_size)
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
-                                          robot, sim_profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
-                         timeout=timeout) as arm:  # fmt: skip
-            arm.wait_for_state()
-            typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
-                       "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
-            typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
-            jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
-                            release_timeout=release)  # fmt: skip
-            try:
-                with raw_terminal() as read_key:
-                    run_arm_teleop(jog, read_key, on_update=_status_line())
-            finally:
-                end_line()
+    with connected_arm(host, motion_port, state_port, byte_order, real_size, robot, timeout,
+                       stream) as arm:  # fmt: skip
+        arm.wait_for_state()
+        typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
+                   "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
+        typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
+        jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
+                        release_timeout=release)  # fmt: skip
+        try:
+            with raw_terminal() as read_key:
+                run_arm_teleop(jog, read_key, on_update=_status_line())
+        finally:
+            end_line()
 
 
 def _status_line() -> Any:
