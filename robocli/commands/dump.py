@@ -21,7 +21,7 @@ import queue
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -47,6 +47,9 @@ from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
 from robocli.commands.hub import HubArg
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, PIONEER_ENV
+
+if TYPE_CHECKING:
+    from robocli.io.capture import CaptureStats
 
 #: Messages queued for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
@@ -127,26 +130,40 @@ def _same_file(a: Path, b: Path) -> bool:
 
 def _pioneer_file(view: Any, file: Path) -> None:
     """Show the packets of a capture, streamed; exit 1 when it holds none, or when
-    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
+    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``). Bytes that
+    formed no packet are said on stderr."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
-    stats = CaptureStats()
     with reader_may_leave(), sigterm_as_interrupt():
-        try:
-            for item in read_capture(file, stats=stats):
-                view.show(item.direction, item.frame[3:-2], item.t)
-                if view.done:
-                    return
-        except NoFrameError as exc:
-            raise NoFrameError(
-                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
-            ) from None
+        stats = _show_capture(view, file, "arcos", "packets", slice(3, -2))  # ARCOS payloads
+    if stats is None:
+        return
     summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
     if stats.frames == 0:
         raise RobocliError(f"{file}: {summary}")
     if stats.dropped_bytes:
         typer.echo(f"robocli: {file}: {summary}", err=True)
+
+
+def _show_capture(view: Any, file: Path, protocol: str, noun: str,
+                  part: slice = slice(None)) -> CaptureStats | None:  # fmt: skip
+    """Show each frame of a capture (its ``part`` that ``view`` takes), streamed, until
+    ``--count``: None when that ended it, else what the reading found. After
+    :data:`~robocli.io.capture.MAX_GAP` bytes without a frame, a :class:`NoFrameError` that
+    says how many ``noun`` came before."""
+    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
+
+    stats = CaptureStats()
+    try:
+        for item in read_capture(file, protocol, stats):
+            view.show(item.direction, item.frame[part], item.t)
+            if view.done:
+                return None
+    except NoFrameError as exc:
+        raise NoFrameError(
+            f"{exc} ({stats.frames} {noun} decoded, {stats.dropped_bytes} bytes dropped)"
+        ) from None
+    return stats
 
 
 def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
@@ -252,19 +269,9 @@ def _arm_file(view: Any, file: Path, protocol: str) -> None:
     """Show the messages of a capture; exit 1 when it holds none, or when
     :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
     from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
 
-    stats = CaptureStats()
-    try:
-        for item in read_capture(file, protocol, stats):
-            view.show(item.direction, item.frame, item.t)
-            if view.done:
-                return
-    except NoFrameError as exc:
-        raise NoFrameError(
-            f"{exc} ({stats.frames} messages decoded, {stats.dropped_bytes} bytes dropped)"
-        ) from None
-    if stats.frames == 0:
+    stats = _show_capture(view, file, protocol, "messages")
+    if stats is not None and stats.frames == 0:
         raise RobocliError(f"{file}: no Simple Message frame ({stats.dropped_bytes} bytes "
                            "dropped)")  # fmt: skip
 
