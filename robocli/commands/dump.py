@@ -170,32 +170,62 @@ def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
     """Show a live session's packets in time order (sent and received ones come from
     different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
     stop the robot and close the session."""
-    start = time.monotonic()
-    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
-
-    def listener(direction: str, payload: bytes, t: float) -> None:
-        seen.put((direction, payload, t - start))
-
-    def take(timeout: float = 0.0) -> None:
-        with contextlib.suppress(queue.Empty):
-            if timeout:
-                view.add(*seen.get(timeout=timeout))
-            while True:
-                view.add(*seen.get_nowait())
-
+    feed = _Feed(view)
     try:
-        with connected(port, listeners=[listener], **options) as robot:
+        with connected(port, listeners=[feed.listener()], **options) as robot:
             if laser:
                 start_laser(robot, wait=False)
             while not view.done:
-                take(REORDER)
-                view.flush(before=time.monotonic() - start - REORDER)
+                feed.show()
                 if not robot.connected:
                     robot.wait_for_sip(0)  # raises the reason the session ended
     finally:
         with reader_may_leave():
-            take()  # what was still queued, and the close sequence
-            view.flush()
+            feed.drain()  # what was still queued, and the close sequence
+
+
+class _Feed:
+    """Packets from the links' reader threads, shown by ``view`` in time order (each waits
+    :data:`REORDER` s for older ones from another thread). At most ``bound`` are queued
+    (0: no bound); a packet that finds the queue full is lost and counted in ``dropped``:
+    a link's reader never waits for a stalled stdout."""
+
+    def __init__(self, view: Any, bound: int = 0) -> None:
+        self.view = view
+        self.start = time.monotonic()
+        self.queue: queue.Queue[tuple[str, bytes, float]] = queue.Queue(bound)
+        self.dropped = 0
+
+    def listener(self, port: str = "") -> Callable[[str, bytes, float], None]:
+        """A link's listener ``(direction, frame, t)``; with ``port``, its packets are queued
+        as ``"tx:motion"``-style directions."""
+
+        def put(direction: str, frame: bytes, t: float) -> None:
+            try:
+                self.queue.put_nowait(
+                    (f"{direction}:{port}" if port else direction, frame, t - self.start)
+                )
+            except queue.Full:
+                self.dropped += 1
+
+        return put
+
+    def show(self) -> None:
+        """Take what comes within :data:`REORDER` s; print what is older than that."""
+        self._take(REORDER)
+        self.view.flush(before=time.monotonic() - self.start - REORDER)
+
+    def drain(self) -> None:
+        """Print everything still queued, in time order."""
+        self._take()
+        self.view.flush()
+
+    def _take(self, wait: float = 0.0) -> None:
+        with contextlib.suppress(queue.Empty):
+            if wait:
+                self.view.add(*self.queue.get(timeout=wait))
+            while True:
+                self.view.add(*self.queue.get_nowait())
 
 
 def arm(
@@ -258,8 +288,8 @@ def arm(
             else:
                 assert host is not None
                 _arm_live(view, host, ports, (motion_port, state_port),
-                           dict(byte_order=byte_order, real_size=real_size, robot=robot,
-                                timeout=timeout), bind_to)  # fmt: skip
+                          dict(byte_order=byte_order, real_size=real_size, robot=robot,
+                               timeout=timeout), bind_to)  # fmt: skip
     finally:
         if writer is not None:
             writer.close()
@@ -289,50 +319,31 @@ def _listen_address(text: str) -> tuple[str, int]:
 
 
 def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
-               options: dict[str, Any], listen: tuple[str, int] | None) -> None:  # fmt: skip
+              options: dict[str, Any], listen: tuple[str, int] | None) -> None:  # fmt: skip
     """Both ports as two clients (or, with ``listen``, as two recording proxies), their
     frames queued by their threads and printed here in time order until ``--count`` or
     Ctrl-C (then what was still queued)."""
     from robocli.devices.arm import Arm
     from robocli.errors import TransportError
 
-    start = time.monotonic()
-    seen: queue.Queue[tuple[str, bytes, float]] = queue.Queue(MAX_QUEUED)
-    dropped = [0]
-
-    def listener(port: str) -> Any:
-        def put(way: str, frame: bytes, t: float) -> None:
-            try:  # never block a link's reader: a stalled stdout loses messages, counted
-                seen.put_nowait((f"{way}:{port}", frame, t - start))
-            except queue.Full:
-                dropped[0] += 1
-
-        return put
-
-    def take(wait: float = 0.0) -> None:
-        with contextlib.suppress(queue.Empty):
-            if wait:
-                view.add(*seen.get(timeout=wait))
-            while True:
-                view.add(*seen.get_nowait())
-
+    feed = _Feed(view, MAX_QUEUED)  # a stalled stdout loses messages, counted
     with arm_host(host, *port_numbers, options["byte_order"], options["real_size"],
                   options["robot"]) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
         try:
             state, opened = None, []
             relays = []
             if listen is not None:  # other programs' sessions, through recording proxies
-                relays = _relay(arms, listener, (h, mp, sp), ports, listen, options["byte_order"])
+                relays = _relay(arms, feed.listener, (h, mp, sp), ports, listen,
+                                options["byte_order"])
             for name in () if listen else ("motion", "state") if ports == "both" else (ports,):
                 arm = arms.enter_context(Arm.connect(
                     h, mp, sp, motion=name == "motion", state=name == "state",
-                    history=16, listeners=[listener(name)], stop_on_failure=False,
+                    history=16, listeners=[feed.listener(name)], stop_on_failure=False,
                     **options))  # fmt: skip
                 opened.append(arm)
                 state = arm if name == "state" else state
             while not view.done:
-                take(REORDER)
-                view.flush(before=time.monotonic() - start - REORDER)
+                feed.show()
                 for arm in opened:  # raises when a link was lost (the motion port is quiet)
                     arm.check()
                 for relay in relays:  # a client came, the controller could not be reached
@@ -344,10 +355,9 @@ def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                     state.wait_for_state(options["timeout"])
         finally:
             arms.close()  # nothing is queued after
-            take()
-            view.flush()
-            if dropped[0]:
-                typer.echo(f"robocli: {dropped[0]} messages not shown: the output was too slow",
+            feed.drain()
+            if feed.dropped:
+                typer.echo(f"robocli: {feed.dropped} messages not shown: the output was too slow",
                            err=True)  # fmt: skip
 
 
