@@ -7,9 +7,11 @@ Both read keys in cbreak mode (Ctrl-C still interrupts), redraw a status line in
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
-from typing import Any
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
 
 import typer
 
@@ -27,6 +29,9 @@ from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
 from robocli.commands.arm import connected as connected_arm
 from robocli.commands.pioneer import BaudOpt, PortArg, SubtypeOpt, TimeoutOpt, connected
 from robocli.defaults import ARM_ENV
+
+if TYPE_CHECKING:
+    from robocli.commands._screens import KeyReader
 
 HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
                          show_default=False, metavar="HOST", envvar=ARM_ENV,
@@ -59,11 +64,10 @@ def pioneer(
     timeout: float = TimeoutOpt,
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
-    from robocli.commands._screens import StatusLine, end_line, raw_terminal
+    from robocli.commands._screens import StatusLine
     from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
-    if not sys.stdin.isatty():
-        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
+    _need_terminal()
     controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
     with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         robot.enable_motors()
@@ -72,11 +76,8 @@ def pioneer(
             "space stops, q or Ctrl-C quits"
         )
         status = StatusLine(robot)
-        try:
-            with raw_terminal() as read_key:
-                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
-        finally:
-            end_line()
+        with _keys() as read_key:
+            run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
 def arm(
@@ -100,12 +101,10 @@ def arm(
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
-    from robocli.commands._screens import end_line, raw_terminal
     from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
     check_wire(byte_order, real_size)
-    if not sys.stdin.isatty():
-        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
+    _need_terminal()
     with connected_arm(host, motion_port, state_port, byte_order, real_size, robot, timeout,
                        stream) as arm:  # fmt: skip
         arm.wait_for_state()
@@ -114,11 +113,27 @@ def arm(
         typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
         jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
                         release_timeout=release)  # fmt: skip
-        try:
-            with raw_terminal() as read_key:
-                run_arm_teleop(jog, read_key, on_update=_status_line())
-        finally:
-            end_line()
+        with _keys() as read_key:
+            run_arm_teleop(jog, read_key, on_update=_status_line())
+
+
+def _need_terminal() -> None:
+    """A usage error unless keys can come from a terminal (checked before connecting)."""
+    if not sys.stdin.isatty():
+        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
+
+
+@contextlib.contextmanager
+def _keys() -> Iterator[KeyReader]:
+    """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
+    left on a fresh line after the status line however the loop ends."""
+    from robocli.commands._screens import end_line, raw_terminal
+
+    try:
+        with raw_terminal() as read_key:
+            yield read_key
+    finally:
+        end_line()
 
 
 def _status_line() -> Any:
