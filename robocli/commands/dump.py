@@ -32,18 +32,7 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
-from robocli.commands.arm import (
-    ByteOrder,
-    MotionPortOpt,
-    OrderOpt,
-    RealOpt,
-    RealSize,
-    RobotOpt,
-    StatePortOpt,
-    arm_host,
-    check_wire,
-)
-from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
+from robocli.commands.arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands.hub import HubArg
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, PIONEER_ENV
@@ -228,6 +217,7 @@ class _Feed:
                 self.view.add(*self.queue.get_nowait())
 
 
+@arm_link()
 def arm(
     ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
@@ -251,12 +241,7 @@ def arm(
         help="Be a recording proxy: other programs connect to the motion port PORT and the "
         "state port PORT+2 (0: ephemeral) instead of the controller.",
     ),  # fmt: skip
-    motion_port: int = MotionPortOpt,
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = ArmTimeoutOpt,
+    link: ArmLink = LINK,
 ) -> None:
     """Print every Simple Message on the motion and state ports, in time order, named and
     decoded (joints in rad)."""
@@ -264,7 +249,6 @@ def arm(
     from robocli.io.capture import CaptureWriter
     from robocli.kinematics import load_model
 
-    check_wire(byte_order, real_size)
     if file is not None and from_env(ctx, "host"):
         host = None  # $ROBOCLI_ARM names a controller; --file reads a capture instead
     if (host is None) == (file is None):
@@ -276,10 +260,10 @@ def arm(
     bind_to = _listen_address(listen) if listen is not None else None
     if output is not None and output.suffix != ".jsonl":
         raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
-    order = ">" if byte_order == "big" else "<"
-    n = load_model(robot).n_joints
+    order = ">" if link.byte_order == "big" else "<"
+    n = load_model(link.robot).n_joints
     writer = CaptureWriter(output) if output is not None else None
-    view = ArmPacketView(order, real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
+    view = ArmPacketView(order, link.real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
                          count=count, writer=writer)  # fmt: skip
     try:
         with reader_may_leave(), sigterm_as_interrupt():
@@ -287,9 +271,7 @@ def arm(
                 _arm_file(view, file, "sm-be" if order == ">" else "sm-le")
             else:
                 assert host is not None
-                _arm_live(view, host, ports, (motion_port, state_port),
-                          dict(byte_order=byte_order, real_size=real_size, robot=robot,
-                               timeout=timeout), bind_to)  # fmt: skip
+                _arm_live(view, host, ports, link, bind_to)
     finally:
         if writer is not None:
             writer.close()
@@ -318,8 +300,8 @@ def _listen_address(text: str) -> tuple[str, int]:
         ) from None
 
 
-def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
-              options: dict[str, Any], listen: tuple[str, int] | None) -> None:  # fmt: skip
+def _arm_live(view: Any, host: str, ports: str, link: ArmLink,
+              listen: tuple[str, int] | None) -> None:  # fmt: skip
     """Both ports as two clients (or, with ``listen``, as two recording proxies), their
     frames queued by their threads and printed here in time order until ``--count`` or
     Ctrl-C (then what was still queued)."""
@@ -327,19 +309,19 @@ def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
     from robocli.errors import TransportError
 
     feed = _Feed(view, MAX_QUEUED)  # a stalled stdout loses messages, counted
-    with arm_host(host, *port_numbers, options["byte_order"], options["real_size"],
-                  options["robot"]) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
+    with arm_host(host, link.motion_port, link.state_port, link.byte_order, link.real_size,
+                  link.robot) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
         try:
             state, opened = None, []
             relays = []
             if listen is not None:  # other programs' sessions, through recording proxies
-                relays = _relay(arms, feed.listener, (h, mp, sp), ports, listen,
-                                options["byte_order"])
+                relays = _relay(arms, feed.listener, (h, mp, sp), ports, listen, link.byte_order)
             for name in () if listen else ("motion", "state") if ports == "both" else (ports,):
                 arm = arms.enter_context(Arm.connect(
                     h, mp, sp, motion=name == "motion", state=name == "state",
                     history=16, listeners=[feed.listener(name)], stop_on_failure=False,
-                    **options))  # fmt: skip
+                    byte_order=link.byte_order, real_size=link.real_size, robot=link.robot,
+                    timeout=link.timeout))  # fmt: skip
                 opened.append(arm)
                 state = arm if name == "state" else state
             while not view.done:
@@ -352,7 +334,7 @@ def _arm_live(view: Any, host: str, ports: str, port_numbers: tuple[int, int],
                         raise TransportError(f"no controller at {up[0]}:{up[1]} "
                                              f"({exc.strerror or exc})")  # fmt: skip
                 if state is not None:  # raises when the state link is silent
-                    state.wait_for_state(options["timeout"])
+                    state.wait_for_state(link.timeout)
         finally:
             arms.close()  # nothing is queued after
             feed.drain()

@@ -15,17 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands.arm import (
-    ByteOrder,
-    MotionPortOpt,
-    OrderOpt,
-    RealOpt,
-    RealSize,
-    RobotOpt,
-    StatePortOpt,
-    check_wire,
-)
-from robocli.commands.arm import TimeoutOpt as ArmTimeoutOpt
+from robocli.commands.arm import LINK, ArmLink, arm_link
 from robocli.commands.arm import connected as connected_arm
 from robocli.commands.pioneer import BaudOpt, PortArg, SubtypeOpt, TimeoutOpt, connected
 from robocli.defaults import ARM_ENV
@@ -80,6 +70,7 @@ def pioneer(
             run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
+@arm_link()
 def arm(
     host: str = HostArg,
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
@@ -92,21 +83,14 @@ def arm(
     release: float = typer.Option(
         0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
     ),
-    motion_port: int = MotionPortOpt,
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = ArmTimeoutOpt,
+    link: ArmLink = LINK,
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
     from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
-    check_wire(byte_order, real_size)
     _need_terminal()
-    with connected_arm(host, motion_port, state_port, byte_order, real_size, robot, timeout,
-                       stream) as arm:  # fmt: skip
+    with connected_arm(host, link, stream) as arm:
         arm.wait_for_state()
         typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
                    "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
