@@ -40,7 +40,7 @@ from robocli.defaults import ARM_ENV, PIONEER_ENV
 if TYPE_CHECKING:
     from robocli.io.capture import CaptureStats
 
-#: Messages queued for the output at most (bounded memory when stdout stalls).
+#: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
 #: How long a packet waits for older ones from another thread before it is printed (s).
 REORDER = 0.05
