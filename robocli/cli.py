@@ -13,10 +13,12 @@ from typing import Any
 import typer
 
 from robocli._version import __version__
-from robocli.commands import arm, arm_extra, bench, kinematics, pioneer, ports, record
+from robocli.commands import arm, bench, kinematics, pioneer, ports, record
 from robocli.commands import doctor as doctor_command
+from robocli.commands import dump as dump_commands
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
+from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
 
 
@@ -77,8 +79,8 @@ sim = _group("sim", "Run a built-in simulator speaking the robot's real protocol
 bench_group = _group("bench", "Measure latency, jitter and per-packet cost.")
 
 connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
-teleop.command("pioneer", cls=PlainCommand)(pioneer.teleop)
-dump.command("pioneer", cls=PlainCommand)(pioneer.dump)
+teleop.command("pioneer", cls=PlainCommand)(teleop_commands.pioneer)
+dump.command("pioneer", cls=PlainCommand)(dump_commands.pioneer)
 sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
 app.command("ports", cls=PlainCommand)(ports.ports)
 bench_group.command("rtt", cls=PlainCommand)(bench.rtt)
@@ -99,13 +101,13 @@ sim.command("abb", cls=PlainCommand)(arm.simulate)
 upload.command("arm", cls=PlainCommand)(arm.upload)
 monitor.command("arm", cls=PlainCommand)(arm.monitor)
 connect.command("arm", cls=PlainCommand)(arm.connect)
-dump.command("arm", cls=PlainCommand)(arm_extra.dump)
-teleop.command("arm", cls=PlainCommand)(arm_extra.teleop)
+dump.command("arm", cls=PlainCommand)(dump_commands.arm)
+teleop.command("arm", cls=PlainCommand)(teleop_commands.arm)
 
 app.command("subscribe")(hub_commands.subscribe)
 app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
-dump.command("hub")(hub_commands.dump)
+dump.command("hub")(dump_commands.hub)
 bench_group.command("throughput")(hub_commands.throughput)
 app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)

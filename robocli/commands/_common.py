@@ -4,12 +4,13 @@ refuses spelled out, signal handling, JSON output rounded to the protocol's reso
 from __future__ import annotations
 
 import contextlib
+import inspect
 import json
 import math
 import re
 import signal
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Sequence
 from typing import Any
 
 import typer
@@ -100,6 +101,36 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
                 continue  # not a number at all: the real parse says so
             if not math.isfinite(number):
                 raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
+
+
+def bundled(
+    name: str, options: Sequence[inspect.Parameter], bundle: Callable[..., Any]
+) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Make a command of a function that takes one value, its parameter ``name``, for a
+    group of options several commands share: in the command's signature (what Typer reads),
+    that parameter becomes ``options``, in its place (so that -h lists them there), and the
+    function is called with ``bundle(**their values)`` for it."""
+    names = [p.name for p in options]
+
+    def decorate(function: Callable[..., None]) -> Callable[..., None]:
+        signature = inspect.signature(function, eval_str=True)
+        if name not in signature.parameters:
+            raise TypeError(f"{function.__qualname__} has no parameter {name!r} to replace")
+        params: list[inspect.Parameter] = []
+        for param in signature.parameters.values():
+            shared = [p.replace(kind=param.kind) for p in options]
+            params += shared if param.name == name else [param]
+
+        def command(**values: Any) -> None:
+            values[name] = bundle(**{n: values.pop(n) for n in names})
+            function(**values)
+
+        command.__name__, command.__doc__ = function.__name__, function.__doc__
+        command.__module__, command.__qualname__ = function.__module__, function.__qualname__
+        command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+        return command
+
+    return decorate
 
 
 @contextlib.contextmanager

@@ -1,5 +1,6 @@
-"""``robocli dump pioneer``'s view of packets: names by handshake phase, short text lines
-or JSON Lines, in time order, optionally recorded to a ``.jsonl`` capture."""
+"""The views of ``robocli dump pioneer`` and ``dump arm``: packets named and decoded (ARCOS
+by handshake phase, Simple Message by type and reply code), as short text lines or JSON
+Lines, in time order, optionally recorded to a ``.jsonl`` capture."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import heapq
 import itertools
 import json
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robocli.commands._common import rounded
 from robocli.devices.pioneer.simulated import SIMULATOR_NAMES
@@ -15,6 +16,9 @@ from robocli.errors import ProtocolError
 from robocli.io.capture import CaptureWriter
 from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
+
+if TYPE_CHECKING:
+    from robocli.protocols import simple_message as sm
 
 #: Longest text line of a packet unless ``-v`` (the rest is cut with an ellipsis).
 LINE_MAX = 160
@@ -27,6 +31,13 @@ _ARROWS = {"tx": "->", "rx": "<-"}
 _SIM_COMMANDS = {
     35: "OLD_LRF_ENABLE", 36: "OLD_LRF_CFG_START", 37: "OLD_LRF_CFG_END", 38: "OLD_LRF_CFG_INC",
 }  # fmt: skip
+#: Simple Message trajectory sequence numbers with a meaning of their own.
+_SEQ = {-1: "start", -2: "stream", -3: "end", -4: "STOP"}
+#: Short names of Simple Message fields in text lines (JSON keeps the protocol's names).
+_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
+          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
+          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
+_VALID_BITS = {"time": 1, "positions": 2, "velocities": 4, "accelerations": 8}
 
 
 def guess_direction(payload: bytes, in_session: bool) -> str:
@@ -164,4 +175,85 @@ def _short(value: Any, full: bool) -> str:
             + ",".join(f"{k}={_short(v, full)}" for k, v in value.items() if v is not None)
             + "}"
         )
+    return str(value)
+
+
+# ------------------------------------------------------------------ Simple Message (dump arm)
+
+
+def describe_message(frame: bytes, order: sm.ByteOrder = "<", real: sm.RealSize = 4,
+                     n_joints: int = 6) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """Name and decoded fields of one whole Simple Message frame (joints cut to
+    ``n_joints``). A frame that does not decode is named ``undecodable`` with the reason."""
+    from robocli.errors import FramingError
+    from robocli.protocols import simple_message as sm
+    from robocli.protocols.simple_message import CommType, MsgType, ReplyCode
+
+    try:
+        msg = sm.decode(frame, byteorder=order, real=real)
+    except (FramingError, ProtocolError) as exc:
+        return "undecodable", {"error": str(exc)}
+    name = msg.msg_type.name if isinstance(msg.msg_type, MsgType) else f"TYPE_{msg.msg_type}"
+    if msg.comm_type == CommType.SERVICE_REQUEST:
+        name += " req"
+    elif msg.comm_type == CommType.SERVICE_REPLY:
+        code = msg.reply_code
+        name += " " + (code.name if isinstance(code, ReplyCode) else f"reply {code}")
+    body = msg.body
+    if not isinstance(body, dict):
+        return name, ({"bytes": len(body)} if isinstance(body, bytes) and body else {})
+    valid = body.get("valid_fields")
+    fields: dict[str, Any] = {}
+    for key, value in body.items():
+        if valid is not None and key in _VALID_BITS and not valid & _VALID_BITS[key]:
+            continue  # JOINT_FEEDBACK / JOINT_TRAJ_PT_FULL: only the fields it says are valid
+        if isinstance(value, list):
+            value = value[:n_joints]
+        if key == "sequence" and value in _SEQ:
+            value = f"{value}({_SEQ[value]})"
+        fields[key] = value
+    return name, fields
+
+
+class ArmPacketView(PacketView):
+    """A :class:`PacketView` (its time ordering and ``--count``) that shows Simple Message
+    frames of ``order`` and ``real`` size, joints cut to ``n_joints``; each queued direction
+    is ``"tx:motion"``-style (direction and port)."""
+
+    def __init__(self, order: sm.ByteOrder, real: sm.RealSize, n_joints: int,
+                 **options: Any) -> None:  # fmt: skip
+        super().__init__(**options)
+        self.order, self.real, self.n_joints = order, real, n_joints
+
+    def show(self, direction: str, payload: bytes, t: float | None) -> None:
+        """Print one frame now (``payload``: the whole frame, ``direction``: dir:port)."""
+        way, _, port = direction.partition(":")
+        name, fields = describe_message(payload, self.order, self.real, self.n_joints)
+        if self.writer is not None:
+            self.writer.write(t or 0.0, way, payload)
+        if self.json_out:
+            record = {"t": t, "port": port or None, "dir": way, "name": name,
+                      "fields": fields}  # fmt: skip
+            if self.hex_out:
+                record["hex"] = payload.hex()
+            sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
+        else:
+            text = " ".join(f"{_SHORT.get(k, k)}={_short_sm(v)}" for k, v in fields.items())
+            stamp = f"{t:9.3f} " if t is not None else ""
+            line = f"{stamp}{port or '-':<6} {_ARROWS.get(way, '  ')} {name:<22} {text}"
+            line = line.rstrip()
+            mark = ellipsis()
+            cut = line if len(line) <= LINE_MAX else line[: LINE_MAX - len(mark)] + mark
+            sys.stdout.write(cut + "\n")
+            if self.hex_out:
+                sys.stdout.write(f"{'':13}{payload.hex(' ')}\n")
+        sys.stdout.flush()
+        self.printed += 1
+
+
+def _short_sm(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list):
+        return "[" + ",".join(_short_sm(v) for v in value) + "]"
     return str(value)

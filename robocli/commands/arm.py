@@ -10,10 +10,13 @@ generic``), as an ABB never executes streamed points.
 from __future__ import annotations
 
 import contextlib
+import functools
+import inspect
 import math
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -22,6 +25,7 @@ import typer
 from robocli.commands._common import (
     SIM,
     bind_address,
+    bundled,
     listening,
     print_json,
     print_json_line,
@@ -85,16 +89,76 @@ def arm_host(
         yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
 
 
-def _profile(stream: bool) -> str:
+def sim_profile(stream: bool) -> str:
     """The embedded simulator's profile for a command's ``--stream``."""
     return "generic" if stream else "abb"
 
 
-def _check_wire(byte_order: str, real_size: int) -> None:
+def check_wire(byte_order: str, real_size: int) -> None:
     if byte_order not in ("little", "big"):
         raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
     if real_size not in (4, 8):
         raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
+
+
+@dataclass(frozen=True)
+class ArmLink:
+    """How a command reaches the arm, as its link options gave it: the motion port (opened
+    when ``motion``) and the state port, the wire format, the robot model, seconds per wait."""
+
+    motion_port: int
+    state_port: int
+    byte_order: str
+    real_size: int
+    robot: str
+    timeout: float
+    motion: bool = True
+
+
+#: Where a command takes the link options: ``link: ArmLink = LINK`` (see :func:`arm_link`).
+LINK: Any = None
+#: The link options, in the order -h lists them.
+_LINK_OPTIONS = [
+    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
+    for name, kind, option in (
+        ("motion_port", int, MotionPortOpt),
+        ("state_port", int, StatePortOpt),
+        ("byte_order", ByteOrder, OrderOpt),
+        ("real_size", RealSize, RealOpt),
+        ("robot", str, RobotOpt),
+        ("timeout", float, TimeoutOpt),
+    )
+]
+
+
+def arm_link(motion: bool = True) -> Callable[[Callable[..., None]], Callable[..., None]]:
+    """Give a command the arm's link options in place of its ``link: ArmLink = LINK``:
+    --motion-port (not with ``motion`` false: the state port alone), --state-port,
+    --byte-order, --real-size, --robot, --timeout; they reach it checked, as an
+    :class:`ArmLink`."""
+    options = [p for p in _LINK_OPTIONS if motion or p.name != "motion_port"]
+    return bundled("link", options, functools.partial(_link, motion))
+
+
+def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
+    """The options as an :class:`ArmLink` (without --motion-port: the default, not opened)."""
+    check_wire(wire["byte_order"], wire["real_size"])
+    return ArmLink(motion_port, motion=motion, **wire)
+
+
+@contextlib.contextmanager
+def connected(host: str, link: ArmLink, stream: bool = False) -> Iterator[Arm]:
+    """The arm at ``host`` (``sim``: an embedded simulator, the streaming one with
+    ``stream``), SIGTERM stopping it as Ctrl-C does."""
+    from robocli.devices.arm import Arm
+
+    with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
+                                          link.byte_order, link.real_size, link.robot,
+                                          sim_profile(stream)) as (h, mp, sp):  # fmt: skip
+        with Arm.connect(h, mp, sp, motion=link.motion, byte_order=link.byte_order,
+                         real_size=link.real_size, robot=link.robot,
+                         timeout=link.timeout) as arm:  # fmt: skip
+            yield arm
 
 
 # ------------------------------------------------------------------------------ sim abb
@@ -155,7 +219,7 @@ def simulate(
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
     from robocli.sim.abb.server import PROFILES, AbbSim, ControllerModel
 
-    _check_wire(byte_order, real_size)
+    check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
     if motion_port == state_port != 0:
@@ -256,6 +320,7 @@ class _Progress:
             self._bar.stop()
 
 
+@arm_link()
 def upload(
     host: str = HostArg,
     shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
@@ -269,66 +334,58 @@ def upload(
     monitor: Path | None = typer.Option(None, "--monitor", help="Record the run to this log."),  # noqa: UP007
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    motion_port: int = MotionPortOpt,
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = TimeoutOpt,
+    link: ArmLink = LINK,
     wait: float = typer.Option(
         600.0, "--wait", min=0.0, max=86_400.0,
         help="Seconds to wait for the end (0: do not wait; the arm moves on).",
     ),  # fmt: skip
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
-    from robocli.devices.arm import Arm, StillMoving
+    from robocli.devices.arm import StillMoving
     from robocli.io.trajlog import check_writable, write_log
 
-    _check_wire(byte_order, real_size)
     if monitor is not None and wait == 0:
         raise typer.BadParameter("--monitor records until the end: give --wait > 0")
     if monitor is not None:
         check_writable(monitor)  # before the arm moves: not after the whole run
-    traj = _trajectory(robot, shape, points, file, duration, radius, center)
-    with sigterm_as_interrupt(), arm_host(host, motion_port, state_port, byte_order, real_size,
-                                          robot, _profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, byte_order=byte_order, real_size=real_size, robot=robot,
-                         timeout=timeout) as arm:  # fmt: skip
-            arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
-            here = arm.wait_for_state().joints
-            gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
-            if not stream and gap > 1e-3:
-                typer.echo("moving to the first point")
-                arm.move_to(traj.positions[0])
-                arm.wait_until_idle(max(wait, 600.0))
-            rec = arm.record() if monitor is not None else None
-            with _Progress() as progress:
-                send = arm.stream if stream else arm.download
-                kw: dict[str, Any] = {} if stream else {"split": split}
-                sent = send(traj, progress=progress, **kw)
-            if wait == 0:  # fire and forget: the activated trajectory runs on
-                arm.close(stop=False)
-                typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
-                return
-            try:
-                arm.wait_until_idle(wait)
-            except StillMoving:
-                arm.close(stop=False)  # --wait bounds the waiting, not the motion
-                raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
-                                  f"{wait:g} s and keeps moving (not waiting longer)") from None
-            finally:
-                if rec is not None and monitor is not None:
-                    rec.stop()
+    traj = _trajectory(link.robot, shape, points, file, duration, radius, center)
+    with connected(host, link, stream) as arm:
+        arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
+        here = arm.wait_for_state().joints
+        gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
+        if not stream and gap > 1e-3:
+            typer.echo("moving to the first point")
+            arm.move_to(traj.positions[0])
+            arm.wait_until_idle(max(wait, 600.0))
+        rec = arm.record() if monitor is not None else None
+        with _Progress() as progress:
+            send = arm.stream if stream else arm.download
+            kw: dict[str, Any] = {} if stream else {"split": split}
+            sent = send(traj, progress=progress, **kw)
+        if wait == 0:  # fire and forget: the activated trajectory runs on
+            arm.close(stop=False)
+            typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
+            return
+        try:
+            arm.wait_until_idle(wait)
+        except StillMoving:
+            arm.close(stop=False)  # --wait bounds the waiting, not the motion
+            raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
+                              f"{wait:g} s and keeps moving (not waiting longer)") from None
+        finally:
             if rec is not None and monitor is not None:
-                log = rec.log()
-                write_log(log, monitor)
-                typer.echo(f"recorded {len(log)} samples -> {monitor}")
+                rec.stop()
+        if rec is not None and monitor is not None:
+            log = rec.log()
+            write_log(log, monitor)
+            typer.echo(f"recorded {len(log)} samples -> {monitor}")
     typer.echo(f"uploaded {sent} points; arm idle")
 
 
 # ------------------------------------------------------------------------------ monitor, connect
 
 
+@arm_link(motion=False)
 def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
@@ -338,40 +395,32 @@ def monitor(
     duration: float | None = typer.Option(  # noqa: UP007
         None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
     ),
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = TimeoutOpt,
+    link: ArmLink = LINK,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
-    from robocli.devices.arm import Arm, TooFewSamples
+    from robocli.devices.arm import TooFewSamples
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.trajlog import check_writable, write_log
 
-    _check_wire(byte_order, real_size)
     if (samples is None) == (duration is None):
         raise typer.BadParameter("give --samples or --duration")
     check_writable(out)  # before recording: not after the whole --duration
-    with sigterm_as_interrupt(), arm_host(host, 11000, state_port, byte_order, real_size,
-                                          robot) as (h, _, sp):  # fmt: skip
-        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
-                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
-            rec = arm.record() if samples is None else arm.record(2 * samples)
-            end = time.monotonic() + (duration if duration is not None else math.inf)
-            interrupted = False
-            try:
-                while time.monotonic() < end and (samples is None or _count(rec) < samples):
-                    arm.wait_for_state(timeout)
-            except KeyboardInterrupt:
-                interrupted = True  # keep what was recorded, then exit 130
-            rec.stop()
-            try:
-                log = rec.log()
-            except TooFewSamples:
-                if interrupted:  # too early for a log: interrupted all the same
-                    raise typer.Exit(EXIT_INTERRUPTED) from None
-                raise
+    with connected(host, link) as arm:
+        rec = arm.record() if samples is None else arm.record(2 * samples)
+        end = time.monotonic() + (duration if duration is not None else math.inf)
+        interrupted = False
+        try:
+            while time.monotonic() < end and (samples is None or _count(rec) < samples):
+                arm.wait_for_state(link.timeout)
+        except KeyboardInterrupt:
+            interrupted = True  # keep what was recorded, then exit 130
+        rec.stop()
+        try:
+            log = rec.log()
+        except TooFewSamples:
+            if interrupted:  # too early for a log: interrupted all the same
+                raise typer.Exit(EXIT_INTERRUPTED) from None
+            raise
     write_log(log, out)
     typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
     if interrupted:
@@ -414,38 +463,29 @@ def _line(d: dict[str, Any]) -> str:
             f"rpy ({roll:.2f}, {pitch:.2f}, {yaw:.2f}) deg  {flags}")
 
 
+@arm_link(motion=False)
 def connect(
     host: str = HostArg,
     once: bool = typer.Option(False, "--once", help="Print one state and exit."),
     json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
-    state_port: int = StatePortOpt,
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    robot: str = RobotOpt,
-    timeout: float = TimeoutOpt,
+    link: ArmLink = LINK,
 ) -> None:
     """Show the arm's live joints (deg, rad), TCP position and status."""
-    from robocli.devices.arm import Arm
-
-    _check_wire(byte_order, real_size)
-    with reader_may_leave(), sigterm_as_interrupt(), arm_host(
-            host, 11000, state_port, byte_order, real_size, robot) as (h, _, sp):  # fmt: skip
-        with Arm.connect(h, state_port=sp, motion=False, byte_order=byte_order,
-                         real_size=real_size, robot=robot, timeout=timeout) as arm:  # fmt: skip
-            arm.wait_for_state()
-            shown, last = 0, 0.0
-            while True:  # Ctrl-C: exit 130 (the link is closed on the way out)
-                d = describe(arm)
-                if once:
-                    print_json(rounded(d)) if json_out else typer.echo(_line(d))
-                    return
-                if json_out:
-                    print_json_line(rounded(d))
-                    shown += 1
-                elif d["t"] - last >= 0.1:
-                    typer.echo(_line(d))
-                    shown, last = shown + 1, d["t"]
-                if count is not None and shown >= count:
-                    return
-                arm.wait_for_state(timeout)
+    with reader_may_leave(), connected(host, link) as arm:
+        arm.wait_for_state()
+        shown, last = 0, 0.0
+        while True:  # Ctrl-C: exit 130 (the link is closed on the way out)
+            d = describe(arm)
+            if once:
+                print_json(rounded(d)) if json_out else typer.echo(_line(d))
+                return
+            if json_out:
+                print_json_line(rounded(d))
+                shown += 1
+            elif d["t"] - last >= 0.1:
+                typer.echo(_line(d))
+                shown, last = shown + 1, d["t"]
+            if count is not None and shown >= count:
+                return
+            arm.wait_for_state(link.timeout)

@@ -1,4 +1,4 @@
-"""``robocli subscribe``, ``connect hub``, ``dump hub``, ``serial``, ``bench throughput``:
+"""``robocli subscribe``, ``connect hub``, ``serial``, ``bench throughput``:
 thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`."""
 
 from __future__ import annotations
@@ -20,7 +20,6 @@ import typer
 from robocli.commands._common import (
     PlainCommand,
     from_env,
-    listening,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -307,95 +306,6 @@ def _print_survey(info: dict[str, Any]) -> None:
             typer.echo(f"  {name:<14} running  {s['rate_hz']:>8} Hz")
         else:
             typer.echo(f"  {name:<14} idle     ({s['reason']})")
-
-
-def dump(
-    host: str = HubArg,
-    listen: str = typer.Option(
-        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
-    ),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
-    output: Path | None = typer.Option(  # noqa: UP007
-        None, "--output", "-o", help="Also record the session (.jsonl capture)."
-    ),
-) -> None:
-    """A recording proxy: point ros4mat clients at --listen; every message both ways is
-    printed, named and decoded, and passed on unchanged."""
-    import threading
-
-    from robocli.devices.hub.client import parse_hub
-    from robocli.devices.hub.tools import DumpProxy, Message, check_upstream
-    from robocli.transports import parse_address
-
-    upstream = parse_hub(host)
-    bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
-                               port_range=(0, 65535))  # fmt: skip
-    writer = _capture(output) if output is not None else None  # before connecting
-    check_upstream(*upstream)
-    done = threading.Event()
-    broken = threading.Event()
-    printed = 0
-
-    def show(msg: Message) -> None:
-        nonlocal printed
-        if done.is_set():
-            return
-        if writer is not None:
-            writer.write(msg.t, "tx" if msg.direction == "c2s" else "rx", msg.frame)
-        if json_out:
-            record = {"t": round(msg.t, 6), "dir": msg.direction, "name": msg.name, **msg.fields}
-            if hex_out:
-                record["hex"] = msg.frame.hex()
-            line = json.dumps(record, default=str)
-        else:
-            arrow = "->" if msg.direction == "c2s" else "<-"
-            text = " ".join(f"{k}={v}" for k, v in msg.fields.items())
-            line = f"{msg.t:10.6f} {arrow} {msg.name:<14} {text}"
-            if hex_out:
-                line += "\n" + " " * 14 + msg.frame[:256].hex(" ")
-        try:
-            typer.echo(line)
-        except BrokenPipeError:  # `dump hub ... | head`: the main thread stops quietly
-            broken.set()
-            done.set()
-            return
-        printed += 1
-        if count and printed >= count:
-            done.set()
-
-    with sigterm_as_interrupt(), reader_may_leave():
-        try:
-            check_upstream(*upstream)
-            with listening(bind):
-                proxy = DumpProxy(upstream, show, bind=bind, port=port)
-            with proxy.start():
-                typer.echo(
-                    f"dump: clients connect to {bind}:{proxy.port}, relayed to "
-                    f"{upstream[0]}:{upstream[1]}",
-                    err=True,
-                )
-                while not done.wait(0.25):
-                    pass
-            if broken.is_set():
-                raise BrokenPipeError
-        except KeyboardInterrupt:
-            raise typer.Exit(EXIT_INTERRUPTED) from None
-        finally:
-            if writer is not None:
-                writer.close()
-
-
-def _capture(path: Path) -> Any:
-    """A capture writer on ``path`` (JSON Lines); a name or place it cannot have is a usage
-    error (exit 2), before anything connects."""
-    from robocli.io.capture import CaptureWriter
-
-    if path.suffix != ".jsonl":
-        raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
-                                 param_hint="'--output'")  # fmt: skip
-    return CaptureWriter(path)  # a missing folder: CaptureFileError, exit 2
 
 
 class SerialCommand(PlainCommand):

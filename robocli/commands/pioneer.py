@@ -1,4 +1,5 @@
-"""``robocli connect|teleop|dump|sim pioneer``: thin layers over robocli.devices.pioneer.
+"""``robocli connect|sim pioneer``, and what ``teleop pioneer`` and ``dump pioneer`` share
+(the port argument and link options, connecting): thin layers over robocli.devices.pioneer.
 
 Human views show metres, m/s, degrees and deg/s; JSON output is SI (m, rad, m/s, rad/s),
 rounded to the protocol's resolution.
@@ -8,8 +9,6 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
-import queue
 import sys
 import time
 from collections.abc import Iterator
@@ -22,7 +21,6 @@ from robocli.commands._common import (
     PORT_HELP,
     bind_address,
     explain_refusal,
-    from_env,
     listening,
     pioneer_url,
     print_json,
@@ -62,7 +60,7 @@ TimeoutOpt = typer.Option(
 
 
 @contextlib.contextmanager
-def _connected(port: str, **options: Any) -> Iterator[Pioneer]:
+def connected(port: str, **options: Any) -> Iterator[Pioneer]:
     """A connected Pioneer on ``port`` (``sim``: an embedded simulator), Ctrl-C and SIGTERM
     stopping it; a reset during the handshake is explained as a busy robot. ``--timeout``
     also bounds the wait once the robot goes silent."""
@@ -93,9 +91,9 @@ def connect(
     snapshot; --json: machine-readable, SI units)."""
     from robocli.commands._screens import live_view
 
-    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         if laser:
-            _start_laser(robot, wait=once)
+            start_laser(robot, wait=once)
         if once:
             if json_out:
                 print_json(rounded(_snapshot(robot)))
@@ -109,7 +107,7 @@ def connect(
             live_view(robot)
 
 
-def _start_laser(robot: Pioneer, wait: bool) -> None:
+def start_laser(robot: Pioneer, wait: bool) -> None:
     """On a simulator (MobileSim, robocli sim), ask for its laser; with ``wait``, wait up
     to a second for the first scan. Real robots are left alone (their laser has its own
     port)."""
@@ -136,183 +134,6 @@ def _snapshot(robot: Pioneer) -> dict[str, Any]:
             "ranges": [None if math.isinf(r) else r for r in scan.ranges],
         }
     return data
-
-
-def teleop(
-    port: str = PortArg,
-    max_v: float = typer.Option(
-        0.4, "--max-v", min=0.0, max=2.0, metavar="M/S", help="Top speed, m/s."
-    ),
-    max_w: float = typer.Option(
-        1.0,
-        "--max-w",
-        min=0.0,
-        max=5.0,
-        metavar="RAD/S",
-        help="Top turn rate, rad/s (shown in deg/s).",
-    ),  # fmt: skip
-    release: float = typer.Option(
-        0.45,
-        "--release",
-        min=0.05,
-        max=0.5,
-        metavar="SECONDS",
-        help="Stop this long after the last key, s.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-) -> None:
-    """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
-    from robocli.commands._screens import StatusLine, end_line, raw_terminal
-    from robocli.devices.pioneer.teleop import TeleopController, run_teleop
-
-    if not sys.stdin.isatty():
-        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-    controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
-    with _connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
-        robot.enable_motors()
-        typer.echo(
-            f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
-            "space stops, q or Ctrl-C quits"
-        )
-        status = StatusLine(robot)
-        try:
-            with raw_terminal() as read_key:
-                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
-        finally:
-            end_line()
-
-
-def dump(
-    ctx: typer.Context,
-    port: str | None = typer.Argument(  # noqa: UP007
-        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT",
-        envvar=PIONEER_ENV, show_envvar=True,
-    ),  # fmt: skip
-    count: int = typer.Option(
-        0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
-    ),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
-    output: Path | None = typer.Option(  # noqa: UP007
-        None,
-        "--output",
-        "-o",
-        metavar="FILE.jsonl",
-        dir_okay=False,
-        help="Also record the packets to a .jsonl capture (what --file reads).",
-    ),  # fmt: skip
-    laser: bool = typer.Option(
-        False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
-    ),
-    file: Path | None = typer.Option(  # noqa: UP007
-        None,
-        "--file",
-        "-f",
-        metavar="CAPTURE",
-        exists=True,
-        dir_okay=False,
-        help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-) -> None:
-    """Print every packet in both directions, in time order, with its name and decoded
-    fields (raw units; lines cut at 160 characters unless -v)."""
-    from robocli.commands._packets import PacketView
-    from robocli.io.capture import CaptureWriter
-
-    if file is not None and from_env(ctx, "port"):
-        port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
-    if port is None and file is None:
-        raise typer.BadParameter("give PORT or --file")
-    if port is not None and file is not None:
-        raise typer.BadParameter("give PORT or --file, not both")
-    if output is not None and output.suffix != ".jsonl":
-        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
-    if output is not None and file is not None and _same_file(output, file):
-        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
-    full = bool(ctx.find_root().params.get("verbose"))
-    writer = CaptureWriter(output) if output is not None else None
-    try:
-        view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
-        if file is not None:
-            _dump_file(view, file)
-        else:
-            assert port is not None
-            _dump_live(view, port, laser, subtype=subtype, baud=baud, timeout=timeout)
-    finally:
-        if writer is not None:
-            writer.close()
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet)
-        return False
-
-
-def _dump_file(view: Any, file: Path) -> None:
-    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
-    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
-    from robocli.errors import RobocliError
-    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
-
-    stats = CaptureStats()
-    with reader_may_leave(), sigterm_as_interrupt():
-        try:
-            for item in read_capture(file, stats=stats):
-                view.show(item.direction, item.frame[3:-2], item.t)
-                if view.done:
-                    return
-        except NoFrameError as exc:
-            raise NoFrameError(
-                f"{exc} ({stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped)"
-            ) from None
-    summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
-    if stats.frames == 0:
-        raise RobocliError(f"{file}: {summary}")
-    if stats.dropped_bytes:
-        typer.echo(f"robocli: {file}: {summary}", err=True)
-
-
-#: How long a packet waits for older ones from another thread before it is printed (s).
-_REORDER = 0.05
-
-
-def _dump_live(view: Any, port: str, laser: bool, **options: Any) -> None:
-    """Show a live session's packets in time order (sent and received ones come from
-    different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
-    stop the robot and close the session."""
-    start = time.monotonic()
-    seen: queue.SimpleQueue[tuple[str, bytes, float]] = queue.SimpleQueue()
-
-    def listener(direction: str, payload: bytes, t: float) -> None:
-        seen.put((direction, payload, t - start))
-
-    def take(timeout: float = 0.0) -> None:
-        with contextlib.suppress(queue.Empty):
-            if timeout:
-                view.add(*seen.get(timeout=timeout))
-            while True:
-                view.add(*seen.get_nowait())
-
-    try:
-        with _connected(port, listeners=[listener], **options) as robot:
-            if laser:
-                _start_laser(robot, wait=False)
-            while not view.done:
-                take(_REORDER)
-                view.flush(before=time.monotonic() - start - _REORDER)
-                if not robot.connected:
-                    robot.wait_for_sip(0)  # raises the reason the session ended
-    finally:
-        with reader_may_leave():
-            take()  # what was still queued, and the close sequence
-            view.flush()
 
 
 def simulate(

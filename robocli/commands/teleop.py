@@ -1,0 +1,136 @@
+"""``robocli teleop pioneer|arm``: drive a robot from the keyboard, thin layers over
+:mod:`robocli.devices.pioneer.teleop` and :mod:`robocli.devices.arm.teleop`.
+
+Both read keys in cbreak mode (Ctrl-C still interrupts), redraw a status line in place at
+10 Hz, and stop the robot when the keys stop coming (``--release``), on q, Ctrl-C or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import time
+from collections.abc import Iterator
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands.arm import LINK, ArmLink, arm_link
+from robocli.commands.arm import connected as connected_arm
+from robocli.commands.pioneer import BaudOpt, PortArg, SubtypeOpt, TimeoutOpt, connected
+from robocli.defaults import ARM_ENV
+
+if TYPE_CHECKING:
+    from robocli.commands._screens import KeyReader
+
+HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
+                         show_default=False, metavar="HOST", envvar=ARM_ENV,
+                         show_envvar=True)  # fmt: skip
+
+
+def pioneer(
+    port: str = PortArg,
+    max_v: float = typer.Option(
+        0.4, "--max-v", min=0.0, max=2.0, metavar="M/S", help="Top speed, m/s."
+    ),
+    max_w: float = typer.Option(
+        1.0,
+        "--max-w",
+        min=0.0,
+        max=5.0,
+        metavar="RAD/S",
+        help="Top turn rate, rad/s (shown in deg/s).",
+    ),  # fmt: skip
+    release: float = typer.Option(
+        0.45,
+        "--release",
+        min=0.05,
+        max=0.5,
+        metavar="SECONDS",
+        help="Stop this long after the last key, s.",
+    ),  # fmt: skip
+    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    baud: int = BaudOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
+    from robocli.commands._screens import StatusLine
+    from robocli.devices.pioneer.teleop import TeleopController, run_teleop
+
+    _need_terminal()
+    controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
+    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+        robot.enable_motors()
+        typer.echo(
+            f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
+            "space stops, q or Ctrl-C quits"
+        )
+        status = StatusLine(robot)
+        with _keys() as read_key:
+            run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
+
+
+@arm_link()
+def arm(
+    host: str = HostArg,
+    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
+    joint_speed: float = typer.Option(
+        0.1, "--joint-speed", min=0.01, max=1.0, help="Fraction of the joint speed limits."
+    ),
+    cart_speed: float = typer.Option(
+        0.05, "--cart-speed", min=0.001, max=1.0, help="TCP speed, m/s."
+    ),
+    release: float = typer.Option(
+        0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
+    ),
+    link: ArmLink = LINK,
+) -> None:
+    """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
+    +/- speed, space stops, q quits. Letting go of the key sends STOP."""
+    from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
+
+    _need_terminal()
+    with connected_arm(host, link, stream) as arm:
+        arm.wait_for_state()
+        typer.echo(f"{arm.robot.name} ({'streaming' if stream else 'ABB download'}): "
+                   "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
+        typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
+        jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
+                        release_timeout=release)  # fmt: skip
+        with _keys() as read_key:
+            run_arm_teleop(jog, read_key, on_update=_status_line())
+
+
+def _need_terminal() -> None:
+    """A usage error unless keys can come from a terminal (checked before connecting)."""
+    if not sys.stdin.isatty():
+        raise typer.BadParameter("teleop needs an interactive terminal on standard input")
+
+
+@contextlib.contextmanager
+def _keys() -> Iterator[KeyReader]:
+    """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
+    left on a fresh line after the status line however the loop ends."""
+    from robocli.commands._screens import end_line, raw_terminal
+
+    try:
+        with raw_terminal() as read_key:
+            yield read_key
+    finally:
+        end_line()
+
+
+def _status_line() -> Any:
+    """``on_update`` that redraws the arm teleop's status in place at 10 Hz."""
+    from robocli.commands._screens import STATUS_PERIOD
+
+    last = [-1.0]
+
+    def draw(jog: Any) -> None:
+        now = time.monotonic()
+        if now - last[0] >= STATUS_PERIOD:
+            last[0] = now
+            sys.stdout.write("\r" + jog.status()[:79] + "\x1b[K")
+            sys.stdout.flush()
+
+    return draw
