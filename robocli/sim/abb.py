@@ -256,8 +256,9 @@ class AbbSim:
             events = self.controller.executor.events()
         wire = np.float32 if self.controller.real == 4 else np.float64
         seen = {wire(t) for t in times}
+        last = times[-1]  # not the events appended below: a late batch may span several
         for e in sorted(set(events)):
-            if after < e < times[-1] and wire(e) not in seen:
+            if after < e < last and wire(e) not in seen:
                 seen.add(wire(e))
                 times.append(e)
         return sorted(times)
