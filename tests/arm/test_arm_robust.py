@@ -36,17 +36,21 @@ def test_raising_listeners_do_not_stop_the_state_stream(make_sim, make_arm) -> N
 
 
 def test_history_and_recording_are_bounded(make_sim, make_arm) -> None:
-    sim, mp, sp = make_sim(state_ms=2.0, time_scale=2.0)
+    """On the controller's clock (JOINT_FEEDBACK), every sample kept makes the log: on
+    receive times, a loaded machine reads the last 30 in one go, and one read is one time."""
+    sim, mp, sp = make_sim(state_ms=5.0, time_scale=2.0, feedback=True)
     arm = make_arm(mp, sp, motion=False, history=50)
+    received: list[object] = []
+    arm.add_sample_listener(received.append)
     rec = arm.record(max_samples=30)
-    deadline = time.monotonic() + 10
-    received = 0
-    while received < 200 and time.monotonic() < deadline:
+    deadline = time.monotonic() + 30
+    while len(received) < 200:  # 4 x the history, about 0.25 s
+        assert time.monotonic() < deadline, len(received)
         arm.wait_for_state()
-        received += 1
     rec.stop()
     assert len(arm.history) == 50 and len(rec.samples) == 30
-    assert 2 <= len(rec.log()) <= 30
+    timed = [s for s in rec.samples if s.robot_time is not None]
+    assert len(rec.log()) == len(timed) and 10 <= len(timed) <= 20  # every other one
 
 
 def test_motion_reply_timeout_and_bounded_close(talking_server) -> None:
