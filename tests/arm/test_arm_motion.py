@@ -71,10 +71,12 @@ def test_feedback_sends_every_instant_of_a_motion_within_one_state_period(
 
 def test_paper_model_gives_paper_like_errors(make_sim, make_arm) -> None:
     """The paper-like controller model: round trips of 20+ ms, and after alignment joint
-    errors in the range of the paper's Table 4 (RMSE <= 7.5 mrad, MAE <= 6.5 mrad)."""
+    errors in the range of the paper's Table 4 (RMSE <= 7.5 mrad, MAE <= 6.5 mrad). The
+    model's state period is the paper's 20 ms: at 10 ms its jitter is narrowed to a
+    distribution it was not made for, and 1 run in 20 gave 7.9 mrad."""
     from robocli.sim.abb import ControllerModel
 
-    sim, mp, sp = make_sim(state_ms=10.0, feedback=True, model=ControllerModel.paper())
+    sim, mp, sp = make_sim(state_ms=20.0, feedback=True, model=ControllerModel.paper())
     arm = make_arm(mp, sp)
     arm.wait_for_state()
     planned = circle(IRB, 30)
