@@ -10,6 +10,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -156,7 +157,8 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
 
-def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path) -> None:
+def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
+                                              wait: Any) -> None:  # fmt: skip
     capture = tmp_path / "session.jsonl"
     proc = cli("dump", "hub", f"127.0.0.1:{server.port}", "--listen", "127.0.0.1:0", "--json",
                "--count", "6", "--output", str(capture))  # fmt: skip
@@ -165,7 +167,10 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path)
     port = int(line.split(" connect to ", 1)[1].split(",", 1)[0].rsplit(":", 1)[1])
     with Hub.connect("127.0.0.1", port) as h:
         h.subscribe("adc", 100)
-        time.sleep(0.3)
+        ring = server.hub.channel("adc").ring
+        assert ring is not None
+        pushed = ring.pushed
+        wait(lambda: ring.pushed > pushed, 30, "a batch of ADC samples")  # one pull gets it
         assert len(h.read("adc"))  # the 6th message: the proxy stops after it
     code, out, err = finish(proc)
     assert code == 0, err
@@ -291,8 +296,10 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(10)
     assert code == 130 and err.strip() == "robocli: interrupted", err
-    time.sleep(0.5)
-    assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # no worker left behind
+    end = time.monotonic() + 30  # the workers end with their parent: no worker left behind
+    while [k for k in kids if Path(f"/proc/{k}").exists()] and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not [k for k in kids if Path(f"/proc/{k}").exists()]
 
 
 def test_token_file_for_a_hub_that_has_one(tmp_path: Path) -> None:
