@@ -44,16 +44,19 @@ def finish(proc: subprocess.Popen[str], timeout: float = 60) -> tuple[int, str, 
 def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: HubServer) -> None:
     hub = f"127.0.0.1:{server.port}"
     args = ("subscribe", "adc", "--rate", "100", "--format", "csv", "--duration", "2")
+    started = time.monotonic()
     procs = [cli(*args, "--hub", hub), cli(*args, env={"ROBOCLI_HUB": hub})]
     for proc in procs:
         code, out, err = finish(proc)
+        ran = time.monotonic() - started
         assert code == 0, err
         lines = out.splitlines()
         assert lines[0] == "t,ch0,ch1,ch2,ch3,ch4,ch5,ch6,ch7"
         rows = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
         assert rows.shape[1] == 9
-        # 2 s at 100 Hz (plus what the hub buffered before the first pull), generously
-        assert 120 <= len(rows) <= 320, len(rows)
+        # 2 s at 100 Hz (plus what the hub buffered before the first pull), at most what
+        # the hub acquired while the process ran (longer on a loaded machine)
+        assert 120 <= len(rows) <= 100 * ran + 20, (len(rows), ran)
         t = rows[:, 0]
         assert np.all(np.diff(t) > 0)
         np.testing.assert_allclose(np.median(np.diff(t)), 0.01, rtol=0.05)
