@@ -12,7 +12,7 @@ CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
 CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
-.PHONY: venv demo test test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
+.PHONY: venv demo test test-load test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
 
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -31,8 +31,29 @@ venv: $(STAMP)
 demo: $(DEMO_STAMP)
 	$(PY) examples/demo.py
 
+PYTEST := $(PY) -m pytest -q -p no:cacheprovider --benchmark-disable -m "not slow"
+PYTEST_ARGS ?=
+
 test: $(STAMP) test-c
-	$(PY) -m pytest -q -p no:cacheprovider --benchmark-disable -m "not slow"
+	$(PYTEST) $(PYTEST_ARGS)
+
+# The same suite with the CPU oversubscribed: LOAD_PER_CORE busy loops per core run beside it.
+# The loops are killed when pytest ends, fails or is interrupted, and each one is bounded by
+# `timeout` (LOAD_TIMEOUT s) in case make itself is killed. Tests assert behaviour, not speed:
+# this must pass.
+LOAD_PER_CORE ?= 2
+LOAD_TIMEOUT  ?= 3600
+test-load: $(STAMP) test-c
+	@n=$$(( $$(nproc) * $(LOAD_PER_CORE) )); pids=; \
+	stop() { for p in $$pids; do kill $$p 2>/dev/null; done; wait $$pids 2>/dev/null; pids=; }; \
+	trap 'stop' EXIT; trap 'stop; exit 130' INT; trap 'stop; exit 143' TERM HUP; \
+	for i in $$(seq $$n); do \
+	  timeout $(LOAD_TIMEOUT) $(PY) -c 'while True: pass' & pids="$$pids $$!"; \
+	done; \
+	echo "test-load: $$n busy loops ($(LOAD_PER_CORE) per core) beside pytest"; \
+	start=$$(date +%s); rc=0; $(PYTEST) $(PYTEST_ARGS) || rc=$$?; \
+	stop; echo "test-load: pytest exit $$rc after $$(( $$(date +%s) - start )) s under load"; \
+	exit $$rc
 
 # C tests read the golden vectors in specs/; warnings are errors.
 csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h csrc/netio.h

@@ -12,7 +12,7 @@ import threading
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, run
+from cli.helpers import one_line_error, read_lines, run
 
 from robocli.devices.pioneer import Pioneer
 
@@ -133,14 +133,14 @@ def test_live_view_runs_until_interrupted() -> None:
         text=True,
     )
     try:
-        import time
-
-        time.sleep(3)
+        assert proc.stdout is not None
+        first = read_lines(proc.stdout, 10)  # into a pipe: one line per SIP (panel: test_screens)
+        assert len(first) == 10, first
         proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=10)
+        out, err = proc.communicate(timeout=30)
         assert proc.returncode == 130 and err.strip() == "robocli: interrupted"
-        lines = out.splitlines()  # into a pipe: one line per SIP (the panel: test_screens)
-        assert len(lines) >= 10 and all(" m/s " in line and "battery" in line for line in lines)
+        lines = first + out.splitlines()
+        assert all(" m/s " in line and "battery" in line for line in lines), lines
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -174,7 +174,10 @@ class _Losses:
 
     def update(self, lost: int, final: bool = False) -> None:
         now = time.monotonic()
-        if lost <= self.said or (not final and now - self.said_at < LOSS_REPORT_S):
+        if final:  # the total, even when the last "so far" gave the same number
+            if not lost:
+                return
+        elif lost <= self.said or now - self.said_at < LOSS_REPORT_S:
             return
         self.said, self.said_at = lost, now
         typer.echo(

@@ -43,12 +43,40 @@ def test_download_circle_matches_simulation(make_sim, make_arm) -> None:
     assert np.allclose(final, planned.positions[-1], atol=1e-6)
 
 
+def test_feedback_sends_every_instant_of_a_motion_within_one_state_period(
+    make_sim, make_arm
+) -> None:
+    """With JOINT_FEEDBACK the exact simulator also sends the instants a motion starts and
+    ends, between its periodic states. A loaded machine wakes the publisher late, and one
+    late batch then spans several of those instants; only the first of them was sent, so a
+    validation against the exact simulator missed 1e-6 rad. A long state period puts a whole
+    motion into one batch on a quiet machine too."""
+    sim, mp, sp = make_sim(state_ms=10_000.0, time_scale=20.0, feedback=True)  # 0.5 s wall
+    arm = make_arm(mp, sp)
+    rec = arm.record()
+    arm.wait_for_state()  # just after a state: the short motion below fits in this period
+    arm.download(far_move(duration=0.2, n=3))  # 10 ms of wall time
+    with sim.controller.lock:
+        instants = sorted(set(sim.controller.executor.events()))
+    arm.wait_until_idle(30)
+    rec.stop()
+    log = rec.log()
+    stamps = log.time + log.origin
+    assert len(instants) == 2  # the start (the first point is where the arm is) and the end
+    for instant in instants:
+        assert np.abs(stamps - np.float32(instant)).min() < 1e-6, (instant, stamps)
+    assert np.allclose(log.positions[np.argmin(np.abs(stamps - instants[-1]))],
+                       far_move(duration=0.2, n=3).positions[-1], atol=1e-6)  # fmt: skip
+
+
 def test_paper_model_gives_paper_like_errors(make_sim, make_arm) -> None:
     """The paper-like controller model: round trips of 20+ ms, and after alignment joint
-    errors in the range of the paper's Table 4 (RMSE <= 7.5 mrad, MAE <= 6.5 mrad)."""
+    errors in the range of the paper's Table 4 (RMSE <= 7.5 mrad, MAE <= 6.5 mrad). The
+    model's state period is the paper's 20 ms: at 10 ms its jitter is narrowed to a
+    distribution it was not made for, and 1 run in 20 gave 7.9 mrad."""
     from robocli.sim.abb.server import ControllerModel
 
-    sim, mp, sp = make_sim(state_ms=10.0, feedback=True, model=ControllerModel.paper())
+    sim, mp, sp = make_sim(state_ms=20.0, feedback=True, model=ControllerModel.paper())
     arm = make_arm(mp, sp)
     arm.wait_for_state()
     planned = circle(IRB, 30)
@@ -144,7 +172,7 @@ def test_dropped_motion_link_trajectory_completes(make_sim, make_arm) -> None:
     snap = sim.wait_until(lambda s: not s.in_motion, 20)
     assert snap.stops == 0
     assert np.allclose(snap.joints, move.positions[-1], atol=1e-6)
-    sim.wait_until(lambda s: s.motion_clients == 0 and s.state_clients == 0, 5)
+    sim.wait_until(lambda s: s.motion_clients == 0 and s.state_clients == 0, 30)
     again = make_arm(mp, sp)  # the server re-listened and accepts the next client
     again.download(ptp_joint(IRB, IRB.work, n=5, q_start=move.positions[-1], duration=1.0))
     again.wait_until_idle(10)
@@ -158,7 +186,7 @@ def test_close_stops_a_running_trajectory(make_sim, make_arm) -> None:
     arm.download(far_move(duration=8.0))
     sim.wait_until(lambda s: s.in_motion, 10)
     arm.close()
-    snap = sim.wait_until(lambda s: not s.in_motion, 5)
+    snap = sim.wait_until(lambda s: not s.in_motion, 30)
     assert snap.stops == 1
 
 

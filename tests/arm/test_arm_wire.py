@@ -133,7 +133,7 @@ def test_abb_buffer_drops_beyond_100_but_acks(make_sim) -> None:
         raw.send(point(seq))
     replies = _frames(raw, len(seqs))
     assert all(sm.decode(r).reply_code == sm.ReplyCode.SUCCESS for r in replies)
-    snap = sim.wait_until(lambda s: s.trajectories == 1, 5)
+    snap = sim.wait_until(lambda s: s.trajectories == 1, 30)
     assert snap.dropped_points == 2 and snap.points_received == 102
     raw.close()
 
@@ -144,7 +144,7 @@ def test_abb_motion_server_restarts_on_another_message(make_sim, make_arm) -> No
     raw = RawSM(mp)
     raw.send(sm.encode(sm.MsgType.PING, sm.CommType.SERVICE_REQUEST))
     assert raw.closed_by_peer()
-    assert sim.wait_until(lambda s: s.motion_clients == 0, 5).frames_refused == 1
+    assert sim.wait_until(lambda s: s.motion_clients == 0, 30).frames_refused == 1
     arm = make_arm(mp, sp)
     arm.download(circle(IRB, 10, duration=1.0))
     arm.wait_until_idle(10)
@@ -159,7 +159,7 @@ def test_garbage_on_both_ports_while_another_client_monitors(make_sim, make_arm)
         bad = RawSM(mp)
         bad.send(rng.integers(0, 256, 4096, dtype=np.uint8).tobytes())
         bad.close()
-        sim.wait_until(lambda s, n=i + 1: s.motion_accepted == n and s.motion_clients == 0, 5)
+        sim.wait_until(lambda s, n=i + 1: s.motion_accepted == n and s.motion_clients == 0, 30)
         busy = RawSM(sp)  # one client per port: refused, whatever it sends
         busy.send(os.urandom(512))
         assert busy.closed_by_peer()
@@ -207,16 +207,16 @@ def test_abb_aborts_a_trajectory_it_cannot_reach(make_sim) -> None:
         body = {"sequence": seq, "joints": joints, "velocity": 0.0, "duration": 0.5}
         raw.send(sm.encode(11, sm.CommType.SERVICE_REQUEST, 0, body))
     assert all(sm.decode(f).reply_code == sm.ReplyCode.SUCCESS for f in _frames(raw, 4))
-    snap = sim.wait_until(lambda s: s.rejected_points == 1, 5)
+    snap = sim.wait_until(lambda s: s.rejected_points == 1, 30)
     assert not snap.in_motion and np.allclose(snap.joints, IRB.work)
     raw.close()
 
 
 def _connect_motion(sim, port: int, order: str) -> RawSM:
-    sim.wait_until(lambda s: s.motion_clients == 0, 5)
+    sim.wait_until(lambda s: s.motion_clients == 0, 30)
     accepted = sim.snapshot().motion_accepted
     raw = RawSM(port, order)
-    sim.wait_until(lambda s: s.motion_accepted == accepted + 1, 5)
+    sim.wait_until(lambda s: s.motion_accepted == accepted + 1, 30)
     return raw
 
 

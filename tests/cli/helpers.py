@@ -6,8 +6,10 @@ import contextlib
 import os
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
+from typing import IO
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "arcos"
 ROBOCLI = [sys.executable, "-m", "robocli"]
@@ -55,6 +57,24 @@ def running(*args: str, **kwargs: object) -> Iterator[subprocess.Popen[str]]:
         for stream in (proc.stdout, proc.stderr):
             if stream is not None:
                 stream.close()
+
+
+def read_lines(stream: IO[str], n: int, timeout: float = 30.0) -> list[str]:
+    """The first ``n`` lines of a child's ``stream`` (fewer if it ends or ``timeout`` passes,
+    which only bounds a failure): wait for output, not for a time that a loaded machine
+    stretches."""
+    lines: list[str] = []
+
+    def read() -> None:
+        for line in stream:
+            lines.append(line)
+            if len(lines) >= n:
+                return
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout)
+    return list(lines)
 
 
 def peak_rss_kib(pid: int) -> int:

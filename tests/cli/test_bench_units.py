@@ -6,26 +6,36 @@ from __future__ import annotations
 import json
 import re
 
+import pytest
+
 from cli.helpers import run
 
 
 def test_jitter_table_and_histogram_in_ms() -> None:
+    """The SIP period (100 ms) in ms in the row and in the histogram, which spans the row's
+    min to max. The periods are receive times, which a loaded machine spreads: how close
+    they keep to 100 ms is the bench's figure (README, Performance), not asserted here."""
     proc = run("bench", "jitter", "-n", "12")
     assert proc.returncode == 0, proc.stderr
     row = next(line for line in proc.stdout.splitlines() if line.startswith("SIP period"))
-    name, unit, n, mean, median, *_ = re.split(r"\s{2,}", row)
-    assert unit == "ms" and int(n) == 12 and 90 < float(median) < 110
+    name, unit, n, mean, median, std, low, high, *_ = re.split(r"\s{2,}", row.strip())
+    assert unit == "ms" and int(n) == 12
+    assert 10 < float(mean) < 1000  # 100 ms, as s or us it would read 0.1 or 100000
     assert "histogram: period (ms)" in proc.stdout
     bins = [line for line in proc.stdout.splitlines() if " - " in line]
     assert bins and all(" ms " in line for line in bins)
-    assert all(90 < float(line.split()[0]) < 110 for line in bins)
+    edges = [(float(line.split()[0]), float(line.split()[2])) for line in bins]
+    assert edges[0][0] == pytest.approx(float(low), abs=0.06)  # the row rounds to 0.1 ms
+    assert edges[-1][1] == pytest.approx(float(high), abs=0.06)
+    assert sum(int(line.split()[4]) for line in bins) == 12
 
 
 def test_keepalive_period_in_ms_and_json_rounded() -> None:
     proc = run("bench", "sip", "-n", "12")
     assert proc.returncode == 0, proc.stderr
     row = next(line for line in proc.stdout.splitlines() if line.startswith("keep-alive"))
-    assert re.match(r"keep-alive period\s+ms\s+\d+\s+4\d\d\.\d ", row), row
+    match = re.match(r"keep-alive period\s+ms\s+\d+\s+(\d+\.\d) ", row)
+    assert match and 40 < float(match[1]) < 4000, row  # 400 ms (its spread: the bench's)
     data = json.loads(run("bench", "sip", "-n", "12", "--json").stdout)
     for result in data:
         assert result["unit"] == "us"

@@ -52,7 +52,7 @@ def test_handshake_identity_config_and_motors_off(sim: PioneerSim) -> None:
         robot.enable_motors()
         assert robot.wait_for_sip().motors_enabled or robot.wait_for_sip().motors_enabled
     # the simulator handles the stop sequence on its own link thread: wait for it
-    snap = sim.wait_until(lambda s: not s.session_open, 5.0)
+    snap = sim.wait_until(lambda s: not s.session_open, 30)
     assert not snap.motors_enabled
 
 
@@ -60,7 +60,7 @@ def test_subtype_override_and_unknown_subtype(sim: PioneerSim) -> None:
     assert sim.url is not None
     with pytest.raises(UnknownRobotError, match="no parameters"):
         Pioneer.connect(sim.url, subtype="box")
-    sim.wait_until(lambda s: s.clients == 0, 5.0)  # one client at a time: the first has left
+    sim.wait_until(lambda s: s.clients == 0, 30)  # one client at a time: the first has left
     with Pioneer.connect(sim.url, subtype="p3dx-sh") as robot:
         assert robot.params.dist_conv == 1.0
 
@@ -70,7 +70,7 @@ def test_velocity_commands_reach_the_robot(sim: PioneerSim) -> None:
     with Pioneer.connect(sim.url) as robot:
         robot.enable_motors()
         robot.set_velocity(0.3, math.radians(20))
-        s = sim.wait_until(lambda s: s.trans_vel_set > 0, timeout=2)
+        s = sim.wait_until(lambda s: s.trans_vel_set > 0, timeout=30)
         assert s.trans_vel_set == pytest.approx(0.3) and s.rot_vel_set == pytest.approx(
             math.radians(20)
         )
@@ -82,7 +82,7 @@ def test_velocity_commands_reach_the_robot(sim: PioneerSim) -> None:
         assert state.w == pytest.approx(math.radians(20), abs=0.01)
         robot.set_wheel_velocities(-0.2, 0.2)
         s = sim.wait_until(
-            lambda s: abs(s.left_mm_s + 200) < 1 and abs(s.right_mm_s - 200) < 1, timeout=5
+            lambda s: abs(s.left_mm_s + 200) < 1 and abs(s.right_mm_s - 200) < 1, timeout=30
         )
         assert s.trans_vel == pytest.approx(0.0, abs=1e-3)
         robot.stop()
@@ -90,7 +90,7 @@ def test_velocity_commands_reach_the_robot(sim: PioneerSim) -> None:
         robot.set_digital_out(0b1010, 0b1000)
         robot.say([(0.1, 40), (0.2, 60)])
         robot.enable_sonar(False)
-        s = sim.wait_until(lambda s: not s.sonar_enabled, timeout=2)
+        s = sim.wait_until(lambda s: not s.sonar_enabled, timeout=30)
         assert (s.last_say, s.digout & 0b1010) == (((100, 40), (200, 60)), 0b1000)  # ms
         assert not robot.wait_for_sip().sonar_enabled or not robot.wait_for_sip().sonar_enabled
 
@@ -100,10 +100,10 @@ def test_move_heading_and_odometry_agree_with_the_truth(empty_sim: PioneerSim) -
     with Pioneer.connect(empty_sim.url) as robot:
         robot.enable_motors()
         robot.move(1.0)
-        empty_sim.wait_until(lambda s: s.trans_vel > 0.01, timeout=5)
+        empty_sim.wait_until(lambda s: s.trans_vel > 0.01, timeout=30)
         settle(empty_sim, robot)
         robot.set_heading(math.pi / 2)
-        empty_sim.wait_until(lambda s: abs(s.rot_vel) > 0.01, timeout=5)
+        empty_sim.wait_until(lambda s: abs(s.rot_vel) > 0.01, timeout=30)
         settle(empty_sim, robot)
         truth = empty_sim.snapshot()
         x, y, th = robot.pose
@@ -136,7 +136,7 @@ def test_corrupted_stream_is_resynchronised_and_counted(sim: PioneerSim) -> None
     faulty = FaultyTransport(inner, split=13, corrupt=0.002, seed=7)
     with Pioneer.from_transport(faulty, timeout=10) as robot:
         for _ in range(60):
-            robot.wait_for_sip(timeout=3)
+            robot.wait_for_sip(timeout=10)
         assert faulty.corrupted > 0
         assert robot.stats.bad_checksums + robot.stats.dropped_bytes > 0
         assert robot.state.battery == pytest.approx(13.0, abs=0.5)  # no garbage got through
@@ -154,16 +154,18 @@ def test_keepalive_holds_the_watchdog_off_and_silence_trips_it() -> None:
             assert sim.snapshot().watchdog_trips == 0
             assert sim.snapshot().trans_vel_set == pytest.approx(0.2)
             gaps = np.diff(np.array(robot.stats.tx_times))
-            assert gaps.size > 3 and gaps.max() <= 0.5  # what the robot's watchdog sees
+            # what the robot's watchdog sees: never 1 s of silence (the 0.4 s period itself
+            # is a bench figure, `robocli bench sip`: a loaded machine wakes the thread late)
+            assert gaps.size > 3 and gaps.max() < 1.0
             robot.keepalive = 1e9  # the program hangs: nothing goes out any more
-            s = sim.wait_until(lambda s: s.watchdog_trips >= 1, timeout=5)
-            s = sim.wait_until(lambda s: abs(s.trans_vel) < 1e-9, timeout=5)
+            s = sim.wait_until(lambda s: s.watchdog_trips >= 1, timeout=30)
+            s = sim.wait_until(lambda s: abs(s.trans_vel) < 1e-9, timeout=30)
             assert s.motors_enabled and s.session_open  # stopped, not disconnected
             with pytest.raises(WatchdogTripped, match="watchdog"):  # the program is told
                 robot.set_velocity(0.1, 0.0)
             assert robot.stats.watchdog_trips == 1 and sim.snapshot().trans_vel_set == 0.0
             robot.set_velocity(0.1, 0.0)  # resumes on the next command
-            assert sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=5)
+            assert sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=30)
 
 
 def test_deadman_stops_a_robot_the_program_forgot(sim: PioneerSim) -> None:
@@ -171,8 +173,8 @@ def test_deadman_stops_a_robot_the_program_forgot(sim: PioneerSim) -> None:
     with Pioneer.connect(sim.url, deadman=0.3) as robot:
         robot.enable_motors()
         robot.set_velocity(0.2, 0.0)
-        sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=5)
-        s = sim.wait_until(lambda s: s.trans_vel_set == 0.0, timeout=3)
+        sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=30)
+        s = sim.wait_until(lambda s: s.trans_vel_set == 0.0, timeout=30)
         assert robot.stats.deadman_stops == 1 and s.session_open
 
 
@@ -182,12 +184,12 @@ def test_leaving_the_block_stops_the_robot(sim: PioneerSim) -> None:
         with Pioneer.connect(sim.url) as robot:
             robot.enable_motors()
             robot.set_velocity(0.3, 0.5)
-            sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=5)
+            sim.wait_until(lambda s: s.trans_vel > 0.05, timeout=30)
             raise RuntimeError("the student's code failed")
     # the simulator's set-point settles on its next tick after CLOSE: wait for all three
     s = sim.wait_until(
         lambda s: not s.session_open and s.trans_vel_set == 0 and not s.motors_enabled,
-        timeout=3,
+        timeout=30,
     )
     assert {"VEL", "RVEL", "ENABLE", "CLOSE"} <= set(s.commands)
 
@@ -200,7 +202,7 @@ def test_lost_link_is_reported_to_the_caller() -> None:
         sim.close()
         with pytest.raises(ConnectionLost):
             for _ in range(50):
-                robot.wait_for_sip(timeout=1)
+                robot.wait_for_sip(timeout=10)
         with pytest.raises(ConnectionLost):
             _ = robot.pose
         assert not robot.connected
@@ -228,8 +230,8 @@ def test_no_sip_raises_timeout_not_a_hang() -> None:
     threading.Thread(target=serve, daemon=True).start()
     start = time.monotonic()
     with pytest.raises(TimeoutError, match="no SIP"):  # connect's timeout bounds it
-        Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0)
-    assert time.monotonic() - start < 3
+        Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", timeout=1.0, sip_timeout=60)
+    assert time.monotonic() - start < 30  # connect's 1 s, not the 60 s for later SIPs
     srv.close()
 
 
@@ -246,7 +248,7 @@ def test_serial_path_over_a_pty_and_a_session_left_open() -> None:
             assert second.wait_for_sip().sip_count >= 1
             assert sim.snapshot().commands["CLOSE"] == 1  # the re-sync's
         # and the second client's own, once the simulator has read it
-        sim.wait_until(lambda s: s.commands["CLOSE"] == 2, 5.0)
+        sim.wait_until(lambda s: s.commands["CLOSE"] == 2, 30)
         first.close()
 
 
@@ -306,11 +308,11 @@ def test_io_encoder_packets_and_odometry_reset(empty_sim: PioneerSim) -> None:
         assert robot.encoders == empty_sim.snapshot().encoder_ticks
         robot.enable_motors()
         robot.move(0.5)
-        empty_sim.wait_until(lambda s: s.trans_vel > 0.01, timeout=5)
+        empty_sim.wait_until(lambda s: s.trans_vel > 0.01, timeout=30)
         settle(empty_sim, robot)
         assert robot.pose[0] == pytest.approx(0.5, abs=0.01)
         robot.reset_odometry()
-        empty_sim.wait_until(lambda s: s.odom_raw == (0, 0, 0), timeout=3)
+        empty_sim.wait_until(lambda s: s.odom_raw == (0, 0, 0), timeout=30)
         robot.wait_for_sip()
         assert robot.pose == pytest.approx((0.0, 0.0, 0.0), abs=1e-9)
 

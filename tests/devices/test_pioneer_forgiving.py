@@ -36,9 +36,9 @@ def test_mm_per_second_habit_is_clamped_with_one_warning(
         with Pioneer.connect(sim.url) as robot:
             robot.enable_motors()
             robot.set_velocity(200, 0)  # the vendor SDK's mm/s
-            s = sim.wait_until(lambda s: s.trans_vel_set != 0, timeout=3)
+            s = sim.wait_until(lambda s: s.trans_vel_set != 0, timeout=30)
             robot.set_velocity(-300, 0)
-            sim.wait_until(lambda s: s.trans_vel_set < 0, timeout=3)
+            sim.wait_until(lambda s: s.trans_vel_set < 0, timeout=30)
             top = robot.config["transvel_top"] / 1000.0  # type: ignore[index]
     assert s.trans_vel_set == pytest.approx(top)
     warnings = [r for r in caplog.records if "beyond the robot's limit" in r.getMessage()]

@@ -227,7 +227,7 @@ def test_plain_scans_with_the_new_commands_then_off(wall_sim: PioneerSim) -> Non
         assert math.degrees(scan.angles[1] - scan.angles[0]) == pytest.approx(0.5)
         assert wall_sim.snapshot().laser_mode == 1
         robot.stop_laser(new_commands=True)
-        wall_sim.wait_until(lambda s: s.laser_mode == 0, timeout=5)
+        wall_sim.wait_until(lambda s: s.laser_mode == 0, timeout=30)
         n = robot.stats.laser_scans
         for _ in range(3):
             robot.wait_for_sip()
@@ -269,7 +269,7 @@ def test_sim_status_true_pose_and_gps(wall_sim: PioneerSim) -> None:
     assert wall_sim.url is not None
     with Pioneer.connect(wall_sim.url) as robot:
         robot.set_simulator_pose(1.0, -0.5, math.pi / 2)
-        wall_sim.wait_until(lambda s: s.x == 1.0, timeout=5)
+        wall_sim.wait_until(lambda s: s.x == 1.0, timeout=30)
         status = robot.sim_status()
         assert status.true_pose == pytest.approx((1.0, -0.5, math.pi / 2))
         assert robot.pose == pytest.approx((0.0, 0.0, 0.0))  # odometry unchanged

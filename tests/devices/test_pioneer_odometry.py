@@ -64,9 +64,9 @@ def test_reset_odometry_against_the_simulator(empty_sim: PioneerSim) -> None:
     with Pioneer.connect(empty_sim.url) as robot:
         robot.enable_motors()
         robot.set_velocity(-0.3, 0.0)  # backwards: negative counters
-        empty_sim.wait_until(lambda s: s.odom_x < -0.2, timeout=5)
+        empty_sim.wait_until(lambda s: s.odom_x < -0.2, timeout=30)
         robot.stop()
-        empty_sim.wait_until(lambda s: abs(s.trans_vel) < 1e-6, timeout=5)
+        empty_sim.wait_until(lambda s: abs(s.trans_vel) < 1e-6, timeout=30)
         robot.reset_odometry()
         for _ in range(4):
             state = robot.wait_for_sip()

@@ -76,7 +76,7 @@ def test_client_decodes_recorded_session(stem: str) -> None:
         assert robot.config is not None and robot.config["watchdog"] == 2000
         deadline = time.monotonic() + 10
         while robot.stats.sips < len(server.sips) and time.monotonic() < deadline:
-            robot.wait_for_sip(timeout=2.0)
+            robot.wait_for_sip(timeout=10)
         state = robot.state
         assert robot.stats.sips == len(server.sips)
         assert robot.stats.bad_checksums == 0 and robot.stats.dropped_bytes == 0
@@ -90,7 +90,9 @@ def test_client_decodes_recorded_session(stem: str) -> None:
     assert state.state_of_charge is None  # AMRISim sends 0: not modelled, as ARIA reads it
     assert state.sonar[:16] == pytest.approx([5.0] * 16) or not state.sonar_enabled
     # the client closed the session as ARIA does: stop, motors off, CLOSE
-    time.sleep(0.1)
+    deadline = time.monotonic() + 30  # the server reads them in its own thread
+    while server.received[-1:] != [arcos.Command.CLOSE] and time.monotonic() < deadline:
+        time.sleep(0.01)
     assert server.received[-4:] == [
         arcos.Command.VEL,
         arcos.Command.RVEL,

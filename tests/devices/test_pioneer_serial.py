@@ -54,7 +54,7 @@ def test_a_second_client_on_a_serial_robot_is_refused_and_the_first_goes_on() ->
                 Pioneer.connect(path, timeout=1.0)
             assert info.value.exit_code == 4
             for _ in range(5):
-                state = robot.wait_for_sip(timeout=2.0)
+                state = robot.wait_for_sip(timeout=10)
             assert state.sip_count > first
         with Pioneer.connect(path) as robot:  # the lock went with the first client
             robot.wait_for_sip()

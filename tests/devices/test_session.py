@@ -92,7 +92,7 @@ def test_a_raising_listener_kills_nothing(sim: PioneerSim) -> None:
         assert truth.trans_vel_set == pytest.approx(0.1) and truth.watchdog_trips == 0
         assert robot.stats.listener_errors > 20 and robot.stats.keepalives >= 3
     s = sim.wait_until(
-        lambda s: not s.session_open and s.trans_vel_set == 0 and not s.motors_enabled, timeout=3
+        lambda s: not s.session_open and s.trans_vel_set == 0 and not s.motors_enabled, timeout=30
     )
     assert {"VEL", "RVEL", "ENABLE", "CLOSE"} <= set(s.commands)
 
@@ -109,7 +109,7 @@ def test_a_peer_that_does_not_read_cannot_hold_close(sim: PioneerSim) -> None:
             robot.say([(0.02, 60)] * 20)
     start = time.monotonic()
     robot.close()
-    assert time.monotonic() - start < 3.0  # close_timeout is 2 s
+    assert time.monotonic() - start < 10.0  # bounded by close_timeout (2 s); it hung 15 s+
     relay.close()
 
 
@@ -156,9 +156,9 @@ def test_a_bug_in_a_client_thread_fails_closed(sim: PioneerSim) -> None:
     robot.set_velocity(0.1, 0.0)
     with pytest.raises(KeyError, match="a bug"):
         for _ in range(50):
-            robot.wait_for_sip(timeout=2)
+            robot.wait_for_sip(timeout=10)
     assert not robot.connected
-    sim.wait_until(lambda s: s.trans_vel_set == 0, timeout=3)
+    sim.wait_until(lambda s: s.trans_vel_set == 0, timeout=30)
     robot.close()
     assert not robot._session.stuck_threads
 
@@ -223,6 +223,6 @@ def test_concurrent_callers_and_the_reader_share_the_link(sim: PioneerSim) -> No
             t.join(30)
         assert not errors
         count = robot.stats.sips
-        robot.wait_for_sip(timeout=1.0)
-        robot.wait_for_sip(timeout=1.0)
+        robot.wait_for_sip(timeout=10)
+        robot.wait_for_sip(timeout=10)
         assert robot.stats.sips >= count + 2 and robot._session._leaders == 0

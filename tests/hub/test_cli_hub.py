@@ -11,6 +11,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -44,16 +45,19 @@ def finish(proc: subprocess.Popen[str], timeout: float = 60) -> tuple[int, str, 
 def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: HubServer) -> None:
     hub = f"127.0.0.1:{server.port}"
     args = ("subscribe", "adc", "--rate", "100", "--format", "csv", "--duration", "2")
+    started = time.monotonic()
     procs = [cli(*args, "--hub", hub), cli(*args, env={"ROBOCLI_HUB": hub})]
     for proc in procs:
         code, out, err = finish(proc)
+        ran = time.monotonic() - started
         assert code == 0, err
         lines = out.splitlines()
         assert lines[0] == "t,ch0,ch1,ch2,ch3,ch4,ch5,ch6,ch7"
         rows = np.array([[float(x) for x in line.split(",")] for line in lines[1:]])
         assert rows.shape[1] == 9
-        # 2 s at 100 Hz (plus what the hub buffered before the first pull), generously
-        assert 120 <= len(rows) <= 320, len(rows)
+        # 2 s at 100 Hz (plus what the hub buffered before the first pull), at most what
+        # the hub acquired while the process ran (longer on a loaded machine)
+        assert 120 <= len(rows) <= 100 * ran + 20, (len(rows), ran)
         t = rows[:, 0]
         assert np.all(np.diff(t) > 0)
         np.testing.assert_allclose(np.median(np.diff(t)), 0.01, rtol=0.05)
@@ -157,7 +161,8 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
 
-def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path) -> None:
+def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
+                                              wait: Any) -> None:  # fmt: skip
     capture = tmp_path / "session.jsonl"
     proc = cli("dump", "hub", f"127.0.0.1:{server.port}", "--listen", "127.0.0.1:0", "--json",
                "--count", "6", "--output", str(capture))  # fmt: skip
@@ -166,7 +171,10 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path)
     port = int(line.split(" connect to ", 1)[1].split(",", 1)[0].rsplit(":", 1)[1])
     with Hub.connect("127.0.0.1", port) as h:
         h.subscribe("adc", 100)
-        time.sleep(0.3)
+        ring = server.hub.channel("adc").ring
+        assert ring is not None
+        pushed = ring.pushed
+        wait(lambda: ring.pushed > pushed, 30, "a batch of ADC samples")  # one pull gets it
         assert len(h.read("adc"))  # the 6th message: the proxy stops after it
     code, out, err = finish(proc)
     assert code == 0, err
@@ -292,8 +300,10 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(10)
     assert code == 130 and err.strip() == "robocli: interrupted", err
-    time.sleep(0.5)
-    assert not [k for k in kids if Path(f"/proc/{k}").exists()]  # no worker left behind
+    end = time.monotonic() + 30  # the workers end with their parent: no worker left behind
+    while [k for k in kids if Path(f"/proc/{k}").exists()] and time.monotonic() < end:
+        time.sleep(0.05)
+    assert not [k for k in kids if Path(f"/proc/{k}").exists()]
 
 
 def test_token_file_for_a_hub_that_has_one(tmp_path: Path) -> None:
@@ -317,14 +327,33 @@ def test_token_file_for_a_hub_that_has_one(tmp_path: Path) -> None:
 
 
 def test_subscribe_says_how_many_samples_the_hub_dropped(server: HubServer) -> None:
+    """1.2 s of a 1000 Hz ADC through a buffer of 10, pulled twice a second: most samples
+    are lost, and the last line says how many. Each lost or printed sample was acquired
+    while the subscriber ran (the hub's times), however slowly a loaded machine runs it."""
+    started = time.monotonic()
     code, out, err = finish(cli("subscribe", "adc", "--rate", "1000", "--buffer", "10",
                                 "--poll", "2", "--duration", "1.2", "--format", "csv",
                                 "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+    ran = time.monotonic() - started
     assert code == 0, err
     rows = len(out.splitlines()) - 1
     last = err.strip().splitlines()[-1]
     assert "adc samples lost (gaps in their times)" in last and "--buffer" in last, err
-    assert 500 < int(last.split()[1]) <= 1300 - rows, err
+    lost = int(last.split()[1])
+    # pulled for 1.2 s from samples the hub batches every 0.5 s (--poll): at least 0.7 s
+    assert 700 - 10 <= lost + rows <= 1000 * ran + 10, (err, rows, ran)
+
+
+def test_subscribe_says_the_total_lost_at_the_end(server: HubServer) -> None:
+    """The total lost is said at the end even when a "so far" line already gave it (the
+    losses all came before the last reading): the last line was "lost so far"."""
+    code, out, err = finish(cli("subscribe", "adc", "--rate", "1000", "--buffer", "10",
+                                "--poll", "2", "--count", "10", "--format", "csv",
+                                "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+    assert code == 0 and len(out.splitlines()) == 11, err  # one full reading
+    said = err.strip().splitlines()
+    assert "so far" in said[0] and len(said) == 2, err
+    assert said[-1].startswith(said[0].split(" so far")[0]) and "so far" not in said[-1], err
 
 
 def test_poll_is_an_integer_in_hz_as_the_protocol_field_is(server: HubServer) -> None:

@@ -104,9 +104,11 @@ def test_many_clients_at_once(server: HubServer) -> None:
         try:
             with Hub.connect("127.0.0.1", server.port) as h:
                 h.subscribe("imu", 100) if i == 0 else h.subscribe("imu", 100, buffer=500)
-                got = wait_for(lambda: h.read("imu"), 20)
+                got = wait_for(lambda: h.read("imu"), 20, timeout=30)
                 counts[i] = sum(len(r) for r in got)
-                t = np.concatenate([r.t for r in got])
+                # the hub's times: Reading.t is on this client's clock through an offset
+                # that each pull may refine (by up to half a round trip, long under load)
+                t = np.concatenate([r.hub_t for r in got])
                 assert np.all(np.diff(t) > 0)
         except BaseException as exc:  # noqa: BLE001 - handed to the test thread
             errors.append(exc)
@@ -115,7 +117,7 @@ def test_many_clients_at_once(server: HubServer) -> None:
     for th in threads:
         th.start()
     for th in threads:
-        th.join(30)
+        th.join(60)
     assert not errors, errors[0]
     assert min(counts) >= 20
 
@@ -214,16 +216,15 @@ def test_samples_the_hub_dropped_for_a_small_buffer_are_counted(server: HubServe
     times, per reading and per sensor, the ones before the first sample included."""
     with Hub.connect("127.0.0.1", server.port) as h:
         h.subscribe("adc", 1000, buffer=10)
-        start = time.monotonic()
-        got = lost_in_readings = 0
+        readings = []
         for _ in range(3):
-            time.sleep(0.3)
-            r = h.read("adc")
-            got += len(r)
-            lost_in_readings += r.lost
-        span = time.monotonic() - start
-        assert got <= 30 and lost_in_readings == h.lost["adc"]
-        assert 0.7 * (span * 1000 - got) <= h.lost["adc"] <= span * 1000 + 50, (got, h.lost)
+            time.sleep(0.3)  # pulls far apart, so that the buffer of 10 overflows between them
+            readings.append(wait_for(lambda: h.read("adc"), 1)[0])
+        assert sum(len(r) for r in readings) <= 30
+        assert sum(r.lost for r in readings) == h.lost["adc"]
+        assert readings[0].lost > 100  # about 300 acquired before the first pull, 10 kept
+        for before, after in zip(readings[:-1], readings[1:], strict=True):  # gaps in hub times
+            assert after.lost == round((after.hub_t[0] - before.hub_t[-1]) * 1000) - 1 > 100
         h.subscribe("imu", 200)  # a buffer of 1 s, pulled often: nothing lost
         for _ in range(10):
             time.sleep(0.05)

@@ -163,7 +163,7 @@ def test_replay_trace_answers_like_amrisim(name: str, make_sim: MakeSim, connect
     # so that the vendor SDK shows "Battery=13.0V" rather than "Battery=100%"
     for sips in (our_sips, their_sips):
         assert {(s["battery_x10"], s["state_of_charge"]) for _, s in sips} == {(130, 0)}
-    assert sim.wait_until(lambda s: not s.session_open, 2.0).sessions == 1
+    assert sim.wait_until(lambda s: not s.session_open, 30).sessions == 1
 
     # deliberate: motors stay disabled until ENABLE 1 (AMRISim's first session had them on)
     enable = _command_times(trace, Command.ENABLE, 1)
@@ -254,7 +254,7 @@ def test_half_open_handshake_times_out(
     client = connect(sim)
     client.send_raw(arcos.frame(b"\x00") + arcos.frame(b"\x01"))
     client.expect(1)
-    sim.wait_until(lambda s: s.sync_state == 0, 2.0)
+    sim.wait_until(lambda s: s.sync_state == 0, 30)
     client.send_raw(arcos.frame(b"\x02"))  # too late: out of order now
     assert client.drain() == []
 
@@ -289,7 +289,7 @@ def test_close_then_resync_on_same_connection(make_sim: MakeSim, connect: Connec
     client.send_raw(arcos.frame(b"\x00"))  # SYNC0 in session = PULSE: only SIPs come back
     client.sip()
     client.send(Command.CLOSE, 1)
-    sim.wait_until(lambda s: not s.session_open, 2.0)
+    sim.wait_until(lambda s: not s.session_open, 30)
     after = client.collect(0.3)
     assert sum(1 for p in after if p[0] == PacketType.SIP) <= 1
     client.open_session()
@@ -322,9 +322,9 @@ def test_disconnect_ends_session_and_port_is_reused(make_sim: MakeSim, connect: 
     first = connect(sim)
     first.open_session(enable=True)
     first.send(Command.VEL, 400)
-    sim.wait_until(lambda s: s.odom_x > 0.05, 5.0)
+    sim.wait_until(lambda s: s.odom_x > 0.05, 30)
     first.close()
-    state = sim.wait_until(lambda s: not s.session_open, 2.0)
+    state = sim.wait_until(lambda s: not s.session_open, 30)
     assert not state.motors_enabled and state.trans_vel == 0.0
     second = connect(sim)
     second.open_session()
@@ -346,7 +346,7 @@ def test_motors_disabled_until_enable(make_sim: MakeSim, connect: Connect) -> No
     assert sim.snapshot().x == 0.0
     client.send(Command.ENABLE, 1)
     client.send(Command.VEL, 300)
-    sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.3), 5.0)
+    sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.3), 30)
     assert client.latest_sip()["flags"] & arcos.FLAG_MOTORS_ON
 
 
@@ -356,8 +356,8 @@ def test_vel_rvel_and_stop(make_sim: MakeSim, connect: Connect) -> None:
     client.open_session(enable=True)
     client.send(Command.VEL, -200)
     client.send(Command.RVEL, 20)
-    s = sim.wait_until(lambda s: s.rot_vel == pytest.approx(math.radians(20)), 5.0)
-    s = sim.wait_until(lambda s: s.trans_vel == pytest.approx(-0.2), 5.0)
+    s = sim.wait_until(lambda s: s.rot_vel == pytest.approx(math.radians(20)), 30)
+    s = sim.wait_until(lambda s: s.trans_vel == pytest.approx(-0.2), 30)
     sip = client.latest_sip()
     assert sip["rotvel"] == 200
     assert sip["lvel"] + sip["rvel"] == pytest.approx(-400, abs=2)
@@ -366,7 +366,7 @@ def test_vel_rvel_and_stop(make_sim: MakeSim, connect: Connect) -> None:
     time.sleep(0.05)
     assert sim.snapshot().trans_vel == pytest.approx(-0.2)
     client.send(Command.STOP)
-    s = sim.wait_until(lambda s: s.trans_vel == 0 and s.rot_vel == 0, 5.0)
+    s = sim.wait_until(lambda s: s.trans_vel == 0 and s.rot_vel == 0, 30)
     assert s.x < -0.05 and s.th > 0.1
     assert (s.odom_x, s.odom_th) == pytest.approx((s.x, s.th))
 
@@ -376,7 +376,7 @@ def test_vel2_drives_each_wheel(make_sim: MakeSim, connect: Connect) -> None:
     client = connect(sim)
     client.open_session(enable=True)
     client.send_raw(arcos.encode_two_bytes(Command.VEL2, 10, -5))  # left 200, right -100 mm/s
-    s = sim.wait_until(lambda s: abs(s.left_mm_s - 200) < 1 and abs(s.right_mm_s + 100) < 1, 5)
+    s = sim.wait_until(lambda s: abs(s.left_mm_s - 200) < 1 and abs(s.right_mm_s + 100) < 1, 30)
     assert s.trans_vel == pytest.approx(0.05) and s.rot_vel < 0
     sip = client.latest_sip()
     assert (sip["lvel"], sip["rvel"]) == (200, -100)
@@ -388,7 +388,7 @@ def test_move_goes_the_distance(make_sim: MakeSim, connect: Connect) -> None:
     client.open_session(enable=True)
     client.send(Command.SETV, 400)
     client.send(Command.MOVE, 1000)
-    sim.wait_until(lambda s: s.trans_vel > 0.3, 5.0)
+    sim.wait_until(lambda s: s.trans_vel > 0.3, 30)
     assert sim.snapshot().trans_vel <= 0.4 + 1e-9  # MOVE runs at the SETV speed
     s = sim.wait_until(lambda s: s.trans_vel == 0.0 and s.x > 0.5, 10.0)
     time.sleep(0.1)
@@ -416,11 +416,11 @@ def test_accel_limits_and_estop(make_sim: MakeSim, connect: Connect) -> None:
     speeds = [s["lvel"] for s in client.sips(4)]
     steps = {b - a for a, b in zip(speeds, speeds[1:], strict=False)}
     assert steps <= {0, 30}  # 300 mm/s^2 at 100 ms per SIP
-    sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.6), 5.0)
+    sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.6), 30)
     client.send(Command.ESTOP)
     sip = client.latest_sip()
     assert sip["flags"] & arcos.FLAG_ESTOP or sip["lvel"] == 0
-    s = sim.wait_until(lambda s: s.trans_vel == 0.0, 2.0)
+    s = sim.wait_until(lambda s: s.trans_vel == 0.0, 30)
     assert not s.estop and s.motors_enabled
 
 
@@ -436,7 +436,7 @@ def test_odometry_wraps_15_bits_over_a_long_drive(make_sim: MakeSim, connect: Co
         xs.append(client.sip()["x"])
     client.send(Command.VEL, 0)
     xs += [s["x"] for s in client.sips(30)]
-    sim.wait_until(lambda s: s.trans_vel == 0.0, 5.0)
+    sim.wait_until(lambda s: s.trans_vel == 0.0, 30)
     time.sleep(0.05)
     xs += [arcos.decode_sip(p[1:])["x"] for p in client.flush() if p[0] == PacketType.SIP]
     assert min(xs) < 1000 < 32000 < max(xs)  # it did wrap
@@ -460,7 +460,7 @@ def test_garbage_and_bad_checksums_are_skipped(make_sim: MakeSim, connect: Conne
     # behind it is found again after the 100 ms inter-byte timeout
     client.send_raw(b"\x00\xfa\x12junk" + bytes(bad) + b"\xfa\xfb\xff")
     client.send_raw(arcos.encode_command(Command.VEL, 200))
-    s = sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.2), 5.0)
+    s = sim.wait_until(lambda s: s.trans_vel == pytest.approx(0.2), 30)
     assert s.trans_vel_set == pytest.approx(0.2)
     assert s.bad_checksums == 1 and s.dropped_bytes >= 5 + 10
     assert s.commands["VEL"] == 1
@@ -471,11 +471,11 @@ def test_watchdog_stops_then_resumes(make_sim: MakeSim, connect: Connect) -> Non
     client = connect(sim)
     client.open_session(enable=True)
     client.send(Command.VEL, 300)
-    sim.wait_until(lambda s: s.trans_vel > 0.1, 5.0)
-    s = sim.wait_until(lambda s: s.watchdog_trips == 1 and s.trans_vel == 0.0, 5.0)
+    sim.wait_until(lambda s: s.trans_vel > 0.1, 30)
+    s = sim.wait_until(lambda s: s.watchdog_trips == 1 and s.trans_vel == 0.0, 30)
     assert s.session_open and s.motors_enabled
     client.send(Command.VEL, 300)
-    s = sim.wait_until(lambda s: s.trans_vel > 0.1, 5.0)
+    s = sim.wait_until(lambda s: s.trans_vel > 0.1, 30)
     assert s.watchdog_trips == 1
     for _ in range(8):  # a live client (pulsing) never trips it
         client.send(Command.PULSE)
@@ -511,7 +511,7 @@ def test_collision_sets_stall_and_bumpers(make_sim: MakeSim, connect: Connect) -
     assert sip["stall_bumpers"] & (arcos.STALL_LEFT | arcos.STALL_RIGHT)
     assert sip["stall_bumpers"] & 0x0800  # middle front bumper (bit 3 of the high byte)
     client.send(Command.VEL, -200)
-    s = sim.wait_until(lambda s: not s.stalled and s.bumpers == 0 and s.x < 0.7, 5.0)
+    s = sim.wait_until(lambda s: not s.stalled and s.bumpers == 0 and s.x < 0.7, 30)
     assert client.latest_sip()["stall_bumpers"] == 0
 
 
@@ -542,7 +542,7 @@ def test_encoder_io_and_battery_packets(make_sim: MakeSim, connect: Connect) -> 
     client.send(Command.DIGOUT, 0x0F00)  # mask 0x0F, values 0 -> low nibble cleared
     client.send(Command.ENCODER, 2)
     client.send(Command.VEL, 200)
-    sim.wait_until(lambda s: s.odom_x > 0.05, 5.0)
+    sim.wait_until(lambda s: s.odom_x > 0.05, 30)
     frames = client.collect(0.15)
     kinds = [p[0] for p in frames]
     assert PacketType.ENCODER in kinds and PacketType.BATTERY not in kinds
@@ -562,13 +562,13 @@ def test_say_battest_and_bumpstall(make_sim: MakeSim, connect: Connect) -> None:
     client.open_session()
     client.send(Command.SAY, bytes([5, 60, 10, 80]))
     client.send(Command.BATTEST, 118)
-    s = sim.wait_until(lambda s: s.battery_volts == pytest.approx(11.8), 2.0)
+    s = sim.wait_until(lambda s: s.battery_volts == pytest.approx(11.8), 30)
     assert s.last_say == ((100, 60), (200, 80))
     assert s.state_of_charge == pytest.approx(40.0)
     sip = client.latest_sip()
     assert (sip["battery"], sip["battery_x10"], sip["state_of_charge"]) == (118, 118, 40)
     client.send(Command.BATTEST, 0)
-    sim.wait_until(lambda s: s.battery_volts > 12.9, 2.0)
+    sim.wait_until(lambda s: s.battery_volts > 12.9, 30)
 
 
 def test_sim_set_pose_and_reset(make_sim: MakeSim, connect: Connect) -> None:
@@ -576,13 +576,13 @@ def test_sim_set_pose_and_reset(make_sim: MakeSim, connect: Connect) -> None:
     client = connect(sim)
     client.open_session()
     client.send_raw(arcos.encode_sim_pose(1500, -2500, 90))
-    s = sim.wait_until(lambda s: s.x == pytest.approx(1.5), 2.0)
+    s = sim.wait_until(lambda s: s.x == pytest.approx(1.5), 30)
     assert (s.y, s.th) == pytest.approx((-2.5, math.pi / 2))
     assert (s.odom_x, s.odom_y, s.odom_th) == (0.0, 0.0, 0.0)  # odometry unchanged
     sim.set_pose(0.5, 0.5, 0.0)
     assert sim.snapshot().x == 0.5
     client.send(Command.SIM_RESET)
-    s = sim.wait_until(lambda s: s.x == 0.0 and s.y == 0.0, 2.0)
+    s = sim.wait_until(lambda s: s.x == 0.0 and s.y == 0.0, 30)
 
 
 def test_unknown_commands_are_ignored(make_sim: MakeSim, connect: Connect) -> None:
@@ -615,7 +615,7 @@ def test_pty_handshake_sips_and_reconnect(open_pty: Callable[[str], RawClient]) 
         replies = client.collect(0.15)
         assert replies and {p[0] for p in replies} == {PacketType.SIP}
         client.send(Command.CLOSE, 1)
-        sim.wait_until(lambda s: not s.session_open, 2.0)
+        sim.wait_until(lambda s: not s.session_open, 30)
         client.collect(0.1)
         assert len(client.handshake()) == 3
         client.send(Command.OPEN, 1)
@@ -640,7 +640,7 @@ def test_serve_many_independent_robots(connect: Connect) -> None:
         a.open_session(enable=True)
         b.open_session()
         a.send(Command.VEL, 300)
-        sims[0].wait_until(lambda s: s.x > 0.05, 5.0)
+        sims[0].wait_until(lambda s: s.x > 0.05, 30)
         assert sims[1].snapshot().x == 0.0 and sims[1].snapshot().commands["VEL"] == 0
     finally:
         for s in sims:

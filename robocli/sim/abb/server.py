@@ -56,7 +56,7 @@ __all__ = ["PROFILES", "AbbSim", "ArmSimState", "ControllerModel"]
 log = logging.getLogger("robocli.sim.abb.server")
 
 SEND_TIMEOUT_S = 2.0
-MAX_CATCH_UP_S = 5.0  #: exact mode sends samples this many wall seconds late; older are skipped
+MAX_CATCH_UP_S = 5.0  #: exact and jitter modes send states this late (wall s); older are skipped
 MAX_BURST = 5000  #: and at most this many at once
 BYTE_TIMEOUT_S = 0.5
 
@@ -210,9 +210,11 @@ class AbbSim:
         """State messages on absolute deadlines ``k * period``. Exact mode: each sample is
         taken at its nominal instant, missed ones are sent late rather than skipped (up to
         :data:`MAX_CATCH_UP_S` late), and with ``feedback`` the instants a motion starts and
-        ends are reported too. Otherwise a sample is taken when sent, and a late publisher
-        skips the missed ones; with the model's period jitter each period is drawn afresh
-        (:meth:`ControllerModel.state_period_ms`) from the previous deadline."""
+        ends are reported too. With the model's period jitter each period is drawn afresh
+        (:meth:`ControllerModel.state_period_ms`) from the previous deadline, and each sample
+        is taken at its deadline; missed ones are sent late, as in exact mode, so that the
+        stamps follow the model however loaded the host is. Otherwise a sample is taken when
+        sent, and a late publisher skips the missed ones."""
         period = self.state_ms / 1000.0  # simulated s
         wall = period / self.time_scale
         k = int(self.sim_time() / period) + 1
@@ -233,14 +235,19 @@ class AbbSim:
                     times = self._with_events(last_t, times)
                 k = max(k, now_k) + 1
                 due = self._t0 + k * wall
+            elif renewal:  # every deadline passed, sampled at its instant, the next from it
+                due = max(due, now - MAX_CATCH_UP_S)
+                times = []
+                while due <= now and len(times) < MAX_BURST:
+                    times.append((due - self._t0) * self.time_scale)
+                    drawn = self.ctl_model.state_period_ms(self._rng, self.state_ms)
+                    due += drawn / 1000.0 / self.time_scale
+                if not times:
+                    continue
             else:
                 times = [self.sim_time()]
-                if renewal:  # from the last deadline, or from now after a stall
-                    drawn = self.ctl_model.state_period_ms(self._rng, self.state_ms)
-                    due = max(due, now - wall) + drawn / 1000.0 / self.time_scale
-                else:
-                    k = max(k, now_k) + 1 if now_k > k else k + 1
-                    due = self._t0 + k * wall
+                k = max(k, now_k) + 1 if now_k > k else k + 1
+                due = self._t0 + k * wall
             last_t = times[-1]
             links: list[Link] = self._state.links() if self._state else []
             if not links:
@@ -256,8 +263,9 @@ class AbbSim:
             events = self.controller.executor.events()
         wire = np.float32 if self.controller.real == 4 else np.float64
         seen = {wire(t) for t in times}
+        last = times[-1]  # not the events appended below: a late batch may span several
         for e in sorted(set(events)):
-            if after < e < times[-1] and wire(e) not in seen:
+            if after < e < last and wire(e) not in seen:
                 seen.add(wire(e))
                 times.append(e)
         return sorted(times)
