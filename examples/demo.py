@@ -3,7 +3,7 @@
 Starts a simulated P3-DX (ARCOS over TCP on a free loopback port, 5x faster than real time),
 then: the CLI's one-shot status, a square driven from Python, the wander example, a packet
 dump and the round-trip benchmark with its C floor; then an IRB120 circle uploaded to the
-embedded ABB simulator, monitored and validated (the delay it reports is the download
+embedded ABB simulator, monitored and validated (the time shift it reports is the download
 time); then a simulated sensor hub with two concurrent `robocli subscribe` clients and a
 summary read from Python. Takes about 40 s.
 """
@@ -58,10 +58,10 @@ def explain_delay(sim_log: str, real_log: str) -> None:
     from robocli.kinematics.validate import validate
 
     delay_ms = validate(read_log(sim_log), read_log(real_log)).delay_s * 1e3
-    print(f"the delay, {delay_ms:.0f} ms, is the download: `upload --monitor` starts recording,\n"
-          "then sends the 100 points, one round trip each, and the controller starts the\n"
-          "circle when the last one (-3) is acknowledged. The simulator adds no lag of its\n"
-          "own; a loaded machine makes the download, and so the delay, longer.")
+    print(f"the time shift, {delay_ms:.0f} ms, is the download: `upload --monitor` starts\n"
+          "recording, then sends the 100 points, one round trip each, and the controller\n"
+          "starts the circle when the last one (-3) is acknowledged. The simulator adds no\n"
+          "lag of its own; a loaded machine makes the download, and so the shift, longer.")
 
 
 def sensor_hub() -> int:
