@@ -474,7 +474,7 @@ class Pioneer(SimulatorFeatures):
         and follows the robot's counters again once it has applied the reset."""
         self.send_command(Command.SETO)
         with self._session.cond:
-            self._odo.expect_reset()
+            self._odo.expect_reset(time.monotonic())
 
     def set_digital_out(self, mask: int, values: int) -> None:
         """Change the user digital outputs selected by ``mask`` to ``values``."""
@@ -606,7 +606,7 @@ class Pioneer(SimulatorFeatures):
                 if number < n_sonar:
                     sonar[number] = rng * conv
                     sonar_t[number] = now
-            self._sip = (body, now, self._odo.update(x, y))
+            self._sip = (body, now, self._odo.update(x, y, now))
             self.stats.sips += 1
             self.stats.sip_times.append(now)
             self._state = None
