@@ -261,6 +261,10 @@ def test_a_recording_counts_from_its_start(make_sim, make_arm, tmp_path) -> None
     assert measured.time[0] == 0.0 and measured.origin is not None
     assert here.t < measured.origin < here.t + 60
     result = validate(planned, measured, IRB)
-    assert 0.0 <= result.delay_s < 1.0 and abs(result.start_delay_s - result.delay_s) < 1e-9
+    # within the recording (the clock's reading would be its uptime), give or take the few
+    # state periods by which receive times blur the alignment; how long the download took
+    # (most of the delay) is up to the machine
+    assert -0.05 < result.delay_s < measured.time[-1] - planned.time[-1] + 0.05
+    assert abs(result.start_delay_s - result.delay_s) < 1e-9
     write_log(measured, tmp_path / "real.json")
     assert read_log(tmp_path / "real.json").origin == measured.origin

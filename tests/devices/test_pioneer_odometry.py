@@ -59,6 +59,24 @@ def test_counters_at_open_are_read_as_signed(raw_x: int) -> None:
     assert x == _signed(raw_x) and abs(x) < 0x4000
 
 
+def test_a_reset_read_behind_many_old_sips_still_reads_zero() -> None:
+    """A loaded client reads, after its SETO, SIPs that the robot sent before it: the reset
+    was looked for in the next 4 SIPs only, so behind a fifth old one it read as a jump back
+    over the whole distance (+0.195 m after reversing 0.195 m, on a loaded test run)."""
+    odo = Odometry()
+    old = 0x8000 - 402  # x = -402 units (-0.195 m)
+    odo.update(old, 0, now=10.0)
+    odo.expect_reset(now=10.0)
+    for _ in range(8):  # read in one burst, 10 ms after the SETO
+        assert odo.update(old, 0, now=10.01) == (0, 0)
+    assert odo.update(0, 0, now=10.02) == (0, 0)  # the robot's reset
+    assert odo.update(20, 0, now=10.03) == (20, 0)  # and its counters from there
+    odo.expect_reset(now=20.0)
+    for _ in range(8):  # a robot that never resets, long after: its deltas count again
+        odo.update(20, 0, now=25.0)
+    assert odo.update(5, 0, now=25.1) == (-15, 0)
+
+
 def test_reset_odometry_against_the_simulator(empty_sim: PioneerSim) -> None:
     assert empty_sim.url is not None
     with Pioneer.connect(empty_sim.url) as robot:

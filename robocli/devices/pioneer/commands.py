@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import logging
 import math
+import time
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
@@ -176,7 +177,7 @@ class Commands:
         and follows the robot's counters again once it has applied the reset."""
         self.send_command(Command.SETO)
         with self._session.cond:
-            self._odo.expect_reset()
+            self._odo.expect_reset(time.monotonic())
 
     def set_digital_out(self, mask: int, values: int) -> None:
         """Change the user digital outputs selected by ``mask`` to ``values``."""

@@ -88,7 +88,7 @@ class Decoding:
                 if number < n_sonar:
                     sonar[number] = rng * conv
                     sonar_t[number] = now
-            self._sip = (body, now, self._odo.update(x, y))
+            self._sip = (body, now, self._odo.update(x, y, now))
             self.stats.sips += 1
             self.stats.sip_times.append(now)
             self._state = None

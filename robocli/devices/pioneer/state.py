@@ -77,29 +77,36 @@ class Odometry:
       robot's own counters are re-read as absolute on the first of the next SIPs that shows
       them reset: a robot applies SETO on its next cycle or later (the vendor simulator shows
       it in the second SIP after the command), and until then its old counters still arrive.
+      With receive times, the window also stays open :data:`RESET_WINDOW_S` after the SETO:
+      a lagging client may read more than 4 SIPs that the robot sent before the SETO.
     """
 
     RESET_WINDOW = 4  #: SIPs in which the robot's reset is looked for
+    RESET_WINDOW_S = 1.0  #: and at least this long (s) after the SETO, given receive times
 
     def __init__(self) -> None:
         self.raw: tuple[int, int] | None = None
         self.x = 0
         self.y = 0
         self._reset_left = 0
+        self._reset_until = -math.inf
 
-    def expect_reset(self) -> None:
-        """A SETO went out: the position is (0, 0) from now on."""
+    def expect_reset(self, now: float | None = None) -> None:
+        """A SETO went out (at ``now``): the position is (0, 0) from now on."""
         self.x = self.y = 0
         self._reset_left = self.RESET_WINDOW
+        self._reset_until = -math.inf if now is None else now + self.RESET_WINDOW_S
 
-    def update(self, rx: int, ry: int) -> tuple[int, int]:
+    def update(self, rx: int, ry: int, now: float | None = None) -> tuple[int, int]:
+        """The position after a SIP with counters ``rx``, ``ry`` (received at ``now``)."""
         rx &= 0x7FFF
         ry &= 0x7FFF
+        waiting = self._reset_left > 0 or (now is not None and now < self._reset_until)
         if self.raw is None:
             self.x, self.y = _signed15(rx), _signed15(ry)
-        elif self._reset_left and self._looks_reset(rx, ry):
+        elif waiting and self._looks_reset(rx, ry):
             self.x, self.y = _signed15(rx), _signed15(ry)
-            self._reset_left = 0
+            self._reset_left, self._reset_until = 0, -math.inf
         else:
             self.x += _delta15(rx - self.raw[0])
             self.y += _delta15(ry - self.raw[1])

@@ -83,7 +83,7 @@ class PioneerDecoder:
         ptype = payload[0]
         if direction == "tx":
             if ptype == Command.SETO:
-                self.odo.expect_reset()
+                self.odo.expect_reset(ns / 1e9)
             return
         if ptype & 0xF0 != 0x30:
             return  # not a SIP
@@ -91,7 +91,7 @@ class PioneerDecoder:
 
     def _sip(self, body: bytes, ns: int) -> None:
         sip = decode_sip(body)
-        odo = self.odo.update(sip["x"], sip["y"])
+        odo = self.odo.update(sip["x"], sip["y"], ns / 1e9)
         conv = self.params.range_conv / 1000.0
         sonar = self.sonar
         for number, rng in sip["sonar"]:
