@@ -166,8 +166,8 @@ lint: $(STAMP)
 FUZZ_SECONDS ?= 60
 FUZZ_TIMEOUT ?= 10
 FUZZ_RSS_MB  ?= 2048
-FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat \
-                decode-arcos decode-simple_message decode-ros4mat \
+FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat framer-scip2 \
+                decode-arcos decode-simple_message decode-ros4mat decode-scip2 \
                 decode-hub-reply hub-server-requests capture-readers \
                 file-readers
 FUZZ_STAMP   := $(VENV)/.fuzz-installed

@@ -4,6 +4,9 @@ for random scans, encodings and cluster counts, and both reject the same corrupt
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -165,3 +168,30 @@ def test_both_reject_the_same_corruption(
         if kind == "many" and isinstance(want, type) and isinstance(got, type):
             continue  # several faults: both reject, each may name a different one first
         assert got == want, (kind, check)
+
+
+FUZZ_SEQUENCE = """
+import random, sys
+sys.path[:0] = ["fuzz", "tests"]
+import run
+one, seeds = run.load("decode-scip2")
+rnd = random.Random(1)
+for k in range(300):
+    s = rnd.choice(seeds)
+    cut = rnd.randint(0, len(s))
+    junk = bytes(rnd.randrange(256) for _ in range(rnd.randint(0, 64)))
+    one(s[:cut] + junk + s[cut:])
+print("ok")
+"""
+
+
+def test_decoder_survives_the_fuzz_sequence_that_crashed_it() -> None:
+    """The C decoder was once handed a memoryview slice through cffi: a kept decode error's
+    traceback cycle, when collected, cleared the memoryview while cffi still held its buffer
+    (BufferError, then a segfault at input 21 of this sequence). It now borrows the bytes."""
+    root = Path(__file__).resolve().parents[2]
+    run = subprocess.run(
+        [sys.executable, "-c", FUZZ_SEQUENCE], cwd=root, capture_output=True, text=True, timeout=300
+    )
+    assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
+    assert "BufferError" not in run.stderr

@@ -48,18 +48,27 @@ def decode_data(
     """``count`` values of ``width`` (2, 3, 4) chars from the data lines of a scan (the bytes
     after the timestamp line, without the final empty line), each line's sum checked unless
     ``check`` is False. Errors: :class:`ChecksumError`, :class:`FramingError`."""
+    data = bytes(lines)
+    return _decode(data, 0, len(data), width, count, check)
+
+
+def _decode(
+    data: bytes, start: int, stop: int, width: int, count: int, check: bool
+) -> npt.NDArray[np.uint32]:
+    """Decode ``data[start:stop]`` without copying it (cffi borrows the bytes' buffer)."""
     import numpy as np
 
-    if width not in (2, 3, 4) or count < 0:
-        raise ValueError("width must be 2, 3 or 4 and count >= 0")
+    if width not in (2, 3, 4) or count < 0 or not 0 <= start <= stop <= len(data):
+        raise ValueError("width must be 2, 3 or 4, count >= 0, and the span inside the data")
     out = np.empty(count, dtype=np.uint32)
     err_at = ffi.new("size_t *")
-    src = ffi.from_buffer("unsigned char[]", lines)
+    src = ffi.from_buffer("unsigned char[]", data)
     dst = ffi.from_buffer("unsigned int[]", out)
-    rc = lib.rc_scip_decode(src, len(src), width, 1 if check else 0, dst, count, err_at)
+    n = stop - start
+    rc = lib.rc_scip_decode(src + start, n, width, 1 if check else 0, dst, count, err_at)
     if rc != lib.RC_SCIP_OK:
         kind, what = _ERRORS.get(rc, (FramingError, f"error {rc}"))
-        raise kind(f"SCIP scan data: {what} (at byte {int(err_at[0])} of {len(src)})")
+        raise kind(f"SCIP scan data: {what} (at byte {int(err_at[0])} of {n})")
     return out
 
 
@@ -80,7 +89,7 @@ def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> Sc
         raise FramingError(f"SCIP reply {data[:40]!r}: no data lines: truncated block")
     reply, echo, ts = scan_header(data[: i3 + 1] + b"\n", check)
     per_step = 2 if echo.intensity else 1
-    values = decode_data(memoryview(data)[i3 + 1 : end], echo.width, echo.count * per_step, check)
+    values = _decode(data, i3 + 1, end, echo.width, echo.count * per_step, check)
     if per_step == 2:
         ranges, intensities = values[::2].copy(), values[1::2].copy()
     else:

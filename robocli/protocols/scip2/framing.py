@@ -21,6 +21,7 @@ The rules (both implementations):
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from robocli.protocols.scip2.wire import MAX_BLOCK, MAX_ECHO, MAX_LINE, checksum
@@ -36,8 +37,7 @@ class ReplyFramerStats:
     bad_lengths: int
 
 
-def _printable(c: int) -> bool:
-    return 0x20 <= c <= 0x7E
+_EVENT = re.compile(rb"[^\x20-\x7e]")  # an LF, a CR, or garbage: where a line scan stops
 
 
 class _Wait(Exception):
@@ -83,27 +83,29 @@ class ReplyFramer:
 
     def _line(self, at: int, limit: int) -> tuple[int, int]:
         """(content end, next line start) of the line at ``at``: raises _Wait when its LF has
-        not arrived within ``limit`` chars; returns content end -1 - k for a garbage byte at k
-        (k >= at), and -1 for a line longer than ``limit``."""
+        not arrived within ``limit`` chars; returns content end -2 - k for a garbage byte at
+        k (k >= at), and -1 for a line longer than ``limit``. Scanning stops at the first LF
+        or non-printable byte (found by a regex), as the C framer's byte loop does."""
         buf = self._buf
-        i = at
         n = len(buf)
-        while True:
-            if i >= n:
-                if i - at > limit:
-                    return -1, i
+        over = at + limit + 1  # a printable char here makes the line too long
+        m = _EVENT.search(buf, at, over + 1)
+        pos = m.start() if m is not None else n
+        if pos > over:
+            return -1, over
+        if pos >= n:
+            if n >= over:
+                return -1, over
+            raise _Wait
+        c = buf[pos]
+        if c == 0x0A:
+            return (-1, pos + 1) if pos - at > limit else (pos, pos + 1)
+        if c == 0x0D:
+            if pos + 1 >= n:
                 raise _Wait
-            c = buf[i]
-            if c == 0x0A:
-                end = i - 1 if i > at and buf[i - 1] == 0x0D else i
-                return (end, i + 1) if end - at <= limit else (-1, i + 1)
-            if not _printable(c) and not (c == 0x0D and i + 1 < n and buf[i + 1] == 0x0A):
-                if c == 0x0D and i + 1 >= n:
-                    raise _Wait
-                return -2 - i, i + 1
-            if i - at > limit:
-                return -1, i
-            i += 1
+            if buf[pos + 1] == 0x0A:
+                return (-1, pos) if pos - at > limit else (pos, pos + 2)
+        return -2 - pos, pos + 1
 
     def _next(self) -> bytes | None:
         buf = self._buf
