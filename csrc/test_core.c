@@ -565,6 +565,76 @@ static void test_scip_vectors(const vecset *vs)
     CHECK(nscan > 0, "scip scan vectors found (G8, G11, G12, G13 in specs/)");
 }
 
+/* Random corruption of the scan vectors, in exact-size heap buffers (so that ASan sees any
+ * read or write past them): 1-3 bytes replaced (LF, CR and garbage likely), or the region
+ * cut short. The decoder must return a code and stay inside its buffers; the framer, fed the
+ * whole mutated reply in random chunks, must keep its counters consistent. */
+static void test_scip_mutations(const vecset *vs)
+{
+    static const unsigned char picks[] = {'\n', '\r', '0', 'o', 'p', 0x00, 0xFF, ';', ' '};
+    size_t i, trial, runs = 0;
+
+    for (i = 0; i < vs->n; i++) {
+        const unsigned char *v = vs->data[i];
+        size_t n = vs->len[i], at, count;
+        long start, end;
+
+        if (n < 16 || !(v[0] == 'G' || v[0] == 'M') || !(v[1] == 'D' || v[1] == 'E')) {
+            continue;
+        }
+        at = scip_after_lf(v, n, 3);
+        if (at == 0 || at >= n) {
+            continue;
+        }
+        start = scip_digits(v + 2, 4);
+        end = scip_digits(v + 6, 4);
+        count = (size_t)(end - start + 1) * (v[1] == 'E' ? 2u : 1u);
+        for (trial = 0; trial < 3000; trial++) {
+            size_t len = n - at - 1, k, err_at = 0, off = 0, flen;
+            unsigned char *region = (unsigned char *)malloc(len);
+            unsigned int *out = (unsigned int *)malloc(count * sizeof(unsigned int));
+            unsigned char *whole = (unsigned char *)malloc(n);
+            rc_framer *f = rc_framer_new(RC_PROTO_SCIP2, 0);
+            rc_framer_stats st;
+            const unsigned char *fr;
+            int rc, nmut = 1 + (int)(rnd() % 3);
+
+            memcpy(region, v + at, len);
+            for (k = 0; k < (size_t)nmut; k++) {
+                size_t pos = rnd() % len;
+                region[pos] = rnd() % 2 ? picks[rnd() % sizeof(picks)] : (unsigned char)rnd();
+            }
+            if (trial % 5 == 0) {
+                len = rnd() % len; /* cut short */
+            }
+            rc = rc_scip_decode(region, len, 3, (int)(trial % 2), out, count, &err_at);
+            CHECK(rc >= RC_SCIP_OK && rc <= RC_SCIP_ECHAR && err_at <= len, "scip mutation code");
+            memcpy(whole, v, at);
+            memcpy(whole + at, region, n - at - 1 < len ? n - at - 1 : len);
+            flen = at + (n - at - 1 < len ? n - at - 1 : len);
+            while (off < flen) {
+                size_t chunk = 1 + rnd() % 97;
+                if (chunk > flen - off) {
+                    chunk = flen - off;
+                }
+                rc_framer_feed(f, whole + off, chunk);
+                off += chunk;
+                while (rc_framer_next(f, &fr, &k)) {
+                    CHECK(k >= 6 && fr[k - 1] == '\n', "scip mutated frame ends in LF");
+                }
+            }
+            rc_framer_get_stats(f, &st);
+            CHECK(st.dropped_bytes + rc_framer_pending(f) <= flen, "scip mutated stream counts");
+            rc_framer_free(f);
+            free(whole);
+            free(out);
+            free(region);
+            runs++;
+        }
+    }
+    CHECK(runs > 0, "scip mutations ran");
+}
+
 /* SCIP framer units: resync after garbage lines, a bad status sum, CR LF, max_frame. */
 static void test_scip_framer(void)
 {
@@ -656,6 +726,7 @@ static void test_spec_vectors(const char *dir)
         CHECK(sets[proto].n > 0, "golden vectors for every framer");
     }
     test_scip_vectors(&sets[RC_PROTO_SCIP2]);
+    test_scip_mutations(&sets[RC_PROTO_SCIP2]);
     for (proto = 1; proto <= 5; proto++) {
         for (i = 0; i < sets[proto].n; i++) {
             sprintf(name, "spec vector proto %d #%lu", proto, (unsigned long)i);
