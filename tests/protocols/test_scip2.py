@@ -352,3 +352,14 @@ def test_framer_bounds_a_runaway_block() -> None:
     f.feed((b"0" * 64 + b"0\n") * 10)
     assert f.pending <= 256 + 66 and f.stats.bad_lengths >= 1
     assert f.feed(G8) == [G8]
+
+
+def test_scan_echo_fields() -> None:
+    echo = scip2.parse_scan_echo(bytearray(b"MS0010002003110;t1"))
+    assert (echo.command, echo.start, echo.end, echo.cluster) == ("MS", 10, 20, 3)
+    assert (echo.interval, echo.remaining, echo.tag) == (1, 10, "t1")
+    assert (echo.count, echo.width, echo.intensity) == (4, 2, False)
+    assert scip2.parse_scan_echo(b"GE0000000000").count == 1  # cluster 00 means 1
+    for bad in (b"VV", b"GD00440725", b"GD0725004401"):
+        with pytest.raises(ProtocolError):
+            scip2.parse_scan_echo(bad)

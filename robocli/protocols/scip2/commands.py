@@ -179,10 +179,14 @@ class ScanEcho:
         return self.command[1] == "E"
 
 
-@functools.lru_cache(maxsize=256)
-def parse_scan_echo(echo: bytes) -> ScanEcho:
+def parse_scan_echo(echo: bytes | bytearray | memoryview) -> ScanEcho:
     """The fields of a scan reply's echo line; anything else is a :class:`ProtocolError`.
     Cached: a stream repeats the same few echoes every frame."""
+    return _parse_scan_echo(bytes(echo))
+
+
+@functools.lru_cache(maxsize=256)
+def _parse_scan_echo(echo: bytes) -> ScanEcho:
     req = parse_request(echo)
     if req.command not in SCAN_COMMANDS or req.error is not None:
         raise ProtocolError(f"SCIP echo {echo[:40]!r} is not a scan command")
