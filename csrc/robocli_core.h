@@ -2,7 +2,8 @@
  * robocli C core: the hot paths only (checksums, framers, multi-reader ring buffer,
  * timestamp alignment, loopback ping-pong floor). C89, no field meanings.
  *
- * Reached from Python only through robocli/core.py (cffi, API mode).
+ * Reached from Python only through robocli/core.py and, for SCIP scans,
+ * robocli/protocols/scip2/fast.py (cffi, API mode).
  * Counters are unsigned long (64-bit on LP64; differences are taken modulo 2^N so a
  * wrap of the 32-bit Windows type is harmless as long as fewer than 2^32 are pending).
  */

@@ -1,6 +1,6 @@
 """Typed wrapper of the C core (``robocli._core``, built by cffi from ``csrc/``).
 
-This is the only module that imports the compiled extension. It offers:
+Only this module and ``robocli.protocols.scip2.fast`` import the extension. This one offers:
 
 * :func:`arcos_checksum` and :class:`Framer` -- find frames of ARCOS, Simple Message
   (little/big-endian length prefix), ros4mat and SCIP 2.0 in any chunking of a byte stream,
