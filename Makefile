@@ -9,7 +9,7 @@ DEMO_STAMP := $(VENV)/.installed-demo
 STAMP  := $(VENV)/.installed
 CC     ?= gcc
 CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
-CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
+CSRC   := csrc/checksum.c csrc/scip.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
 .PHONY: venv demo test test-load test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
@@ -166,8 +166,8 @@ lint: $(STAMP)
 FUZZ_SECONDS ?= 60
 FUZZ_TIMEOUT ?= 10
 FUZZ_RSS_MB  ?= 2048
-FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat \
-                decode-arcos decode-simple_message decode-ros4mat \
+FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat framer-scip2 \
+                decode-arcos decode-simple_message decode-ros4mat decode-scip2 \
                 decode-hub-reply hub-server-requests capture-readers \
                 file-readers
 FUZZ_STAMP   := $(VENV)/.fuzz-installed

@@ -1,4 +1,4 @@
-"""Fuzz harnesses of the Python decoders (ARCOS, Simple Message, ros4mat).
+"""Fuzz harnesses of the Python decoders (ARCOS, Simple Message, ros4mat, SCIP 2.0).
 
 Every public decoder gets the input; it must return or raise a
 :class:`robocli.errors.RobocliError`. Any other exception is a finding (fix the decoder).
@@ -13,9 +13,10 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli.errors import RobocliError
-from robocli.protocols import arcos
+from robocli.protocols import arcos, scip2
 from robocli.protocols import ros4mat as r4m
 from robocli.protocols import simple_message as sm
+from robocli.protocols.scip2 import fast as scip2_fast
 
 SM_COMBOS: list[tuple[sm.ByteOrder, sm.RealSize]] = [("<", 4), (">", 4), ("<", 8), (">", 8)]
 
@@ -78,10 +79,43 @@ def fuzz_ros4mat(data: bytes) -> None:
         _call(r4m.inflate, bytes(frame), opt * 16)
 
 
+def _scan_outcome(decode: Callable[..., scip2.Scan], block: bytes, check: bool) -> Any:
+    try:
+        scan = decode(block, check)
+    except RobocliError as exc:
+        return exc
+    ints = None if scan.intensities is None else scan.intensities.tolist()
+    return (scan.echo, scan.timestamp, scan.remaining, scan.ranges.tolist(), ints)
+
+
+def fuzz_scip2(data: bytes) -> None:
+    """Option byte (bit 0: checks off), then a reply block: the C scan decoder and the
+    pure-Python one agree (same scan, or both refuse), and every SCIP parser returns or
+    raises a robocli error."""
+    if not data:
+        return
+    check, block = not data[0] & 1, data[1:]
+    want = _scan_outcome(scip2.decode_scan, block, check)
+    got = _scan_outcome(scip2_fast.decode_scan, block, check)
+    if isinstance(want, Exception) or isinstance(got, Exception):
+        assert isinstance(want, Exception) and isinstance(got, Exception), (block, want, got)
+    else:
+        assert want == got, block
+    _call(scip2.parse_request, block)
+    _call(scip2.parse_scan_echo, block[:40])
+    try:
+        reply = scip2.parse_reply(block, check)
+    except RobocliError:
+        return
+    _call(scip2.parse_info, reply.body, check)
+    _call(reply.raise_for_status)
+
+
 TARGETS: dict[str, tuple[Callable[[bytes], None], tuple[str, ...]]] = {
     "decode-arcos": (fuzz_arcos, ("arcos",)),
     "decode-simple_message": (fuzz_simple_message, ("sm-le", "sm-be")),
     "decode-ros4mat": (fuzz_ros4mat, ("ros4mat",)),
+    "decode-scip2": (fuzz_scip2, ("scip2",)),
 }
 
 

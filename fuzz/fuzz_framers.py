@@ -13,6 +13,7 @@ from collections.abc import Callable
 import reference
 
 from robocli.core import Framer
+from robocli.protocols import scip2
 
 #: harness name -> (framer protocol, golden-vector kinds seeding it)
 TARGETS = {
@@ -20,6 +21,7 @@ TARGETS = {
     "framer-sm-le": ("sm-le", ("sm-le",)),
     "framer-sm-be": ("sm-be", ("sm-be",)),
     "framer-ros4mat": ("ros4mat", ("ros4mat",)),
+    "framer-scip2": ("scip2", ("scip2",)),
 }
 
 
@@ -39,6 +41,12 @@ def check_frame(protocol: str, frame: bytes) -> None:
         assert frame[:2] == b"\xfa\xfb" and frame[2] + 3 == len(frame), frame.hex()
         body = frame[3:-2]
         assert reference.arcos_checksum(body) == int.from_bytes(frame[-2:], "big"), frame.hex()
+    elif protocol == "scip2":  # echo, a 1-char or summed 3-char status, ..., empty line
+        lines = frame.replace(b"\r\n", b"\n").split(b"\n")
+        assert len(lines) >= 4 and lines[-2:] == [b"", b""] and b"" not in lines[:-2], frame
+        assert all(0x20 <= c <= 0x7E for c in b"".join(lines)), frame
+        status = lines[1]
+        assert len(status) == 1 or (len(status) == 3 and status[2] == scip2.checksum(status[:2]))
     elif protocol in ("sm-le", "sm-be"):
         length = int.from_bytes(frame[:4], "little" if protocol == "sm-le" else "big", signed=True)
         assert length + 4 == len(frame), frame.hex()

@@ -1,9 +1,11 @@
 """Run one fuzz harness with atheris: ``python fuzz/run.py TARGET [libFuzzer options]``.
 
-Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat`` (the C
-framers against the reference framer), ``decode-arcos``, ``decode-simple_message``,
-``decode-ros4mat`` (the Python protocol decoders), ``decode-hub-reply`` (the hub client's
-whole receive path: framing, inflation, records, JPEG frames, clock mapping),
+Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat``,
+``framer-scip2`` (the C framers against the reference framer), ``decode-arcos``,
+``decode-simple_message``, ``decode-ros4mat`` (the Python protocol decoders),
+``decode-scip2`` (the C scan decoder against the pure-Python one, and the SCIP parsers),
+``decode-hub-reply`` (the hub client's whole receive path: framing, inflation, records, JPEG
+frames, clock mapping),
 ``hub-server-requests`` (a hub server session fed one client's bytes, in-process),
 ``capture-readers`` (``.jsonl`` and raw capture files) and ``file-readers`` (trajectory logs,
 waypoints, robot models). ``list`` prints them. Example::
@@ -28,9 +30,11 @@ NAMES = (
     "framer-sm-le",
     "framer-sm-be",
     "framer-ros4mat",
+    "framer-scip2",
     "decode-arcos",
     "decode-simple_message",
     "decode-ros4mat",
+    "decode-scip2",
     "decode-hub-reply",
     "hub-server-requests",
     "capture-readers",
