@@ -133,3 +133,59 @@ def test_a_port_in_use_is_one_line(tmp_path: Path) -> None:
         assert "live view" in one_line_error(proc, 3)
     bad = run("record", "--pioneer", "sim", "--foxglove", "70000", "-o", str(tmp_path / "y.mcap"))
     assert bad.returncode == 2
+
+
+def _live_url(line: str) -> str:
+    found = re.search(r"live view on (ws://127\.0\.0\.1:\d+)", line)
+    assert found, line
+    return found[1]
+
+
+@pytest.mark.parametrize(
+    ("argv", "topic", "schema"),
+    [
+        (["connect", "pioneer", "sim", "--json"], "/pioneer/pose", "foxglove.PoseInFrame"),
+        (["connect", "arm", "sim", "--json"], "/arm/tf", "foxglove.FrameTransforms"),
+    ],
+)
+def test_connect_foxglove(argv: list[str], topic: str, schema: str) -> None:
+    with running(*argv, "--foxglove", "0") as proc:
+        assert proc.stderr is not None and proc.stdout is not None
+        with FoxgloveClient(_live_url(proc.stderr.readline())) as client:
+            channel = client.wait_for_topics({topic})[topic]
+            assert channel.schema_name == schema
+            assert len(client.messages(client.subscribe(channel), 3)) == 3
+        assert proc.stdout.readline().startswith("{")  # the terminal output goes on
+        proc.terminate()
+        assert proc.wait(30) == 130
+
+
+def test_connect_hub_and_serve_foxglove_show_what_the_hub_runs(hub_server: HubServer) -> None:
+    """Neither starts a sensor: the view shows the IMU a client makes the hub run."""
+    with Hub.connect("127.0.0.1", hub_server.port) as user:
+        user.subscribe("imu", rate=100)
+        where = f"127.0.0.1:{hub_server.port}"
+        with running("connect", "hub", where, "--json", "--window", "0.1",
+                     "--foxglove", "0") as proc:  # fmt: skip
+            assert proc.stderr is not None
+            with FoxgloveClient(_live_url(proc.stderr.readline())) as client:
+                imu = client.wait_for_topics({"/hub/imu"})["/hub/imu"]
+                assert imu.schema_name == "robocli.Imu"
+                assert len(client.messages(client.subscribe(imu), 3)) == 3
+            proc.terminate()
+            proc.wait(30)
+    with running("serve", "--sim", "--port", "0", "--foxglove", "0") as proc:
+        assert proc.stderr is not None and proc.stdout is not None
+        url = _live_url(proc.stderr.readline())
+        served = re.search(r"on tcp://127\.0\.0\.1:(\d+)", proc.stdout.readline())
+        assert served, "no hub address"
+        with FoxgloveClient(url) as client, Hub.connect("127.0.0.1", int(served[1])) as user:
+            user.subscribe("adc", rate=100)
+            adc = client.wait_for_topics({"/hub/adc"})["/hub/adc"]
+            assert adc.schema_name == "robocli.Adc"
+            got = client.messages(client.subscribe(adc), 3)
+            assert all(len(m["channels"]) == 8 for _, m in got)
+            assert "/hub/imu" not in {c.topic for c in client.channels.values()}
+        proc.terminate()
+        assert proc.wait(30) == 130
+        assert "Traceback" not in proc.stderr.read()

@@ -28,14 +28,17 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError, TransportError
 from robocli.io.schemas import SCHEMAS, schema_bytes
 
+if TYPE_CHECKING:
+    from robocli.devices.hub.client import Hub
+
 log = logging.getLogger("robocli.io.record")
 
-__all__ = ["DEFAULT_PORT", "LiveView", "LiveViewError"]
+__all__ = ["DEFAULT_PORT", "LiveView", "LiveViewError", "follow_hub"]
 
 #: Foxglove's default WebSocket port.
 DEFAULT_PORT = 8765
@@ -233,3 +236,35 @@ class LiveView:
 
     def __repr__(self) -> str:
         return f"<LiveView {self.url} messages={self.messages}>"
+
+
+def follow_hub(hub: Hub, done: Callable[[], bool], period: float = 0.1,
+               rescan: float = 1.0) -> None:  # fmt: skip
+    """Pull, every ``period`` s until ``done()``, every sensor that the hub runs for its
+    other clients (a silent subscription, which a hub accepts only for a running sensor,
+    tried again every ``rescan`` s): a view or recorder added to ``hub`` then shows what
+    the hub acquires, without starting or changing any sensor. The link's errors raise."""
+    from robocli.devices.hub.tools import PULLABLE
+    from robocli.errors import DeviceError
+
+    if not (period > 0 and rescan > 0):
+        raise InvalidArgument("period and rescan must be positive")
+    running: set[str] = set()
+    next_scan = 0.0
+    while not done():
+        now = time.monotonic()
+        if now >= next_scan:
+            next_scan = now + rescan
+            for name in PULLABLE:
+                if name not in running:
+                    try:
+                        hub.subscribe(name)
+                    except DeviceError:
+                        continue  # not running
+                    running.add(name)
+        for name in sorted(running):
+            try:
+                hub.pull(name)
+            except DeviceError:  # stopped since: look for it again at the next scan
+                running.discard(name)
+        time.sleep(period)
