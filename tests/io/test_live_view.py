@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import math
 import re
+import subprocess
+import sys
 import threading
 import time
 from pathlib import Path
@@ -189,3 +191,13 @@ def test_connect_hub_and_serve_foxglove_show_what_the_hub_runs(hub_server: HubSe
         proc.terminate()
         assert proc.wait(30) == 130
         assert "Traceback" not in proc.stderr.read()
+
+
+def test_without_foxglove_sdk_one_line_says_how_to_install() -> None:
+    argv = ["connect", "pioneer", "sim", "--once", "--foxglove", "0"]
+    code = f"import sys; sys.modules['foxglove'] = None; from robocli.cli import main; " \
+        f"sys.exit(main({argv!r}))"  # fmt: skip
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, stdin=subprocess.DEVNULL)  # fmt: skip
+    assert "pip install 'robocli[foxglove]'" in one_line_error(proc, 1)
+    assert proc.stdout == ""
