@@ -78,6 +78,32 @@ def test_scan_returns_are_put_in_the_odom_frame(tmp_path: Path) -> None:
         assert got == pytest.approx(want, abs=1e-9)
 
 
+def test_each_robot_s_scans_go_with_its_own_pose(tmp_path: Path) -> None:
+    """Two robots: /a at (1, 2) heading +90 degrees, /b at (5, 5) heading 0, posed in that
+    order; then /a's scan, one return 1 m ahead, lies at (1, 3), not 1 m ahead of /b."""
+    path = tmp_path / "two.mcap"
+    with Recorder(path) as rec:
+
+        def write(name: str, ns: int, x: float, y: float, th: float) -> None:
+            pose = {"timestamp": S.stamp(ns), "frame_id": f"{name}/odom",
+                    "pose": S.pose(x, y, 0.0, S.quaternion_z(th))}  # fmt: skip
+            rec.write(rec.channel(f"/{name}/pose", "foxglove.PoseInFrame"),
+                      json_text(pose).encode(), ns)  # fmt: skip
+
+        def scan(name: str, ns: int) -> None:
+            data = S.laser_scan(ns, f"{name}/base_link", 0.0, 0.0, [1.0])
+            rec.write(rec.channel(f"/{name}/laser", "foxglove.LaserScan"),
+                      json_text(data).encode(), ns)  # fmt: skip
+
+        rec.put(write, ("a", 1_000, 1.0, 2.0, math.pi / 2))
+        rec.put(write, ("b", 1_500, 5.0, 5.0, 0.0))
+        rec.put(scan, ("a", 2_000))
+        rec.put(scan, ("b", 2_000))
+    result = plot(path, tmp_path / "two.png", ["/a/pose", "/b/pose", "/a/laser", "/b/laser"])
+    assert result.scan_points == 2
+    assert result.scan_extent == pytest.approx((1.0, 6.0, 3.0, 5.0), abs=1e-9)
+
+
 def test_an_arm_s_joints_against_time(abb: tuple[int, int], tmp_path: Path) -> None:
     motion, state = abb
     path = tmp_path / "arm.mcap"

@@ -203,21 +203,24 @@ def _pose2d(msg: Any) -> tuple[float, float, float]:
 def _plot_path(plt: Any, result: PlotResult, data: dict[str, list[tuple[int, Any]]],
                paths: list[str], scans: list[str]) -> Any:  # fmt: skip
     fig, ax = plt.subplots(figsize=(7.5, 7.0))
-    poses: list[tuple[int, tuple[float, float, float]]] = []
+    tracks: dict[str, list[tuple[int, tuple[float, float, float]]]] = {}
     for topic in paths:
-        track = [(t, _pose2d(m)) for t, m in data[topic]]
-        poses += track
+        track = tracks[topic] = sorted(((t, _pose2d(m)) for t, m in data[topic]),
+                                       key=lambda item: item[0])  # fmt: skip
         xs, ys = [p[0] for _, p in track], [p[1] for _, p in track]
         ax.plot(xs, ys, "-", lw=1.8, label=f"{topic} ({len(track)} poses)")
         if track:
             ax.plot(xs[:1], ys[:1], "o", color="green")
             ax.plot(xs[-1:], ys[-1:], "s", color="red")
         result.series[topic] = len(track)
-    poses.sort(key=lambda item: item[0])
-    times = [t for t, _ in poses]
     total = sum(len(m.get("ranges", ())) for topic in scans for _, m in data[topic])
     every = max(1, math.ceil(total / MAX_SCAN_POINTS))
     for topic in scans:
+        # the scans of /NAME/... go with the pose of the same /NAME/, else the first pose
+        source = topic.split("/")[1] if topic.startswith("/") else ""
+        poses = next((tracks[p] for p in paths if p.split("/")[1:2] == [source]),
+                     tracks[paths[0]])  # fmt: skip
+        times = [t for t, _ in poses]
         xs, ys = [], []
         for k, (t, msg) in enumerate(data[topic]):
             i = bisect.bisect_right(times, t) - 1
@@ -263,6 +266,8 @@ def _plot_series(plt: Any, result: PlotResult, data: dict[str, list[tuple[int, A
     for ax, topic in zip(axes[:, 0], topics, strict=True):
         msgs = data[topic]
         times = [(t - t0) / 1e9 for t, _ in msgs]
+        if not msgs:
+            raise InvalidArgument(f"{topic} has no messages to plot")
         if not fields and schemas[topic] in JOINT_SCHEMAS:
             names = msgs[0][1].get("name", []) if msgs else []
             for j, name in enumerate(names):
