@@ -201,3 +201,13 @@ def test_without_foxglove_sdk_one_line_says_how_to_install() -> None:
                           timeout=60, stdin=subprocess.DEVNULL)  # fmt: skip
     assert "pip install 'robocli[foxglove]'" in one_line_error(proc, 1)
     assert proc.stdout == ""
+
+
+def test_the_queue_is_bounded_in_items_and_bytes() -> None:
+    """Nothing added: no thread drains the queue, so what it holds is what was put."""
+    with LiveView(port=0, max_queue=3, max_queue_bytes=1000) as view:
+        assert [view.put(print, (), 10) for _ in range(4)] == [True, True, True, False]
+        assert view.dropped == 1
+    with LiveView(port=0, max_queue_bytes=1000) as view:
+        assert view.put(print, (), 600) and not view.put(print, (), 600)
+        assert view.dropped == 1

@@ -63,13 +63,15 @@ def _foxglove() -> Any:
 class LiveView:
     """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
     serving the channels of the devices :meth:`add` ed to it, or of a recorder that
-    mirrors into it. ``max_queue``: items that may wait for the decoding thread before new
-    ones are dropped (counted in :attr:`dropped`). Raises :class:`LiveViewError` without
-    ``foxglove-sdk``, :class:`TransportError` when the port cannot be had (in use),
-    :class:`InvalidArgument` for a bad port."""
+    mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
+    thread before new items are dropped (counted in :attr:`dropped`). Each client's backlog
+    is the SDK's (1024 messages; a slow client loses the oldest). Raises
+    :class:`LiveViewError` without ``foxglove-sdk``, :class:`TransportError` when the port
+    cannot be had (in use), :class:`InvalidArgument` for a bad port."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *,
-                 name: str = "robocli", max_queue: int = 100_000) -> None:  # fmt: skip
+                 name: str = "robocli", max_queue: int = 100_000,
+                 max_queue_bytes: int = 64 << 20) -> None:  # fmt: skip
         if not 0 <= port <= 65535:
             raise InvalidArgument(f"the live view's port is 0..65535, not {port}")
         foxglove = _foxglove()
@@ -83,7 +85,8 @@ class LiveView:
             raise TransportError(f"cannot serve the live view on {host}:{port}: {exc}") from None
         #: the port the server listens on
         self.port: int = self._server.port
-        self.max_queue = max_queue
+        self.max_queue, self.max_queue_bytes = max_queue, max_queue_bytes
+        self._queued_bytes = 0
         #: items dropped for a full queue, messages the server refused
         self.dropped = 0
         self.errors = 0
@@ -140,10 +143,12 @@ class LiveView:
         """Queue ``handler(*args)`` for the decoding thread; never blocks (a full queue
         drops, counted)."""
         with self._lock:
-            if self._closing or len(self._queue) >= self.max_queue:
+            if (self._closing or len(self._queue) >= self.max_queue
+                    or self._queued_bytes + size > self.max_queue_bytes):  # fmt: skip
                 self.dropped += 1
                 return False
             self._queue.append((handler, args))
+            self._queued_bytes += size
         return True
 
     def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
@@ -193,6 +198,7 @@ class LiveView:
         while True:
             with self._lock:
                 items, self._queue = self._queue, deque()
+                self._queued_bytes = 0
                 closing = self._closing
             if not items:
                 if closing:
