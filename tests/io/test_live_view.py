@@ -181,6 +181,9 @@ def test_connect_hub_and_serve_foxglove_show_what_the_hub_runs(hub_server: HubSe
         url = _live_url(proc.stderr.readline())
         served = re.search(r"on tcp://127\.0\.0\.1:(\d+)", proc.stdout.readline())
         assert served, "no hub address"
+        log: list[str] = []  # serve's log: a line per change, "gone: LINE" when it no longer holds
+        reader = threading.Thread(target=lambda: log.extend(proc.stdout or ()), daemon=True)
+        reader.start()
         with FoxgloveClient(url) as client, Hub.connect("127.0.0.1", int(served[1])) as user:
             user.subscribe("adc", rate=100)
             adc = client.wait_for_topics({"/hub/adc"})["/hub/adc"]
@@ -188,9 +191,24 @@ def test_connect_hub_and_serve_foxglove_show_what_the_hub_runs(hub_server: HubSe
             got = client.messages(client.subscribe(adc), 3)
             assert all(len(m["channels"]) == 8 for _, m in got)
             assert "/hub/imu" not in {c.topic for c in client.channels.values()}
+            wait_for(lambda: "sensor adc: 100 Hz, 2 subscriber(s)\n" in log, what="the view's")
+        # the user left: the view's own subscription does not keep the ADC running
+        wait_for(lambda: _holds(log, "sensor adc:") is False, what="the ADC stopped")
         proc.terminate()
         assert proc.wait(30) == 130
         assert "Traceback" not in proc.stderr.read()
+
+
+def _holds(log: list[str], prefix: str) -> bool:
+    """Whether the latest state of ``serve``'s change log has a line starting ``prefix``."""
+    now: set[str] = set()
+    for line in list(log):
+        line = line.rstrip("\n")
+        if line.startswith("gone: "):
+            now.discard(line[6:])
+        else:
+            now.add(line)
+    return any(line.startswith(prefix) for line in now)
 
 
 def test_without_foxglove_sdk_one_line_says_how_to_install() -> None:

@@ -23,6 +23,7 @@ Foxglove's app speaks); the messages are JSON, each with its channel's JSON sche
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -247,9 +248,12 @@ class LiveView:
 def follow_hub(hub: Hub, done: Callable[[], bool], period: float = 0.1,
                rescan: float = 1.0) -> None:  # fmt: skip
     """Pull, every ``period`` s until ``done()``, every sensor that the hub runs for its
-    other clients (a silent subscription, which a hub accepts only for a running sensor,
-    tried again every ``rescan`` s): a view or recorder added to ``hub`` then shows what
-    the hub acquires, without starting or changing any sensor. The link's errors raise."""
+    other clients: a view or recorder added to ``hub`` then shows what the hub acquires,
+    starting and changing no sensor. A silent subscription (which a hub accepts only for a
+    running sensor) is taken for each; every ``rescan`` s each is dropped and taken again,
+    so that it never keeps a sensor running after its last other client left (a hub stops
+    a sensor when its last subscriber leaves; ros4mat does not say how many there are):
+    the samples of that instant are not shown. The link's errors raise."""
     from robocli.devices.hub.tools import PULLABLE
     from robocli.errors import DeviceError
 
@@ -261,13 +265,16 @@ def follow_hub(hub: Hub, done: Callable[[], bool], period: float = 0.1,
         now = time.monotonic()
         if now >= next_scan:
             next_scan = now + rescan
+            for name in sorted(running):
+                with contextlib.suppress(DeviceError):  # a hub that answers refusals
+                    hub.unsubscribe(name)
+            running.clear()
             for name in PULLABLE:
-                if name not in running:
-                    try:
-                        hub.subscribe(name)
-                    except DeviceError:
-                        continue  # not running
-                    running.add(name)
+                try:
+                    hub.subscribe(name)
+                except DeviceError:
+                    continue  # not running
+                running.add(name)
         for name in sorted(running):
             try:
                 hub.pull(name)
