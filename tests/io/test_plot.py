@@ -140,6 +140,8 @@ def test_hub_fields_against_time(hub_server: HubServer, tmp_path: Path) -> None:
         "/hub/imu linear_acceleration.z": n_imu,
         **{f"/hub/adc channels[{k}]": n_adc for k in range(width)},
     }
+    # each sample at its own acquisition time, not stacked at its reply's receive time
+    assert result.distinct_times == result.series
     with pytest.raises(InvalidArgument, match="linear_acceleration.z"):
         plot(path, tmp_path / "x.png", ["/hub/imu"])  # which field? the error lists them
     with pytest.raises(InvalidArgument, match="no channel /hub/gps"):

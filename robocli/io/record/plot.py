@@ -17,7 +17,10 @@ What is drawn follows each channel's schema:
   ``linear_acceleration.z``, ``position.0``; a list of numbers draws one line per item)
   against time, one panel per channel.
 
-Time is the messages' log time (host receive time) in seconds from the first message drawn.
+Time, for time series, is each message's publish time: the source's own acquisition time
+on the host clock (a hub sample's time, the arm controller's clock) or, where the source
+gives none, the receive time; in seconds from the first message drawn. A path follows the
+receive (log) times, by which poses and scans meet.
 The file is read record by record (a recording cut short by a kill plots up to its last
 complete chunk). :func:`plot` returns what it drew (:class:`PlotResult`), so that a
 program or a test can check the figure without looking at pixels.
@@ -55,6 +58,9 @@ class PlotResult:
     series: dict[str, int] = field(default_factory=dict)
     scan_points: int = 0
     duration_s: float = 0.0
+    #: distinct times per line of a time series (fewer than its points: samples drawn at
+    #: one time)
+    distinct_times: dict[str, int] = field(default_factory=dict)
     #: (x min, x max, y min, y max) of the scan returns drawn, m; None without any
     scan_extent: tuple[float, float, float, float] | None = None
 
@@ -65,7 +71,8 @@ class PlotResult:
     def as_dict(self) -> dict[str, Any]:
         return {"path": str(self.path), "kind": self.kind, "series": self.series,
                 "points": self.points, "scan_points": self.scan_points,
-                "duration_s": self.duration_s, "scan_extent": self.scan_extent}  # fmt: skip
+                "duration_s": self.duration_s, "scan_extent": self.scan_extent,
+                "distinct_times": self.distinct_times}  # fmt: skip
 
 
 def _pyplot() -> Any:
@@ -84,10 +91,12 @@ def _pyplot() -> Any:
 
 
 Messages = dict[str, list[tuple[int, Any]]]
+Records = dict[str, list[tuple[int, int, Any]]]
 
 
-def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str], Messages]:
-    """(schema name by topic for every channel of the file, (log ns, JSON) by wanted topic)."""
+def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str], Records]:
+    """(schema name by topic for every channel of the file, (log ns, publish ns, JSON) by
+    wanted topic)."""
     from mcap.records import Channel, Message, Schema
 
     from robocli.io.record.reader import _check_magic, _open, iter_messages
@@ -95,7 +104,7 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     names: dict[str, str] = {}
-    out: Messages = {t: [] for t in topics}
+    out: Records = {t: [] for t in topics}
     with _open(recording) as stream:
         _check_magic(stream, recording)
         for record in iter_messages(stream):
@@ -104,7 +113,8 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
                 wanted = out.get(topic)
                 if wanted is not None and encoding == "json":
                     try:
-                        wanted.append((record.log_time, json.loads(record.data)))
+                        wanted.append((record.log_time, record.publish_time,
+                                       json.loads(record.data)))  # fmt: skip
                     except ValueError:
                         raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
             elif isinstance(record, Schema):
@@ -157,7 +167,7 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
     if not topics:
         raise InvalidArgument("name at least one channel to plot")
     plt = _pyplot()
-    schemas, data = _read(recording, topics)
+    schemas, records = _read(recording, topics)
     missing = [t for t in topics if t not in schemas]
     if missing:
         known = ", ".join(t for t, s in schemas.items() if s) or "none"
@@ -168,6 +178,13 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
     series = [t for t in topics if t not in paths and (t not in scans or not paths)]
     if paths and series:
         raise InvalidArgument("plot a path (pose and scan channels) or time series, not both")
+    # a path follows the receive times (poses and scans meet by them); a time series the
+    # sources' own acquisition times (a hub reply's samples share one receive time)
+    data: Messages = {
+        t: [(log, m) for log, _, m in records[t]] if paths else
+        sorted(((pub, m) for _, pub, m in records[t]), key=lambda item: item[0])
+        for t in topics
+    }  # fmt: skip
     firsts = [msgs[0][0] for msgs in data.values() if msgs]
     t0 = min(firsts) if firsts else 0
     last = max((msgs[-1][0] for msgs in data.values() if msgs), default=t0)
@@ -275,6 +292,7 @@ def _plot_series(plt: Any, result: PlotResult, data: dict[str, list[tuple[int, A
                       not None else math.nan for _, m in msgs]  # fmt: skip
                 ax.plot(times, ys, lw=1.2, label=name)
                 result.series[f"{topic} {name}"] = len(ys)
+                result.distinct_times[f"{topic} {name}"] = len(set(times))
             ax.set_ylabel("position (deg)")
         else:
             mine = [f for f in fields if any(_get(m, f) is not None for _, m in msgs[:50])]
@@ -309,6 +327,7 @@ def _field(ax: Any, result: PlotResult, topic: str, name: str, msgs: list[tuple[
                   else math.nan for v in values]  # fmt: skip
             ax.plot(times, ys, lw=1.0, label=f"{name}[{k}]")
             result.series[f"{topic} {name}[{k}]"] = len(ys)
+            result.distinct_times[f"{topic} {name}[{k}]"] = len(set(times))
         return
     if not _is_number(sample):
         found = [f for f in numeric_fields(msgs[0][1]) if not f.startswith("timestamp")] \
@@ -318,3 +337,4 @@ def _field(ax: Any, result: PlotResult, topic: str, name: str, msgs: list[tuple[
     ys = [float(v) if _is_number(v) else math.nan for v in values]
     ax.plot(times, ys, lw=1.0, label=name)
     result.series[f"{topic} {name}"] = len(ys)
+    result.distinct_times[f"{topic} {name}"] = len(set(times))
