@@ -87,6 +87,9 @@ def test_an_arm_and_a_hub_live(abb: tuple[int, int], hub_server: HubServer) -> N
             finally:
                 stop.set()
                 puller.join(30)
+            # each sample is sent at its acquisition time, the message's own timestamp
+            for log_ns, msg in got:
+                assert log_ns == msg["timestamp"]["sec"] * 1_000_000_000 + msg["timestamp"]["nsec"]
             acc = got[-1][1]["linear_acceleration"]
             assert 5 < math.hypot(acc["x"], acc["y"], acc["z"]) < 15  # ~1 g, in m/s^2
 

@@ -177,12 +177,14 @@ class LiveView:
         return cid
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
-        """Send one message on live channel ``cid`` (nothing for -1). Never raises: a
-        recording that mirrors into the view goes on whatever the server does."""
+        """Send one message on live channel ``cid`` (nothing for -1), stamped with the
+        source's acquisition time when known (``publish_ns``: a hub reply's samples then
+        plot at their own times, not all at the reply's), else the receive time. Never
+        raises: a recording that mirrors into the view goes on whatever the server does."""
         if cid < 0 or self._closed:
             return
         try:
-            self._channels[cid].base.log(data, log_ns)
+            self._channels[cid].base.log(data, log_ns if publish_ns is None else publish_ns)
             self.messages += 1
         except Exception:  # noqa: BLE001 - the view must not stop a recording
             self.errors += 1
