@@ -168,6 +168,12 @@ def test_the_command(tmp_path: Path) -> None:
     )
     assert "no channel" in one_line_error(run("plot", str(path), "-c", "/x", "-o", str(out)), 2)
 
+    # cut short (as by a kill): drawn up to its last complete chunk
+    whole = plot(path, out, ["/pioneer/pose"]).series["/pioneer/pose"]
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(path.read_bytes()[: path.stat().st_size * 2 // 3])
+    assert 0 < plot(cut, out, ["/pioneer/pose"]).series["/pioneer/pose"] < whole
+
 
 def test_without_matplotlib_one_line_says_how_to_install(tmp_path: Path) -> None:
     path = tmp_path / "run.mcap"
