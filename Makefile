@@ -2,7 +2,7 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-# The demo installs the package with its runtime and plot extras only; the test, lint and
+# The demo installs the package with its runtime, plot and record extras only; the test, lint and
 # bench targets add the test and lint tools to the same venv. Separate stamps, so that
 # `make demo` then `make test` installs the tools the demo went without.
 DEMO_STAMP := $(VENV)/.installed-demo
@@ -17,7 +17,7 @@ PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csr
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[plot]'
+	$(PY) -m pip install -q -e '.[plot,record]'
 	touch $@
 
 $(STAMP): $(PKG_DEPS)
@@ -28,8 +28,10 @@ $(STAMP): $(PKG_DEPS)
 
 venv: $(STAMP)
 
+# What the demo makes (recordings, figures, logs) stays in $(DEMO_OUT), which git ignores.
+DEMO_OUT ?= demo-out
 demo: $(DEMO_STAMP)
-	$(PY) examples/demo.py
+	$(PY) examples/demo.py $(DEMO_OUT)
 
 PYTEST := $(PY) -m pytest -q -p no:cacheprovider --benchmark-disable -m "not slow"
 PYTEST_ARGS ?=
@@ -191,4 +193,4 @@ soak: $(STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider -m slow --timeout=1200 tests
 
 clean:
-	rm -rf $(VENV) build dist *.egg-info robocli/_core*.so robocli/_core.c csrc/test_core csrc/test_core_asan csrc/test_bench csrc/test_bench_asan
+	rm -rf $(VENV) build dist demo-out *.egg-info robocli/_core*.so robocli/_core.c csrc/test_core csrc/test_core_asan csrc/test_bench csrc/test_bench_asan

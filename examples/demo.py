@@ -5,19 +5,29 @@ then: the CLI's one-shot status, a square driven from Python, the wander example
 dump and the round-trip benchmark with its C floor; then an IRB120 circle uploaded to the
 embedded ABB simulator, monitored and validated (the time shift it reports is the download
 time); then a simulated sensor hub with two concurrent `robocli subscribe` clients and a
-summary read from Python. Takes about 40 s.
+summary read from Python; the wander is recorded to MCAP and drawn, the hub too. Takes
+about 50 s. Everything it makes stays in OUT (default demo-out/ in the repository, which git
+ignores) for you to open afterwards: the recordings (`robocli info`, Foxglove), the figures,
+the arm's trajectory logs.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from robocli import Pioneer
 from robocli.cli import main as robocli
 from robocli.sim.pioneer.server import PioneerSim
+
+#: Where the demo leaves its recordings, figures and logs (the first argument overrides it).
+OUT = Path(__file__).resolve().parent.parent / "demo-out"
+PLOT = importlib.util.find_spec("matplotlib") is not None
+RECORD = importlib.util.find_spec("mcap") is not None
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from wander import wander  # noqa: E402
@@ -27,26 +37,22 @@ def step(title: str) -> None:
     print(f"\n=== {title}", flush=True)
 
 
-def arm_circle() -> int:
+def arm_circle(out: Path) -> int:
     """An IRB120 circle: generated, uploaded to the embedded ABB simulator with its state
     stream recorded, validated (per-joint RMSE), plotted when matplotlib is installed."""
-    import importlib.util
-    import tempfile
-
-    plot = importlib.util.find_spec("matplotlib") is not None
-    with tempfile.TemporaryDirectory() as tmp:
-        sim_log, real_log = f"{tmp}/sim.json", f"{tmp}/real.json"
-        steps = [
-            ["traj", "circle", "--points", "100", "--out", sim_log],
-            ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log],
-            ["validate", sim_log, real_log, *(["--plot", "arm_circle.png"] if plot else [])],
-        ]
-        for argv in steps:
-            step("robocli " + " ".join(argv).replace(tmp + "/", ""))
-            if robocli(argv) != 0:
-                return 1
-        explain_delay(sim_log, real_log)
-    print("plot written: arm_circle.png" if plot else
+    sim_log, real_log = str(out / "sim.json"), str(out / "real.json")
+    figure = out / "arm_circle.png"
+    steps = [
+        ["traj", "circle", "--points", "100", "--out", sim_log],
+        ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log],
+        ["validate", sim_log, real_log, *(["--plot", str(figure)] if PLOT else [])],
+    ]
+    for argv in steps:
+        step("robocli " + " ".join(argv))
+        if robocli(argv) != 0:
+            return 1
+    explain_delay(sim_log, real_log)
+    print(f"plot written: {figure}" if PLOT else
           "no plot: matplotlib is not installed (pip install 'robocli[plot]')")  # fmt: skip
     return 0
 
@@ -103,7 +109,46 @@ def sensor_hub() -> int:
     return 0
 
 
-def run() -> int:
+def recording(path: Path, robot: Pioneer) -> Any:
+    """``Recorder(path)`` recording ``robot`` (pose, odom -> base_link, sonar and laser as
+    Foxglove's schemas, every frame raw), or nothing without the record extra."""
+    import contextlib
+
+    if not RECORD:
+        return contextlib.nullcontext()
+    from robocli.io.record import Recorder
+
+    rec = Recorder(path)
+    rec.add(robot)
+    return rec
+
+
+def look(out: Path) -> int:
+    """What was recorded: `robocli info`, `robocli plot`, and a hub recorded by the CLI."""
+    if not RECORD:
+        print("no recordings: the record extra is not installed (pip install 'robocli[record]')")
+        return 0
+    wander_rec, hub_rec = str(out / "wander.mcap"), str(out / "hub.mcap")
+    steps = [
+        ["info", wander_rec],
+        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec],
+    ]
+    if PLOT:
+        steps += [
+            ["plot", wander_rec, "-c", "/pioneer/pose", "-c", "/pioneer/laser", "-o",
+             str(out / "wander_path.png")],
+            ["plot", hub_rec, "-c", "/hub/imu", "-c", "/hub/adc", "-f",
+             "linear_acceleration.z", "-f", "channels.0", "-o", str(out / "hub.png")],
+        ]  # fmt: skip
+    for argv in steps:
+        step("robocli " + " ".join(argv))
+        if robocli(argv) != 0:
+            return 1
+    return 0
+
+
+def run(out: Path = OUT) -> int:
+    out.mkdir(parents=True, exist_ok=True)
     with PioneerSim("p3dx", time_scale=5.0) as sim:
         url = sim.serve_tcp("127.0.0.1", 0)
         step(f"robocli sim: a P3-DX on {url}")
@@ -141,8 +186,10 @@ def run() -> int:
             print(f"laser: nearest return {near[0]:.2f} m at {math.degrees(near[1]):+.0f} deg"
                   if near else "laser: no return within 32 m")  # fmt: skip
 
-            step("examples/wander.py: potential-field wander for 20 s of simulated time")
-            result = wander(robot, 200)
+            where = f", recorded to {out / 'wander.mcap'}" if RECORD else ""
+            step(f"examples/wander.py: potential-field wander for 20 s of simulated time{where}")
+            with recording(out / "wander.mcap", robot):
+                result = wander(robot, 200)
             print(
                 f"travelled {result.distance:.2f} m with {result.bumps} bumps; "
                 f"link: {robot.stats.sips} SIPs, {robot.stats.bad_checksums} bad checksums"
@@ -155,11 +202,18 @@ def run() -> int:
         step(f"robocli bench rtt --url {url} --n 300")
         if robocli(["bench", "rtt", "--url", url, "--n", "300"]) != 0:
             return 1
-    if arm_circle() != 0 or sensor_hub() != 0:
+    if arm_circle(out) != 0 or sensor_hub() != 0 or look(out) != 0:
         return 1
     step("done: every command above also works on a real robot (a serial port or tcp://host:port)")
+    shown = out.relative_to(Path.cwd()) if out.is_relative_to(Path.cwd()) else out
+    print(f"what the demo made is in {shown}/ (kept):")
+    for path in sorted(out.iterdir()):
+        print(f"  {shown / path.name}")
+    if RECORD:
+        print(f"look again: robocli info {shown / 'wander.mcap'}; open the .mcap files in "
+              "Foxglove (Open local file): the 3D panel shows the path and the laser")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(run())
+    sys.exit(run(Path(sys.argv[1]) if len(sys.argv) > 1 else OUT))

@@ -13,7 +13,7 @@ from typing import Any
 import typer
 
 from robocli._version import __version__
-from robocli.commands import arm, bench, kinematics, pioneer, ports, record
+from robocli.commands import arm, bench, kinematics, pioneer, plot, ports, record
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import hub as hub_commands
@@ -113,6 +113,7 @@ app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 app.command("info", cls=PlainCommand)(record.info)
+app.command("plot", cls=PlainCommand)(plot.plot)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

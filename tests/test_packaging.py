@@ -185,6 +185,7 @@ def test_the_metadata_names_license_authors_and_project(sdist: Path) -> None:
     assert "Programming Language :: Python :: 3.10" in classifiers
     assert "Operating System :: POSIX :: Linux" in classifiers
     assert "Typing :: Typed" in classifiers
-    # the extras a user picks from: runtime alone, plot for the demo, test and lint for make test
+    # the extras a user picks from: runtime alone, plot and record for the demo, foxglove for
+    # the live view, test and lint for make test
     extras = set(meta.get_all("Provides-Extra") or [])
-    assert {"plot", "test", "lint"} <= extras
+    assert {"plot", "record", "foxglove", "test", "lint"} <= extras

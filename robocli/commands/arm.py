@@ -33,6 +33,7 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -469,10 +470,18 @@ def connect(
     once: bool = typer.Option(False, "--once", help="Print one state and exit."),
     json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
     count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
+    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove_host: str = FoxgloveHostOpt,
     link: ArmLink = LINK,
 ) -> None:
-    """Show the arm's live joints (deg, rad), TCP position and status."""
-    with reader_may_leave(), connected(host, link) as arm:
+    """Show the arm's live joints (deg, rad), TCP position and status (--foxglove: also
+    to Foxglove, with every link's frame)."""
+    from robocli.commands._live import live_view
+
+    with reader_may_leave(), live_view(foxglove, foxglove_host) as view, \
+            connected(host, link) as arm:  # fmt: skip
+        if view is not None:
+            view.add(arm)
         arm.wait_for_state()
         shown, last = 0, 0.0
         while True:  # Ctrl-C: exit 130 (the link is closed on the way out)

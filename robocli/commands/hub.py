@@ -25,6 +25,7 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
+from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.defaults import HUB_ENV
 
 if TYPE_CHECKING:
@@ -270,15 +271,21 @@ def connect(
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
+    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
     """Survey a hub over ros4mat: running sensors and their rates, round trip, clock offset,
     the client id it gave us (clients seen). Repeats every window until Ctrl-C (--json: one
-    object per line)."""
+    object per line; --foxglove: the running sensors' data to Foxglove, each window)."""
+    from robocli.commands._live import live_view
     from robocli.devices.hub.tools import survey
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with open_hub(host, token_file=token_file, hub_option=False) as client:
+            with live_view(foxglove, foxglove_host) as view, \
+                    open_hub(host, token_file=token_file, hub_option=False) as client:  # fmt: skip
+                if view is not None:
+                    view.add(client)
                 while True:
                     info = survey(client, window)
                     if json_out and once:

@@ -29,6 +29,7 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
@@ -86,12 +87,18 @@ def connect(
     subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
+    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
     """Connect to a Pioneer and show its live state until q or Ctrl-C (--once: one
-    snapshot; --json: machine-readable, SI units)."""
+    snapshot; --json: machine-readable, SI units; --foxglove: also to Foxglove)."""
+    from robocli.commands._live import live_view as foxglove_view
     from robocli.commands._screens import live_view
 
-    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+    with foxglove_view(foxglove, foxglove_host) as view, \
+            connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:  # fmt: skip
+        if view is not None:
+            view.add(robot)
         if laser:
             start_laser(robot, wait=once)
         if once:

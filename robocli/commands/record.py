@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import SIM, print_json, sigterm_as_interrupt
+from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
 
 if TYPE_CHECKING:
     from robocli.io.record import Recorder, RecordingInfo
@@ -91,6 +92,8 @@ def record(
     real_size: int = typer.Option(4, "--real-size", help="Arms: bytes per real, 4 or 8."),
     robot: str = typer.Option("irb120", "--robot", "-r", help="Arms: robot model."),
     timeout: float = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait."),
+    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
     """Record Pioneers, arms and a hub into one MCAP file (Foxglove's schemas, raw frames
     for dump --file) until --duration, --count or Ctrl-C."""
@@ -110,7 +113,10 @@ def record(
     start = time.monotonic()
     interrupted = False
     with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
+        view = stack.enter_context(live_view(foxglove, foxglove_host))
         rec = Recorder(output, compression=compression)  # the path is checked before connecting
+        if view is not None:
+            rec.mirror(view)
         try:
             try:
                 devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, laser,

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
+from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -73,14 +74,17 @@ def serve(
         help="Require this file's token to change settings or write to a serial port.",
     ),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
+    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
     from robocli.hub import HubServer, tune_hub_process
 
     tune_hub_process()
+    token = token_from_file(token_file)
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token_from_file(token_file), max_clients=max_clients,
+        token=token, max_clients=max_clients,
     )  # fmt: skip
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
@@ -92,10 +96,11 @@ def serve(
                 typer.echo(note, err=True)
             typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
             sys.stdout.flush()
-            if sys.stdout.isatty():
-                _live(srv)
-            else:
-                _log(srv)
+            with hub_live_view(foxglove, foxglove_host, srv, token):  # what clients make it run
+                if sys.stdout.isatty():
+                    _live(srv)
+                else:
+                    _log(srv)
         finally:
             srv.close()
 

@@ -147,6 +147,8 @@ class Recorder:
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
+        self._mirrors: list[Any] = []
+        self._mirrored: dict[int, list[tuple[Any, int]]] = {}
         self._lock = threading.Lock()
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._queued_bytes = 0
@@ -204,6 +206,13 @@ class Recorder:
         """Call ``detach`` (remove a listener) when the recorder closes."""
         self._detach.append(detach)
 
+    def mirror(self, sink: Any) -> None:
+        """Also hand every message of the channels registered from now on to ``sink`` (its
+        ``channel`` and ``write``, as a :class:`~robocli.io.record.links.Sink` has them), on
+        the writer thread: a :class:`~robocli.io.record.live.LiveView` serves the recording
+        live. Call it before adding devices. ``sink.write`` must not raise."""
+        self._mirrors.append(sink)
+
     # ------------------------------------------------------------------ the queue
 
     def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
@@ -243,6 +252,11 @@ class Recorder:
                 self._schemas[schema] = sid
         cid = self._writer.register_channel(topic, encoding, sid, dict(metadata or {}))
         self._channels[topic] = cid
+        if self._mirrors:
+            self._mirrored[cid] = [
+                (m, m.channel(topic, schema, encoding=encoding, metadata=metadata))
+                for m in self._mirrors
+            ]
         return cid
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
@@ -252,6 +266,10 @@ class Recorder:
         self._writer.add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
                                  seq)  # fmt: skip
         self.stats.messages += 1
+        mirrored = self._mirrored.get(cid)
+        if mirrored:
+            for sink, mid in mirrored:
+                sink.write(mid, data, log_ns, publish_ns)
 
     def decode_failed(self, where: str, exc: BaseException) -> None:
         """A handler could not decode what it was given: count it, log the first per source."""

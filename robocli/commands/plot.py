@@ -1,0 +1,49 @@
+"""``robocli plot``: a figure of a recording, a thin layer over
+:func:`robocli.io.record.plot.plot` (matplotlib: ``pip install 'robocli[plot]'``)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from robocli.commands._common import print_json
+
+
+def plot(
+    file: Path = typer.Argument(
+        ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
+    ),  # fmt: skip
+    channel: list[str] = typer.Option(  # noqa: B008
+        ...,
+        "--channel",
+        "-c",
+        metavar="TOPIC",
+        help="A channel to draw (repeatable): a pose (the path, with the scan channels given "
+        "beside it), joint states, or any channel with --field.",
+    ),  # fmt: skip
+    field: list[str] = typer.Option(  # noqa: B008
+        [],
+        "--field",
+        "-f",
+        metavar="A.B",
+        help="A numeric field to draw against time (repeatable), e.g. linear_acceleration.z.",
+    ),  # fmt: skip
+    output: Path = typer.Option(
+        ..., "--output", "-o", dir_okay=False, metavar="OUT.png", help="The figure (PNG)."
+    ),  # fmt: skip
+    title: str | None = typer.Option(None, "--title", help="A title over the figure."),  # noqa: UP007
+    json_out: bool = typer.Option(False, "--json", help="Say what was drawn, as JSON."),
+) -> None:
+    """Draw a recording's channels into a PNG: a Pioneer's path with its sonar or laser
+    returns, an arm's joints against time, or any numeric field against time."""
+    from robocli.io.record.plot import plot as draw
+
+    result = draw(file, output, channel, field, title=title)
+    if json_out:
+        print_json(result.as_dict())
+        return
+    drawn = ", ".join(f"{name} ({n})" for name, n in result.series.items())
+    scans = f"; {result.scan_points} scan returns" if result.scan_points else ""
+    typer.echo(f"plot written: {result.path} ({result.kind}: {drawn}{scans}; "
+               f"{result.duration_s:.1f} s)")  # fmt: skip

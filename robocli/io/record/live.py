@@ -1,0 +1,285 @@
+"""The live view: the recordings' channels served as they come over the Foxglove WebSocket
+protocol (``foxglove-sdk``, needs ``pip install 'robocli[foxglove]'``).
+
+>>> from robocli.io.record.live import LiveView             # doctest: +SKIP
+>>> with LiveView(port=8765) as view:                       # ws://127.0.0.1:8765 in Foxglove
+...     view.add(robot)                                     # a Pioneer, an Arm, a Hub
+
+A :class:`LiveView` is a :class:`~robocli.io.record.links.Sink`: the device recorders that
+map frames to Foxglove's schemas for an MCAP file (:mod:`robocli.io.record.sources`) feed it
+the same way, so the live channels are the recording's channels, with the same topics,
+schemas (``jsonschema``) and JSON messages. Raw-bytes channels are not served (no panel
+shows them). It has its own bounded queue and decoding thread, like the
+:class:`~robocli.io.record.Recorder`: a device's listener only appends.
+
+While recording, :meth:`Recorder.mirror(view) <robocli.io.record.Recorder.mirror>` has the
+recorder's thread hand every decoded message to the view too, so the devices are decoded
+once for both.
+
+The server binds 127.0.0.1 unless given another host. The SDK names the subprotocol
+``foxglove.sdk.v1`` (the ``foxglove.websocket.v1`` protocol under its new name, which
+Foxglove's app speaks); the messages are JSON, each with its channel's JSON schema.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from robocli.errors import InvalidArgument, RobocliError, TransportError
+from robocli.io.schemas import SCHEMAS, schema_bytes
+
+if TYPE_CHECKING:
+    from robocli.devices.hub.client import Hub
+
+log = logging.getLogger("robocli.io.record")
+
+__all__ = ["DEFAULT_PORT", "LiveView", "LiveViewError", "follow_hub"]
+
+#: Foxglove's default WebSocket port.
+DEFAULT_PORT = 8765
+#: How long the decoding thread sleeps when the queue is empty (s): a live view's latency.
+_IDLE_S = 0.02
+
+
+class LiveViewError(RobocliError):
+    """The live view could not start (no ``foxglove-sdk``)."""
+
+
+def _foxglove() -> Any:
+    try:
+        import foxglove
+    except ImportError:
+        raise LiveViewError(
+            "the live view needs the foxglove-sdk package: pip install 'robocli[foxglove]'"
+        ) from None
+    return foxglove
+
+
+class LiveView:
+    """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
+    serving the channels of the devices :meth:`add` ed to it, or of a recorder that
+    mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
+    thread before new items are dropped (counted in :attr:`dropped`). Each client's backlog
+    is the SDK's (1024 messages; a slow client loses the oldest). Raises
+    :class:`LiveViewError` without ``foxglove-sdk``, :class:`TransportError` when the port
+    cannot be had (in use), :class:`InvalidArgument` for a bad port."""
+
+    def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *,
+                 name: str = "robocli", max_queue: int = 100_000,
+                 max_queue_bytes: int = 64 << 20) -> None:  # fmt: skip
+        if not 0 <= port <= 65535:
+            raise InvalidArgument(f"the live view's port is 0..65535, not {port}")
+        foxglove = _foxglove()
+        self.host = host
+        self._fg = foxglove
+        self._context = foxglove.Context()
+        try:
+            self._server = foxglove.start_server(name=name, host=host, port=port,
+                                                 context=self._context)  # fmt: skip
+        except Exception as exc:  # noqa: BLE001 - the SDK's own error type: a bind failure
+            raise TransportError(f"cannot serve the live view on {host}:{port}: {exc}") from None
+        #: the port the server listens on
+        self.port: int = self._server.port
+        self.max_queue, self.max_queue_bytes = max_queue, max_queue_bytes
+        self._queued_bytes = 0
+        #: items dropped for a full queue, messages the server refused
+        self.dropped = 0
+        self.errors = 0
+        #: messages handed to the server
+        self.messages = 0
+        self.links: dict[str, Any] = {}
+        self._channels: list[Any] = []
+        self._by_topic: dict[str, int] = {}
+        self._names: set[str] = set()
+        self._detach: list[Callable[[], None]] = []
+        self._lock = threading.Lock()
+        self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
+        self._closing = False
+        self._closed = False
+        self._thread: threading.Thread | None = None
+        self._epoch_ns = time.time_ns() - time.monotonic_ns()
+
+    @property
+    def url(self) -> str:
+        """``ws://HOST:PORT``, what to open in Foxglove."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"ws://{host}:{self.port}"
+
+    # ------------------------------------------------------------------ Sink
+
+    def add(self, device: Any, name: str | None = None, **options: Any) -> str:
+        """Serve ``device`` (a Pioneer, an Arm or a Hub) under ``/name/`` (see
+        :meth:`Recorder.add <robocli.io.record.Recorder.add>`); returns the name. A hub's
+        data is what its replies carry: the program pulls it."""
+        from robocli.io.record import sources
+
+        if self._closed:
+            raise LiveViewError("the live view is closed")
+        if self._thread is None:
+            self._thread = threading.Thread(target=self._run, name="live-view", daemon=True)
+            self._thread.start()
+        return sources.attach(self, device, name, **options)
+
+    def log_ns(self, t_monotonic: float) -> int:
+        return int(t_monotonic * 1e9) + self._epoch_ns
+
+    def unique_name(self, base: str) -> str:
+        name, k = base, 1
+        while name in self._names:
+            k += 1
+            name = f"{base}{k}"
+        self._names.add(name)
+        return name
+
+    def on_close(self, detach: Callable[[], None]) -> None:
+        self._detach.append(detach)
+
+    def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
+        """Queue ``handler(*args)`` for the decoding thread; never blocks (a full queue
+        drops, counted)."""
+        with self._lock:
+            if (self._closing or len(self._queue) >= self.max_queue
+                    or self._queued_bytes + size > self.max_queue_bytes):  # fmt: skip
+                self.dropped += 1
+                return False
+            self._queue.append((handler, args))
+            self._queued_bytes += size
+        return True
+
+    def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
+                metadata: dict[str, str] | None = None) -> int:  # fmt: skip
+        """The id of ``topic``'s live channel, advertised on first use; -1 for a channel
+        the view does not serve (raw bytes, an unknown schema)."""
+        cid = self._by_topic.get(topic)
+        if cid is not None:
+            return cid
+        if schema is None or schema not in SCHEMAS or encoding != "json":
+            self._by_topic[topic] = -1
+            return -1
+        fg = self._fg
+        try:
+            channel = fg.Channel(topic, schema=fg.Schema(name=schema, encoding="jsonschema",
+                                                         data=schema_bytes(schema)),
+                                 message_encoding="json", context=self._context,
+                                 metadata=dict(metadata or {}))  # fmt: skip
+        except Exception:  # noqa: BLE001 - the view must not stop a recording
+            log.warning("live view: channel %s could not be made", topic, exc_info=True)
+            self._by_topic[topic] = -1
+            return -1
+        self._channels.append(channel)
+        cid = self._by_topic[topic] = len(self._channels) - 1
+        return cid
+
+    def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
+        """Send one message on live channel ``cid`` (nothing for -1), stamped with the
+        source's acquisition time when known (``publish_ns``: a hub reply's samples then
+        plot at their own times, not all at the reply's), else the receive time. Never
+        raises: a recording that mirrors into the view goes on whatever the server does."""
+        if cid < 0 or self._closed:
+            return
+        try:
+            self._channels[cid].base.log(data, log_ns if publish_ns is None else publish_ns)
+            self.messages += 1
+        except Exception:  # noqa: BLE001 - the view must not stop a recording
+            self.errors += 1
+            if self.errors == 1:
+                log.warning("live view: a message could not be sent", exc_info=True)
+
+    def decode_failed(self, where: str, exc: BaseException) -> None:
+        self.errors += 1
+        log.debug("live view: %s: %s", where, exc)
+
+    # ------------------------------------------------------------------ thread
+
+    def _run(self) -> None:
+        while True:
+            with self._lock:
+                items, self._queue = self._queue, deque()
+                self._queued_bytes = 0
+                closing = self._closing
+            if not items:
+                if closing:
+                    return
+                time.sleep(_IDLE_S)
+            for handler, args in items:
+                try:
+                    handler(*args)
+                except Exception as exc:  # noqa: BLE001 - bad data: count, go on
+                    self.decode_failed(getattr(handler, "__qualname__", str(handler)), exc)
+
+    # ------------------------------------------------------------------ closing
+
+    def close(self, timeout: float = 10.0) -> None:
+        """Stop listening to the devices, close the channels and stop the server.
+        Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        for detach in self._detach:
+            try:
+                detach()
+            except Exception:  # noqa: BLE001 - a device already closed
+                log.debug("live view: detaching a listener failed", exc_info=True)
+        with self._lock:
+            self._closing = True
+        if self._thread is not None:
+            self._thread.join(timeout)
+        for channel in self._channels:
+            try:
+                channel.close()
+            except Exception:  # noqa: BLE001 - closing anyway
+                log.debug("live view: closing a channel failed", exc_info=True)
+        self._server.stop()
+
+    def __enter__(self) -> LiveView:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<LiveView {self.url} messages={self.messages}>"
+
+
+def follow_hub(hub: Hub, done: Callable[[], bool], period: float = 0.1,
+               rescan: float = 1.0) -> None:  # fmt: skip
+    """Pull, every ``period`` s until ``done()``, every sensor that the hub runs for its
+    other clients: a view or recorder added to ``hub`` then shows what the hub acquires,
+    starting and changing no sensor. A silent subscription (which a hub accepts only for a
+    running sensor) is taken for each; every ``rescan`` s each is dropped and taken again,
+    so that it never keeps a sensor running after its last other client left (a hub stops
+    a sensor when its last subscriber leaves; ros4mat does not say how many there are):
+    the samples of that instant are not shown. The link's errors raise."""
+    from robocli.devices.hub.tools import PULLABLE
+    from robocli.errors import DeviceError
+
+    if not (period > 0 and rescan > 0):
+        raise InvalidArgument("period and rescan must be positive")
+    running: set[str] = set()
+    next_scan = 0.0
+    while not done():
+        now = time.monotonic()
+        if now >= next_scan:
+            next_scan = now + rescan
+            for name in sorted(running):
+                with contextlib.suppress(DeviceError):  # a hub that answers refusals
+                    hub.unsubscribe(name)
+            running.clear()
+            for name in PULLABLE:
+                try:
+                    hub.subscribe(name)
+                except DeviceError:
+                    continue  # not running
+                running.add(name)
+        for name in sorted(running):
+            try:
+                hub.pull(name)
+            except DeviceError:  # stopped since: look for it again at the next scan
+                running.discard(name)
+        time.sleep(period)
