@@ -73,14 +73,24 @@ def serve(
         help="Require this file's token to change settings or write to a serial port.",
     ),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
+    replay: Path | None = typer.Option(  # noqa: UP007
+        None,
+        "--replay",
+        metavar="FILE.mcap",
+        dir_okay=False,
+        help="Serve a hub recording's samples at their recorded rates.",
+    ),
+    speed: float | None = typer.Option(None, "--speed", help="Replay speed (default 1)."),
+    loop: bool = typer.Option(False, "--loop", help="Replay again from the start at the end."),
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
     from robocli.hub import HubServer, tune_hub_process
 
+    sources = replay_sources(replay, speed, loop)
     tune_hub_process()
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token_from_file(token_file), max_clients=max_clients,
+        token=token_from_file(token_file), max_clients=max_clients, sources=sources,
     )  # fmt: skip
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
@@ -90,7 +100,8 @@ def serve(
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
             for note in _replaced(sim, pioneer, gpsd):
                 typer.echo(note, err=True)
-            typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
+            what = f"hub replaying {replay}: " if replay is not None else "hub "
+            typer.echo(f"{what}serving {', '.join(srv.sensors)} on {srv.url}")
             sys.stdout.flush()
             if sys.stdout.isatty():
                 _live(srv)
@@ -98,6 +109,20 @@ def serve(
                 _log(srv)
         finally:
             srv.close()
+
+
+def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
+    """``--replay``'s sources (None without it); ``--speed``/``--loop`` need it."""
+    if replay is None:
+        if speed is not None or loop:
+            raise typer.BadParameter("--speed and --loop go with --replay FILE",
+                                     param_hint="'--speed'/'--loop'")  # fmt: skip
+        return None
+    if speed is not None and not speed > 0:
+        raise typer.BadParameter(f"must be > 0, not {speed:g}", param_hint="'--speed'")
+    from robocli.hub.sources.replay import replay_sources as sources_of
+
+    return sources_of(replay, speed or 1.0, loop)
 
 
 def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
