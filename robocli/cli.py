@@ -16,6 +16,7 @@ from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, pioneer, ports, record
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
+from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
@@ -113,6 +114,7 @@ app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 app.command("info", cls=PlainCommand)(record.info)
+app.command("export", cls=PlainCommand)(export_command.export)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:
