@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
+from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -73,15 +74,9 @@ def serve(
         help="Require this file's token to change settings or write to a serial port.",
     ),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
-    replay: Path | None = typer.Option(  # noqa: UP007
-        None,
-        "--replay",
-        metavar="FILE.mcap",
-        dir_okay=False,
-        help="Serve a hub recording's samples at their recorded rates.",
-    ),
-    speed: float | None = typer.Option(None, "--speed", help="Replay speed (default 1)."),
-    loop: bool = typer.Option(False, "--loop", help="Replay again from the start at the end."),
+    replay: Path | None = ReplayOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,  # noqa: UP007
+    loop: bool = LoopOpt,
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
     from robocli.hub import HubServer, tune_hub_process
@@ -112,17 +107,13 @@ def serve(
 
 
 def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
-    """``--replay``'s sources (None without it); ``--speed``/``--loop`` need it."""
+    """``--replay``'s sources (None without it)."""
+    rate = check_replay(replay, speed, loop)
     if replay is None:
-        if speed is not None or loop:
-            raise typer.BadParameter("--speed and --loop go with --replay FILE",
-                                     param_hint="'--speed'/'--loop'")  # fmt: skip
         return None
-    if speed is not None and not speed > 0:
-        raise typer.BadParameter(f"must be > 0, not {speed:g}", param_hint="'--speed'")
     from robocli.hub.sources.replay import replay_sources as sources_of
 
-    return sources_of(replay, speed or 1.0, loop)
+    return sources_of(replay, rate, loop)
 
 
 def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
