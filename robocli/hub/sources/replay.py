@@ -243,8 +243,8 @@ def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]
     items = out.setdefault(name, [])
     try:
         if mtype not in (MsgType.HOKUYO, MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT):
-            for rec in np.frombuffer(buf, dtype=dtype, count=n):
-                items.append((float(rec["t"]), rec, []))
+            records = np.frombuffer(buf, dtype=dtype, count=n)
+            items.append((math.nan, records, []))  # a whole reply of fixed records
             return
         count = 2 * n if mtype == MsgType.WEBCAM_STEREO else n
         infos = np.frombuffer(buf, dtype=dtype, count=count)
@@ -272,15 +272,16 @@ def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]
 
 def _recorded(name: str, items: list[tuple[float, Any, list[bytes]]]) -> RecordedSensor:
     """One sensor's samples, in time order, each time once."""
+    if items and all(math.isnan(t) for t, _, _ in items):  # fixed records: whole replies
+        every = np.concatenate([rec for _, rec, _ in items])
+        stamps, first = np.unique(every["t"].astype(np.float64), return_index=True)
+        return RecordedSensor(name, stamps, every[first])
     unique: dict[float, tuple[Any, list[bytes]]] = {}
     for t, rec, blobs in items:
         unique.setdefault(t, (rec, blobs))
     times = sorted(unique)
     stamps = np.array(times, dtype=np.float64)
     first_rec, first_blobs = unique[times[0]]
-    if not first_blobs and name not in ("camera", "laser", "stereo", "depth"):
-        records = np.array([unique[x][0] for x in times], dtype=first_rec.dtype)
-        return RecordedSensor(name, stamps, records)
     nblobs = len(first_blobs)
     widths = [max(1, *(len(unique[x][1][b]) for x in times)) for b in range(nblobs)]
     info_shape = (2,) if name == "stereo" else ()
