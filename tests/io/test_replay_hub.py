@@ -243,3 +243,8 @@ def _frames(reading: Any) -> list[bytes]:
                               if not k.endswith("_t"))]  # fmt: skip
     return [b"".join(np.ascontiguousarray(np.asarray(a)[..., j]).tobytes() for a in arrays)
             for j in range(len(reading))]  # fmt: skip
+
+
+def test_replay_memory_is_bounded(recording: tuple[Path, dict[str, Pulled]]) -> None:
+    with pytest.raises(RobocliError, match="MiB of samples"):
+        replay_sources(recording[0], max_bytes=4096)

@@ -47,6 +47,9 @@ __all__ = [
 ]
 
 MAX_BATCH_HZ = 100.0  #: a replay source is polled at most this often
+MAX_REPLAY_BYTES = 1 << 30
+"""Sample bytes a replay holds in memory at most (1 GiB: about 75 s of a 320 x 240 raw
+camera at 60 Hz, hours of IMU and ADC); a larger recording is refused in one line."""
 
 
 @dataclass
@@ -204,40 +207,45 @@ def _stamp(records: npt.NDArray[Any], t: npt.NDArray[np.float64]) -> None:
 # ------------------------------------------------------------------------ reading
 
 
-def read_hub_recording(path: str | Path) -> dict[str, RecordedSensor]:
+def read_hub_recording(path: str | Path, max_bytes: int = MAX_REPLAY_BYTES
+                       ) -> dict[str, RecordedSensor]:  # fmt: skip
     """The samples of every sensor in the hub recording at ``path`` (see the module
     docstring), by the hub's sensor name. Raises :class:`RobocliError` when the file holds
-    no hub link or no sample."""
+    no hub link or no sample, or more than ``max_bytes`` of samples."""
     from robocli.io.capture import CaptureStats
     from robocli.io.record import raw_frames
 
     samples: dict[str, list[tuple[float, Any, list[bytes]]]] = {}
     stats = CaptureStats()
+    held = 0
     for _t, direction, frame in raw_frames(path, "ros4mat", stats):
         if direction == "rx":
-            _samples_of(frame, samples)
+            held += _samples_of(frame, samples)
+            if held > max_bytes:
+                raise RobocliError(f"{path}: over {max_bytes / 2**20:.0f} MiB of samples to "
+                                   "hold for the replay; replay a shorter recording")  # fmt: skip
     if not samples:
         raise RobocliError(f"{path}: the hub recording holds no sensor sample")
     return {name: _recorded(name, items) for name, items in sorted(samples.items())}
 
 
-def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]]]) -> None:
-    """Add the samples of one data reply (other replies are skipped)."""
+def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]]]) -> int:
+    """Add the samples of one data reply (other replies are skipped); returns their bytes."""
     from robocli.devices.hub.decode import HEADER, body_of
     from robocli.hub.frontends.ros4mat import SENSOR_IDS
     from robocli.protocols.ros4mat import MsgType, record_dtype
 
     if len(frame) < HEADER.size:
-        return
+        return 0
     header = HEADER.unpack_from(frame, 0)
     mtype, error, n = header[0], header[1], header[3]
     name = SENSOR_IDS.get(mtype)
     if error or not n or name is None:
-        return
+        return 0
     try:
         _, body = body_of(frame)
     except RobocliError:
-        return  # a reply the recording could not decode either: its raw bytes stay
+        return 0  # a reply the recording could not decode either: its raw bytes stay
     buf = bytes(body)
     dtype = record_dtype(mtype)
     items = out.setdefault(name, [])
@@ -245,7 +253,7 @@ def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]
         if mtype not in (MsgType.HOKUYO, MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.KINECT):
             records = np.frombuffer(buf, dtype=dtype, count=n)
             items.append((math.nan, records, []))  # a whole reply of fixed records
-            return
+            return len(buf)
         count = 2 * n if mtype == MsgType.WEBCAM_STEREO else n
         infos = np.frombuffer(buf, dtype=dtype, count=count)
     except ValueError:
@@ -268,6 +276,7 @@ def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]
             blobs.append(buf[pos : pos + size])
             pos += size
         items.append((t, group if per > 1 else group[0], blobs))
+    return len(buf)
 
 
 def _recorded(name: str, items: list[tuple[float, Any, list[bytes]]]) -> RecordedSensor:
@@ -299,12 +308,13 @@ def _recorded(name: str, items: list[tuple[float, Any, list[bytes]]]) -> Recorde
     return RecordedSensor(name, stamps, records, blob_names, sizes)
 
 
-def replay_sources(path: str | Path, speed: float = 1.0, loop: bool = False
-                   ) -> dict[str, Source]:  # fmt: skip
+def replay_sources(path: str | Path, speed: float = 1.0, loop: bool = False,
+                   max_bytes: int = MAX_REPLAY_BYTES) -> dict[str, Source]:  # fmt: skip
     """Hub sources (by sensor name) playing back the hub recording at ``path`` on one
     shared :class:`ReplayTimeline` (see the module docstring): give them to
-    :class:`~robocli.hub.HubServer` as ``sources``."""
-    sensors = read_hub_recording(path)
+    :class:`~robocli.hub.HubServer` as ``sources``. ``max_bytes``: see
+    :data:`MAX_REPLAY_BYTES`."""
+    sensors = read_hub_recording(path, max_bytes)
     start = min(float(s.t[0]) for s in sensors.values())
     end = max(float(s.t[-1]) for s in sensors.values())
     busiest = max(sensors.values(), key=lambda s: len(s.t))
