@@ -19,9 +19,11 @@ Image data stays the base64 text it is in the recording.
 
 **irb120-json**: the arm's joint states (``JOINT_FEEDBACK`` when the controller sent it,
 with its velocities, else ``JOINT_POSITION``, velocities by finite differences) as a
-:class:`~robocli.io.trajlog.TrajectoryLog`: time from 0 at the first sample, the first
-sample's Unix time as ``time_origin``, and the flange position from the recording's ``tcp``
-channel when it covers every sample.
+:class:`~robocli.io.trajlog.TrajectoryLog`: time from 0 at the first sample, on the
+controller's clock when it sent one (JOINT_FEEDBACK's time; a sample that does not advance
+it is kept once), else on the publish times; the first sample's Unix time as
+``time_origin``, and the flange position from the recording's ``tcp`` channel when it
+covers every sample. NPZ and irb120-json are built in memory.
 
 A recording killed before its end exports up to its last complete record.
 """
@@ -114,7 +116,8 @@ class _Writer:
         self.path, self.fmt = path, fmt
         self._fh: IO[str] | None = None
         self._csv: Any = None
-        self._rows: list[dict[str, Any]] = []
+        self._columns: dict[str, list[Any]] = {}  # npz: each field's values so far
+        self._rows = 0
         if fmt != "npz":
             try:
                 self._fh = path.open("w", newline="" if fmt == "csv" else None)
@@ -126,11 +129,12 @@ class _Writer:
         try:
             if self.fmt == "jsonl":
                 assert self._fh is not None
-                self._fh.write(json.dumps({**times, **message}, separators=(",", ":")) + "\n")
+                row = {**times, **message, **times}  # t first, and ours
+                self._fh.write(json.dumps(row, separators=(",", ":")) + "\n")
                 return
-            row = {**times, **flatten(message)}
+            row = {**times, **flatten(message, lists=self.fmt != "npz"), **times}
             if self.fmt == "npz":
-                self._rows.append(row)
+                self._column_add(row)
                 return
             if self._csv is None:
                 self._csv = csv.DictWriter(self._fh, fieldnames=list(row), extrasaction="ignore")  # type: ignore[arg-type]
@@ -139,14 +143,26 @@ class _Writer:
         except OSError as exc:
             raise RobocliError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
+    def _column_add(self, row: dict[str, Any]) -> None:
+        columns, n = self._columns, self._rows
+        for key, value in row.items():
+            column = columns.get(key)
+            if column is None:
+                column = columns[key] = [None] * n
+            column.append(value)
+        self._rows = n = n + 1
+        if len(row) < len(columns):
+            for column in columns.values():
+                if len(column) < n:
+                    column.append(None)
+
     def close(self) -> None:
         if self._fh is not None:
             self._fh.close()
             return
         import numpy as np
 
-        arrays = {key: _column([row.get(key) for row in self._rows])
-                  for key in dict.fromkeys(k for row in self._rows for k in row)}  # fmt: skip
+        arrays = {key: _column(values) for key, values in self._columns.items()}
         try:
             with self.path.open("wb") as fh:
                 np.savez_compressed(fh, **arrays)
@@ -180,6 +196,14 @@ def _column(values: list[Any]) -> Any:
     present = [v for v in values if v is not None]
     if present and all(isinstance(v, (int, float)) for v in present):
         return np.array([math.nan if v is None else float(v) for v in values], dtype=np.float64)
+    if present and all(isinstance(v, list) and all(x is None or isinstance(x, (int, float))
+                                                   for x in v) for v in present):  # fmt: skip
+        width = max(len(v) for v in present)
+        out = np.full((len(values), width), math.nan)
+        for i, v in enumerate(values):
+            if v:
+                out[i, : len(v)] = [math.nan if x is None else x for x in v]
+        return out
     return np.array(["" if v is None else str(v) for v in values], dtype=np.str_)
 
 

@@ -87,6 +87,11 @@ def test_jsonl_and_npz(hub_recording: Path, tmp_path: Path) -> None:
     assert t == pytest.approx([i[2].publish_time / 1e9 for i in imu], abs=1e-6)
     assert z.tolist() == [decoded(i)["linear_acceleration"]["z"] for i in imu]
     assert frame[0] == "hub/imu"
+    with np.load(tmp_path / "n" / "hub_laser.npz") as npz:
+        ranges = npz["ranges"]
+    scans = [decoded(i)["ranges"] for i in topics["/hub/laser"]]
+    assert ranges.shape == (len(scans), len(scans[0]))  # one row per scan
+    assert np.array_equal(ranges, np.array(scans, dtype=float), equal_nan=True)
 
 
 @pytest.fixture
