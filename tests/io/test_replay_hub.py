@@ -248,3 +248,28 @@ def _frames(reading: Any) -> list[bytes]:
 def test_replay_memory_is_bounded(recording: tuple[Path, dict[str, Pulled]]) -> None:
     with pytest.raises(RobocliError, match="MiB of samples"):
         replay_sources(recording[0], max_bytes=4096)
+
+
+def test_a_stalled_replay_skips_what_it_missed_beyond_the_catch_up() -> None:
+    from robocli.hub.sources.replay import (
+        MAX_CATCH_UP_S,
+        RecordedSensor,
+        ReplaySource,
+        ReplayTimeline,
+    )
+    from robocli.protocols.ros4mat import record_dtype
+
+    n = 2000  # 20 s at 100 Hz
+    records = np.zeros(n, dtype=record_dtype("imu"))
+    records["t"] = 1000.0 + np.arange(n) / 100.0
+    records["acc"][:, 0] = np.arange(n)
+    sensor = RecordedSensor("imu", records["t"].copy(), records)
+    source = ReplaySource(sensor, ReplayTimeline(1000.0, sensor.t[-1].item()))
+    source.start(50.0)
+    t, got = source.poll(50.0)
+    assert got["acc"][:, 0].tolist() == [0.0] and t.tolist() == [50.0]
+    t, got = source.poll(62.0)  # 12 s later: the last 5 s of them, not 12 s at once
+    assert len(t) == int(MAX_CATCH_UP_S * 100) + 1
+    assert got["acc"][-1, 0] == 1200.0 and t[-1] == pytest.approx(62.0)
+    assert np.diff(t) == pytest.approx(0.01)
+    assert source.timeline.finished(71.0) and not source.timeline.finished(69.0)

@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import InvalidArgument, ProtocolError, RobocliError
-from robocli.hub.sources.base import EMPTY_T, MAX_CATCH_UP_S, Batch, Source
+from robocli.hub.sources.base import EMPTY_T, Batch, Source
 
 __all__ = [
     "RecordedSensor",
@@ -47,6 +47,9 @@ __all__ = [
 ]
 
 MAX_BATCH_HZ = 100.0  #: a replay source is polled at most this often
+MAX_CATCH_UP_S = 5.0
+"""A replay late by more than this (a stalled hub) skips the samples missed before it; the
+rings hold 10 s, so a client that keeps pulling loses nothing to a shorter stall."""
 MAX_REPLAY_BYTES = 1 << 30
 """Sample bytes a replay holds in memory at most (1 GiB: about 75 s of a 320 x 240 raw
 camera at 60 Hz, hours of IMU and ADC); a larger recording is refused in one line."""
