@@ -273,3 +273,47 @@ def test_a_stalled_replay_skips_what_it_missed_beyond_the_catch_up() -> None:
     assert got["acc"][-1, 0] == 1200.0 and t[-1] == pytest.approx(62.0)
     assert np.diff(t) == pytest.approx(0.01)
     assert source.timeline.finished(71.0) and not source.timeline.finished(69.0)
+
+
+ORIGINAL = {line.split()[0]: bytes.fromhex(line.split(None, 1)[1]) for line in (
+    Path(__file__).resolve().parents[1] / "data" / "ros4mat" / "original_client.hex"
+).read_text().splitlines() if line.strip() and not line.startswith("#")}  # fmt: skip
+"""The original ros4mat MATLAB client's requests, as captured."""
+
+
+def test_the_original_clients_bytes_get_the_recorded_adc(
+        recording: tuple[Path, dict[str, Pulled]], replay_hub: HubServer) -> None:  # fmt: skip
+    import socket
+
+    from robocli.protocols import ros4mat as r4m
+
+    def exact(sock: socket.socket, n: int) -> bytes:
+        buf = bytearray()
+        while len(buf) < n:
+            chunk = sock.recv(n - len(buf))
+            assert chunk, "the hub closed the connection"
+            buf += chunk
+        return bytes(buf)
+
+    def ask(sock: socket.socket, request: bytes) -> Any:
+        sock.sendall(request)
+        head = exact(sock, r4m.HEADER_SIZE)
+        return r4m.decode(head + exact(sock, r4m.body_length(r4m.Header.parse(head))))
+
+    _, pulled = recording
+    rec_data, rec_t = pulled["adc"].arrays()
+    samples: list[dict[str, Any]] = []
+    with socket.create_connection(("127.0.0.1", replay_hub.port), timeout=30) as sock:
+        assert ask(sock, ORIGINAL["connect"]).error == 0
+        assert ask(sock, ORIGINAL["subscribe_adc"]).error == 0  # its 100 Hz: ignored
+
+        def pulled_all() -> bool:
+            samples.extend(ask(sock, ORIGINAL["pull_adc"]).body or [])
+            return len(samples) >= len(rec_t)
+
+        wait_for(pulled_all, what="every recorded ADC sample")
+        sock.sendall(ORIGINAL["quit"])
+    t = np.array([s["t"] for s in samples])
+    channels = np.array([s["channels"] for s in samples], dtype=np.float32).T
+    assert np.array_equal(channels, rec_data.astype(np.float32))  # the recorded 500 Hz ADC
+    assert np.diff(t) == pytest.approx(np.diff(rec_t), abs=2e-6)
