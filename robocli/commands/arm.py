@@ -33,7 +33,7 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
-from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
+from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -233,7 +233,7 @@ def simulate(
             "server each need their own port"
         )
     if replay is not None:
-        _replay(replay, rate, loop, robot, profile, bind, motion_port, state_port)
+        abb_replay(replay, rate, loop, robot, profile, bind, motion_port, state_port)
         return
     if state_ms is None:
         state_ms = 20.0 if paper else 100.0
@@ -261,21 +261,6 @@ def simulate(
             f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
             f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
         )
-        sys.stdout.flush()
-        while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
-            time.sleep(3600)
-
-
-def _replay(replay: Path, speed: float, loop: bool, robot: str, profile: str, bind: str,
-            motion_port: int, state_port: int) -> None:  # fmt: skip
-    """``sim abb --replay``: the recording's state stream on the state port until Ctrl-C."""
-    from robocli.sim.abb.replay import AbbReplay
-
-    with sigterm_as_interrupt(), AbbReplay(replay, speed=speed, loop=loop, robot=robot,
-                                           profile=profile) as simulator:  # fmt: skip
-        with listening(bind):
-            motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
-        typer.echo(f"replaying {replay}: motion {motion}, state {state}")
         sys.stdout.flush()
         while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
             time.sleep(3600)
