@@ -16,6 +16,7 @@ from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, pioneer, plot, ports, record
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
+from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
@@ -114,6 +115,7 @@ app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
+app.command("export", cls=PlainCommand)(export_command.export)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

@@ -34,6 +34,7 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -216,10 +217,14 @@ def simulate(
         1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
     ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
+    replay: Path | None = ReplayOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,  # noqa: UP007
+    loop: bool = LoopOpt,
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
     from robocli.sim.abb.server import PROFILES, AbbSim, ControllerModel
 
+    rate = check_replay(replay, speed, loop)
     check_wire(byte_order, real_size)
     if profile not in PROFILES:
         raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
@@ -228,6 +233,9 @@ def simulate(
             f"--motion-port and --state-port are both {motion_port}: the motion and the state "
             "server each need their own port"
         )
+    if replay is not None:
+        abb_replay(replay, rate, loop, robot, profile, bind, motion_port, state_port)
+        return
     if state_ms is None:
         state_ms = 20.0 if paper else 100.0
     model = (

@@ -230,8 +230,8 @@ def file(
 
 
 def validate(
-    sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz)."),
-    real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz)."),
+    sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz, .mcap)."),
+    real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz, .mcap)."),
     robot: str = typer.Option(
         "irb120", "--robot", "-r", help="Model for the TCP error when a log has no TCP column."
     ),
@@ -239,10 +239,10 @@ def validate(
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
-    from robocli.io.trajlog import read_log
+    from robocli.io.export import read_any_log
     from robocli.kinematics.validate import validate as compare
 
-    sim_log, real_log = read_log(sim), read_log(real)
+    sim_log, real_log = read_any_log(sim), read_any_log(real)
     model = _model(robot) if robot else None
     if model is not None and model.n_joints != sim_log.n_joints:
         model = None

@@ -12,6 +12,7 @@ import math
 import sys
 import time
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,6 +31,7 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
@@ -165,6 +167,9 @@ def simulate(
         metavar="LAT,LON[,ALT]",
         help="Map origin in degrees (and metres), for SIMSTAT's GPS fix.",
     ),
+    replay: Path | None = ReplayOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,  # noqa: UP007
+    loop: bool = LoopOpt,
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
     from robocli.robots.pioneer import ROBOT_PARAMS
@@ -173,10 +178,15 @@ def simulate(
 
     if subtype not in ROBOT_PARAMS:
         raise typer.BadParameter(f"unknown subtype {subtype!r}; known: {', '.join(ROBOT_PARAMS)}")
+    rate = check_replay(replay, speed, loop)
     world = _load_map(World, map_file) if map_file else None
     options: dict[str, Any] = {"georef": _georef(georef) if georef else None}
     if not laser:
         options["laser"] = None
+    if replay is not None:
+        from robocli.sim.pioneer.replay import PioneerReplay
+
+        options = {"factory": partial(PioneerReplay, replay, speed=rate, loop=loop), **options}
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
@@ -186,8 +196,9 @@ def simulate(
                     subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
                     **options,
                 )  # fmt: skip
+            what = f"replaying {replay}" if replay is not None else subtype
             for i, simulator in enumerate(sims):
-                typer.echo(f"robot {i + 1}: {subtype} on {simulator.pty_path or simulator.url}")
+                typer.echo(f"robot {i + 1}: {what} on {simulator.pty_path or simulator.url}")
             sys.stdout.flush()
             while True:
                 time.sleep(3600)

@@ -17,6 +17,7 @@ import typer
 
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
+from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -76,15 +77,19 @@ def serve(
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
+    replay: Path | None = ReplayOpt,  # noqa: UP007
+    speed: float | None = SpeedOpt,  # noqa: UP007
+    loop: bool = LoopOpt,
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
     from robocli.hub import HubServer, tune_hub_process
 
+    sources = replay_sources(replay, speed, loop)
     tune_hub_process()
     token = token_from_file(token_file)
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token, max_clients=max_clients,
+        token=token, max_clients=max_clients, sources=sources,
     )  # fmt: skip
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
@@ -94,7 +99,8 @@ def serve(
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
             for note in _replaced(sim, pioneer, gpsd):
                 typer.echo(note, err=True)
-            typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
+            what = f"hub replaying {replay}: " if replay is not None else "hub "
+            typer.echo(f"{what}serving {', '.join(srv.sensors)} on {srv.url}")
             sys.stdout.flush()
             with hub_live_view(foxglove, foxglove_host, srv, token):  # what clients make it run
                 if sys.stdout.isatty():
@@ -103,6 +109,16 @@ def serve(
                     _log(srv)
         finally:
             srv.close()
+
+
+def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
+    """``--replay``'s sources (None without it)."""
+    rate = check_replay(replay, speed, loop)
+    if replay is None:
+        return None
+    from robocli.hub.sources.replay import replay_sources as sources_of
+
+    return sources_of(replay, rate, loop)
 
 
 def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:

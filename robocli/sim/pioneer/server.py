@@ -311,17 +311,20 @@ class PioneerSim:
 
 
 def serve_many(
-    n: int, *, host: str = "127.0.0.1", port: int = 8101, pty: bool = False, **kw: Any
-) -> list[PioneerSim]:
+    n: int, *, host: str = "127.0.0.1", port: int = 8101, pty: bool = False,
+    factory: Callable[..., PioneerSim] | None = None, **kw: Any,
+) -> list[PioneerSim]:  # fmt: skip
     """``n`` independent robots on ``port``, ``port + 1``, ... (``port=0``: ephemeral ports),
     or each on its own pseudo-terminal with ``pty=True`` (``host``/``port`` unused). Keyword
-    arguments go to :class:`PioneerSim`. On failure the robots already started are closed."""
+    arguments go to :class:`PioneerSim` (or ``factory``, e.g. a
+    :class:`~robocli.sim.pioneer.replay.PioneerReplay`). On failure the robots already
+    started are closed."""
     if port and not pty and port + n - 1 > 65535:
         raise InvalidArgument(f"port {port} + {n} robots runs past port 65535")
     sims: list[PioneerSim] = []
     try:
         for i in range(n):
-            sim = PioneerSim(**kw)
+            sim = (factory or PioneerSim)(**kw)
             sims.append(sim)
             if pty:
                 sim.serve_pty()

@@ -1,0 +1,71 @@
+"""An arm controller that plays a recording back (``robocli sim abb --replay FILE.mcap``).
+
+The recorded state-port stream (JOINT_POSITION, ROBOT_STATUS, JOINT_FEEDBACK: every frame
+the controller sent there, byte for byte) is sent again to the state-port client on its
+recorded spacing (the recording's receive times; ``speed`` times as fast), from its first
+frame each time a state client connects (one at a time, as the simulator), and with
+``loop`` again at its end. The wire variant (byte order, real size) is the recording's.
+The motion port answers as the simulator's does (a trajectory is acknowledged and accepted)
+but nothing moves: the state stream is the recording's.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.replay import FrameSchedule, recorded_frames
+from robocli.sim.serving import Link
+
+__all__ = ["AbbReplay"]
+
+TICK_S = 0.002  #: how often the stream is checked for frames due (wall s)
+
+
+def _wire(path: str | Path) -> tuple[Any, Any]:
+    """(byte order, real size) of the recording's arm link."""
+    from robocli.io.record import RAW_ENCODING, info
+
+    for channel in info(path).channels:
+        meta = channel.metadata
+        if channel.encoding == RAW_ENCODING and meta.get("protocol", "").startswith("sm"):
+            order = ">" if meta.get("byte_order") == "big" or meta["protocol"] == "sm-be" else "<"
+            real = 8 if meta.get("real_size") == "8" else 4
+            return order, real
+    return "<", 4
+
+
+class AbbReplay(AbbSim):
+    """:class:`~robocli.sim.abb.server.AbbSim`'s two ports playing back the arm recorded at
+    ``path`` on the state port (see the module docstring). Keyword arguments go to
+    :class:`AbbSim` (``robot``...)."""
+
+    def __init__(self, path: str | Path, *, speed: float = 1.0, loop: bool = False,
+                 **options: Any) -> None:  # fmt: skip
+        frames = recorded_frames(path, "sm", "rx:state")
+        self.schedule = FrameSchedule(frames, speed, loop)
+        order, real = _wire(path)
+        options.setdefault("byteorder", order)
+        options.setdefault("real", real)
+        super().__init__(**options)
+        self.path = str(path)
+
+    def _publish(self) -> None:
+        """The recorded stream to the state client, restarted for each new one."""
+        playing: Link | None = None
+        while not self._stop.wait(TICK_S):
+            links: list[Link] = self._state.links() if self._state else []
+            if not links:
+                if playing is not None:
+                    playing = None
+                    self.schedule.stop()
+                continue
+            now = time.monotonic()
+            if playing not in links:
+                playing = links[0]
+                self.schedule.restart(now)
+            frames = self.schedule.due(now)
+            if frames and playing.send(b"".join(frames)):
+                self.states_sent += len(frames)
