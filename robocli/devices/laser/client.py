@@ -34,7 +34,7 @@ from types import TracebackType
 
 from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
-from robocli.devices.listeners import Listeners
+from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
 from robocli.errors import DeviceError, FramingError, ProtocolError, TimeoutError
 from robocli.protocols import scip2
@@ -101,12 +101,16 @@ class Laser:
         laser_on: bool = True,
         sync_samples: int = 5,
         check: bool = True,
+        listener: FrameListener | None = None,
     ) -> Laser:
         """Open ``url`` (a serial device, a pyserial URL, or ``tcp://host:10940``), bring the
         sensor to SCIP 2.0 and idle, read VV/PP/II, estimate the clock offset
-        (``sync_samples`` TM1 round trips; 0: none) and turn the laser on."""
+        (``sync_samples`` TM1 round trips; 0: none) and turn the laser on. ``listener``
+        sees every request and reply block from the first (``(direction, bytes, t)``)."""
         transport = open_transport(url, baudrate=baudrate, timeout=max(timeout, 1.0))
         laser = cls(transport, timeout=timeout, check=check)
+        if listener is not None:
+            laser.session.listeners.add(listener)
         try:
             laser._handshake()
             laser.info = laser.read_info()
