@@ -9,7 +9,7 @@ DEMO_STAMP := $(VENV)/.installed-demo
 STAMP  := $(VENV)/.installed
 CC     ?= gcc
 CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
-CSRC   := csrc/checksum.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
+CSRC   := csrc/checksum.c csrc/scip.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
 .PHONY: venv demo test test-load test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz

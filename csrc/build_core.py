@@ -13,7 +13,7 @@ import sys
 from cffi import FFI
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-SOURCES = ["checksum.c", "framer.c", "ring.c", "align.c", "pingpong.c", "benchnet.c"]
+SOURCES = ["checksum.c", "scip.c", "framer.c", "ring.c", "align.c", "pingpong.c", "benchnet.c"]
 
 
 def _rel(path: str) -> str:

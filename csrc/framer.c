@@ -1,5 +1,5 @@
 /*
- * Stream framers for ARCOS, Simple Message (LE/BE) and ros4mat.
+ * Stream framers for ARCOS, Simple Message (LE/BE), ros4mat and SCIP 2.0 (rules in scip.c).
  *
  * The framer owns one growable buffer [start, end). Frames are returned as pointers
  * into it; bytes are only moved (compacted) inside rc_framer_feed, so a frame stays
@@ -16,6 +16,9 @@
 #define RC_SM_DEFAULT_MAX 4100u
 #define RC_R4M_HEADER 27u
 #define RC_R4M_DEFAULT_MAX (27u + 16u * 1024u * 1024u)
+#define RC_SCIP_DEFAULT_MAX 65536u
+#define RC_SCIP_MAX_ECHO 64u
+#define RC_SCIP_MAX_LINE 128u
 #define RC_INITIAL_CAP 4096u
 
 struct rc_framer {
@@ -51,6 +54,12 @@ rc_framer *rc_framer_new(int proto, size_t max_frame)
         min_frame = RC_R4M_HEADER;
         if (max_frame == 0) {
             max_frame = RC_R4M_DEFAULT_MAX;
+        }
+        break;
+    case RC_PROTO_SCIP2:
+        min_frame = 8;
+        if (max_frame == 0) {
+            max_frame = RC_SCIP_DEFAULT_MAX;
         }
         break;
     default:
@@ -322,9 +331,150 @@ static int next_r4m(rc_framer *f, const unsigned char **frame, size_t *len)
     }
 }
 
+/* SCIP line at `at` in buf[0..n): SL_OK (*cend = content end, CR dropped; *nxt = after the
+ * LF), SL_GARBAGE (*nxt = after the bad byte), SL_LONG (more than `limit` chars; *nxt = the
+ * bytes scanned, or after the LF), SL_WAIT (its end has not arrived yet). */
+#define SL_OK 0
+#define SL_GARBAGE 1
+#define SL_LONG 2
+#define SL_WAIT 3
+
+static int scip_line(const unsigned char *buf, size_t n, size_t at, size_t limit, size_t *cend,
+                     size_t *nxt)
+{
+    size_t i = at;
+
+    for (;;) {
+        unsigned char c;
+        if (i >= n) {
+            if (i - at > limit) {
+                *nxt = i;
+                return SL_LONG;
+            }
+            return SL_WAIT;
+        }
+        c = buf[i];
+        if (c == '\n') {
+            size_t e = (i > at && buf[i - 1] == '\r') ? i - 1 : i;
+            *nxt = i + 1;
+            if (e - at > limit) {
+                return SL_LONG;
+            }
+            *cend = e;
+            return SL_OK;
+        }
+        if (c < 0x20 || c > 0x7E) {
+            if (c != '\r') {
+                *nxt = i + 1;
+                return SL_GARBAGE;
+            }
+            if (i + 1 >= n) {
+                return SL_WAIT;
+            }
+            if (buf[i + 1] != '\n') {
+                *nxt = i + 1;
+                return SL_GARBAGE;
+            }
+        }
+        if (i - at > limit) {
+            *nxt = i;
+            return SL_LONG;
+        }
+        i++;
+    }
+}
+
+static void scip_drop(rc_framer *f, size_t *p, size_t k)
+{
+    *p += k;
+    f->st.dropped_bytes += k;
+}
+
+static int next_scip(rc_framer *f, const unsigned char **frame, size_t *len)
+{
+    size_t p = f->start;
+
+    while (p < f->end) {
+        const unsigned char *b = f->buf + p;
+        size_t n = f->end - p;
+        size_t cend = 0, nxt = 0, send = 0, snxt = 0, at, lend = 0, lnxt = 0;
+        int r;
+
+        if (b[0] == '\n') {
+            scip_drop(f, &p, 1);
+            continue;
+        }
+        r = scip_line(b, n, 0, RC_SCIP_MAX_ECHO, &cend, &nxt);
+        if (r == SL_GARBAGE) {
+            f->st.bad_lengths++;
+            scip_drop(f, &p, nxt);
+            continue;
+        }
+        if (r == SL_LONG || (r == SL_OK && cend == 0)) {
+            scip_drop(f, &p, nxt);
+            continue;
+        }
+        if (r == SL_OK) {
+            r = scip_line(b, n, nxt, 4, &send, &snxt);
+        }
+        if (r == SL_OK && send - nxt == 3 &&
+            b[nxt + 2] != (unsigned char)rc_scip_checksum(b + nxt, 2)) {
+            f->st.bad_checksums++;
+            scip_drop(f, &p, nxt);
+            continue;
+        }
+        if (r == SL_GARBAGE || r == SL_LONG || (r == SL_OK && send - nxt != 1 && send - nxt != 3)) {
+            scip_drop(f, &p, nxt);
+            continue;
+        }
+        if (r == SL_OK) {
+            at = snxt;
+            for (;;) {
+                if (at > f->max_frame) {
+                    r = SL_LONG;
+                    break;
+                }
+                r = scip_line(b, n, at, RC_SCIP_MAX_LINE, &lend, &lnxt);
+                if (r != SL_OK) {
+                    break;
+                }
+                if (lend == at) {
+                    if (lnxt > f->max_frame) {
+                        r = SL_LONG;
+                        break;
+                    }
+                    *frame = b;
+                    *len = lnxt;
+                    f->start = p + lnxt;
+                    f->st.frames++;
+                    return 1;
+                }
+                at = lnxt;
+            }
+            if (r != SL_WAIT) {
+                f->st.bad_lengths++;
+                scip_drop(f, &p, nxt);
+                continue;
+            }
+        }
+        /* waiting for more bytes: unless the candidate has outgrown max_frame */
+        if (n > f->max_frame) {
+            const unsigned char *lf = (const unsigned char *)memchr(b, '\n', n);
+            f->st.bad_lengths++;
+            scip_drop(f, &p, lf != NULL ? (size_t)(lf - b) + 1 : n);
+            continue;
+        }
+        break;
+    }
+    f->start = p;
+    return 0;
+}
+
 int rc_framer_next(rc_framer *f, const unsigned char **frame, size_t *len)
 {
     switch (f->proto) {
+    case RC_PROTO_SCIP2:
+        return next_scip(f, frame, len);
     case RC_PROTO_ARCOS:
         return next_arcos(f, frame, len);
     case RC_PROTO_SM_LE:

@@ -23,6 +23,7 @@ unsigned int rc_arcos_checksum(const unsigned char *data, size_t n);
 #define RC_PROTO_SM_LE    2 /* Simple Message, int32 length prefix little-endian  */
 #define RC_PROTO_SM_BE    3 /* Simple Message, int32 length prefix big-endian     */
 #define RC_PROTO_ROS4MAT  4 /* 27-byte header + body (error text / compressed)    */
+#define RC_PROTO_SCIP2    5 /* Hokuyo SCIP 2.0 reply: echo, status, lines, empty line */
 
 typedef struct rc_framer rc_framer;
 
@@ -34,7 +35,8 @@ typedef struct rc_framer_stats {
 } rc_framer_stats;
 
 /* max_frame: largest accepted frame, prefix/header included; 0 = protocol default
- * (ARCOS 258, Simple Message 4100 (= length 4096 + 4), ros4mat 27 + 16 MiB).
+ * (ARCOS 258, Simple Message 4100 (= length 4096 + 4), ros4mat 27 + 16 MiB, SCIP 65536).
+ * SCIP 2.0 resynchronises line by line, not byte by byte (scip.c has the rules).
  * Returns NULL on bad protocol or out of memory. */
 rc_framer *rc_framer_new(int proto, size_t max_frame);
 void rc_framer_free(rc_framer *f);
@@ -55,6 +57,29 @@ size_t rc_framer_pending(const rc_framer *f); /* bytes buffered, not yet framed 
 /* Benchmark helper: feed data in chunks of `chunk` bytes (0 = all at once), take
  * every frame out, return how many were found. */
 unsigned long rc_framer_count(rc_framer *f, const unsigned char *data, size_t n, size_t chunk);
+
+/* ------------------------------------------------------------------ SCIP 2.0 */
+
+/* Decode results of rc_scip_decode (0 = ok). */
+#define RC_SCIP_OK        0
+#define RC_SCIP_EGARBAGE  1 /* a byte that is not printable ASCII in a data line       */
+#define RC_SCIP_ELINE     2 /* a data line of the wrong length or without LF: truncated */
+#define RC_SCIP_ECHECKSUM 3 /* a data line whose sum char does not match              */
+#define RC_SCIP_ECOUNT    4 /* data chars != count * width: truncated or too long      */
+#define RC_SCIP_ECHAR     5 /* an encoded char outside '0'..'o'                         */
+
+/* SCIP sum of n bytes: (sum & 0x3F) + 0x30. */
+unsigned int rc_scip_checksum(const unsigned char *data, size_t n);
+
+/* Decode the data lines of a scan reply (the bytes after the timestamp line, up to and
+ * excluding the final empty line): each line holds 1..64 chars (exactly 64 but the last),
+ * its sum char, an optional CR and LF. The stream must hold exactly `count` values of
+ * `width` (2, 3 or 4) chars, which may straddle lines; they are written to out[0..count).
+ * check = 0 skips the sums. Checks run per line in order (garbage, length, sum), then the
+ * char count, then the chars. On error returns RC_SCIP_E* and sets *err_at to the offset
+ * of the line (or char) at fault. */
+int rc_scip_decode(const unsigned char *data, size_t n, int width, int check,
+                   unsigned int *out, size_t count, size_t *err_at);
 
 /* ------------------------------------------------------------------ ring buffer */
 

@@ -86,6 +86,9 @@ static int kind_proto(const char *kind)
     if (strcmp(kind, "ros4mat") == 0) {
         return RC_PROTO_ROS4MAT;
     }
+    if (strcmp(kind, "scip2") == 0) {
+        return RC_PROTO_SCIP2;
+    }
     return 0;
 }
 
@@ -101,6 +104,9 @@ static int plausible(int proto, const unsigned char *p, size_t avail)
     unsigned long v;
     if (proto == RC_PROTO_ARCOS) {
         return avail >= 1 && p[0] == 0xFA;
+    }
+    if (proto == RC_PROTO_SCIP2) { /* anything but a non-printable byte may join a line */
+        return avail >= 1 && ((p[0] >= 0x20 && p[0] <= 0x7E) || p[0] == '\n' || p[0] == '\r');
     }
     if (proto == RC_PROTO_SM_LE || proto == RC_PROTO_SM_BE) {
         if (avail < 4) {
@@ -204,7 +210,7 @@ typedef struct vecset {
     size_t n;
 } vecset;
 
-static vecset sets[5];
+static vecset sets[6];
 
 static void test_one_vector(int proto, const unsigned char *v, size_t vlen, const char *name)
 {
@@ -460,6 +466,160 @@ static int load_file(const char *path)
     return count;
 }
 
+/* ------------------------------------------------------------------ SCIP 2.0 */
+
+/* decimal field of `w` digits at p, -1 if not digits */
+static long scip_digits(const unsigned char *p, int w)
+{
+    long v = 0;
+    int i;
+    for (i = 0; i < w; i++) {
+        if (p[i] < '0' || p[i] > '9') {
+            return -1;
+        }
+        v = v * 10 + (p[i] - '0');
+    }
+    return v;
+}
+
+/* offset just after the k-th LF of v (0 if there are fewer) */
+static size_t scip_after_lf(const unsigned char *v, size_t n, int k)
+{
+    size_t i;
+    for (i = 0; i < n; i++) {
+        if (v[i] == '\n' && --k == 0) {
+            return i + 1;
+        }
+    }
+    return 0;
+}
+
+/* The scan vectors of specs/scip2.json decoded whole: G8 (1000, 5432, 0), G11 ME pairs
+ * ((1000, 300), (2000, 4000)), G12/G13 (1000 + step). Then the same data corrupted. */
+static void test_scip_vectors(const vecset *vs)
+{
+    size_t i, j, nscan = 0;
+    unsigned int out[2048];
+
+    for (i = 0; i < vs->n; i++) {
+        const unsigned char *v = vs->data[i];
+        size_t n = vs->len[i], at, err_at;
+        long start, end, cluster, count;
+        int per, ok = 1, rc;
+        unsigned char *bad;
+
+        if (n < 16 || !(v[0] == 'G' || v[0] == 'M') || !(v[1] == 'D' || v[1] == 'E')) {
+            continue;
+        }
+        at = scip_after_lf(v, n, 3);
+        if (at == 0 || at >= n) {
+            continue; /* a status-only reply (laser off, MD ack) */
+        }
+        start = scip_digits(v + 2, 4);
+        end = scip_digits(v + 6, 4);
+        cluster = scip_digits(v + 10, 2);
+        per = v[1] == 'E' ? 2 : 1;
+        count = (end - start + (cluster > 1 ? cluster : 1)) / (cluster > 1 ? cluster : 1) * per;
+        CHECK(start >= 0 && end >= start && count > 0 && count <= 2048, "scip vector echo");
+        rc = rc_scip_decode(v + at, n - at - 1, 3, 1, out, (size_t)count, &err_at);
+        CHECK(rc == RC_SCIP_OK, "scip vector decodes");
+        CHECK(rc_scip_checksum(v + at - 6, 4) == v[at - 2], "scip timestamp line sum");
+        for (j = 0; rc == RC_SCIP_OK && j < (size_t)count; j++) {
+            unsigned int want;
+            if (count == 3) {
+                want = j == 0 ? 1000u : (j == 1 ? 5432u : 0u);
+            } else if (per == 2) {
+                want = j == 0 ? 1000u : (j == 1 ? 300u : (j == 2 ? 2000u : 4000u));
+            } else {
+                want = 1000u + (unsigned int)start + (unsigned int)j;
+            }
+            ok = ok && out[j] == want;
+        }
+        CHECK(ok, "scip vector values");
+        nscan++;
+        /* one value too many or too few expected: the count is checked */
+        CHECK(rc_scip_decode(v + at, n - at - 1, 3, 1, out, (size_t)count - 1, &err_at) ==
+                  RC_SCIP_ECOUNT, "scip count short");
+        CHECK(rc_scip_decode(v + at, n - at - 1, 3, 1, out, (size_t)count + 1, &err_at) ==
+                  RC_SCIP_ECOUNT, "scip count long");
+        CHECK(rc_scip_decode(v + at, n - at - 1, 2, 1, out, 2048, &err_at) == RC_SCIP_ECOUNT,
+              "scip wrong width");
+        /* a truncated block: the region cut inside its last line */
+        CHECK(rc_scip_decode(v + at, n - at - 3, 3, 1, out, (size_t)count, &err_at) ==
+                  RC_SCIP_ELINE, "scip truncated line");
+        bad = (unsigned char *)malloc(n);
+        memcpy(bad, v, n);
+        bad[at] = bad[at] == '0' ? '1' : '0'; /* first data char: the line's sum fails */
+        CHECK(rc_scip_decode(bad + at, n - at - 1, 3, 1, out, (size_t)count, &err_at) ==
+                  RC_SCIP_ECHECKSUM && err_at == 0, "scip bad sum");
+        CHECK(rc_scip_decode(bad + at, n - at - 1, 3, 0, out, (size_t)count, &err_at) ==
+                  RC_SCIP_OK, "scip sums not checked");
+        bad[at] = 0x01;
+        CHECK(rc_scip_decode(bad + at, n - at - 1, 3, 0, out, (size_t)count, &err_at) ==
+                  RC_SCIP_EGARBAGE, "scip garbage byte");
+        bad[at] = 'p'; /* past 'o' */
+        CHECK(rc_scip_decode(bad + at, n - at - 1, 3, 0, out, (size_t)count, &err_at) ==
+                  RC_SCIP_ECHAR && err_at == 0, "scip bad char");
+        free(bad);
+    }
+    CHECK(nscan > 0, "scip scan vectors found (G8, G11, G12, G13 in specs/)");
+}
+
+/* SCIP framer units: resync after garbage lines, a bad status sum, CR LF, max_frame. */
+static void test_scip_framer(void)
+{
+    static const char g8[] = "GD0384038601\n00P\n00?Xg\n0?X1Dh000d\n\n";
+    static const char junk[] = "\x01\xffnoise\nxx\n0@D0@E\n\n";
+    static const char badst[] = "QT\n00Q\n\n";
+    static const char crlf[] = "\r\nBM\r\n00P\r\n\r\n";
+    unsigned char buf[512];
+    size_t n = 0, len, g8n = sizeof(g8) - 1;
+    const unsigned char *fr;
+    rc_framer *f = rc_framer_new(RC_PROTO_SCIP2, 0);
+    rc_framer_stats st;
+    int frames = 0;
+    unsigned char big[600];
+
+    CHECK(rc_scip_checksum((const unsigned char *)"00", 2) == 'P', "scip sum 00");
+    CHECK(rc_scip_checksum((const unsigned char *)"99", 2) == 'b', "scip sum 99");
+    memcpy(buf + n, junk, sizeof(junk) - 1);
+    n += sizeof(junk) - 1;
+    memcpy(buf + n, g8, g8n);
+    n += g8n;
+    memcpy(buf + n, badst, sizeof(badst) - 1);
+    n += sizeof(badst) - 1;
+    memcpy(buf + n, g8, g8n);
+    n += g8n;
+    rc_framer_feed(f, buf, n);
+    while (rc_framer_next(f, &fr, &len)) {
+        CHECK(len == g8n && memcmp(fr, g8, g8n) == 0, "scip frame after garbage");
+        frames++;
+    }
+    rc_framer_get_stats(f, &st);
+    CHECK(frames == 2 && st.frames == 2 && st.bad_checksums == 1, "scip resync");
+    CHECK(st.dropped_bytes == sizeof(junk) - 1 + sizeof(badst) - 1 && rc_framer_pending(f) == 0,
+          "scip dropped bytes counted");
+    rc_framer_feed(f, (const unsigned char *)crlf, sizeof(crlf) - 1);
+    CHECK(rc_framer_next(f, &fr, &len) && len == sizeof(crlf) - 3, "scip CR LF block");
+    rc_framer_free(f);
+    /* a block that never ends is cut at max_frame */
+    f = rc_framer_new(RC_PROTO_SCIP2, 256);
+    memset(big, '0', sizeof(big));
+    memcpy(big, "MD0044072501000\n99b\n", 20);
+    for (n = 20 + 65; n + 1 < sizeof(big); n += 66) {
+        big[n] = '\n';
+    }
+    big[sizeof(big) - 1] = '\n';
+    rc_framer_feed(f, big, sizeof(big));
+    CHECK(!rc_framer_next(f, &fr, &len), "scip runaway block");
+    rc_framer_get_stats(f, &st);
+    CHECK(st.bad_lengths >= 1 && rc_framer_pending(f) <= 256, "scip runaway block dropped");
+    rc_framer_feed(f, (const unsigned char *)g8, g8n);
+    CHECK(rc_framer_next(f, &fr, &len) && len == g8n, "scip frame after a runaway block");
+    rc_framer_free(f);
+    CHECK(rc_framer_new(RC_PROTO_SCIP2, 7) == NULL, "scip max_frame minimum");
+}
+
 static void test_spec_vectors(const char *dir)
 {
     DIR *d = dir != NULL ? opendir(dir) : NULL;
@@ -489,13 +649,14 @@ static void test_spec_vectors(const char *dir)
                 dir);
     }
     CHECK(nfiles > 0 && nvec > 0, "golden vectors found in the spec directory");
-    for (proto = 1; proto <= 4; proto++) {
+    for (proto = 1; proto <= 5; proto++) {
         if (sets[proto].n == 0) {
             fprintf(stderr, "FAIL no golden vector for framer %d in %s\n", proto, dir);
         }
         CHECK(sets[proto].n > 0, "golden vectors for every framer");
     }
-    for (proto = 1; proto <= 4; proto++) {
+    test_scip_vectors(&sets[RC_PROTO_SCIP2]);
+    for (proto = 1; proto <= 5; proto++) {
         for (i = 0; i < sets[proto].n; i++) {
             sprintf(name, "spec vector proto %d #%lu", proto, (unsigned long)i);
             test_one_vector(proto, sets[proto].data[i], sets[proto].len[i], name);
@@ -505,9 +666,9 @@ static void test_spec_vectors(const char *dir)
             free(sets[proto].data[i]);
         }
     }
-    printf("golden vectors: %d files, %lu arcos, %lu sm-le, %lu sm-be, %lu ros4mat\n", nfiles,
-           (unsigned long)sets[1].n, (unsigned long)sets[2].n, (unsigned long)sets[3].n,
-           (unsigned long)sets[4].n);
+    printf("golden vectors: %d files, %lu arcos, %lu sm-le, %lu sm-be, %lu ros4mat, %lu scip2\n",
+           nfiles, (unsigned long)sets[1].n, (unsigned long)sets[2].n, (unsigned long)sets[3].n,
+           (unsigned long)sets[4].n, (unsigned long)sets[5].n);
 }
 
 /* ------------------------------------------------------------------ framer units */
@@ -857,6 +1018,7 @@ int main(int argc, char **argv)
     }
     test_checksum();
     test_framer_units();
+    test_scip_framer();
     test_spec_vectors(argc > 1 ? argv[1] : NULL);
     test_ring();
     test_align();

@@ -3,7 +3,7 @@
 This is the only module that imports the compiled extension. It offers:
 
 * :func:`arcos_checksum` and :class:`Framer` -- find frames of ARCOS, Simple Message
-  (little/big-endian length prefix) and ros4mat in any chunking of a byte stream,
+  (little/big-endian length prefix), ros4mat and SCIP 2.0 in any chunking of a byte stream,
   resynchronising one byte at a time after garbage and counting what was dropped;
 * :class:`Ring` -- one writer, many readers ring of timestamped fixed-size records, each
   reader with its own cursor and limit;
@@ -47,13 +47,14 @@ __all__ = [
     "ResponderStats",
 ]
 
-PROTOCOLS = ("arcos", "sm-le", "sm-be", "ros4mat")
+PROTOCOLS = ("arcos", "sm-le", "sm-be", "ros4mat", "scip2")
 
 _PROTO_IDS = {
     "arcos": lib.RC_PROTO_ARCOS,
     "sm-le": lib.RC_PROTO_SM_LE,
     "sm-be": lib.RC_PROTO_SM_BE,
     "ros4mat": lib.RC_PROTO_ROS4MAT,
+    "scip2": lib.RC_PROTO_SCIP2,
 }
 
 Buffer = Union[bytes, bytearray, memoryview]  # noqa: UP007 (a runtime alias on 3.10)
@@ -98,8 +99,9 @@ class Framer:
 
     ``protocol`` is one of :data:`PROTOCOLS`. ``max_frame`` is the largest accepted frame in
     bytes, prefix/header included (default: ARCOS 258, Simple Message 4100, ros4mat
-    27 + 16 MiB). Bytes that cannot start a valid frame are dropped one at a time and counted
-    in :attr:`stats`. Not thread-safe: use one framer per stream.
+    27 + 16 MiB, SCIP 65536). Bytes that cannot start a valid frame are dropped one at a time
+    (SCIP: line by line, :mod:`robocli.protocols.scip2.framing`) and counted in :attr:`stats`.
+    Not thread-safe: use one framer per stream.
     """
 
     def __init__(self, protocol: str, max_frame: int | None = None) -> None:

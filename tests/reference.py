@@ -1,8 +1,10 @@
 """Pure-Python reference implementations of the C core, for differential tests.
 
-Written for clarity, not speed: checksum, the three framers (same resynchronisation rule:
-drop one byte), the multi-reader ring and timestamp alignment (nearest and linear). Also the
-one loader of the golden vectors in ``specs/`` that every Python test (and the fuzzers) use.
+Written for clarity, not speed: checksum, the three binary framers (same resynchronisation
+rule: drop one byte; SCIP 2.0's line framer is the package's own pure-Python
+``robocli.protocols.scip2.ReplyFramer``), the multi-reader ring and timestamp alignment
+(nearest and linear). Also the one loader of the golden vectors in ``specs/`` that every
+Python test (and the fuzzers) use.
 """
 
 from __future__ import annotations
@@ -15,9 +17,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from robocli.protocols.scip2.framing import ReplyFramer
+
 SPECS_DIR = Path(__file__).resolve().parent.parent / "specs"
-SPEC_NAMES = ("arcos", "ros4mat", "simple_message")
-FRAMER_KINDS = ("arcos", "sm-le", "sm-be", "ros4mat")
+SPEC_NAMES = ("arcos", "ros4mat", "scip2", "simple_message")
+FRAMER_KINDS = ("arcos", "sm-le", "sm-be", "ros4mat", "scip2")
 
 
 class SpecError(ValueError):
@@ -74,6 +78,7 @@ ARCOS_DEFAULT_MAX = 258
 SM_DEFAULT_MAX = 4100
 R4M_HEADER = 27
 R4M_DEFAULT_MAX = 27 + 16 * 1024 * 1024
+SCIP_DEFAULT_MAX = 65536
 
 
 def arcos_checksum(data: bytes) -> int:
@@ -112,6 +117,7 @@ class RefFramer:
             "sm-le": SM_DEFAULT_MAX,
             "sm-be": SM_DEFAULT_MAX,
             "ros4mat": R4M_DEFAULT_MAX,
+            "scip2": SCIP_DEFAULT_MAX,
         }
         if protocol not in defaults:
             raise ValueError(protocol)
@@ -119,15 +125,22 @@ class RefFramer:
         self.max_frame = max_frame or defaults[protocol]
         self.buf = bytearray()
         self.stats = Stats()
+        self._scip = ReplyFramer(self.max_frame) if protocol == "scip2" else None
 
     @property
     def pending(self) -> int:
-        return len(self.buf)
+        return self._scip.pending if self._scip is not None else len(self.buf)
 
     def reset(self) -> None:
         self.buf.clear()
+        if self._scip is not None:
+            self._scip.reset()
 
     def feed(self, data: bytes) -> list[bytes]:
+        if self._scip is not None:
+            frames = self._scip.feed(data)
+            self.stats = Stats(*vars(self._scip.stats).values())
+            return frames
         self.buf += data
         out = []
         while True:

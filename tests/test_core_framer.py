@@ -121,7 +121,7 @@ def test_reset_count_and_errors() -> None:
         Framer("sm-le", max_frame=8)
     with pytest.raises(ValueError):
         f.count(pkt, chunk=-1)
-    assert set(PROTOCOLS) == {"arcos", "sm-le", "sm-be", "ros4mat"}
+    assert set(PROTOCOLS) == {"arcos", "sm-le", "sm-be", "ros4mat", "scip2"}
 
 
 # ------------------------------------------------------------------ golden vectors (specs/)
@@ -249,7 +249,23 @@ def r4m_frames(draw: st.DrawFn) -> bytes:
     return reference.r4m_frame(draw(st.integers(-128, 127)))
 
 
+@st.composite
+def scip_frames(draw: st.DrawFn) -> bytes:
+    """SCIP 2.0 reply blocks: echo, status (sometimes a wrong sum, or 1 char), body lines,
+    sometimes CR LF line ends."""
+    printable = st.binary(min_size=1, max_size=70).map(lambda b: bytes(0x20 + c % 95 for c in b))
+    echo = draw(printable.filter(lambda b: len(b) <= 66))
+    status = draw(st.sampled_from([b"00", b"99", b"0E", b"10"]))
+    line = status + bytes([(sum(status) & 0x3F) + 0x30 + draw(st.sampled_from([0, 0, 0, 1]))])
+    if draw(st.integers(0, 9)) == 0:
+        line = b"0"
+    body = draw(st.lists(printable, max_size=4))
+    eol = b"\r\n" if draw(st.integers(0, 5)) == 0 else b"\n"
+    return eol.join([echo, line, *body, b"", b""])  # ends in the empty line
+
+
 FRAMES = {
+    "scip2": scip_frames(),
     "arcos": arcos_frames(),
     "sm-le": sm_frames(True),
     "sm-be": sm_frames(False),
@@ -310,7 +326,7 @@ def test_matches_reference(proto: str, data: st.DataObject) -> None:
 def test_matches_reference_small_max_frame(proto: str, data: st.DataObject) -> None:
     stream = data.draw(streams(proto))
     cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=6))
-    low = {"arcos": 6, "sm-le": 16, "sm-be": 16, "ros4mat": 27}[proto]
+    low = {"arcos": 6, "sm-le": 16, "sm-be": 16, "ros4mat": 27, "scip2": 8}[proto]
     _compare(proto, stream, cuts, data.draw(st.integers(low, low + 60)))
 
 

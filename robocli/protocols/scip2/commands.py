@@ -7,6 +7,7 @@ Part of :mod:`robocli.protocols.scip2` (import from there).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -178,8 +179,10 @@ class ScanEcho:
         return self.command[1] == "E"
 
 
+@functools.lru_cache(maxsize=256)
 def parse_scan_echo(echo: bytes) -> ScanEcho:
-    """The fields of a scan reply's echo line; anything else is a :class:`ProtocolError`."""
+    """The fields of a scan reply's echo line; anything else is a :class:`ProtocolError`.
+    Cached: a stream repeats the same few echoes every frame."""
     req = parse_request(echo)
     if req.command not in SCAN_COMMANDS or req.error is not None:
         raise ProtocolError(f"SCIP echo {echo[:40]!r} is not a scan command")
