@@ -21,7 +21,7 @@ def laser_scan_timing(
     (reception - stamp on the host clock) and ``decode`` (one frame's decode, measured on
     the last frame's bytes after the stream). Partial results stay in ``into`` (Ctrl-C)."""
     from robocli.devices.laser import Laser
-    from robocli.protocols import scip2
+    from robocli.protocols.scip2 import fast
 
     out = into if into is not None else {}
     received: list[float] = []
@@ -50,7 +50,7 @@ def laser_scan_timing(
         samples = np.empty(50)
         for k in range(len(samples)):
             start = time.perf_counter()
-            scip2.decode_scan(frame)
+            fast.decode_scan(frame)
             samples[k] = time.perf_counter() - start
         out["decode"] = samples
     return out

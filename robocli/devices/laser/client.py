@@ -38,6 +38,7 @@ from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
 from robocli.errors import DeviceError, FramingError, ProtocolError, TimeoutError
 from robocli.protocols import scip2
+from robocli.protocols.scip2 import fast
 from robocli.transports import Transport, open_transport
 
 __all__ = ["Laser", "ScanListener"]
@@ -81,7 +82,7 @@ class Laser:
         self._laser_on = False
         self._lock = threading.Lock()
         self._session = Session(
-            transport, scip2.ReplyFramer(), on_frame=self._on_frame,  # type: ignore[arg-type]
+            transport, fast.reply_framer(), on_frame=self._on_frame,
             name_of=_stat_name, emergency_stop=lambda: (_QT,), name="laser",
         )  # fmt: skip
         self.scan_listeners: Listeners[ScanListener] = Listeners(
@@ -250,7 +251,7 @@ class Laser:
             scip2.build_request(cmd, start=first, end=last, cluster=cluster), None
         )
         received = self.epoch()
-        return self._to_scan(scip2.decode_scan(block, self.check), received, observe=False)
+        return self._to_scan(fast.decode_scan(block, self.check), received, observe=False)
 
     def _to_scan(self, s: scip2.Scan, received: float, *, observe: bool) -> Scan:
         ms = self.clock.unwrap(s.timestamp)
@@ -358,7 +359,7 @@ class Laser:
             self.stale_frames += 1
             return
         try:
-            s = scip2.decode_scan(block, self.check)
+            s = fast.decode_scan(block, self.check)
         except (FramingError, ProtocolError, DeviceError) as exc:
             self.dropped += 1
             log.debug("%s: frame dropped: %s", self.url, exc)
