@@ -59,6 +59,12 @@ def serve(
         metavar="URL",
         help="A Pioneer (or 'robocli sim pioneer') for the battery and ADC.",
     ),
+    laser: str | None = typer.Option(
+        None,
+        "--laser",
+        metavar="URL",
+        help="A Hokuyo laser (or 'robocli sim laser') for the laser sensor (HOKUYO).",
+    ),
     gpsd: str | None = typer.Option(
         None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
     ),
@@ -78,9 +84,14 @@ def serve(
     from robocli.hub import HubServer, tune_hub_process
 
     tune_hub_process()
+    sources: dict[str, Any] = {}
+    if laser:
+        from robocli.hub.sources.hokuyo import HokuyoSource
+
+        sources["laser"] = HokuyoSource(laser)
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token_from_file(token_file), max_clients=max_clients,
+        token=token_from_file(token_file), max_clients=max_clients, sources=sources,
     )  # fmt: skip
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
@@ -88,7 +99,7 @@ def serve(
                 srv.start()
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
-            for note in _replaced(sim, pioneer, gpsd):
+            for note in _replaced(sim, pioneer, gpsd, laser):
                 typer.echo(note, err=True)
             typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
             sys.stdout.flush()
@@ -100,7 +111,9 @@ def serve(
             srv.close()
 
 
-def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
+def _replaced(
+    sim: bool, pioneer: str | None, gpsd: str | None, laser: str | None = None
+) -> list[str]:
     """What replaces simulated sensors when real ones are given with ``--sim``."""
     if not sim:
         return []
@@ -110,6 +123,9 @@ def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
                      "replaces the simulated ones)")  # fmt: skip
     if gpsd:
         notes.append(f"gps: from gpsd at {gpsd} (--gpsd replaces the simulated one)")
+    if laser:
+        notes.append(f"laser: from the Hokuyo at {laser.strip()} (--laser replaces the "
+                     "simulated one)")  # fmt: skip
     return notes
 
 
