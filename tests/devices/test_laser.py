@@ -259,3 +259,20 @@ def test_unlimited_stream_over_pty_at_eight_times_real_time() -> None:
             # a lost frame was dropped whole by the simulator, or cut and counted by the
             # client (a cut frame glued to the next one counts once for both)
             assert missing == 0 or laser.dropped + session.frames_dropped > 0
+
+
+def test_the_offset_follows_a_drifting_sensor_clock() -> None:
+    """A sensor clock 2 % fast: over 4 s of streaming it gains 80 ms on the host. Mapped
+    with the offset of the connect-time TM calibration only, step 0 of the last scans would
+    lie ~80 ms after their reception; the offset kept up to date from the stream keeps them
+    where the first ones were."""
+    with HokuyoSim("utm-30lx", time_scale=1.0, drift_ppm=20_000) as sim:
+        with Laser.connect(sim.serve_tcp()) as laser:
+            calibrated = laser.clock.offset
+            assert calibrated is not None
+            scans = list(laser.scans(count=160))
+    early = np.median([s.received - s.t for s in scans[10:40]])
+    late = np.median([s.received - s.t for s in scans[-30:]])
+    stale = np.median([s.received - (calibrated + s.stamp_ms / 1000) for s in scans[-30:]])
+    assert stale < early - 0.05  # the calibration alone would drift by ~80 ms
+    assert abs(late - early) < 0.02

@@ -9,9 +9,11 @@ rounded to whole millimetres. Intensities (GE/ME) are a smooth function of range
 Time: ``time_scale`` simulated seconds per wall second. Scan ``k`` is measured over
 ``[k * P, (k + 1) * P)`` simulated seconds (``P = 60 / SCAN``); its timestamp is the 24-bit
 millisecond timer at its start (``timer_start_ms`` from boot, RS/RT/reboot set it to 0), so
-a test can start near the wrap. A ticker at the scan period sends each streaming session the
-frames that are due, whole (a client that does not read is dropped by the serving layer on
-TCP; on a pty what the line cannot take is lost, as on a serial line with nobody reading).
+a test can start near the wrap; ``drift_ppm`` makes that timer run fast (or slow) against
+simulated time, as a sensor's crystal does against the host's clock. A ticker at the scan
+period sends each streaming session the frames that are due (a TCP client that does not
+read is dropped by the serving layer; on a pty whose reader leaves its buffer full, frames
+are dropped whole, and what the line cannot take is lost, as on a serial line).
 A TCP client that disconnects leaves the sensor idle; a pty session lives as long as the
 simulator (a client that dies while MD streams finds it still streaming).
 """
@@ -52,6 +54,7 @@ class HokuyoSim:
         time_scale: float = 1.0,
         scip11: bool | None = None,
         timer_start_ms: int = 0,
+        drift_ppm: float = 0.0,
     ) -> None:
         if isinstance(model, str):
             if model not in MODELS:
@@ -62,11 +65,14 @@ class HokuyoSim:
         self.model = model
         self.world = world if world is not None else World.default()
         self.time_scale = time_scale
+        self.drift = 1.0 + drift_ppm * 1e-6
+        """Sensor seconds per simulated second: a crystal off by ``drift_ppm``."""
         self._boot_scip11 = model.scip11 if scip11 is None else scip11
         self.scip11 = self._boot_scip11
         self._lock = threading.Lock()
         self._t0 = time.monotonic()
-        self._timer_zero = -timer_start_ms / 1000.0  # simulated time at which the timer read 0
+        # the simulated time at which the timer read 0
+        self._timer_zero = -timer_start_ms / 1000.0 / self.drift
         self._sessions: list[ScipSession] = []
         self._pose = pose if pose is not None else self.world.start
         self._values = self._measure(self._pose)
@@ -85,7 +91,7 @@ class HokuyoSim:
     def timer_ms(self, t: float | None = None) -> int:
         """The sensor's 24-bit millisecond timer at simulated time ``t`` (default: now)."""
         t = self.now() if t is None else t
-        return math.floor((t - self._timer_zero) * 1000.0 + 1e-6) & 0xFFFFFF
+        return math.floor((t - self._timer_zero) * self.drift * 1000.0 + 1e-6) & 0xFFFFFF
 
     def scan_start(self, k: int) -> float:
         """Simulated time at which scan ``k`` starts."""
