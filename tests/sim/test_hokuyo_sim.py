@@ -14,6 +14,8 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from robocli.protocols import scip2
 from robocli.sim.hokuyo import HokuyoSim
@@ -266,3 +268,38 @@ def test_second_tcp_client_is_refused_and_a_new_one_finds_it_idle() -> None:
             assert third.ask(b"GD0000108001\n") == b"GD0000108001\n10Q\n\n"  # idle, laser off
         finally:
             third.close()
+
+
+def test_rs_ss_cr_hs_rb_as_the_device_answers() -> None:
+    with HokuyoSim("urg-04lx", time_scale=4.0) as sim:
+        pty = Raw(sim.serve_pty())
+        try:
+            assert pty.ask(b"SCIP2.0\n") == b"SCIP2.0\n0\n\n"
+            assert pty.ask(b"SS115200\n") == b"SS115200\n00P\n\n"  # USB: taken, no effect
+            assert pty.ask(b"CR05\n") == b"CR05\n00P\n\n"
+            assert pty.ask(b"CR50\n") == b"CR50\n02R\n\n"
+            assert pty.ask(b"HS1\n") == b"HS1\n00P\n\n"
+            assert pty.ask(b"HS1\n") == b"HS1\n02R\n\n"
+            assert pty.ask(b"BM\n") == b"BM\n00P\n\n"
+            assert pty.ask(b"RS\n") == b"RS\n00P\n\n"  # laser off, timer 0
+            assert pty.ask(b"GD0044072501\n") == b"GD0044072501\n10Q\n\n"
+            assert pty.ask(b"RB\n") == b"RB\n01Q\n\n"  # armed
+            assert pty.ask(b"RB\n") == b"RB\n00P\n\n"  # reboot: back to SCIP 1.1
+            assert pty.ask(b"VV\n") == b"VV\nE\n\n"
+        finally:
+            pty.close()
+    with HokuyoSim("ust-10lx") as sim:
+        tcp = Raw(sim.serve_tcp())
+        try:
+            assert tcp.ask(b"SS115200\n") == b"SS115200\n0Ff\n\n"  # no bit rate on Ethernet
+            assert tcp.ask(b"CR05\n") == b"CR05\n04T\n\n"  # not supported
+            assert tcp.ask(b"RT\n") == b"RT\n00P\n\n"
+        finally:
+            tcp.close()
+
+
+@given(st.lists(st.integers(0, (1 << 18) - 1), max_size=300), st.sampled_from([2, 3, 4]))
+def test_encode_array_equals_the_reference(values: list[int], width: int) -> None:
+    values = [v & ((1 << (6 * width)) - 1) for v in values]
+    got = encode_array(np.array(values, dtype=np.int64).reshape(-1), width)
+    assert got == scip2.encode_values(values, width)
