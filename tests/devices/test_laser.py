@@ -271,8 +271,9 @@ def test_the_offset_follows_a_drifting_sensor_clock() -> None:
             calibrated = laser.clock.offset
             assert calibrated is not None
             scans = list(laser.scans(count=160))
-    early = np.median([s.received - s.t for s in scans[10:40]])
-    late = np.median([s.received - s.t for s in scans[-30:]])
-    stale = np.median([s.received - (calibrated + s.stamp_ms / 1000) for s in scans[-30:]])
-    assert stale < early - 0.05  # the calibration alone would drift by ~80 ms
-    assert abs(late - early) < 0.02
+    # the smallest delay of a run of frames: a loaded machine only adds to a frame's delay
+    early = min(s.received - s.t for s in scans[:8])  # what the latency was taken from
+    late = min(s.received - s.t for s in scans[-30:])
+    stale = min(s.received - (calibrated + s.stamp_ms / 1000) for s in scans[-30:])
+    assert stale < early - 0.05  # the calibration alone drifts by ~75 ms between the runs
+    assert abs(late - early) < 0.025

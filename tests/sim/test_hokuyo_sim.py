@@ -303,3 +303,19 @@ def test_encode_array_equals_the_reference(values: list[int], width: int) -> Non
     values = [v & ((1 << (6 * width)) - 1) for v in values]
     got = encode_array(np.array(values, dtype=np.int64).reshape(-1), width)
     assert got == scip2.encode_values(values, width)
+
+
+def test_a_late_tick_sends_no_more_frames_than_the_count() -> None:
+    """A tick that finds five scans due (the machine stalled) while MD asked for two sends
+    the two, counting 01 then 00, and stops: no frame beyond the count."""
+    with HokuyoSim("utm-30lx", time_scale=0.1) as sim:  # ticks 250 ms apart: none in the way
+        raw = Raw(sim.serve_tcp())
+        try:
+            raw.ask(b"MD0000001001002\n")
+            (session,) = sim.sessions()
+            session.on_scans(sim.latest_scan() + 6)  # the late tick
+            frames = [raw.block() for _ in range(2)]
+            assert raw.ask(b"QT\n") == b"QT\n00P\n\n"  # nothing queued in between
+        finally:
+            raw.close()
+    assert [f.split(b"\n", 1)[0] for f in frames] == [b"MD0000001001001", b"MD0000001001000"]

@@ -9,8 +9,9 @@ The offset (host epoch seconds minus sensor seconds) is first measured as urg_no
 TM0, then for each sample the host time before and after TM1, offset = midpoint - sensor
 time; the median of the samples (:meth:`SensorClock.calibrate`). While scans stream it is
 kept updated: each frame gives ``reception - stamp`` = offset + latency, latency >= its
-minimum; the minimum over a sliding window, less the latency seen right after the last
-calibration, tracks the offset as the two clocks drift (:meth:`SensorClock.observe`).
+minimum; the minimum over a sliding window of :data:`WINDOW` frames, less the latency (the
+smallest delay of the first :data:`LATENCY_FRAMES` frames after the last calibration),
+tracks the offset as the two clocks drift (:meth:`SensorClock.observe`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,9 @@ __all__ = ["WRAP_MS", "SensorClock"]
 
 WRAP_MS = 1 << 24
 WINDOW = 64  #: frames over which the minimum delay is taken
+#: frames after a calibration whose fastest gives the latency (one late frame on a loaded
+#: machine must not set it)
+LATENCY_FRAMES = 8
 
 
 class SensorClock:
@@ -86,14 +90,14 @@ class SensorClock:
         delay = received - ms / 1000.0
         with self._lock:
             self._delays.append(delay)
-            low = min(self._delays)
             if self.offset is None:  # no calibration: the fastest frame is the best guess
-                self.offset = low
+                self.offset = min(self._delays)
                 self._latency = 0.0
             elif self._latency is None:
-                self._latency = max(0.0, low - self.offset)
+                if len(self._delays) >= LATENCY_FRAMES:  # the fastest of the first frames
+                    self._latency = max(0.0, min(self._delays) - self.offset)
             elif len(self._delays) == self._delays.maxlen:
-                self.offset = low - self._latency
+                self.offset = min(self._delays) - self._latency
 
     def to_host(self, ms: int) -> float | None:
         """Host epoch seconds of unwrapped sensor time ``ms`` (None before any estimate)."""

@@ -124,13 +124,15 @@ class ScipSession:
             if s.next_k < k_now - MAX_BURST:  # the simulator stalled: no flood of old scans
                 skip = (k_now - MAX_BURST - s.next_k) // (s.interval + 1) + 1
                 s.next_k += skip * (s.interval + 1)
-            due = []
-            while self.stream is not None and s.next_k <= k_now:
-                due.append((s, s.next_k))
+            due: list[int] = []
+            while s.next_k <= k_now and (s.remaining is None or len(due) < s.remaining):
+                due.append(s.next_k)
                 s.next_k += s.interval + 1
-        for stream, k in due:  # one write each: a pty's room is judged frame by frame
+        for k in due:  # one write each: a pty's room is judged frame by frame
             with self.lock:
-                frame = self._frame(stream, k)  # the count runs down even for a dropped one
+                if self.stream is not s:  # QT, or a new MD, came in between
+                    return
+                frame = self._frame(s, k)  # the count runs down even for a dropped one
             if self._line_full():  # nobody reads the serial line: drop whole frames
                 self.frames_dropped += 1
             else:
