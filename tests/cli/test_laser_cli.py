@@ -7,6 +7,7 @@ import json
 import math
 import re
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -104,3 +105,20 @@ def test_bench_jitter_laser_reports_the_scan_period(sim_url: str) -> None:
     assert proc.returncode == 0, proc.stderr
     names = json.dumps(json.loads(proc.stdout))
     assert "scan period (stamped)" in names and "decode one frame" in names
+
+
+def test_ctrl_c_on_connect_stops_the_stream_with_qt() -> None:
+    with HokuyoSim("urg-04lx", time_scale=2.0) as sim:
+        path = sim.serve_pty()
+        with running("connect", "laser", path) as proc:
+            assert proc.stdout is not None
+            lines = read_lines(proc.stdout, 5)
+            assert len(lines) == 5 and "valid" in lines[-1]
+            (session,) = sim.sessions()
+            assert session.stream is not None
+            proc.send_signal(signal.SIGINT)
+            assert proc.wait(20) == 130
+        end = time.monotonic() + 20  # bounds a failure only
+        while session.stream is not None and time.monotonic() < end:
+            time.sleep(0.01)
+        assert session.stream is None and not session.laser  # QT went out before the exit
