@@ -277,3 +277,12 @@ def test_the_offset_follows_a_drifting_sensor_clock() -> None:
     stale = min(s.received - (calibrated + s.stamp_ms / 1000) for s in scans[-30:])
     assert stale < early - 0.05  # the calibration alone drifts by ~75 ms between the runs
     assert abs(late - early) < 0.025
+
+
+def test_a_pyserial_url_reaches_the_sensor() -> None:
+    with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
+        url = sim.serve_tcp().replace("tcp://", "socket://")
+        with Laser.connect(url) as laser:
+            assert laser.url.startswith("socket://")
+            assert laser.scan().ranges.size == 1081
+            assert [s.remaining for s in laser.scans(count=2)] == [1, 0]
