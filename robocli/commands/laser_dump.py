@@ -11,8 +11,9 @@ from __future__ import annotations
 
 import json
 import threading
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import IO, Any
 
 import typer
 
@@ -20,6 +21,7 @@ from robocli.commands._common import print_json_line, reader_may_leave, sigterm_
 from robocli.commands.laser import LASER_HELP, BaudOpt, ModelOpt, TimeoutOpt, laser_url
 
 MAX_CAPTURE_LINE = 1 << 20  #: longest .jsonl line read
+MAX_GAP = 16 << 20  #: bytes read without a block before giving up (as robocli.io.capture)
 
 
 class _View:
@@ -93,35 +95,49 @@ def dump(
 
 
 def _dump_file(view: _View, file: Path) -> None:
+    """Show the lines of a capture, streamed in bounded memory: a ``.jsonl`` line longer
+    than :data:`MAX_CAPTURE_LINE` is skipped, and :data:`MAX_GAP` bytes without a block
+    (``/dev/zero``, noise) end the reading with an error."""
     from robocli.errors import RobocliError
     from robocli.protocols.scip2 import ReplyFramer
     from robocli.sim.hokuyo.framing import RequestFramer
 
     rx, tx = ReplyFramer(), RequestFramer()
-    shown = 0
+    shown = gap = 0
     with file.open("rb") as stream:
-        if file.suffix == ".jsonl":
-            for raw in stream:
-                if len(raw) > MAX_CAPTURE_LINE:
-                    continue
-                rec = _record(raw)
-                if rec is None:
-                    continue
-                t, direction, data = rec
-                framer: Any = tx if direction == "tx" else rx
-                for frame in framer.feed(data):
-                    view.show(direction, frame, t)
-                    shown += 1
-        else:
-            while chunk := stream.read(65536):
-                for frame in rx.feed(chunk):
-                    view.show("rx", frame, 0.0)
-                    shown += 1
+        for t, direction, data, size in _chunks(stream, file.suffix == ".jsonl"):
+            framer: Any = tx if direction == "tx" else rx
+            frames = framer.feed(data)
+            for frame in frames:
+                view.show(direction, frame, t)
+            shown += len(frames)
+            gap = 0 if frames else gap + size
+            if gap > MAX_GAP:
+                raise RobocliError(f"{file}: {MAX_GAP >> 20} MiB without a SCIP block; "
+                                   "not a capture")  # fmt: skip
     dropped = rx.stats.dropped_bytes + tx.stats.dropped_bytes
     if shown == 0:
         raise RobocliError(f"{file}: no SCIP line decoded ({dropped} bytes dropped)")
     if dropped:
         typer.echo(f"robocli: {file}: {shown} blocks decoded, {dropped} bytes dropped", err=True)
+
+
+def _chunks(stream: IO[bytes], jsonl: bool) -> Iterator[tuple[float, str, bytes, int]]:
+    """``(t, direction, bytes, bytes read)`` of a capture: raw bytes (the sensor's side), or
+    the records of a ``.jsonl`` capture (a line that is no record gives no bytes)."""
+    if not jsonl:
+        while data := stream.read(65536):
+            yield 0.0, "rx", data, len(data)
+        return
+    while raw := stream.readline(MAX_CAPTURE_LINE + 1):
+        size = len(raw)
+        if not raw.endswith(b"\n") and size > MAX_CAPTURE_LINE:  # too long: skip to its end
+            while (more := stream.readline(MAX_CAPTURE_LINE + 1)) and not more.endswith(b"\n"):
+                size += len(more)
+            size += len(more)
+            raw = b""
+        rec = _record(raw) if raw else None
+        yield (*rec, size) if rec is not None else (0.0, "rx", b"", size)
 
 
 def _record(raw: bytes) -> tuple[float, str, bytes] | None:

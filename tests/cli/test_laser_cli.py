@@ -122,3 +122,17 @@ def test_ctrl_c_on_connect_stops_the_stream_with_qt() -> None:
         while session.stream is not None and time.monotonic() < end:
             time.sleep(0.01)
         assert session.stream is None and not session.laser  # QT went out before the exit
+
+
+def test_dump_file_reads_in_bounded_memory_and_gives_up_on_noise(tmp_path: Path) -> None:
+    capture = tmp_path / "long.jsonl"
+    with capture.open("w") as f:  # a 3 MB line that is no record, then a session
+        f.write("x" * 3_000_000 + "\n")
+        f.write(json.dumps({"t": 0.0, "dir": "c2s", "hex": b"VV\n".hex()}) + "\n")
+        f.write(json.dumps({"t": 0.1, "dir": "s2c", "hex": b"VV\n00P\nVEND:Hokuyo;x\n\n".hex()}))
+    proc = run("dump", "laser", "--file", str(capture))
+    assert proc.returncode == 0, proc.stderr
+    assert "VEND = Hokuyo, BAD SUM" in proc.stdout  # the sum of "VEND:Hokuyo" is not 'x'
+    assert "16 MiB without a SCIP block" in one_line_error(
+        run("dump", "laser", "--file", "/dev/zero"), 1
+    )
