@@ -99,10 +99,10 @@ def _dump_file(view: _View, file: Path) -> None:
     than :data:`MAX_CAPTURE_LINE` is skipped, and :data:`MAX_GAP` bytes without a block
     (``/dev/zero``, noise) end the reading with an error."""
     from robocli.errors import RobocliError
-    from robocli.protocols.scip2 import ReplyFramer
+    from robocli.protocols.scip2 import fast
     from robocli.sim.hokuyo.framing import RequestFramer
 
-    rx, tx = ReplyFramer(), RequestFramer()
+    rx, tx = fast.reply_framer(), RequestFramer()
     shown = gap = 0
     with file.open("rb") as stream:
         for t, direction, data, size in _chunks(stream, file.suffix == ".jsonl"):
