@@ -14,6 +14,7 @@ from robocli._version import __version__
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
+    from robocli.devices.laser import Laser
     from robocli.devices.pioneer import Pioneer, PioneerState
     from robocli.errors import RobocliError
 
@@ -23,12 +24,13 @@ logging.getLogger("robocli").addHandler(logging.NullHandler())
 _LAZY = {
     "Arm": "robocli.devices.arm",
     "Hub": "robocli.devices.hub.client",
+    "Laser": "robocli.devices.laser",
     "Pioneer": "robocli.devices.pioneer",
     "PioneerState": "robocli.devices.pioneer",
     "RobocliError": "robocli.errors",
 }
 
-__all__ = ["Arm", "Hub", "Pioneer", "PioneerState", "RobocliError", "__version__"]
+__all__ = ["Arm", "Hub", "Laser", "Pioneer", "PioneerState", "RobocliError", "__version__"]
 
 
 def __getattr__(name: str) -> Any:

@@ -13,11 +13,12 @@ from typing import Any
 import typer
 
 from robocli._version import __version__
-from robocli.commands import arm, bench, kinematics, pioneer, plot, ports, record
+from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
+from robocli.commands import laser as laser_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
@@ -113,6 +114,9 @@ bench_group.command("throughput")(hub_commands.throughput)
 app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
+connect.command("laser", cls=PlainCommand)(laser_commands.connect)
+sim.command("laser", cls=PlainCommand)(laser_commands.simulate)
+dump.command("laser", cls=PlainCommand)(laser_dump.dump)
 app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
 app.command("export", cls=PlainCommand)(export_command.export)

@@ -29,7 +29,9 @@ if TYPE_CHECKING:
 
 TARGETS = ("pioneer",)
 TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
-JitterTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer or arm.")
+JitterTargetOpt = typer.Option(
+    "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
+)
 SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
 UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
 JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
@@ -238,6 +240,30 @@ def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
     return timing, False
 
 
+def _laser_jitter(url: str | None, n: int, json_out: bool) -> None:
+    """``bench jitter --target laser``: streamed scans of a laser (default: the embedded
+    UTM-30LX simulator, 25 ms)."""
+    from robocli.bench import stats as bs
+    from robocli.bench.laser import laser_scan_timing
+    from robocli.commands.laser import laser_url
+
+    timing: dict[str, Any] = {}
+    interrupted = False
+    progress = _Progress()
+    with sigterm_as_interrupt():
+        try:
+            with laser_url(url or "sim") as where, progress.stage("scans", n) as update:
+                laser_scan_timing(where, n, progress=update, into=timing)
+        except KeyboardInterrupt:
+            interrupted = True
+    names = {"period": "scan period (received)", "stamp_period": "scan period (stamped)",
+             "delay": "stamp to reception", "decode": "decode one frame"}  # fmt: skip
+    results = [bs.report(names[k], v) for k, v in timing.items() if v.size]
+    if results:
+        _show(results, {"period": timing["period"]} if timing["period"].size else {}, json_out)
+    _finish(interrupted)
+
+
 def _finish(interrupted: bool) -> None:
     if interrupted:
         typer.echo("interrupted: partial results", err=True)
@@ -245,7 +271,7 @@ def _finish(interrupted: bool) -> None:
 
 
 def jitter(
-    target: Literal["pioneer", "arm"] = JitterTargetOpt,
+    target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
     n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
     json_out: bool = JsonOpt,
@@ -253,10 +279,13 @@ def jitter(
     byte_order: str | None = OrderOpt,  # noqa: UP007
     real_size: int | None = RealOpt,  # noqa: UP007
 ) -> None:
-    """SIP period statistics (the robot's 100 ms cycle as the client sees it)."""
+    """SIP period statistics (the robot's 100 ms cycle as the client sees it); laser: the
+    scan period as received and as stamped, the stamp-to-reception delay, the decode time."""
     from robocli.bench import stats as bs
 
     _check_paper_model(target, paper)
+    if target == "laser":
+        return _laser_jitter(url, n, json_out)
     wire = _arm_wire(target, byte_order, real_size)
     if target == "arm":  # the state period (Table 5)
         return _arm_bench("jitter", url, n, json_out, paper, wire=wire)

@@ -61,6 +61,12 @@ def serve(
         metavar="URL",
         help="A Pioneer (or 'robocli sim pioneer') for the battery and ADC.",
     ),
+    laser: str | None = typer.Option(
+        None,
+        "--laser",
+        metavar="URL",
+        help="A Hokuyo laser (or 'robocli sim laser') for the laser sensor (HOKUYO).",
+    ),
     gpsd: str | None = typer.Option(
         None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
     ),
@@ -87,6 +93,11 @@ def serve(
     sources = replay_sources(replay, speed, loop)
     tune_hub_process()
     token = token_from_file(token_file)
+    sources = sources or {}
+    if laser:
+        from robocli.hub.sources.hokuyo import HokuyoSource
+
+        sources["laser"] = HokuyoSource(laser)
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
         token=token, max_clients=max_clients, sources=sources,
@@ -97,7 +108,7 @@ def serve(
                 srv.start()
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
-            for note in _replaced(sim, pioneer, gpsd):
+            for note in _replaced(sim, pioneer, gpsd, laser):
                 typer.echo(note, err=True)
             what = f"hub replaying {replay}: " if replay is not None else "hub "
             typer.echo(f"{what}serving {', '.join(srv.sensors)} on {srv.url}")
@@ -121,7 +132,9 @@ def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
     return sources_of(replay, rate, loop)
 
 
-def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
+def _replaced(
+    sim: bool, pioneer: str | None, gpsd: str | None, laser: str | None = None
+) -> list[str]:
     """What replaces simulated sensors when real ones are given with ``--sim``."""
     if not sim:
         return []
@@ -131,6 +144,9 @@ def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
                      "replaces the simulated ones)")  # fmt: skip
     if gpsd:
         notes.append(f"gps: from gpsd at {gpsd} (--gpsd replaces the simulated one)")
+    if laser:
+        notes.append(f"laser: from the Hokuyo at {laser.strip()} (--laser replaces the "
+                     "simulated one)")  # fmt: skip
     return notes
 
 

@@ -47,6 +47,7 @@ import socket
 import threading
 import time
 from collections.abc import Callable
+from typing import Any
 
 from robocli.core import Framer
 from robocli.errors import TransportError
@@ -112,6 +113,8 @@ class Server:
     :meth:`UnframedHook.on_unframed` reply) rather than rescanned. ``handshake_timeout``:
     seconds a TCP link may stay pending (not :meth:`Link.establish`-ed); ``max_pending`` and
     ``max_pending_per_address``: pending links at once, in all and from one address.
+    ``framer``: makes each link's framer instead of the C one of ``protocol`` (a line
+    protocol the C core does not frame).
     """
 
     def __init__(
@@ -132,6 +135,7 @@ class Server:
         handshake_timeout: float | None = None,
         max_pending: int | None = None,
         max_pending_per_address: int | None = None,
+        framer: Callable[[], Any] | None = None,
     ) -> None:
         if max_clients < 1:
             raise ValueError("max_clients must be >= 1")
@@ -143,12 +147,14 @@ class Server:
                         ("max_pending_per_address", max_pending_per_address)):  # fmt: skip
             if v is not None and v < 1:
                 raise ValueError(f"{what} must be >= 1")
-        Framer(protocol, max_frame)  # validates both now, not in the first link's thread
+        if framer is None:
+            Framer(protocol, max_frame)  # validates both now, not in the first link's thread
         self.budget = OutputBudget(output_budget)
         """The output waiting over every link: its cap, total now and peak."""
         self.limits = LinkLimits(
             protocol, max_frame, byte_timeout, send_timeout, max_backlog, pace=pace,
             strict=strict_framing, handshake_timeout=handshake_timeout, budget=self.budget,
+            framer=framer,
         )  # fmt: skip
         self.max_clients = max_clients
         self.max_pending, self.max_pending_per_address = max_pending, max_pending_per_address

@@ -70,7 +70,7 @@ def test_every_option_has_a_description_in_one_column(words: tuple[str, ...]) ->
 CHOICES = [  # (command, its arguments, option, choices)
     (("subscribe",), ("adc",), "--format", ["table", "csv", "jsonl"]),
     (("bench", "rtt"), (), "--target", ["pioneer", "arm", "hub"]),
-    (("bench", "jitter"), (), "--target", ["pioneer", "arm"]),
+    (("bench", "jitter"), (), "--target", ["pioneer", "arm", "laser"]),
     (("bench", "throughput"), (), "--target", ["hub"]),
     (("dump", "arm"), ("sim",), "--byte-order", ["little", "big"]),
     (("upload", "arm"), ("sim",), "--real-size", ["4", "8"]),

@@ -122,7 +122,7 @@ def test_verbose_after_the_subcommand() -> None:
 
 @pytest.mark.parametrize(
     ("command", "targets"),
-    [("rtt", "pioneer, arm, hub"), ("jitter", "pioneer, arm"), ("sip", "pioneer")],
+    [("rtt", "pioneer, arm, hub"), ("jitter", "pioneer, arm, laser"), ("sip", "pioneer")],
 )
 def test_an_unknown_bench_target_lists_what_that_bench_measures(command: str, targets: str) -> None:
     line = one_line_error(run("bench", command, "--target", "robotx"), 2)

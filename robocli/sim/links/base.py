@@ -71,7 +71,9 @@ class Link:
         set): the link is pending, closed if the handshake does not come in time."""
         self._limits = limits
         self._on_end = on_end
-        self._framer = Framer(limits.protocol, limits.max_frame)
+        self._framer = (
+            limits.framer() if limits.framer else Framer(limits.protocol, limits.max_frame)
+        )
         self._rx_lock = threading.Lock()  # framer and input counters
         self._tx_lock = threading.Lock()  # output and its queue
         self._tail = bytearray()  # the bytes the framer holds (a partial frame)

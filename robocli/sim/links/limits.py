@@ -8,7 +8,9 @@ Part of :mod:`robocli.sim.links` (import from there).
 from __future__ import annotations
 
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass, fields
+from typing import Any
 
 
 class OutputBudget:
@@ -62,6 +64,9 @@ class LinkLimits:
     handshake_timeout: float | None = None
     """A TCP link not :meth:`~Link.establish`-ed this many seconds after it opened is closed."""
     budget: OutputBudget | None = None
+    framer: Callable[[], Any] | None = None
+    """Makes each link's framer instead of the C framer of ``protocol`` (a Python framer
+    with the same ``feed``/``pending``/``reset``/``stats``, for a line protocol)."""
 
 
 @dataclass

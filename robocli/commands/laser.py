@@ -1,0 +1,227 @@
+"""``robocli connect|sim|dump laser``: Hokuyo scanners over SCIP 2.0, thin layers over
+:class:`robocli.devices.laser.Laser` and :class:`robocli.sim.hokuyo.HokuyoSim`.
+
+JSON output is SI: ranges in metres (None where the sensor sent an error code, the code in
+``codes``), angles in radians (counter-clockwise, 0 ahead), ``t`` in Unix epoch seconds
+(the sensor's stamp on the host clock).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import (
+    SIM,
+    bind_address,
+    listening,
+    print_json,
+    print_json_line,
+    reader_may_leave,
+    rounded,
+    sigterm_as_interrupt,
+)
+
+if TYPE_CHECKING:
+    from robocli.devices.laser import Laser, Scan
+
+LASER_HELP = (
+    "Laser port or URL: /dev/ttyACM0, COM3, tcp://192.168.0.10:10940, a pyserial URL, "
+    "or 'sim' for an embedded simulator."
+)
+MODELS = ("urg-04lx", "utm-30lx", "ust-10lx")
+#: JSON decimals by field: 1 mm ranges, angles to 1e-6 rad (a step is 4.4e-3 rad).
+LASER_RESOLUTION = {"t": 6, "received": 6, "ranges": 3, "angles": 6, "intensities": 0}
+
+
+def _check_model(value: str) -> str:
+    if value not in MODELS:
+        raise typer.BadParameter(f"unknown laser model {value!r}; known: {', '.join(MODELS)}")
+    return value
+
+
+ModelOpt = typer.Option(
+    "utm-30lx", "--model", metavar="MODEL", callback=_check_model,
+    help="Simulated model: urg-04lx, utm-30lx or ust-10lx.",
+)  # fmt: skip
+TimeoutOpt = typer.Option(
+    2.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
+    help="Seconds to wait for each reply (scans: at least 16 scan periods).",
+)  # fmt: skip
+BaudOpt = typer.Option(115200, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+
+
+@contextlib.contextmanager
+def laser_url(port: str, model: str = "utm-30lx") -> Iterator[str]:
+    """Yield a URL for ``port``; for ``sim`` an in-process simulator of ``model`` on an
+    ephemeral loopback port, stopped afterwards."""
+    if port != SIM:
+        yield port
+        return
+    from robocli.sim.hokuyo import HokuyoSim
+
+    with HokuyoSim(model) as sim:
+        yield sim.serve_tcp("127.0.0.1", 0)
+
+
+@contextlib.contextmanager
+def connected(port: str, model: str, **options: Any) -> Iterator[Laser]:
+    """A connected laser on ``port`` (``sim``: an embedded simulator); Ctrl-C and SIGTERM
+    close it (QT sent)."""
+    from robocli.devices.laser import Laser
+
+    with reader_may_leave(), sigterm_as_interrupt(), laser_url(port, model) as url:
+        with Laser.connect(url, **options) as laser:
+            yield laser
+
+
+def scan_json(laser: Laser, scan: Scan) -> dict[str, Any]:
+    """One scan as JSON-ready SI data (see the module docstring)."""
+    out = scan.as_dict()
+    out["model"] = laser.info.model if laser.info else "?"
+    return rounded(out, 6, LASER_RESOLUTION)  # type: ignore[no-any-return]
+
+
+def connect(
+    port: str = typer.Argument(..., help=LASER_HELP, show_default=False, metavar="PORT"),
+    once: bool = typer.Option(False, "--once", help="Print the identity and one scan, exit."),
+    json_out: bool = typer.Option(
+        False, "--json", help="JSON: one object with --once, else one line per scan."
+    ),
+    fmt: str = typer.Option(
+        "text", "--format", "-f", metavar="FORMAT", help="text or jsonl (one scan per line)."
+    ),
+    start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),  # noqa: UP007
+    end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),  # noqa: UP007
+    cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
+    intensity: bool = typer.Option(False, "--intensity", help="Ranges and intensities (ME)."),
+    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N scans (0: none)."),
+    model: str = ModelOpt,
+    baud: int = BaudOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Connect to a Hokuyo laser: its identity, then its scans live until Ctrl-C
+    (--once: one scan; --json / --format jsonl: machine-readable, SI units)."""
+    if fmt not in ("text", "jsonl"):
+        raise typer.BadParameter(f"{fmt!r}: expected text or jsonl", param_hint="'--format'")
+    jsonl = fmt == "jsonl" or (json_out and not once)
+    area: dict[str, Any] = {"start": start, "end": end, "cluster": cluster}
+    with connected(port, model, baudrate=baud, timeout=timeout) as laser:
+        info = laser.info
+        assert info is not None
+        if once:
+            scan = laser.scan(intensity=intensity, **area)
+            if json_out:
+                print_json({"identity": rounded(info.as_dict()), **scan_json(laser, scan)})
+            else:
+                _print_identity(laser)
+                typer.echo(scan_line(scan))
+            return
+        if not jsonl:
+            _print_identity(laser)
+        n = 0
+        for scan in laser.scans(None, intensity=intensity, **area):
+            if jsonl:
+                print_json_line(scan_json(laser, scan))
+            else:
+                typer.echo(scan_line(scan))
+                sys.stdout.flush()
+            n += 1
+            if count and n >= count:
+                break
+
+
+def _print_identity(laser: Laser) -> None:
+    info = laser.info
+    assert info is not None
+    typer.echo(f"{info.model} serial {info.serial} on {laser.url}")
+    typer.echo(
+        f"firmware  {info.vv.get('FIRM', '?')}   protocol {info.vv.get('PROT', '?')}"
+        + ("  (switched from SCIP 1.1)" if laser.switched else "")
+    )
+    typer.echo(
+        f"range     {info.dmin / 1000:.3f} .. {info.dmax / 1000:.3f} m   steps "
+        f"{info.amin}..{info.amax} ({math.degrees(info.angle(info.amin)):.1f} .. "
+        f"{math.degrees(info.angle(info.amax)):.1f} deg)   {info.rpm} rpm "
+        f"({info.period * 1000:.0f} ms)"
+    )
+
+
+def scan_line(scan: Scan) -> str:
+    """One scan in one line: time, valid count, nearest range and its bearing, and the
+    nearest range in each of 8 sectors (m, '-' where nothing valid)."""
+    import numpy as np
+
+    valid = ~np.isnan(scan.ranges)
+    stamp = time.strftime("%H:%M:%S", time.localtime(scan.t)) + f".{int(scan.t * 1000) % 1000:03d}"
+    if not valid.any():
+        return f"{stamp}  {len(scan.ranges)} steps, no valid range"
+    i = int(np.nanargmin(scan.ranges))
+    sectors = []
+    n = len(scan.ranges)
+    for k in range(8):
+        part = scan.ranges[k * n // 8 : (k + 1) * n // 8]
+        ok = part[~np.isnan(part)]
+        sectors.append(f"{ok.min():5.2f}" if ok.size else "    -")
+    return (
+        f"{stamp}  {int(valid.sum())}/{n} valid  nearest {scan.ranges[i]:.3f} m at "
+        f"{math.degrees(scan.angles[i]):+6.1f} deg  sectors {' '.join(sectors)}"
+    )
+
+
+def simulate(
+    model: str = ModelOpt,
+    port: int | None = typer.Option(  # noqa: UP007
+        None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
+    ),
+    pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
+    map_file: Path | None = typer.Option(  # noqa: UP007
+        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
+    ),
+    pose: str | None = typer.Option(  # noqa: UP007
+        None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
+    ),
+    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
+    time_scale: float = typer.Option(
+        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
+    ),
+) -> None:
+    """Run a simulated Hokuyo laser speaking SCIP 2.0 until Ctrl-C."""
+    from robocli.commands.pioneer import _load_map
+    from robocli.sim.hokuyo import MODELS as SIM_MODELS
+    from robocli.sim.hokuyo import HokuyoSim
+    from robocli.sim.world import World
+
+    world = _load_map(World, map_file) if map_file else None
+    where = _pose(pose) if pose else None
+    with sigterm_as_interrupt(), HokuyoSim(model, world=world, pose=where,
+                                           time_scale=time_scale) as sim:  # fmt: skip
+        if pty:
+            url = sim.serve_pty()
+        else:
+            with listening(bind):
+                tcp_port = SIM_MODELS[model].tcp_port if port is None else port
+                url = sim.serve_tcp(bind_address(bind), tcp_port)
+        typer.echo(f"laser: {model} on {url}")
+        sys.stdout.flush()
+        while True:
+            time.sleep(3600)
+
+
+def _pose(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, th = (float(v) for v in text.split(","))
+    except ValueError:
+        raise typer.BadParameter(
+            f"{text!r} is not X,Y,TH (m, m, rad)", param_hint="'--pose'"
+        ) from None
+    if not all(math.isfinite(v) for v in (x, y, th)):
+        raise typer.BadParameter(f"{text!r}: finite numbers only", param_hint="'--pose'")
+    return x, y, th
