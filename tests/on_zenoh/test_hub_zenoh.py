@@ -194,3 +194,19 @@ def test_batch_decoding_refuses_what_is_not_one() -> None:
     for bad in (good[:20], b"XXXX" + good[4:], good + b"x", good[:-1]):
         with pytest.raises(ProtocolError):
             decode_batch(bad)
+
+
+def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -> None:
+    def published(sensor: str) -> bool:
+        return bool(lab.front.info()["sensors"][sensor]["published"])
+
+    assert not published("laser")
+    tcp = Hub.connect(lab.server.url)
+    tcp.subscribe("laser", 10)
+    wait_for("laser published", lambda: published("laser"))
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("laser")  # silent: joins what the ros4mat client started
+        assert read_some(zh, "laser", 1)[0].data.shape[0] == 1081
+        tcp.close()  # QUIT: nobody else keeps the laser running
+        wait_for("laser no longer published", lambda: not published("laser"))
+        wait_for("the laser stopped", lambda: not lab.server.sensors["laser"]["active"])
