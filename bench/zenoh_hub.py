@@ -7,7 +7,9 @@ The hub (``robocli serve --sim``) and the router run in their own processes; the
 subscribers share one other process (N Zenoh sessions or N TCP connections), each reading
 both sensors every 50 ms. Hub CPU from /proc/PID/stat, bytes from the hub's TCP sockets
 (``ss -tip``: bytes_sent of the connections open at both ends of the measure; clients stay
-connected throughout). Linux only. Prints one row per run.
+connected throughout). The delay: receive time minus the acquisition time of the newest ADC
+sample, one host clock (Zenoh: as each batch arrives, in the first client's session;
+ros4mat: at each 50 ms read). Linux only. Prints one row per run.
 """
 
 from __future__ import annotations
@@ -21,6 +23,9 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
+
+import numpy as np
 
 SENSORS = {"adc": 1000, "imu": 200}
 READ_PERIOD_S = 0.05
@@ -83,19 +88,36 @@ def subscribers_main(mode: str, where: str, n: int, seconds: float) -> None:
             for sensor in SENSORS:
                 hub.subscribe(sensor)
         clients.append(hub)
+    delays: list[float] = []  # receive time - acquisition time of a batch's last ADC sample
+    if mode != "ros4mat":
+        first = clients[0]
+        assert isinstance(first, ZenohHub)
+
+        def on_batch(sample: Any) -> None:
+            now = time.time()
+            raw = sample.payload.to_bytes()
+            delays.append(now - float(np.frombuffer(raw, "<f8", 1, len(raw) - 8)[0]))
+
+        first.zsession.declare_subscriber("robocli/bench/adc", on_batch)
     print("ready", flush=True)
     got = {s: 0 for s in SENSORS}
     end = time.monotonic() + seconds + 2.0  # the parent measures `seconds` in the middle
     while time.monotonic() < end:
         for hub in clients:
             for sensor in SENSORS:
-                got[sensor] += len(hub.read(sensor))
+                reading = hub.read(sensor)
+                got[sensor] += len(reading)
+                if mode == "ros4mat" and hub is clients[0] and sensor == "adc" and len(reading):
+                    delays.append(time.time() - float(reading.t[-1]))
         time.sleep(READ_PERIOD_S)
     lost = sum(sum(h.lost.values()) for h in clients)
     dup = sum(sum(getattr(h, "duplicates", {}).values()) for h in clients)
     for hub in clients:
         hub.close()
-    print(json.dumps({"samples": got, "lost": lost, "duplicates": dup}), flush=True)
+    ms = np.percentile(delays, [50, 99]) * 1e3 if delays else [float("nan")] * 2
+    delay = [round(float(x), 1) for x in ms]
+    out = {"samples": got, "lost": lost, "duplicates": dup, "delay_ms_p50_p99": delay}
+    print(json.dumps(out), flush=True)
 
 
 def run(mode: str, n: int, seconds: float) -> dict[str, object]:
