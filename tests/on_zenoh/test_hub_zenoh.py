@@ -210,3 +210,24 @@ def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -
         tcp.close()  # QUIT: nobody else keeps the laser running
         wait_for("laser no longer published", lambda: not published("laser"))
         wait_for("the laser stopped", lambda: not lab.server.sensors["laser"]["active"])
+
+
+def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
+    """A new hub process numbers its samples from 0 again: its batches are new samples,
+    not duplicates of the old ones."""
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc")
+        wait_for("a second of adc read", lambda: sum(len(r) for r in read_some(zh, "adc", 1000)))
+        lab.front.close()  # the hub goes; another starts under the same name
+        lab.front = ZenohFrontend(lab.server.hub, lab.session, "lab",
+                                  publish={"adc": {"freq_acquisition": 1000}}).start()  # fmt: skip
+        restarted = lab.server.hub.clock()
+        new: list[Any] = []
+
+        def read_new() -> bool:
+            t = zh.read("adc").hub_t
+            new.extend(t[t > restarted])
+            return len(new) >= 100
+
+        wait_for("100 samples of the new hub", read_new)
+        assert zh.duplicates.get("adc", 0) < 10  # at most the history overlapping what we read

@@ -19,6 +19,7 @@ the hub has one); ``subscribe(name)`` joins what is published.
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections import deque
@@ -138,6 +139,7 @@ class ZenohHub(Hub):
         self._queues: dict[str, _Queue] = {}
         self._subs: dict[str, Any] = {}
         self._next: dict[str, int] = {}  # the sequence number expected next, per sensor
+        self._stamp: dict[str, float] = {}  # when the last batch taken was put (hub clock)
         self.duplicates: dict[str, int] = {}
         """Batches received twice (history overlapping live samples), by sensor: dropped."""
         self.missed: dict[str, int] = {}
@@ -274,6 +276,7 @@ class ZenohHub(Hub):
             sub.undeclare()
         self._queues.pop(key, None)
         self._next.pop(key, None)
+        self._stamp.pop(key, None)
 
     def unsubscribe(self, name: str) -> None:
         """Stop receiving ``name`` (the hub goes on publishing it for others)."""
@@ -307,19 +310,23 @@ class ZenohHub(Hub):
         return reading
 
     def _in_order(self, key: str, batches: list[Batch]) -> tuple[list[Batch], int]:
-        """The batches not seen before, in order, and the samples missing between them."""
+        """The batches not seen before, in the order they were put, and the samples missing
+        between them. A batch numbered before the next one expected is a duplicate, unless
+        it was put after every batch taken: a restarted hub numbering from 0 again."""
         out, lost = [], 0
-        expected = self._next.get(key)
-        for b in sorted(batches, key=lambda b: b.first):
+        expected, last = self._next.get(key), self._stamp.get(key, -math.inf)
+        for b in sorted(batches, key=lambda b: (b.stamp, b.first)):
             if expected is not None and b.first < expected:
-                self.duplicates[key] = self.duplicates.get(key, 0) + 1
-                continue
+                if not b.stamp > last:
+                    self.duplicates[key] = self.duplicates.get(key, 0) + 1
+                    continue
+                expected = None  # a new numbering: nothing lost between the two
             if expected is not None:
                 lost += b.first - expected
-            expected = b.end
+            expected, last = b.end, b.stamp
             out.append(b)
         if expected is not None:
-            self._next[key] = expected
+            self._next[key], self._stamp[key] = expected, last
         return out, lost
 
     # ------------------------------------------------------------------ not over Zenoh
