@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from robocli.devices.hub.client import Hub
-from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub
-from robocli.errors import DeviceError, ProtocolError
+from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub, alive
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.hub.frontends.ros4mat import SENSOR_IDS
 from robocli.hub.frontends.zenoh import ZenohFrontend
@@ -231,3 +231,26 @@ def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
 
         wait_for("100 samples of the new hub", read_new)
         assert zh.duplicates.get("adc", 0) < 10  # at most the history overlapping what we read
+
+
+def test_without_a_name_the_one_hub_up_is_taken(lab: Lab) -> None:
+    with ZenohHub.connect(zenoh=lab.endpoint) as zh:
+        assert zh.name == "lab"
+    other = ZenohFrontend(lab.server.hub, lab.session, "other").start()
+    try:
+        with pytest.raises(InvalidArgument, match="give the hub's name: lab, other are up"):
+            ZenohHub.connect(zenoh=lab.endpoint)
+    finally:
+        other.close()
+    lab.front.close()
+    wait_for("no hub up", lambda: not alive_names(lab.endpoint))
+    with pytest.raises(TransportError, match="no hub is up on Zenoh at tcp/127.0.0.1:"):
+        ZenohHub.connect(zenoh=lab.endpoint)
+
+
+def alive_names(endpoint: str) -> list[tuple[str, str]]:
+    session = open_session(endpoint, "client")
+    try:
+        return alive(session, 1.0)
+    finally:
+        close_session(session)

@@ -31,11 +31,23 @@ from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
 from robocli.devices.stats import LinkStats
-from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.errors import (
+    DeviceError,
+    InvalidArgument,
+    ProtocolError,
+    TimeoutError,
+    TransportError,
+)
 from robocli.protocols.ros4mat import MsgType, record_dtype, sensor_type
 from robocli.zenoh.batch import Batch, decode_batch
 from robocli.zenoh.keys import ALIVE_ALL, check_name, info_key, parse_alive, settings_key, topic_key
-from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
+from robocli.zenoh.session import (
+    DEFAULT_ENDPOINT,
+    ZenohTarget,
+    close_session,
+    import_zenoh,
+    open_session,
+)
 
 if TYPE_CHECKING:
     import zenoh
@@ -168,9 +180,10 @@ class ZenohHub(Hub):
         try:
             if name is None:
                 hubs = [n for n, kind in alive(session, timeout) if kind == "hub"]
-                if len(hubs) != 1:
-                    what = ", ".join(hubs) if hubs else "none is up"
-                    raise DeviceError(f"give the hub's name: {len(hubs)} hubs ({what})")
+                if not hubs:
+                    raise TransportError(f"no hub is up on Zenoh at {zenoh or DEFAULT_ENDPOINT}")
+                if len(hubs) > 1:
+                    raise InvalidArgument(f"give the hub's name: {', '.join(hubs)} are up")
                 name = hubs[0]
             hub = cls(session, name.removeprefix("zenoh/"), timeout=timeout, clock=clock,
                       hub_clock=hub_clock, token=secret, history=history)  # fmt: skip
