@@ -207,13 +207,14 @@ class ZenohFrontend:
         n = len(pulled.t)
         if not n:
             return
-        body = b"".join(bytes(p) if isinstance(p, memoryview) else p for p in body_parts(pulled))
-        head = encode_head(pub.sensor_id, pub.next_seq, n, len(body), self.hub.clock())
-        pub.publisher.put(head + body)
+        parts = body_parts(pulled)
+        size = sum(memoryview(p).nbytes for p in parts)
+        head = encode_head(pub.sensor_id, pub.next_seq, n, size, self.hub.clock())
+        pub.publisher.put(b"".join([head, *parts]))  # one copy out of the records
         pub.next_seq += n
         pub.batches += 1
         pub.samples += n
-        pub.bytes += len(head) + len(body)
+        pub.bytes += len(head) + size
 
     # ------------------------------------------------------------------ queryables
 
