@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 SENSORS = {"adc": 1000, "imu": 200}
+CAMERA_ENV = "ROBOCLI_BENCH_CAMERA"  #: "1": also a 320x240 JPEG camera at 15 fps
 READ_PERIOD_S = 0.05
 CLK = os.sysconf("SC_CLK_TCK")
 
@@ -77,16 +78,24 @@ def subscribers_main(mode: str, where: str, n: int, seconds: float) -> None:
     from robocli.devices.hub.client import Hub
     from robocli.devices.hub.over_zenoh import ZenohHub
 
+    camera = os.environ.get(CAMERA_ENV) == "1"
+    sensors = [*SENSORS, "camera"] if camera else list(SENSORS)
     clients: list[Hub] = []
-    for _ in range(n):
+    for i in range(n):
         if mode == "ros4mat":
             hub = Hub.connect(where)
             for sensor, rate in SENSORS.items():
                 hub.subscribe(sensor, rate, buffer=rate * 2)
+            if camera:
+                hub.subscribe("camera", 15, quality=80, buffer=30)
         else:
             hub = ZenohHub.connect("bench", zenoh=where, history=False)
             for sensor in SENSORS:
                 hub.subscribe(sensor)
+            if camera and i == 0:
+                hub.subscribe("camera", 15, quality=80)
+            elif camera:
+                hub.subscribe("camera")
         clients.append(hub)
     delays: list[float] = []  # receive time - acquisition time of a batch's last ADC sample
     if mode != "ros4mat":
@@ -100,11 +109,11 @@ def subscribers_main(mode: str, where: str, n: int, seconds: float) -> None:
 
         first.zsession.declare_subscriber("robocli/bench/adc", on_batch)
     print("ready", flush=True)
-    got = {s: 0 for s in SENSORS}
+    got = {s: 0 for s in sensors}
     end = time.monotonic() + seconds + 2.0  # the parent measures `seconds` in the middle
     while time.monotonic() < end:
         for hub in clients:
-            for sensor in SENSORS:
+            for sensor in sensors:
                 reading = hub.read(sensor)
                 got[sensor] += len(reading)
                 if mode == "ros4mat" and hub is clients[0] and sensor == "adc" and len(reading):
@@ -142,6 +151,7 @@ def run(mode: str, n: int, seconds: float) -> dict[str, object]:
                     "mode": "peer", "connect": {"endpoints": [router_ep]},
                     "listen": {"endpoints": [hub_ep]},
                     "scouting": {"multicast": {"enabled": False}},
+                    "transport": {"shared_memory": {"enabled": False}},
                 }))  # fmt: skip
                 spec, where = str(cfg), router_ep
             hub = robocli("serve", "--sim", "--no-tcp", "--zenoh", spec, "--name", "bench",
@@ -183,7 +193,10 @@ def main() -> None:
     ap.add_argument("--subscribers", type=int, nargs="+", default=[1, 10])
     ap.add_argument("--seconds", type=float, default=10.0)
     ap.add_argument("--modes", nargs="+", default=["ros4mat", "zenoh", "zenoh-router"])
+    ap.add_argument("--camera", action="store_true", help="Also a 320x240 JPEG camera, 15 fps.")
     args = ap.parse_args()
+    if args.camera:
+        os.environ[CAMERA_ENV] = "1"
     for mode in args.modes:
         for n in args.subscribers:
             print(json.dumps(run(mode, n, args.seconds)), flush=True)
