@@ -19,9 +19,11 @@ from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import laser as laser_commands
+from robocli.commands import router as router_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
+from robocli.commands._zenoh import ZenohCommand
 
 
 class _Typer(typer.Typer):
@@ -106,12 +108,12 @@ connect.command("arm", cls=PlainCommand)(arm.connect)
 dump.command("arm", cls=PlainCommand)(dump_commands.arm)
 teleop.command("arm", cls=PlainCommand)(teleop_commands.arm)
 
-app.command("subscribe")(hub_commands.subscribe)
+app.command("subscribe", cls=ZenohCommand)(hub_commands.subscribe)
 app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(dump_commands.hub)
 bench_group.command("throughput")(hub_commands.throughput)
-app.command("serve", cls=PlainCommand)(serve_command.serve)
+app.command("serve", cls=ZenohCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 connect.command("laser", cls=PlainCommand)(laser_commands.connect)
@@ -120,6 +122,8 @@ dump.command("laser", cls=PlainCommand)(laser_dump.dump)
 app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
 app.command("export", cls=PlainCommand)(export_command.export)
+app.command("router", cls=ZenohCommand)(router_commands.router)
+app.command("list", cls=ZenohCommand)(router_commands.list_)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:
