@@ -1,0 +1,77 @@
+"""The lab in network namespaces (robocli.bench.lab): a 1-robot 1-laptop lab, a laptop's
+``robocli subscribe adc`` printing the rows of the hub in the robot's namespace, and every
+namespace removed on every ending. Root and iproute2 only: skipped with the reason
+otherwise."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from robocli.bench.lab.netns import Lab, LabError, run, unavailable_reason, wait_for
+
+REASON = unavailable_reason()
+pytestmark = [pytest.mark.netns, pytest.mark.skipif(REASON is not None, reason=REASON or "")]
+
+DEADLINE_S = 30.0  # bounds a failure only
+
+
+def namespaces(prefix: str) -> list[str]:
+    out = run("ip", "netns", "list", check=False)
+    return [line.split()[0] for line in out.splitlines() if line.startswith(prefix + "-")]
+
+
+def start_hub(lab: Lab) -> str:
+    robot = lab.robot(0)
+    hub = lab.spawn(robot, [sys.executable, "-m", "robocli", "serve", "--sim", "--bind",
+                            robot.address, "--port", "1500"], "hub0")  # fmt: skip
+    wait_for(lambda: "hub serving" in hub.tail(), DEADLINE_S, "hub start", [hub])
+    return f"{robot.address}:1500"
+
+
+def test_laptop_subscribes_to_a_hub_in_another_namespace() -> None:
+    with Lab(robots=1, laptops=1, prefix=f"rcl-{os.getpid()}-t") as lab:
+        address = start_hub(lab)
+        laptop = lab.laptop(0)
+        cmd = ["ip", "netns", "exec", laptop.ns, sys.executable, "-m", "robocli", "subscribe"]
+        cmd += ["adc", "--rate", "100", "--hub", address, "--count", "20", "--format", "csv"]
+        done = subprocess.run(cmd, capture_output=True, text=True, timeout=DEADLINE_S)
+        assert done.returncode == 0, done.stderr
+        rows = [line.split(",") for line in done.stdout.splitlines()]
+        header, data = rows[0], rows[1:]
+        assert header[0] == "t" and len(header) == 9  # time + 8 channels
+        assert len(data) == 20
+        assert all(len(r) == 9 for r in data)
+        times = [float(r[0]) for r in data]
+        assert times == sorted(times)
+        # the hub is not reachable from the machine's own namespace: the lab is isolated
+        assert address.split(":")[0] not in run("ip", "-br", "addr")
+        # the robot's uplink carried them
+        assert lab.tx_bytes(lab.robot(0)) > 20 * 8 * 2
+    assert namespaces(lab.prefix) == []
+
+
+def test_every_namespace_goes_when_the_block_fails() -> None:
+    prefix = f"rcl-{os.getpid()}-f"
+    with pytest.raises(RuntimeError), Lab(robots=2, laptops=2, prefix=prefix) as lab:
+        hub = lab.spawn(lab.robot(0), [sys.executable, "-c", "import time; time.sleep(600)"],
+                        "sleeper")  # fmt: skip
+        assert len(namespaces(prefix)) == 6  # bridge, server, 2 robots, 2 laptops
+        raise RuntimeError("a failing test")
+    assert namespaces(prefix) == []
+    assert hub.popen.poll() is not None  # killed, not left behind
+
+
+def test_a_lab_that_cannot_be_built_leaves_nothing_it_made() -> None:
+    prefix = f"rcl-{os.getpid()}-x"
+    taken = f"{prefix}-l0"  # someone else's namespace, in the way of the lab's laptop
+    run("ip", "netns", "add", taken)
+    try:
+        with pytest.raises(LabError, match="l0"), Lab(robots=1, laptops=1, prefix=prefix):
+            pass
+        assert namespaces(prefix) == [taken]  # the lab's own are gone, the other one kept
+    finally:
+        run("ip", "netns", "del", taken, check=False)
