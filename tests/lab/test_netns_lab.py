@@ -75,3 +75,20 @@ def test_a_lab_that_cannot_be_built_leaves_nothing_it_made() -> None:
         assert namespaces(prefix) == [taken]  # the lab's own are gone, the other one kept
     finally:
         run("ip", "netns", "del", taken, check=False)
+
+
+def test_the_bench_counts_what_a_laptop_receives_over_the_robot_uplink() -> None:
+    from robocli.bench.lab.bench import run_lab
+
+    r = run_lab("tcp", robots=1, laptops=1, seconds=2.0, warmup=0.5)
+    assert r.errors == []
+    assert set(r.sensors) == {"imu", "adc", "camera"}
+    for name in ("imu", "adc", "camera"):
+        s = r.sensors[name]
+        assert s["samples"] > 0 and s["duplicates"] == 0
+        assert s["p99"] is not None and s["p99"] > 0  # received after acquired, one clock
+    # the uplink carried what the laptop received (its window starts and ends a little later)
+    payload = sum(s["bytes"] for s in r.sensors.values())
+    assert r.uplink_bytes[0] >= payload * 0.5
+    assert len(r.hub_cores) == 1 and r.hub_cores[0] >= 0
+    assert namespaces(f"rcl-{os.getpid()}") == []

@@ -1,0 +1,170 @@
+"""One laptop of the lab (``python -m robocli.bench.lab.laptop``), run in its namespace.
+
+A laptop is **one process holding one client per robot** (a thread each): 40 interpreters
+per robot would not fit in the lab machine's 2 cores, and a student's MATLAB session also
+holds its connections in one process. Each client subscribes to the robot's IMU (200 Hz)
+and ADC (1 kHz); one robot's client also to its camera (320x240 JPEG, 15 fps).
+
+Talk with the bench (:mod:`.bench`): the laptop prints ``ready`` once every client is
+subscribed; it counts from the line ``go`` on its stdin to the line ``stop`` (or the end of
+stdin), then writes its tally as JSON to ``--out`` and exits. Counted per sensor: samples
+delivered, samples lost (gaps in the acquisition times over 1.5 periods), duplicates (a
+time not after the last one), and the latency of each sample (receive time minus the hub's
+acquisition time: every namespace shares the host's clock).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+#: sensor -> subscribe arguments (the issue's lab)
+SENSORS: dict[str, dict[str, Any]] = {
+    "imu": {"rate": 200},
+    "adc": {"rate": 1000},
+    "camera": {"rate": 15, "resolution": "320x240", "quality": 80},
+}
+MAX_LATENCIES = 200_000  #: latencies kept per sensor (a bound; the rest only counted)
+
+
+@dataclass
+class Tally:
+    """What one laptop received of one sensor (over every robot) while counting."""
+
+    samples: int = 0
+    lost: int = 0
+    duplicates: int = 0
+    nbytes: int = 0
+    latencies: list[np.ndarray[Any, Any]] = field(default_factory=list)
+    kept: int = 0
+
+    def add(self, hub_t: np.ndarray[Any, Any], received: float, lost: int, nbytes: int) -> None:
+        self.samples += len(hub_t)
+        self.lost += lost
+        self.nbytes += nbytes
+        if self.kept < MAX_LATENCIES and len(hub_t):
+            self.latencies.append(received - np.asarray(hub_t, dtype=np.float64))
+            self.kept += len(hub_t)
+
+    def report(self) -> dict[str, Any]:
+        lat = np.concatenate(self.latencies) if self.latencies else np.zeros(0)
+        pct = np.percentile(lat, [50, 99]).tolist() if lat.size else [None, None]
+        return {
+            "samples": self.samples, "lost": self.lost, "duplicates": self.duplicates,
+            "bytes": self.nbytes, "p50": pct[0], "p99": pct[1],
+            "max": float(lat.max()) if lat.size else None,
+        }  # fmt: skip
+
+
+class Laptop:
+    """The clients of one laptop and their tallies."""
+
+    def __init__(self) -> None:
+        self.counting = threading.Event()
+        self.stopping = threading.Event()
+        self.lock = threading.Lock()
+        self.tallies: dict[str, Tally] = {}
+        self.errors: list[str] = []
+        self.ready = 0
+
+    def tally(self, sensor: str) -> Tally:
+        return self.tallies.setdefault(sensor, Tally())
+
+    def record(self, sensor: str, hub_t: Any, last: dict[str, float], lost: int, n: int) -> None:
+        received = time.time()
+        ts = np.asarray(hub_t, dtype=np.float64)
+        prev = last.get(sensor, -np.inf)
+        dup = int(np.count_nonzero(np.diff(np.concatenate(([prev], ts))) <= 0)) if len(ts) else 0
+        if len(ts):
+            last[sensor] = max(prev, float(ts.max()))
+        if not self.counting.is_set():
+            return
+        with self.lock:
+            t = self.tally(sensor)
+            t.add(ts, received, lost, n)
+            t.duplicates += dup
+
+    # ------------------------------------------------------------ ros4mat TCP
+
+    def tcp_client(self, address: str, sensors: list[str], poll: int) -> None:
+        from robocli.devices.hub.client import Hub
+
+        try:
+            with Hub.connect(address, hub_clock=True, timeout=10.0) as hub:
+                for s in sensors:
+                    args = dict(SENSORS[s])
+                    rate = args.pop("rate")
+                    hub.subscribe(s, rate, poll=min(poll, rate), **args)
+                with self.lock:
+                    self.ready += 1
+                last: dict[str, float] = {}
+                period = 1.0 / poll
+                next_t = time.monotonic()
+                while not self.stopping.is_set():
+                    for s in sensors:
+                        r = hub.read(s)
+                        self.record(s, r.hub_t, last, r.lost, r.nbytes)
+                    next_t += period
+                    delay = next_t - time.monotonic()
+                    if delay > 0:
+                        self.stopping.wait(delay)
+                    else:
+                        next_t = time.monotonic()  # late: no burst of catch-up pulls
+        except Exception as exc:  # a client's failure is reported, the others go on
+            with self.lock:
+                self.errors.append(f"{address}: {type(exc).__name__}: {exc}")
+                self.ready += 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m robocli.bench.lab.laptop")
+    ap.add_argument("--mode", choices=["tcp"], default="tcp")
+    ap.add_argument("--hubs", required=True, help="HOST:PORT,... one per robot")
+    ap.add_argument("--camera", type=int, default=0, help="index of the robot watched")
+    ap.add_argument("--poll", type=int, default=25, help="pulls per second and sensor")
+    ap.add_argument("--out", required=True)
+    a = ap.parse_args(argv)
+    hubs = a.hubs.split(",")
+    laptop = Laptop()
+    threads = []
+    for i, address in enumerate(hubs):
+        sensors = ["imu", "adc"] + (["camera"] if i == a.camera else [])
+        th = threading.Thread(target=laptop.tcp_client, args=(address, sensors, a.poll),
+                              daemon=True)  # fmt: skip
+        th.start()
+        threads.append(th)
+    while laptop.ready < len(hubs):
+        time.sleep(0.02)
+    print("ready", flush=True)
+    started = stopped = 0.0
+    for line in sys.stdin:
+        if line.strip() == "go":
+            started = time.time()
+            laptop.counting.set()
+        elif line.strip() == "stop":
+            break
+    stopped = time.time()
+    laptop.counting.clear()
+    laptop.stopping.set()
+    for th in threads:
+        th.join(10.0)
+    with laptop.lock:
+        result = {
+            "seconds": stopped - started if started else 0.0,
+            "sensors": {s: t.report() for s, t in laptop.tallies.items()},
+            "errors": laptop.errors,
+        }
+    with open(a.out, "w") as f:
+        json.dump(result, f)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
