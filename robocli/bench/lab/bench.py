@@ -45,6 +45,7 @@ class LabRun:
     hub_cores: list[float] = field(default_factory=list)  #: per hub, while counting
     sensors: dict[str, dict[str, Any]] = field(default_factory=dict)
     errors: list[str] = field(default_factory=list)
+    laptop_seconds: float = 0.0  #: the laptops' counting windows, summed
 
     @property
     def uplink_mbit_s(self) -> float:
@@ -52,9 +53,10 @@ class LabRun:
         return max(self.uplink_bytes, default=0) * 8 / self.seconds / 1e6
 
     def expected(self, sensor: str) -> float:
-        """Samples of ``sensor`` the laptops would receive in the window at the nominal rate."""
+        """Samples of ``sensor`` the laptops would receive in their counting windows at the
+        nominal rate."""
         per = self.robots if sensor != "camera" else 1
-        return RATES[sensor] * self.seconds * per * self.laptops
+        return RATES[sensor] * (self.laptop_seconds or self.seconds * self.laptops) * per
 
     def as_dict(self) -> dict[str, Any]:
         d = dict(self.__dict__)
@@ -145,6 +147,7 @@ def run_lab(
             except (OSError, ValueError) as exc:
                 raise LabError(f"{p.name} wrote no report ({exc}):\n{p.tail()}") from None
             _merge(result.sensors, report)
+            result.laptop_seconds += float(report["seconds"])
             result.errors += [f"{p.name}: {e}" for e in report["errors"]]
     return result
 
