@@ -63,14 +63,16 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
             str(sum(r.uplink_drops)), f"{got / want:.3f}" if want else "-", f"{lost}/{dup}",
             _ms(p50), _ms(max(p99s) if p99s else None),
             f"{cam.get('samples', 0) / r.expected('camera'):.2f}",
-            _ms(cam.get("p99")), f"{max(r.hub_cores):.2f}", str(len(r.errors)),
+            _ms(cam.get("p99")), f"{max(r.hub_cores):.2f}", f"{sum(r.laptop_cores):.2f}",
+            str(len(r.errors)),
         ])  # fmt: skip
     return out
 
 
 HEADER = ["front-end", "robots x laptops", "uplink Mbit/s (max robot)", "x 1 laptop",
           "tbf drops", "IMU+ADC delivered", "lost/dup", "p50 ms", "p99 ms",
-          "camera frames delivered", "camera p99 ms", "hub cores (max)", "errors"]  # fmt: skip
+          "camera frames delivered", "camera p99 ms", "hub cores (max)",
+          "laptops' cores (sum)", "errors"]  # fmt: skip
 
 
 def markdown(runs: list[LabRun]) -> str:

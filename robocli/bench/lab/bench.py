@@ -43,6 +43,7 @@ class LabRun:
     uplink_bytes: list[int] = field(default_factory=list)  #: per robot, while counting
     uplink_drops: list[int] = field(default_factory=list)  #: tbf drops per robot
     hub_cores: list[float] = field(default_factory=list)  #: per hub, while counting
+    laptop_cores: list[float] = field(default_factory=list)  #: per laptop process
     sensors: dict[str, dict[str, Any]] = field(default_factory=dict)
     errors: list[str] = field(default_factory=list)
     laptop_seconds: float = 0.0  #: the laptops' counting windows, summed
@@ -126,6 +127,7 @@ def run_lab(
         tx0 = [lab.tx_bytes(n) for n in nodes]
         drops0 = [lab.qdisc_drops(n) for n in nodes]
         cpu0 = [cpu_seconds(h.pid) for h in hubs]
+        lcpu0 = [cpu_seconds(p.pid) for p, _ in tops]
         for p, _ in tops:
             _say(p, "go")
         t0 = time.monotonic()
@@ -136,6 +138,8 @@ def run_lab(
         result.hub_cores = [
             (cpu_seconds(h.pid) - c) / elapsed for h, c in zip(hubs, cpu0, strict=True)
         ]
+        lcpu = [cpu_seconds(p.pid) - c for (p, _), c in zip(tops, lcpu0, strict=True)]
+        result.laptop_cores = [c / elapsed for c in lcpu]
         result.seconds = elapsed
         for p, _ in tops:
             _say(p, "stop")
