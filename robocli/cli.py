@@ -14,12 +14,14 @@ import typer
 
 from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, pioneer, ports, record
+from robocli.commands import bridge as bridge_commands
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import hub as hub_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
+from robocli.commands._zenoh import ZenohCommand
 
 
 class _Typer(typer.Typer):
@@ -112,6 +114,10 @@ bench_group.command("throughput")(hub_commands.throughput)
 app.command("serve", cls=PlainCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
+
+bridge = _group("bridge", "Put a robot on Eclipse Zenoh: state for many, commands from one.")
+bridge.command("pioneer", cls=ZenohCommand)(bridge_commands.pioneer)
+bridge.command("arm", cls=ZenohCommand)(bridge_commands.arm)
 app.command("info", cls=PlainCommand)(record.info)
 
 

@@ -1,0 +1,87 @@
+"""The ``--zenoh [ENDPOINT|CONFIG]`` option every Zenoh-capable command declares alike.
+
+One meaning (:mod:`robocli.zenoh.session`): a server (``serve``, ``bridge``, ``router``)
+listens on ENDPOINT, a client (``subscribe``, ``connect``, ``teleop``, ``list``) connects
+to it; a JSON5 file is taken as the whole configuration. ``--zenoh`` alone is the default
+endpoint, tcp/127.0.0.1:7447 (Typer has no option with an optional value: the command's
+class, :class:`ZenohCommand`, gives ``--zenoh`` followed by nothing or by another option the
+default). Declare it with :func:`zenoh_option`, register the command with
+``cls=ZenohCommand``, and open the session with :func:`zenoh_session`, which turns a bad
+value into a usage error (exit 2).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import typer
+
+from robocli.commands._common import PlainCommand
+from robocli.zenoh.session import DEFAULT_ENDPOINT, Role, ZenohTarget, parse_target
+
+if TYPE_CHECKING:
+    import zenoh
+
+__all__ = [
+    "ZENOH_METAVAR",
+    "ZenohCommand",
+    "with_default_zenoh",
+    "zenoh_option",
+    "zenoh_session",
+    "zenoh_target",
+]
+
+ZENOH_METAVAR = "[ENDPOINT|CONFIG]"
+_VERB = {"server": "listen on", "router": "listen on", "client": "connect to"}
+
+
+def with_default_zenoh(args: list[str]) -> list[str]:
+    """``args`` with a ``--zenoh`` that has no value (last, or followed by an option) given
+    :data:`DEFAULT_ENDPOINT`. Arguments after ``--`` are left alone."""
+    out = list(args)
+    end = out.index("--") if "--" in out else len(out)
+    for i in range(end):
+        if out[i] == "--zenoh" and (i + 1 >= end or out[i + 1].startswith("-")):
+            out[i] = f"--zenoh={DEFAULT_ENDPOINT}"
+    return out
+
+
+class ZenohCommand(PlainCommand):
+    """A :class:`PlainCommand` whose ``--zenoh`` value may be left out."""
+
+    def parse_args(self, ctx: Any, args: list[str]) -> list[str]:
+        return super().parse_args(ctx, with_default_zenoh(args))
+
+
+def zenoh_option(role: Role, *, default: str | None = None) -> Any:
+    """The ``--zenoh`` Typer option for a command of ``role`` (registered with
+    ``cls=ZenohCommand``, its value may be left out: :data:`DEFAULT_ENDPOINT`).
+    ``default``: the value when ``--zenoh`` is not given at all (None: the command does not
+    use Zenoh then)."""
+    return typer.Option(
+        default,
+        "--zenoh",
+        metavar=ZENOH_METAVAR,
+        show_default=False,
+        help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: {DEFAULT_ENDPOINT}; multicast "
+        "scouting off), or take CONFIG, a Zenoh JSON5 file. Needs robocli[zenoh].",
+    )
+
+
+def zenoh_target(value: str | None) -> ZenohTarget:
+    """``--zenoh``'s value as a target; a bad one is a usage error (exit 2)."""
+    from robocli.errors import InvalidArgument
+
+    try:
+        return parse_target(value)
+    except InvalidArgument as exc:
+        message = str(exc).removeprefix("--zenoh: ")
+        raise typer.BadParameter(message, param_hint="'--zenoh'") from None
+
+
+def zenoh_session(value: str | None, role: Role) -> zenoh.Session:
+    """The session ``--zenoh value`` means for ``role`` (the extra missing: one line, exit 1;
+    nobody reached or the port taken: exit 3)."""
+    from robocli.zenoh.session import open_session
+
+    return open_session(zenoh_target(value), role)

@@ -1,0 +1,115 @@
+"""``--zenoh [ENDPOINT|CONFIG]``: one meaning for servers (listen) and clients (connect),
+the key layout, and the one-line message without the extra."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from robocli.commands._zenoh import ZenohCommand, zenoh_option, zenoh_session
+from robocli.errors import InvalidArgument, TransportError
+from robocli.zenoh import (
+    DEFAULT_ENDPOINT,
+    alive_key,
+    info_key,
+    open_session,
+    parse_alive,
+    parse_target,
+    settings_key,
+    topic_key,
+)
+
+DEADLINE_S = 20.0
+
+
+def test_target_is_an_endpoint_or_a_config_file(tmp_path: Path) -> None:
+    assert parse_target(None).endpoint == DEFAULT_ENDPOINT == "tcp/127.0.0.1:7447"
+    assert parse_target("tcp/10.0.0.1:7447").endpoint == "tcp/10.0.0.1:7447"
+    cfg = tmp_path / "lab.json5"
+    cfg.write_text("{ mode: 'client' }")
+    assert parse_target(str(cfg)).config_file == cfg
+    with pytest.raises(InvalidArgument, match="no configuration file"):
+        parse_target(str(tmp_path / "missing.json5"))
+    with pytest.raises(InvalidArgument, match="neither an endpoint"):
+        parse_target("127.0.0.1:7447")
+
+
+def test_key_layout() -> None:
+    assert topic_key("lab-hub", "adc") == "robocli/lab-hub/adc"
+    assert info_key("h") == "robocli/h/@info"
+    assert settings_key("h", "imu") == "robocli/h/@settings/imu"
+    assert alive_key("r1", "pioneer") == "robocli/r1/@alive/pioneer"
+    assert parse_alive("robocli/r1/@alive/pioneer") == ("r1", "pioneer")
+    assert parse_alive("robocli/r1/adc") is None
+    for bad in ("a/b", "*", "@x", "", "a b"):
+        with pytest.raises(InvalidArgument):
+            topic_key(bad, "adc")
+
+
+def test_server_listens_and_client_connects_there(endpoint: str) -> None:
+    server = open_session(endpoint, "server")
+    try:
+        got: list[bytes] = []
+        sub = server.declare_subscriber("robocli/t/adc", lambda s: got.append(s.payload.to_bytes()))
+        client = open_session(endpoint, "client")
+        try:
+            deadline = time.monotonic() + DEADLINE_S
+            while not got and time.monotonic() < deadline:  # until the subscription is known
+                client.put("robocli/t/adc", b"x")
+                time.sleep(0.05)
+            assert got and got[0] == b"x"
+        finally:
+            client.close()
+        sub.undeclare()
+    finally:
+        server.close()
+
+
+def test_client_reaching_nobody_is_unreachable(endpoint: str) -> None:
+    with pytest.raises(TransportError, match=f"cannot connect to {endpoint}") as info:
+        open_session(endpoint, "client")
+    assert info.value.exit_code == 3
+    assert "\n" not in str(info.value) and ".rs:" not in str(info.value)
+
+
+def test_option_value_may_be_left_out() -> None:
+    app = typer.Typer()
+
+    @app.command(cls=ZenohCommand)
+    def cmd(zenoh: str | None = zenoh_option("client"), other: int = 0) -> None:  # noqa: UP007
+        typer.echo(f"zenoh={zenoh} other={other}")
+
+    runner = CliRunner()
+    assert runner.invoke(app, ["--zenoh"]).output.strip() == f"zenoh={DEFAULT_ENDPOINT} other=0"
+    out = runner.invoke(app, ["--zenoh", "--other", "3"]).output.strip()
+    assert out == f"zenoh={DEFAULT_ENDPOINT} other=3"
+    out = runner.invoke(app, ["--zenoh", "tcp/127.0.0.1:1"]).output.strip()
+    assert out == "zenoh=tcp/127.0.0.1:1 other=0"
+    assert runner.invoke(app, []).output.strip() == "zenoh=None other=0"
+    out = runner.invoke(app, ["--other", "1", "--zenoh"]).output.strip()
+    assert out == f"zenoh={DEFAULT_ENDPOINT} other=1"
+
+
+def test_bad_value_is_a_usage_error() -> None:
+    with pytest.raises(typer.BadParameter, match="neither an endpoint"):
+        zenoh_session("nowhere", "client")
+
+
+BLOCKED = "import sys; sys.modules['zenoh'] = None; "
+
+
+def test_without_the_extra_one_line_says_how_to_install() -> None:
+    code = BLOCKED + (
+        "from robocli.zenoh import open_session, ZenohMissing\n"
+        "try:\n    open_session(None, 'client')\n"
+        "except ZenohMissing as e:\n    print(e.exit_code, e)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=60, check=True).stdout  # fmt: skip
+    assert out == "1 Zenoh support needs Eclipse Zenoh: pip install 'robocli[zenoh]'\n"
