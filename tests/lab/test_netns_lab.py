@@ -92,3 +92,13 @@ def test_the_bench_counts_what_a_laptop_receives_over_the_robot_uplink() -> None
     assert r.uplink_bytes[0] >= payload * 0.5
     assert len(r.hub_cores) == 1 and r.hub_cores[0] >= 0
     assert namespaces(f"rcl-{os.getpid()}") == []
+
+
+def test_a_class_watches_the_pioneer_one_laptop_drives_and_killing_the_driver_stops_it() -> None:
+    pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+    from robocli.bench.lab.pioneer import class_drives_pioneer
+
+    r = class_drives_pioneer(laptops=3)  # laptop 0 drives, laptops 1 and 2 watch
+    assert r.watchers_moving == 2
+    assert len(r.stop_delays) == 2 and all(d > 0 for d in r.stop_delays)
+    assert namespaces(f"rcl-{os.getpid()}") == []

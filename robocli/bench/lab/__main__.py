@@ -90,6 +90,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--poll", type=int, default=25, help="ros4mat pulls per second and sensor")
     ap.add_argument("--camera", choices=["spread", "one"], default="spread",
                     help="spread: laptop j watches robot j %% R; one: robot 0")  # fmt: skip
+    ap.add_argument("--pioneer", type=int, default=0, metavar="LAPTOPS",
+                    help="also: LAPTOPS watch a Pioneer that one drives, then the driver is "
+                    "killed (robocli[zenoh])")  # fmt: skip
     ap.add_argument("--json", metavar="FILE", help="write every run's figures here")
     ap.add_argument("--skip-ok", action="store_true", help="exit 0 where no lab can be made")
     a = ap.parse_args(argv)
@@ -123,6 +126,22 @@ def main(argv: list[str] | None = None) -> int:
             if a.json:
                 with open(a.json, "w") as f:
                     json.dump([r.as_dict() for r in runs], f, indent=1)
+    if a.pioneer:
+        from robocli.bench.lab.pioneer import class_drives_pioneer
+
+        try:
+            p = class_drives_pioneer(a.pioneer, uplink_mbit=a.uplink or None)
+        except KeyboardInterrupt:
+            print("lab: interrupted", file=sys.stderr)
+            return 130
+        except LabError as exc:
+            print(f"lab: pioneer: {exc}", file=sys.stderr)
+            return 1
+        delays = ", ".join(f"{d:.2f}" for d in p.stop_delays)
+        print(
+            f"\npioneer: {p.watchers_moving} of {a.pioneer - 1} watchers saw it move; "
+            f"driver killed: stopped after {delays} s (silence {p.silence} s)"
+        )
     for r in runs:
         for e in r.errors[:5]:
             print(f"{r.mode} {r.robots}x{r.laptops}: {e}", file=sys.stderr)

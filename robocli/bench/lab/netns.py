@@ -217,7 +217,7 @@ class Lab:
             popen = subprocess.Popen(
                 ["ip", "netns", "exec", node.ns, *argv], stdout=out, stderr=subprocess.STDOUT,
                 stdin=subprocess.PIPE if stdin else subprocess.DEVNULL, text=True,
-                start_new_session=True,
+                start_new_session=True, env={**os.environ, "PYTHONUNBUFFERED": "1"},
             )  # fmt: skip
         proc = Proc(node, name, popen, log)
         self.procs.append(proc)
