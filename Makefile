@@ -88,6 +88,7 @@ bench: $(STAMP)
 # same lab over each front-end at each size (ROBOTSxLAPTOPS). Root only: elsewhere it says why
 # in one line and does nothing. iproute2 (ip, tc) is installed with apt-get when missing.
 LAB_SIZES   ?= 1x1,1x4,2x4,2x8,4x8
+LAB_PIONEER ?= 4
 LAB_SECONDS ?= 10
 LAB_UPLINK  ?= 20
 LAB_ARGS    ?=
@@ -99,7 +100,7 @@ lab-tools:
 lab: lab-tools $(STAMP)
 	@mkdir -p build
 	$(PY) -m robocli.bench.lab --skip-ok --sizes $(LAB_SIZES) --seconds $(LAB_SECONDS) \
-	  --uplink $(LAB_UPLINK) --json build/lab.json $(LAB_ARGS)
+	  --uplink $(LAB_UPLINK) --pioneer $(LAB_PIONEER) --json build/lab.json $(LAB_ARGS)
 
 # Release files in $(DIST_DIR): the sdist, and the wheel built from that sdist alone (`build`
 # with neither --sdist nor --wheel unpacks the sdist and builds there, so the C sources, header
