@@ -22,7 +22,18 @@ from robocli.bench.lab.bench import (
 )
 from robocli.bench.lab.netns import LabError, unavailable_reason
 
-MODES = ("tcp",)
+MODES = ("tcp", "zenoh")
+
+
+def zenoh_missing() -> str | None:
+    """Why the Zenoh front-end cannot run here (one line), or None."""
+    import importlib.util
+
+    if importlib.util.find_spec("zenoh") is None:
+        return "eclipse-zenoh is not installed (pip install 'robocli[zenoh]')"
+    if importlib.util.find_spec("robocli.hub.frontends.zenoh") is None:
+        return "this robocli has no Zenoh front-end for the hub (serve --zenoh)"
+    return None
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -84,7 +95,7 @@ def markdown(runs: list[LabRun]) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m robocli.bench.lab", description=__doc__)
     ap.add_argument("--sizes", default="1x1,2x2,2x4", help="ROBOTSxLAPTOPS,... in order")
-    ap.add_argument("--modes", default=",".join(MODES), help="front-ends: tcp")
+    ap.add_argument("--modes", default="", help="front-ends: tcp, zenoh (default: both)")
     ap.add_argument("--seconds", type=float, default=10.0, help="counting window per run")
     ap.add_argument("--uplink", type=float, default=20.0, help="robot uplink, Mbit/s (0: none)")
     ap.add_argument("--poll", type=int, default=25, help="ros4mat pulls per second and sensor")
@@ -98,6 +109,12 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     sizes = [parse_size(t) for t in a.sizes.split(",") if t]
     modes = [m for m in a.modes.split(",") if m]
+    if not modes:
+        modes = list(MODES)
+        why = zenoh_missing()
+        if why is not None:
+            modes.remove("zenoh")
+            print(f"lab: zenoh front-end skipped: {why}", file=sys.stderr)
     bad = [m for m in modes if m not in MODES]
     if bad:
         ap.error(f"unknown front-end {bad[0]!r}; choose from {', '.join(MODES)}")

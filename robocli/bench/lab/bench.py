@@ -16,12 +16,16 @@ import json
 import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from robocli.bench.hub import cpu_seconds
 from robocli.bench.lab.netns import Lab, LabError, Proc, wait_for
 
 HUB_PORT = 1500
+ROUTER_PORT = 7447
+ZENOH_PUBLISH = "imu=200,adc=1000"  #: the camera starts when a laptop asks (its settings)
+HUB_READY = {"tcp": "hub serving", "zenoh": "hub serving"}
 START_S = 60.0  #: bounds the start of hubs and laptops (a loaded machine is slow)
 RATES = {"imu": 200.0, "adc": 1000.0, "camera": 15.0}
 #: the issue's targets
@@ -65,11 +69,45 @@ class LabRun:
         return d
 
 
-def _hub_argv(mode: str, address: str) -> list[str]:
-    if mode != "tcp":
-        raise LabError(f"unknown front-end {mode!r}")
-    return [sys.executable, "-m", "robocli", "serve", "--sim", "--bind", address, "--port",
-            str(HUB_PORT), "--max-clients", "4096"]  # fmt: skip
+def _hub_argv(mode: str, address: str, name: str, config: Path) -> list[str]:
+    if mode == "tcp":
+        return [sys.executable, "-m", "robocli", "serve", "--sim", "--bind", address, "--port",
+                str(HUB_PORT), "--max-clients", "4096"]  # fmt: skip
+    if mode == "zenoh":  # a client of the router (its config file), on Zenoh only
+        return [sys.executable, "-m", "robocli", "serve", "--sim", "--zenoh", str(config),
+                "--name", name, "--publish", ZENOH_PUBLISH, "--no-tcp"]  # fmt: skip
+    raise LabError(f"unknown front-end {mode!r}")
+
+
+#: Zenoh's shared-memory transport off: the lab's namespaces share the host's /dev/shm, and
+#: with it on, every message over 3 KB (each camera frame) went from hub to laptop through
+#: shared memory, never on the robot's uplink (the uplink counted 0.3 of the bytes the
+#: laptop received). Robots on Wi-Fi share no memory with laptops.
+NO_SHM = {"shared_memory": {"enabled": False}}
+
+
+def client_config(path: Path, router: str) -> Path:
+    """A Zenoh configuration file: a client of ``router``, multicast scouting off, no
+    shared memory (:data:`NO_SHM`)."""
+    config = {"mode": "client", "connect": {"endpoints": [router]},
+              "scouting": {"multicast": {"enabled": False}}, "transport": NO_SHM}  # fmt: skip
+    path.write_text(json.dumps(config, indent=1))
+    return path
+
+
+def start_router(lab: Lab) -> tuple[Proc, str]:
+    """``robocli router`` listening on the server namespace's address (no shared memory)."""
+    assert lab.logdir is not None
+    endpoint = f"tcp/{lab.server.address}:{ROUTER_PORT}"
+    config = lab.logdir / "router.json5"
+    config.write_text(json.dumps({"scouting": {"multicast": {"enabled": False}},
+                                  "transport": NO_SHM}))  # fmt: skip
+    argv = [sys.executable, "-m", "robocli", "router", "--config", str(config), "--zenoh",
+            endpoint]  # fmt: skip
+    proc = lab.spawn(lab.server, argv, "router")
+    wait_for(lambda: "router" in proc.tail().lower() and endpoint in proc.tail(), START_S,
+             "the router", [proc])  # fmt: skip
+    return proc, endpoint
 
 
 def _merge(into: dict[str, dict[str, Any]], laptop: dict[str, Any]) -> None:
@@ -106,19 +144,27 @@ def run_lab(
     with Lab(robots, laptops, uplink_mbit=uplink_mbit) as lab:
         assert lab.logdir is not None
         hubs: list[Proc] = []
+        router = ""
+        if mode == "zenoh":
+            _, router = start_router(lab)
+        config = client_config(lab.logdir / "client.json5", router)
         for i in range(robots):
             node = lab.robot(i)
-            hubs.append(lab.spawn(node, _hub_argv(mode, node.address), f"hub{i}"))
+            argv = _hub_argv(mode, node.address, f"r{i}", config)
+            hubs.append(lab.spawn(node, argv, f"hub{i}"))
         for h in hubs:
-            wait_for(lambda h=h: "hub serving" in h.tail(), START_S, f"{h.name} start", [h])
-        addresses = ",".join(f"{lab.robot(i).address}:{HUB_PORT}" for i in range(robots))
+            wait_for(lambda h=h: HUB_READY[mode] in h.tail(), START_S, f"{h.name} start", [h])
+        if mode == "tcp":
+            addresses = ",".join(f"{lab.robot(i).address}:{HUB_PORT}" for i in range(robots))
+        else:
+            addresses = ",".join(f"r{i}" for i in range(robots))
         tops: list[tuple[Proc, str]] = []
         for j in range(laptops):
             out = str(lab.logdir / f"laptop{j}.json")
             watched = j % robots if camera == "spread" else 0
             argv = [sys.executable, "-m", "robocli.bench.lab.laptop", "--mode", mode,
                     "--hubs", addresses, "--camera", str(watched), "--poll", str(poll),
-                    "--out", out]  # fmt: skip
+                    "--out", out, "--router", str(config)]  # fmt: skip
             tops.append((lab.spawn(lab.laptop(j), argv, f"laptop{j}", stdin=True), out))
         for p, _ in tops:
             wait_for(lambda p=p: "ready" in p.tail(), START_S, f"{p.name} ready", [p])

@@ -16,7 +16,9 @@ acquisition time: every namespace shares the host's clock).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import struct
 import sys
 import threading
 import time
@@ -31,6 +33,8 @@ SENSORS: dict[str, dict[str, Any]] = {
     "adc": {"rate": 1000},
     "camera": {"rate": 15, "resolution": "320x240", "quality": 80},
 }
+#: the camera's settings as the hub's Zenoh settings queryable takes them (the source's names)
+ZENOH_CAMERA = {"fps": 15, "width": 320, "height": 240, "compression": 80}
 MAX_LATENCIES = 200_000  #: latencies kept per sensor (a bound; the rest only counted)
 
 
@@ -122,11 +126,96 @@ class Laptop:
                 self.errors.append(f"{address}: {type(exc).__name__}: {exc}")
                 self.ready += 1
 
+    # ------------------------------------------------------------ Zenoh
+
+    def zenoh_clients(self, endpoint: str, hubs: list[str], camera: int) -> list[Any]:
+        """One Zenoh session (a client of the router: ``endpoint`` or a config) subscribed to the
+        IMU and ADC of every hub and to the camera of hub ``camera``, which it asks to run
+        at the lab's settings. Batches are read as a program that is not robocli would:
+        the documented 32-byte header (:data:`BATCH`), then ros4mat records whose ``t``
+        is the acquisition time; each sample's latency is taken as its batch arrives."""
+        from robocli.zenoh.keys import settings_key, topic_key
+        from robocli.zenoh.session import open_session
+
+        session = open_session(endpoint, "client")
+        subs: list[Any] = [session]
+        for i, name in enumerate(hubs):
+            for sensor in ["imu", "adc"] + (["camera"] if i == camera else []):
+                if sensor == "camera":
+                    params = json.dumps({"params": ZENOH_CAMERA})
+                    for reply in session.get(settings_key(name, "camera"), payload=params,
+                                             timeout=10.0):  # fmt: skip
+                        if reply.err is not None:
+                            err = reply.err.payload.to_string()
+                            self.errors.append(f"{name}: camera settings: {err}")
+                handler = _BatchReader(self, sensor)
+                subs.append(session.declare_subscriber(topic_key(name, sensor), handler))
+        self.ready = len(hubs)
+        return subs
+
+
+#: The batch header (README, Zenoh section): magic, version, sensor id, header size,
+#: first sequence number, count, body size, stamp.
+BATCH = struct.Struct("<4sBBHQIId")
+
+
+class _BatchReader:
+    """A Zenoh subscriber's callback for one hub sensor: sequence gaps, duplicates,
+    latency (on Zenoh's thread: it never raises there)."""
+
+    def __init__(self, laptop: Laptop, sensor: str) -> None:
+        from robocli.protocols.ros4mat.codec import record_dtype
+
+        self.laptop = laptop
+        self.sensor = sensor
+        self.dtype = record_dtype(sensor)
+        self.next: int | None = None
+
+    def __call__(self, sample: Any) -> None:
+        received = time.time()
+        try:
+            data = sample.payload.to_bytes()
+            magic, _v, _sid, head, first, count, size, _stamp = BATCH.unpack_from(data, 0)
+            if magic != b"RCZB":
+                raise ValueError(f"not a robocli batch: {magic!r}")
+            body = memoryview(data)[head : head + size]
+            hub_t = np.frombuffer(body, dtype=self.dtype, count=count)["t"]
+            if self.sensor == "camera":
+                _decode_frames(body, self.dtype, hub_t, count)
+            lost = dup = 0
+            if self.next is not None:
+                lost = max(0, first - self.next)
+                dup = max(0, min(self.next, first + count) - first)
+            self.next = max(self.next or 0, first + count)
+            if not self.laptop.counting.is_set():
+                return
+            with self.laptop.lock:
+                t = self.laptop.tally(self.sensor)
+                t.add(hub_t, received, lost, len(data))
+                t.duplicates += dup
+        except Exception as exc:  # noqa: BLE001 - never into Zenoh's thread
+            with self.laptop.lock:
+                if len(self.laptop.errors) < 20:
+                    self.laptop.errors.append(f"{self.sensor}: {type(exc).__name__}: {exc}")
+
+
+def _decode_frames(body: memoryview, dtype: Any, hub_t: Any, count: int) -> None:
+    """Decode the batch's JPEG frames, as a student's program would (and as the ros4mat
+    client does), so that the laptops' CPU compares."""
+    from robocli.devices.hub.decode import decode_jpeg
+
+    info = np.frombuffer(body, dtype=dtype, count=count)
+    offset = dtype.itemsize * count
+    for n in info["size_data"].tolist():
+        decode_jpeg(bytes(body[offset : offset + n]))
+        offset += n
+
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m robocli.bench.lab.laptop")
-    ap.add_argument("--mode", choices=["tcp"], default="tcp")
-    ap.add_argument("--hubs", required=True, help="HOST:PORT,... one per robot")
+    ap.add_argument("--mode", choices=["tcp", "zenoh"], default="tcp")
+    ap.add_argument("--hubs", required=True, help="HOST:PORT,... (tcp) or names (zenoh)")
+    ap.add_argument("--router", default="", help="zenoh: the router (endpoint or config)")
     ap.add_argument("--camera", type=int, default=0, help="index of the robot watched")
     ap.add_argument("--poll", type=int, default=25, help="pulls per second and sensor")
     ap.add_argument("--out", required=True)
@@ -134,7 +223,10 @@ def main(argv: list[str] | None = None) -> int:
     hubs = a.hubs.split(",")
     laptop = Laptop()
     threads = []
-    for i, address in enumerate(hubs):
+    keep: list[Any] = []
+    if a.mode == "zenoh":
+        keep = laptop.zenoh_clients(a.router, hubs, a.camera)
+    for i, address in enumerate(hubs if a.mode == "tcp" else []):
         sensors = ["imu", "adc"] + (["camera"] if i == a.camera else [])
         th = threading.Thread(target=laptop.tcp_client, args=(address, sensors, a.poll),
                               daemon=True)  # fmt: skip
@@ -155,6 +247,9 @@ def main(argv: list[str] | None = None) -> int:
     laptop.stopping.set()
     for th in threads:
         th.join(10.0)
+    for sub in reversed(keep):
+        with contextlib.suppress(Exception):
+            (sub.undeclare if hasattr(sub, "undeclare") else sub.close)()
     with laptop.lock:
         result = {
             "seconds": stopped - started if started else 0.0,
