@@ -69,12 +69,14 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
         cam = s.get("camera", {})
         b = base.get(r.mode)
         ratio = f"{max(r.uplink_bytes) / r.seconds / b:.2f}" if b else "-"
+        router = f"{r.router_cores:.2f}" if r.mode == "zenoh" else "-"
         out.append([
             r.mode, f"{r.robots}x{r.laptops}", f"{r.uplink_mbit_s:.1f}", ratio,
             str(sum(r.uplink_drops)), f"{got / want:.3f}" if want else "-", f"{lost}/{dup}",
             _ms(p50), _ms(max(p99s) if p99s else None),
             f"{cam.get('samples', 0) / r.expected('camera'):.2f}",
-            _ms(cam.get("p99")), f"{max(r.hub_cores):.2f}", f"{sum(r.laptop_cores):.2f}",
+            _ms(cam.get("p99")), f"{max(r.hub_cores):.2f}", router,
+            f"{sum(r.laptop_cores):.2f}",
             str(len(r.errors)),
         ])  # fmt: skip
     return out
@@ -82,7 +84,7 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
 
 HEADER = ["front-end", "robots x laptops", "uplink Mbit/s (max robot)", "x 1 laptop",
           "tbf drops", "IMU+ADC delivered", "lost/dup", "p50 ms", "p99 ms",
-          "camera frames delivered", "camera p99 ms", "hub cores (max)",
+          "camera frames delivered", "camera p99 ms", "hub cores (max)", "router cores",
           "laptops' cores (sum)", "errors"]  # fmt: skip
 
 

@@ -48,6 +48,7 @@ class LabRun:
     uplink_drops: list[int] = field(default_factory=list)  #: tbf drops per robot
     hub_cores: list[float] = field(default_factory=list)  #: per hub, while counting
     laptop_cores: list[float] = field(default_factory=list)  #: per laptop process
+    router_cores: float = 0.0  #: the Zenoh router's (0 over ros4mat TCP: no router)
     sensors: dict[str, dict[str, Any]] = field(default_factory=dict)
     errors: list[str] = field(default_factory=list)
     laptop_seconds: float = 0.0  #: the laptops' counting windows, summed
@@ -145,8 +146,9 @@ def run_lab(
         assert lab.logdir is not None
         hubs: list[Proc] = []
         router = ""
+        router_proc: Proc | None = None
         if mode == "zenoh":
-            _, router = start_router(lab)
+            router_proc, router = start_router(lab)
         config = client_config(lab.logdir / "client.json5", router)
         for i in range(robots):
             node = lab.robot(i)
@@ -174,6 +176,7 @@ def run_lab(
         drops0 = [lab.qdisc_drops(n) for n in nodes]
         cpu0 = [cpu_seconds(h.pid) for h in hubs]
         lcpu0 = [cpu_seconds(p.pid) for p, _ in tops]
+        rcpu0 = cpu_seconds(router_proc.pid) if router_proc else 0.0
         for p, _ in tops:
             _say(p, "go")
         t0 = time.monotonic()
@@ -186,6 +189,8 @@ def run_lab(
         ]
         lcpu = [cpu_seconds(p.pid) - c for (p, _), c in zip(tops, lcpu0, strict=True)]
         result.laptop_cores = [c / elapsed for c in lcpu]
+        if router_proc is not None:
+            result.router_cores = (cpu_seconds(router_proc.pid) - rcpu0) / elapsed
         result.seconds = elapsed
         for p, _ in tops:
             _say(p, "stop")
