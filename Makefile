@@ -100,7 +100,7 @@ lab-tools:
 lab: lab-tools $(STAMP)
 	@mkdir -p build
 	$(PY) -m robocli.bench.lab --skip-ok --sizes $(LAB_SIZES) --seconds $(LAB_SECONDS) \
-	  --uplink $(LAB_UPLINK) --pioneer $(LAB_PIONEER) --json build/lab.json $(LAB_ARGS)
+	  --uplink $(LAB_UPLINK) --pioneer $(LAB_PIONEER) --faults --json build/lab.json $(LAB_ARGS)
 
 # Release files in $(DIST_DIR): the sdist, and the wheel built from that sdist alone (`build`
 # with neither --sdist nor --wheel unpacks the sdist and builds there, so the C sources, header

@@ -127,3 +127,14 @@ def test_a_class_watches_the_pioneer_one_laptop_drives_and_killing_the_driver_st
     assert r.watchers_moving == 2
     assert len(r.stop_delays) == 2 and all(d > 0 for d in r.stop_delays)
     assert namespaces(f"rcl-{os.getpid()}") == []
+
+
+def test_laptops_see_the_router_come_back_and_a_killed_hub_leave() -> None:
+    pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+    from robocli.bench.lab.faults import fault_run
+
+    r = fault_run(down_s=1.0)
+    assert r.gap_s >= 1.0  # nothing came while the router was away
+    assert r.back_s > 0  # and batches came again once it was back
+    assert r.left_s is not None and r.left_s > 0  # the hub's liveliness token left
+    assert namespaces(f"rcl-{os.getpid()}") == []

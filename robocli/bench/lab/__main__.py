@@ -106,6 +106,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pioneer", type=int, default=0, metavar="LAPTOPS",
                     help="also: LAPTOPS watch a Pioneer that one drives, then the driver is "
                     "killed (robocli[zenoh])")  # fmt: skip
+    ap.add_argument("--faults", action="store_true",
+                    help="also: kill the Zenoh router mid-run, then a hub")  # fmt: skip
     ap.add_argument("--json", metavar="FILE", help="write every run's figures here")
     ap.add_argument("--skip-ok", action="store_true", help="exit 0 where no lab can be made")
     a = ap.parse_args(argv)
@@ -161,6 +163,20 @@ def main(argv: list[str] | None = None) -> int:
             f"\npioneer: {p.watchers_moving} of {a.pioneer - 1} watchers saw it move; "
             f"driver killed: stopped after {delays} s (silence {p.silence} s)"
         )
+    if a.faults:
+        from robocli.bench.lab.faults import fault_run
+
+        try:
+            f = fault_run(uplink_mbit=a.uplink or None)
+        except KeyboardInterrupt:
+            print("lab: interrupted", file=sys.stderr)
+            return 130
+        except LabError as exc:
+            print(f"lab: faults: {exc}", file=sys.stderr)
+            return 1
+        print(f"\nfaults: router down {f.down_s:g} s: ADC silent {f.gap_s:.2f} s, back "
+              f"{f.back_s:.2f} s after the restart, {f.lost} samples never came; a hub "
+              f"killed: left (liveliness) after {f.left_s:.3f} s")  # fmt: skip
     for r in runs:
         for e in r.errors[:5]:
             print(f"{r.mode} {r.robots}x{r.laptops}: {e}", file=sys.stderr)
