@@ -167,16 +167,16 @@ def main(argv: list[str] | None = None) -> int:
         from robocli.bench.lab.faults import fault_run
 
         try:
-            f = fault_run(uplink_mbit=a.uplink or None)
+            fr = fault_run(uplink_mbit=a.uplink or None)
         except KeyboardInterrupt:
             print("lab: interrupted", file=sys.stderr)
             return 130
         except LabError as exc:
             print(f"lab: faults: {exc}", file=sys.stderr)
             return 1
-        print(f"\nfaults: router down {f.down_s:g} s: ADC silent {f.gap_s:.2f} s, back "
-              f"{f.back_s:.2f} s after the restart, {f.lost} samples never came; a hub "
-              f"killed: left (liveliness) after {f.left_s:.3f} s")  # fmt: skip
+        print(f"\nfaults: router down {fr.down_s:g} s: ADC silent {fr.gap_s:.2f} s, back "
+              f"{fr.back_s:.2f} s after the restart, {fr.lost} samples never came; a hub "
+              f"killed: left (liveliness) after {fr.left_s or 0:.3f} s")  # fmt: skip
     for r in runs:
         for e in r.errors[:5]:
             print(f"{r.mode} {r.robots}x{r.laptops}: {e}", file=sys.stderr)
