@@ -70,6 +70,8 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
         b = base.get(r.mode)
         ratio = f"{max(r.uplink_bytes) / r.seconds / b:.2f}" if b else "-"
         router = f"{r.router_cores:.2f}" if r.mode == "zenoh" else "-"
+        if r.bridge_cores:
+            router += f" (bridges {max(r.bridge_cores):.2f})"
         out.append([
             r.mode, f"{r.robots}x{r.laptops}", f"{r.uplink_mbit_s:.1f}", ratio,
             str(sum(r.uplink_drops)), f"{got / want:.3f}" if want else "-", f"{lost}/{dup}",
@@ -106,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--pioneer", type=int, default=0, metavar="LAPTOPS",
                     help="also: LAPTOPS watch a Pioneer that one drives, then the driver is "
                     "killed (robocli[zenoh])")  # fmt: skip
+    ap.add_argument("--bridge", action="store_true",
+                    help="each robot also runs a simulated Pioneer and its bridge")  # fmt: skip
     ap.add_argument("--faults", action="store_true",
                     help="also: kill the Zenoh router mid-run, then a hub")  # fmt: skip
     ap.add_argument("--json", metavar="FILE", help="write every run's figures here")
@@ -132,7 +136,8 @@ def main(argv: list[str] | None = None) -> int:
         for robots, laptops in sizes:
             for mode in modes:
                 print(f"lab: {mode} {robots}x{laptops} ...", file=sys.stderr, flush=True)
-                opts = {"uplink_mbit": a.uplink or None, "poll": a.poll, "camera": a.camera}
+                opts = {"uplink_mbit": a.uplink or None, "poll": a.poll, "camera": a.camera,
+                        "bridge": a.bridge}  # fmt: skip
                 run = run_lab(mode, robots, laptops, seconds=a.seconds, **opts)
                 runs.append(run)
     except KeyboardInterrupt:

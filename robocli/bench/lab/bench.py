@@ -49,6 +49,7 @@ class LabRun:
     hub_cores: list[float] = field(default_factory=list)  #: per hub, while counting
     laptop_cores: list[float] = field(default_factory=list)  #: per laptop process
     router_cores: float = 0.0  #: the Zenoh router's (0 over ros4mat TCP: no router)
+    bridge_cores: list[float] = field(default_factory=list)  #: per Pioneer bridge (--bridge)
     sensors: dict[str, dict[str, Any]] = field(default_factory=dict)
     errors: list[str] = field(default_factory=list)
     laptop_seconds: float = 0.0  #: the laptops' counting windows, summed
@@ -88,9 +89,10 @@ NO_SHM = {"shared_memory": {"enabled": False}}
 
 
 def client_config(path: Path, router: str) -> Path:
-    """A Zenoh configuration file: a client of ``router``, multicast scouting off, no
-    shared memory (:data:`NO_SHM`)."""
-    config = {"mode": "client", "connect": {"endpoints": [router]},
+    """A Zenoh configuration file: a client of ``router`` listening nowhere (a hub and a
+    bridge share a robot's namespace), multicast scouting off, no shared memory
+    (:data:`NO_SHM`)."""
+    config = {"mode": "client", "connect": {"endpoints": [router]}, "listen": {"endpoints": []},
               "scouting": {"multicast": {"enabled": False}}, "transport": NO_SHM}  # fmt: skip
     path.write_text(json.dumps(config, indent=1))
     return path
@@ -135,6 +137,7 @@ def run_lab(
     uplink_mbit: float | None = 20.0,
     poll: int = 25,
     camera: str = "spread",
+    bridge: bool = False,
 ) -> LabRun:
     """Build a lab, run it over front-end ``mode`` ("tcp": ros4mat), count for ``seconds``
     after ``warmup``, tear it all down; the figures. ``camera``: "spread" (laptop *j*
@@ -154,6 +157,7 @@ def run_lab(
             node = lab.robot(i)
             argv = _hub_argv(mode, node.address, f"r{i}", config)
             hubs.append(lab.spawn(node, argv, f"hub{i}"))
+        bridges = _start_bridges(lab, mode, config) if bridge else []
         for h in hubs:
             wait_for(lambda h=h: HUB_READY[mode] in h.tail(), START_S, f"{h.name} start", [h])
         if mode == "tcp":
@@ -177,6 +181,7 @@ def run_lab(
         cpu0 = [cpu_seconds(h.pid) for h in hubs]
         lcpu0 = [cpu_seconds(p.pid) for p, _ in tops]
         rcpu0 = cpu_seconds(router_proc.pid) if router_proc else 0.0
+        bcpu0 = [cpu_seconds(b.pid) for b in bridges]
         for p, _ in tops:
             _say(p, "go")
         t0 = time.monotonic()
@@ -191,6 +196,8 @@ def run_lab(
         result.laptop_cores = [c / elapsed for c in lcpu]
         if router_proc is not None:
             result.router_cores = (cpu_seconds(router_proc.pid) - rcpu0) / elapsed
+        bcpu = [cpu_seconds(b.pid) - c for b, c in zip(bridges, bcpu0, strict=True)]
+        result.bridge_cores = [c / elapsed for c in bcpu]
         result.seconds = elapsed
         for p, _ in tops:
             _say(p, "stop")
@@ -205,6 +212,25 @@ def run_lab(
             result.laptop_seconds += float(report["seconds"])
             result.errors += [f"{p.name}: {e}" for e in report["errors"]]
     return result
+
+
+def _start_bridges(lab: Lab, mode: str, config: Path) -> list[Proc]:
+    """A simulated Pioneer and its Zenoh bridge (``p<i>``) in each robot's namespace: a
+    client of the router over Zenoh, else listening on the robot's address."""
+    py = sys.executable
+    bridges = []
+    for i in range(lab.robots):
+        node = lab.robot(i)
+        sim = lab.spawn(node, [py, "-m", "robocli", "sim", "pioneer", "--port", "8101"],
+                        f"pioneer{i}")  # fmt: skip
+        wait_for(lambda sim=sim: "tcp://" in sim.tail(), START_S, sim.name, [sim])
+        where = str(config) if mode == "zenoh" else f"tcp/{node.address}:{ROUTER_PORT}"
+        bridges.append(lab.spawn(node, [py, "-m", "robocli", "bridge", "pioneer",
+                                        "tcp://127.0.0.1:8101", "--zenoh", where, "--name",
+                                        f"p{i}"], f"bridge{i}"))  # fmt: skip
+    for b in bridges:
+        wait_for(lambda b=b: "bridge p" in b.tail(), START_S, b.name, [b])
+    return bridges
 
 
 def _say(proc: Proc, line: str) -> None:
