@@ -91,7 +91,7 @@ LAB_SIZES   ?= 1x1,1x4,2x4,2x8,4x8
 LAB_PIONEER ?= 4
 LAB_SECONDS ?= 10
 LAB_UPLINK  ?= 20
-LAB_ARGS    ?=
+LAB_ARGS    ?= --bridge
 
 lab-tools:
 	@if [ "$$(id -u)" = 0 ] && ! { command -v ip && command -v tc; } >/dev/null; then \
