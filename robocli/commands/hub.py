@@ -25,7 +25,7 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
-from robocli.commands._zenoh import zenoh_option
+from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
 
 if TYPE_CHECKING:
@@ -89,18 +89,12 @@ def open_hub(
 
 
 def _open(hub: str | None, zenoh: str | None, *, compress: bool, token_file: Path | None) -> Hub:
-    """The hub ``--hub`` names: over ros4mat TCP, or with ``--zenoh`` the hub of that name
-    on Zenoh (None: the one hub that is up)."""
+    """The hub ``--hub`` names over ros4mat TCP, or with ``--zenoh`` on Zenoh."""
     if zenoh is None:
         return open_hub(_address(hub), compress=compress, token_file=token_file)
-    from robocli.commands._zenoh import zenoh_target
     from robocli.commands.serve import token_from_file
-    from robocli.devices.hub.over_zenoh import ZenohHub
 
-    if compress:
-        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
-    target = zenoh_target(zenoh)
-    return ZenohHub.connect(hub, zenoh=target, token=token_from_file(token_file))
+    return zenoh_hub(hub, zenoh, compress=compress, token=token_from_file(token_file))
 
 
 def _mask(text: str) -> int:

@@ -6,7 +6,9 @@
 * ENDPOINT is a Zenoh locator, ``PROTO/ADDRESS`` (``tcp/127.0.0.1:7447``,
   ``tcp/10.0.0.1:7447``, ``tls/lab-server:7447``); the default is
   :data:`DEFAULT_ENDPOINT`, on loopback. Multicast scouting is off whenever an endpoint is
-  given: nothing is discovered or exposed beyond the endpoint named.
+  given: nothing is discovered or exposed beyond the endpoint named; and so is Zenoh's
+  shared-memory transport, which would carry large messages between two processes of one
+  host (network namespaces too) around the endpoint.
 * CONFIG is a path to a Zenoh JSON5 configuration file (an existing file, or a name ending
   in ``.json5``/``.json``/``.yaml``): it is taken as it is (mode, endpoints, scouting,
   access control: see the README's Zenoh section), with timestamping enabled for the
@@ -122,6 +124,9 @@ def zenoh_config(
         where = "connect" if role == "client" else "listen"
         config.insert_json5(f"{where}/endpoints", json.dumps([target.endpoint]))
         config.insert_json5("scouting/multicast/enabled", "false")
+        # Zenoh hands messages over 3 KiB to a peer on the same host through shared memory:
+        # past the endpoint, and past a network namespace's shaped link. Named: it is used.
+        config.insert_json5("transport/shared_memory/enabled", "false")
     config.insert_json5("timestamping/enabled", "true")
     for key, value in (extra or {}).items():
         config.insert_json5(key, json.dumps(value))

@@ -172,3 +172,17 @@ def test_without_the_extra_each_command_says_how_to_install() -> None:
         assert out.stderr == (
             "robocli: Zenoh support needs Eclipse Zenoh: pip install 'robocli[zenoh]'\n"
         ), args
+
+
+def test_subscribe_needs_the_token_to_change_a_hubs_settings(tmp_path: Path) -> None:
+    ep = free_endpoint()
+    token = tmp_path / "token"
+    token.write_text("s3cret\n")
+    with running("serve", "--sim", "--no-tcp", "--zenoh", ep, "--token-file", str(token),
+                 ready="hub serving"):  # fmt: skip
+        refused = robocli("subscribe", "imu", "--rate", "200", "--zenoh", ep, "--count", "1")
+        assert refused.returncode == 4, refused.stderr
+        assert refused.stderr.count("\n") == 1 and "unauthorized" in refused.stderr
+        ok = robocli("subscribe", "imu", "--rate", "200", "--zenoh", ep, "--count", "3",
+                     "--token-file", str(token))  # fmt: skip
+        assert ok.returncode == 0 and len(ok.stdout.splitlines()) == 4, ok.stderr

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from robocli.devices.hub.client import Hub
-from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub
-from robocli.errors import DeviceError, ProtocolError
+from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub, alive
+from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.hub.frontends.ros4mat import SENSOR_IDS
 from robocli.hub.frontends.zenoh import ZenohFrontend
@@ -194,3 +194,63 @@ def test_batch_decoding_refuses_what_is_not_one() -> None:
     for bad in (good[:20], b"XXXX" + good[4:], good + b"x", good[:-1]):
         with pytest.raises(ProtocolError):
             decode_batch(bad)
+
+
+def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -> None:
+    def published(sensor: str) -> bool:
+        return bool(lab.front.info()["sensors"][sensor]["published"])
+
+    assert not published("laser")
+    tcp = Hub.connect(lab.server.url)
+    tcp.subscribe("laser", 10)
+    wait_for("laser published", lambda: published("laser"))
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("laser")  # silent: joins what the ros4mat client started
+        assert read_some(zh, "laser", 1)[0].data.shape[0] == 1081
+        tcp.close()  # QUIT: nobody else keeps the laser running
+        wait_for("laser no longer published", lambda: not published("laser"))
+        wait_for("the laser stopped", lambda: not lab.server.sensors["laser"]["active"])
+
+
+def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
+    """A new hub process numbers its samples from 0 again: its batches are new samples,
+    not duplicates of the old ones."""
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc")
+        wait_for("a second of adc read", lambda: sum(len(r) for r in read_some(zh, "adc", 1000)))
+        lab.front.close()  # the hub goes; another starts under the same name
+        lab.front = ZenohFrontend(lab.server.hub, lab.session, "lab",
+                                  publish={"adc": {"freq_acquisition": 1000}}).start()  # fmt: skip
+        restarted = lab.server.hub.clock()
+        new: list[Any] = []
+
+        def read_new() -> bool:
+            t = zh.read("adc").hub_t
+            new.extend(t[t > restarted])
+            return len(new) >= 100
+
+        wait_for("100 samples of the new hub", read_new)
+        assert zh.duplicates.get("adc", 0) < 10  # at most the history overlapping what we read
+
+
+def test_without_a_name_the_one_hub_up_is_taken(lab: Lab) -> None:
+    with ZenohHub.connect(zenoh=lab.endpoint) as zh:
+        assert zh.name == "lab"
+    other = ZenohFrontend(lab.server.hub, lab.session, "other").start()
+    try:
+        with pytest.raises(InvalidArgument, match="give the hub's name: lab, other are up"):
+            ZenohHub.connect(zenoh=lab.endpoint)
+    finally:
+        other.close()
+    lab.front.close()
+    wait_for("no hub up", lambda: not alive_names(lab.endpoint))
+    with pytest.raises(TransportError, match="no hub is up on Zenoh at tcp/127.0.0.1:"):
+        ZenohHub.connect(zenoh=lab.endpoint)
+
+
+def alive_names(endpoint: str) -> list[tuple[str, str]]:
+    session = open_session(endpoint, "client")
+    try:
+        return alive(session, 1.0)
+    finally:
+        close_session(session)

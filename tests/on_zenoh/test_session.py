@@ -3,6 +3,7 @@ the key layout, and the one-line message without the extra."""
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -23,6 +24,7 @@ from robocli.zenoh import (
     parse_target,
     settings_key,
     topic_key,
+    zenoh_config,
 )
 
 DEADLINE_S = 20.0
@@ -113,3 +115,15 @@ def test_without_the_extra_one_line_says_how_to_install() -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60, check=True).stdout  # fmt: skip
     assert out == "1 Zenoh support needs Eclipse Zenoh: pip install 'robocli[zenoh]'\n"
+
+
+def test_an_endpoint_means_no_shared_memory_and_no_multicast() -> None:
+    """Zenoh would hand large messages to a process of the same host (another network
+    namespace too) through shared memory, around the endpoint and its link."""
+    config = zenoh_config("tcp/127.0.0.1:7447", "client")
+    assert json.loads(config.get_json("transport/shared_memory/enabled")) is False
+    assert json.loads(config.get_json("scouting/multicast/enabled")) is False
+    assert json.loads(config.get_json("connect/endpoints")) == ["tcp/127.0.0.1:7447"]
+    server = zenoh_config(None, "server")
+    assert json.loads(server.get_json("listen/endpoints")) == [DEFAULT_ENDPOINT]
+    assert json.loads(server.get_json("mode")) == "peer"

@@ -19,6 +19,7 @@ the hub has one); ``subscribe(name)`` joins what is published.
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
 from collections import deque
@@ -30,11 +31,23 @@ from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
 from robocli.devices.stats import LinkStats
-from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.errors import (
+    DeviceError,
+    InvalidArgument,
+    ProtocolError,
+    TimeoutError,
+    TransportError,
+)
 from robocli.protocols.ros4mat import MsgType, record_dtype, sensor_type
 from robocli.zenoh.batch import Batch, decode_batch
 from robocli.zenoh.keys import ALIVE_ALL, check_name, info_key, parse_alive, settings_key, topic_key
-from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
+from robocli.zenoh.session import (
+    DEFAULT_ENDPOINT,
+    ZenohTarget,
+    close_session,
+    import_zenoh,
+    open_session,
+)
 
 if TYPE_CHECKING:
     import zenoh
@@ -138,6 +151,7 @@ class ZenohHub(Hub):
         self._queues: dict[str, _Queue] = {}
         self._subs: dict[str, Any] = {}
         self._next: dict[str, int] = {}  # the sequence number expected next, per sensor
+        self._stamp: dict[str, float] = {}  # when the last batch taken was put (hub clock)
         self.duplicates: dict[str, int] = {}
         """Batches received twice (history overlapping live samples), by sensor: dropped."""
         self.missed: dict[str, int] = {}
@@ -166,9 +180,10 @@ class ZenohHub(Hub):
         try:
             if name is None:
                 hubs = [n for n, kind in alive(session, timeout) if kind == "hub"]
-                if len(hubs) != 1:
-                    what = ", ".join(hubs) if hubs else "none is up"
-                    raise DeviceError(f"give the hub's name: {len(hubs)} hubs ({what})")
+                if not hubs:
+                    raise TransportError(f"no hub is up on Zenoh at {zenoh or DEFAULT_ENDPOINT}")
+                if len(hubs) > 1:
+                    raise InvalidArgument(f"give the hub's name: {', '.join(hubs)} are up")
                 name = hubs[0]
             hub = cls(session, name.removeprefix("zenoh/"), timeout=timeout, clock=clock,
                       hub_clock=hub_clock, token=secret, history=history)  # fmt: skip
@@ -274,6 +289,7 @@ class ZenohHub(Hub):
             sub.undeclare()
         self._queues.pop(key, None)
         self._next.pop(key, None)
+        self._stamp.pop(key, None)
 
     def unsubscribe(self, name: str) -> None:
         """Stop receiving ``name`` (the hub goes on publishing it for others)."""
@@ -307,19 +323,23 @@ class ZenohHub(Hub):
         return reading
 
     def _in_order(self, key: str, batches: list[Batch]) -> tuple[list[Batch], int]:
-        """The batches not seen before, in order, and the samples missing between them."""
+        """The batches not seen before, in the order they were put, and the samples missing
+        between them. A batch numbered before the next one expected is a duplicate, unless
+        it was put after every batch taken: a restarted hub numbering from 0 again."""
         out, lost = [], 0
-        expected = self._next.get(key)
-        for b in sorted(batches, key=lambda b: b.first):
+        expected, last = self._next.get(key), self._stamp.get(key, -math.inf)
+        for b in sorted(batches, key=lambda b: (b.stamp, b.first)):
             if expected is not None and b.first < expected:
-                self.duplicates[key] = self.duplicates.get(key, 0) + 1
-                continue
+                if not b.stamp > last:
+                    self.duplicates[key] = self.duplicates.get(key, 0) + 1
+                    continue
+                expected = None  # a new numbering: nothing lost between the two
             if expected is not None:
                 lost += b.first - expected
-            expected = b.end
+            expected, last = b.end, b.stamp
             out.append(b)
         if expected is not None:
-            self._next[key] = expected
+            self._next[key], self._stamp[key] = expected, last
         return out, lost
 
     # ------------------------------------------------------------------ not over Zenoh

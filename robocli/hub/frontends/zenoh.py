@@ -207,13 +207,14 @@ class ZenohFrontend:
         n = len(pulled.t)
         if not n:
             return
-        body = b"".join(bytes(p) if isinstance(p, memoryview) else p for p in body_parts(pulled))
-        head = encode_head(pub.sensor_id, pub.next_seq, n, len(body), self.hub.clock())
-        pub.publisher.put(head + body)
+        parts = body_parts(pulled)
+        size = sum(memoryview(p).nbytes for p in parts)
+        head = encode_head(pub.sensor_id, pub.next_seq, n, size, self.hub.clock())
+        pub.publisher.put(b"".join([head, *parts]))  # one copy out of the records
         pub.next_seq += n
         pub.batches += 1
         pub.samples += n
-        pub.bytes += len(head) + len(body)
+        pub.bytes += len(head) + size
 
     # ------------------------------------------------------------------ queryables
 
@@ -221,13 +222,15 @@ class ZenohFrontend:
         """What ``robocli/<hub>/@info`` answers: the hub, its clock now, its sensors (each
         with its settings, whether it is published, its key and batch counters)."""
         sensors = {}
+        with self._lock:  # a consistent view: the ticker adds publishers
+            published = dict(self._published)
+            cursors = set(self._state.cursors) if self._state is not None else set()
         for sensor, s in self.hub.sensors().items():
-            pub = self._published.get(sensor)
+            pub = published.get(sensor)
             sensors[sensor] = {
                 **s,
                 "key": topic_key(self.name, sensor),
-                "published": pub is not None and self._state is not None
-                and sensor in self._state.cursors,
+                "published": sensor in cursors,
                 "encoding": sensor_encoding(sensor),
                 "batches": pub.batches if pub else 0,
                 "samples": pub.samples if pub else 0,
