@@ -68,7 +68,8 @@ class RemotePioneer:
         self._state: PioneerState | None = None
         self._laser: dict[str, Any] | None = None
         self._states = 0
-        self._offset = time.time() - time.monotonic()
+        #: epoch - monotonic seconds: a state's ``t`` plus this is Unix time
+        self.offset = time.time() - time.monotonic()
         self._setpoint: tuple[float, float] | None = None
         self._token: Any = None  # our liveliness token while we hold the robot
         self.fault: str | None = None  #: the bridge's last fault or stop reason for us
@@ -113,6 +114,11 @@ class RemotePioneer:
     @property
     def pose(self) -> tuple[float, float, float]:
         return self.state.pose
+
+    @property
+    def battery(self) -> float:
+        """Battery voltage (V) of the latest state."""
+        return self.state.battery
 
     @property
     def laser(self) -> dict[str, Any] | None:

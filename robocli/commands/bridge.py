@@ -1,11 +1,10 @@
 """``robocli bridge pioneer|arm``: put a robot on Eclipse Zenoh (thin layers over
-:mod:`robocli.bridge`), and the Zenoh side of ``connect pioneer`` and ``teleop pioneer``
-(PORT ``zenoh/<robot>``)."""
+:mod:`robocli.bridge`). The other side, ``connect|teleop pioneer zenoh/<robot>``, is in
+:mod:`robocli.commands.remote`."""
 
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import typer
 
@@ -21,9 +20,6 @@ from robocli.commands.pioneer import (
     connected,
     start_laser,
 )
-
-#: PORT of ``connect pioneer`` and ``teleop pioneer`` that names a robot behind a bridge
-ZENOH_PREFIX = "zenoh/"
 
 NameOpt = typer.Option(None, "--name", metavar="NAME",
                        help="The robot's name on Zenoh (default: pioneer or arm).")  # fmt: skip
@@ -95,11 +91,3 @@ def arm(
                     raise bridge.failure
         finally:
             session.close()  # type: ignore[no-untyped-call]
-
-
-def remote(port: str, zenoh: str | None, timeout: float, **options: Any) -> Any:
-    """The :class:`~robocli.bridge.RemotePioneer` of PORT ``zenoh/<robot>``."""
-    from robocli.bridge import RemotePioneer
-
-    robot = port[len(ZENOH_PREFIX) :]
-    return RemotePioneer.connect(robot, zenoh_target(zenoh), timeout=timeout, **options)
