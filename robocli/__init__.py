@@ -14,6 +14,7 @@ from robocli._version import __version__
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
+    from robocli.devices.hub.over_zenoh import ZenohHub
     from robocli.devices.pioneer import Pioneer, PioneerState
     from robocli.errors import RobocliError
 
@@ -26,9 +27,10 @@ _LAZY = {
     "Pioneer": "robocli.devices.pioneer",
     "PioneerState": "robocli.devices.pioneer",
     "RobocliError": "robocli.errors",
+    "ZenohHub": "robocli.devices.hub.over_zenoh",
 }
 
-__all__ = ["Arm", "Hub", "Pioneer", "PioneerState", "RobocliError", "__version__"]
+__all__ = ["Arm", "Hub", "Pioneer", "PioneerState", "RobocliError", "ZenohHub", "__version__"]
 
 
 def __getattr__(name: str) -> Any:

@@ -18,6 +18,7 @@ from robocli.commands import bridge as bridge_commands
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import hub as hub_commands
+from robocli.commands import router as router_commands
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
@@ -106,12 +107,12 @@ connect.command("arm", cls=PlainCommand)(arm.connect)
 dump.command("arm", cls=PlainCommand)(dump_commands.arm)
 teleop.command("arm", cls=PlainCommand)(teleop_commands.arm)
 
-app.command("subscribe")(hub_commands.subscribe)
+app.command("subscribe", cls=ZenohCommand)(hub_commands.subscribe)
 app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(dump_commands.hub)
 bench_group.command("throughput")(hub_commands.throughput)
-app.command("serve", cls=PlainCommand)(serve_command.serve)
+app.command("serve", cls=ZenohCommand)(serve_command.serve)
 app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 
@@ -119,6 +120,8 @@ bridge = _group("bridge", "Put a robot on Eclipse Zenoh: state for many, command
 bridge.command("pioneer", cls=ZenohCommand)(bridge_commands.pioneer)
 bridge.command("arm", cls=ZenohCommand)(bridge_commands.arm)
 app.command("info", cls=PlainCommand)(record.info)
+app.command("router", cls=ZenohCommand)(router_commands.router)
+app.command("list", cls=ZenohCommand)(router_commands.list_)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

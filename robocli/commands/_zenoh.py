@@ -12,6 +12,7 @@ value into a usage error (exit 2).
 
 from __future__ import annotations
 
+import re
 from typing import TYPE_CHECKING, Any
 
 import typer
@@ -75,7 +76,7 @@ def zenoh_target(value: str | None) -> ZenohTarget:
     try:
         return parse_target(value)
     except InvalidArgument as exc:
-        message = str(exc).removeprefix("--zenoh: ")
+        message = re.sub(r"^--zenoh:? ", "", str(exc))
         raise typer.BadParameter(message, param_hint="'--zenoh'") from None
 
 

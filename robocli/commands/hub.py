@@ -25,6 +25,7 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
+from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import HUB_ENV
 
 if TYPE_CHECKING:
@@ -87,6 +88,21 @@ def open_hub(
         raise TransportError(f"{exc} (or give --hub HOST[:PORT] / $ROBOCLI_HUB)") from None
 
 
+def _open(hub: str | None, zenoh: str | None, *, compress: bool, token_file: Path | None) -> Hub:
+    """The hub ``--hub`` names: over ros4mat TCP, or with ``--zenoh`` the hub of that name
+    on Zenoh (None: the one hub that is up)."""
+    if zenoh is None:
+        return open_hub(_address(hub), compress=compress, token_file=token_file)
+    from robocli.commands._zenoh import zenoh_target
+    from robocli.commands.serve import token_from_file
+    from robocli.devices.hub.over_zenoh import ZenohHub
+
+    if compress:
+        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
+    target = zenoh_target(zenoh)
+    return ZenohHub.connect(hub, zenoh=target, token=token_from_file(token_file))
+
+
 def _mask(text: str) -> int:
     try:
         value = int(text, 0)
@@ -122,9 +138,11 @@ def subscribe(
     ),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
+    zenoh: str | None = zenoh_option("client"),  # noqa: UP007
 ) -> None:
     """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
-    --count. Times are on this machine's clock (the hub's offset is estimated)."""
+    --count. Times are on this machine's clock (the hub's offset is estimated). With
+    --zenoh, from a hub's Zenoh front-end (--hub NAME: which hub; default the one up)."""
     from robocli.devices.hub.tools import columns_of, rows_of, stream
     from robocli.errors import InvalidArgument
     from robocli.protocols.ros4mat import MsgType, adc_freq_send_default, sensor_type
@@ -146,7 +164,7 @@ def subscribe(
     out: _Output | None = None
     with sigterm_as_interrupt(), reader_may_leave():
         try:
-            with open_hub(_address(hub), compress=compress, token_file=token_file) as client:
+            with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
                 client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
                 out = _Output(fmt, columns_of(sensor, mask))
                 losses = _Losses(sensor, buffer or rate)

@@ -1,5 +1,6 @@
-"""``robocli serve``: the sensor hub (ros4mat v3 on TCP 1500), a thin layer over
-:class:`robocli.hub.HubServer`.
+"""``robocli serve``: the sensor hub (ros4mat v3 on TCP 1500; with ``--zenoh``, also or
+only on Eclipse Zenoh), a thin layer over :class:`robocli.hub.HubServer` and
+:class:`robocli.hub.frontends.zenoh.ZenohFrontend`.
 
 On a terminal: a live Rich table with a line per sensor and per client. Otherwise: plain
 log lines, one per change (a client connects, subscribes, leaves), so that logs stay small.
@@ -16,12 +17,15 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
+from robocli.commands._zenoh import zenoh_option, zenoh_session
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
 
     tune_hub_process()
 STATUS_PERIOD_S = 0.5
+ZENOH_PUBLISH = "adc,imu,gps,battery,sysinfo"
+"""What ``serve --zenoh`` publishes from the start, at each sensor's default settings."""
 
 
 def token_from_file(path: Path | None) -> bytes | None:
@@ -73,31 +77,101 @@ def serve(
         help="Require this file's token to change settings or write to a serial port.",
     ),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
+    zenoh: str | None = zenoh_option("server"),  # noqa: UP007
+    name: str | None = typer.Option(  # noqa: UP007
+        None, "--name", help="The hub's name on Zenoh (default: this host's name)."
+    ),
+    publish: str = typer.Option(
+        ZENOH_PUBLISH,
+        "--publish",
+        metavar="SENSOR[=RATE],...",
+        help="Sensors published on Zenoh from the start (others once a client asks).",
+    ),  # fmt: skip
+    tcp: bool = typer.Option(True, "--tcp/--no-tcp", help="Serve ros4mat on TCP (--port)."),
 ) -> None:
-    """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C."""
+    """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C. With --zenoh,
+    also publish its sensors on robocli/NAME/SENSOR (--no-tcp: on Zenoh only)."""
     from robocli.hub import HubServer, tune_hub_process
 
+    if not tcp and zenoh is None:
+        raise typer.BadParameter("--no-tcp serves nothing without --zenoh")
     tune_hub_process()
+    token = token_from_file(token_file)
     srv = HubServer(
         bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token_from_file(token_file), max_clients=max_clients,
+        token=token, max_clients=max_clients,
     )  # fmt: skip
+    frontend: Any = None
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
-            with listening(bind):
-                srv.start()
+            if tcp:
+                with listening(bind):
+                    srv.start()
+            if zenoh is not None:
+                frontend = _zenoh_frontend(srv, zenoh, name, publish, token)
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
             for note in _replaced(sim, pioneer, gpsd):
                 typer.echo(note, err=True)
-            typer.echo(f"hub serving {', '.join(srv.sensors)} on {srv.url}")
+            where = [srv.url] if tcp else []
+            if frontend is not None:
+                where.append(f"zenoh robocli/{frontend.name}/* ({zenoh})")
+            typer.echo(f"hub serving {', '.join(srv.sensors)} on {' and '.join(where)}")
             sys.stdout.flush()
             if sys.stdout.isatty():
                 _live(srv)
             else:
                 _log(srv)
         finally:
+            if frontend is not None:
+                from robocli.zenoh.session import close_session
+
+                frontend.close()
+                close_session(frontend.session)
             srv.close()
+
+
+def _zenoh_frontend(
+    srv: HubServer, zenoh: str, name: str | None, publish: str, token: bytes | None
+) -> Any:
+    """The hub's Zenoh front-end, started (its session listening on ``zenoh``)."""
+    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.zenoh.keys import check_name, default_name
+    from robocli.zenoh.session import close_session
+
+    try:
+        hub_name = check_name(name, "--name") if name is not None else default_name()
+    except ValueError as exc:
+        raise typer.BadParameter(str(exc).removeprefix("--name "), param_hint="'--name'") from None
+    sensors = _published(publish, srv)
+    session = zenoh_session(zenoh, "server")
+    try:
+        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors).start()
+    except BaseException:
+        close_session(session)
+        raise
+
+
+def _published(text: str, srv: HubServer) -> dict[str, dict[str, Any] | None]:
+    """``--publish``: sensor -> its settings (None: defaults); sensors this hub does not
+    have are left out of the default list, refused when named."""
+    from robocli.devices.hub.over_zenoh import hub_name_of
+    from robocli.devices.hub.subscription import subscribe_request
+    from robocli.errors import InvalidArgument
+
+    out: dict[str, dict[str, Any] | None] = {}
+    for item in filter(None, (part.strip() for part in text.split(","))):
+        sensor, _, rate = item.partition("=")
+        try:
+            hub_sensor = hub_name_of(sensor.strip())
+            params = subscribe_request(sensor.strip(), float(rate))["params"] if rate else None
+        except (InvalidArgument, ValueError) as exc:
+            raise typer.BadParameter(f"{item!r}: {exc}", param_hint="'--publish'") from None
+        if hub_sensor in srv.hub.channels:
+            out[hub_sensor] = params
+        elif text != ZENOH_PUBLISH:
+            raise typer.BadParameter(f"this hub has no {hub_sensor}", param_hint="'--publish'")
+    return out
 
 
 def _replaced(sim: bool, pioneer: str | None, gpsd: str | None) -> list[str]:
@@ -144,7 +218,8 @@ def _log(srv: HubServer) -> None:
 def _table(srv: HubServer) -> Any:
     from rich.table import Table
 
-    table = Table(title=f"robocli hub on {srv.url}", expand=False)
+    where = srv.url if srv.started else "zenoh"
+    table = Table(title=f"robocli hub on {where}", expand=False)
     for col in ("what", "rate / peer", "subscribers / subscriptions", "pulls", "samples", "lost"):
         table.add_column(col)
     for name, s in srv.sensors.items():

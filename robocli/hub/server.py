@@ -213,6 +213,11 @@ class HubServer:
                 f"can read {what}{extra} ({auth})")  # fmt: skip
 
     @property
+    def started(self) -> bool:
+        """Whether :meth:`start` made it listen on TCP."""
+        return self._url is not None
+
+    @property
     def url(self) -> str:
         """``tcp://HOST:PORT`` (after :meth:`start`)."""
         if self._url is None:

@@ -10,7 +10,8 @@
 * CONFIG is a path to a Zenoh JSON5 configuration file (an existing file, or a name ending
   in ``.json5``/``.json``/``.yaml``): it is taken as it is (mode, endpoints, scouting,
   access control: see the README's Zenoh section), with timestamping enabled for the
-  history of the hub's samples.
+  history of the hub's samples; a server's or router's file that names no listen endpoint
+  listens on :data:`DEFAULT_ENDPOINT` (Zenoh's own default is every interface).
 
 The ``eclipse-zenoh`` package is optional (``pip install 'robocli[zenoh]'``); without it
 every function here raises :class:`ZenohMissing`, one line saying how to install it.
@@ -36,6 +37,7 @@ __all__ = [
     "Role",
     "ZenohMissing",
     "ZenohTarget",
+    "close_session",
     "import_zenoh",
     "open_session",
     "parse_target",
@@ -109,6 +111,10 @@ def zenoh_config(
             raise InvalidArgument(f"--zenoh {target.config_file}: {_first_line(exc)}") from None
         if role == "router":
             config.insert_json5("mode", '"router"')
+        if role != "client" and not isinstance(json.loads(config.get_json("listen/endpoints")),
+                                                list):  # fmt: skip
+            # not set in the file: Zenoh's default is every interface; ours is loopback
+            config.insert_json5("listen/endpoints", json.dumps([DEFAULT_ENDPOINT]))
     else:
         config = z.Config()
         mode = {"server": "peer", "client": "client", "router": "router"}[role]
@@ -136,6 +142,11 @@ def open_session(
         verb = "connect to" if role == "client" else "listen on"
         raise TransportError(f"zenoh: cannot {verb} {target}: {_first_line(exc)}") from None
     return session
+
+
+def close_session(session: Any) -> None:
+    """Close a Zenoh session (bounded by Zenoh; its declarations go with it). Idempotent."""
+    session.close()
 
 
 def _first_line(exc: BaseException) -> str:

@@ -1,0 +1,196 @@
+"""The hub's Zenoh front-end and :class:`ZenohHub`, in one process over loopback: the same
+arrays as over ros4mat TCP, history for late joiners, gaps counted, the settings queryable
+under the token, the batch encoding a non-robocli program can read."""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+
+from robocli.devices.hub.client import Hub
+from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub
+from robocli.errors import DeviceError, ProtocolError
+from robocli.hub import HubServer
+from robocli.hub.frontends.ros4mat import SENSOR_IDS
+from robocli.hub.frontends.zenoh import ZenohFrontend
+from robocli.protocols.ros4mat import MsgType
+from robocli.zenoh import open_session
+from robocli.zenoh.batch import BATCH_HEADER, decode_batch, encode_head
+from robocli.zenoh.session import close_session
+
+DEADLINE_S = 30.0
+
+
+def wait_for(what: str, condition: Callable[[], Any], deadline: float = DEADLINE_S) -> Any:
+    """Poll ``condition`` until it is truthy (bounds a failure only)."""
+    end = time.monotonic() + deadline
+    while time.monotonic() < end:
+        value = condition()
+        if value:
+            return value
+        time.sleep(0.02)
+    raise AssertionError(f"not within {deadline} s: {what}")
+
+
+class Lab:
+    """A simulated hub with its ros4mat listener and its Zenoh front-end on ``endpoint``."""
+
+    def __init__(self, endpoint: str, token: bytes | None = None, **publish: Any) -> None:
+        self.endpoint = endpoint
+        self.server = HubServer(port=0, sim=True, token=token).start()
+        self.session = open_session(endpoint, "server")
+        self.front = ZenohFrontend(self.server.hub, self.session, "lab", token=token,
+                                   publish=publish).start()  # fmt: skip
+
+    def close(self) -> None:
+        self.front.close()
+        close_session(self.session)
+        self.server.close()
+
+    def published(self, sensor: str) -> int:
+        """Samples put so far on ``sensor``."""
+        return int(self.front.info()["sensors"][sensor]["next_seq"])
+
+
+@pytest.fixture
+def lab(endpoint: str) -> Iterator[Lab]:
+    lab = Lab(endpoint, adc={"freq_acquisition": 1000})
+    try:
+        yield lab
+    finally:
+        lab.close()
+
+
+def read_some(hub: Hub, sensor: str, n: int = 3) -> Any:
+    """A reading of at least ``n`` samples (reads appended until then)."""
+    got: list[Any] = []
+
+    def enough() -> bool:
+        got.append(hub.read(sensor))
+        return sum(len(r) for r in got) >= n
+
+    wait_for(f"{n} samples of {sensor}", enough)
+    return [r for r in got if len(r)]
+
+
+def test_names_match_the_hubs() -> None:
+    assert {int(k): v for k, v in HUB_NAMES.items()} == {int(k): v for k, v in SENSOR_IDS.items()}
+
+
+@pytest.mark.parametrize(
+    ("sensor", "rate", "params"),
+    [("adc", 1000, {}), ("imu", 200, {}), ("gps", 5, {}), ("battery", 2, {}),
+     ("camera", 15, {"quality": 80}), ("camera", 15, {}), ("stereo", 5, {}), ("laser", 10, {}),
+     ("depth", 5, {})],
+)  # fmt: skip
+def test_arrays_match_ros4mat(lab: Lab, sensor: str, rate: int, params: dict[str, Any]) -> None:
+    if params.get("quality"):
+        pytest.importorskip("PIL")
+    tcp = Hub.connect(lab.server.url)
+    zh = ZenohHub.connect("lab", zenoh=lab.endpoint)
+    try:
+        tcp.subscribe(sensor, rate, **params)
+        zh.subscribe(sensor, rate, **params)
+        ours, theirs = read_some(zh, sensor, 2)[0], read_some(tcp, sensor, 2)[0]
+        assert ours.data.shape[:-1] == theirs.data.shape[:-1]
+        assert ours.data.dtype == theirs.data.dtype and ours.t.dtype == theirs.t.dtype
+        assert ours.t.shape == (ours.data.shape[-1],) and ours.hub_t.shape == ours.t.shape
+        assert sorted(ours.fields) == sorted(theirs.fields)
+        for name in ours.fields:
+            a, b = getattr(ours, name), getattr(theirs, name)
+            assert a.shape[:-1] == b.shape[:-1] and a.dtype == b.dtype, name
+        # the same samples, whichever the front-end: acquisition times on one grid
+        common = np.intersect1d(ours.hub_t, np.concatenate([r.hub_t for r in [theirs]]))
+        assert abs(ours.t[-1] - time.time()) < 5.0  # on this machine's clock
+        if len(common):
+            i, j = np.searchsorted(ours.hub_t, common[0]), np.searchsorted(theirs.hub_t, common[0])
+            assert np.array_equal(ours.data[..., i], theirs.data[..., j], equal_nan=True)
+    finally:
+        zh.close()
+        tcp.close()
+
+
+def test_late_joiner_gets_history(lab: Lab) -> None:
+    wait_for("a second of adc published", lambda: lab.published("adc") >= 1000)
+    joined = lab.server.hub.clock()
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc")  # join what is published, with the hub's recent history
+        first = read_some(zh, "adc", 100)
+        t = np.concatenate([r.hub_t for r in first])
+        assert t[0] < joined - 0.2  # samples acquired before this client existed
+        assert np.all(np.diff(t) > 0)  # in order, no duplicate
+        assert zh.lost == {}
+
+
+def test_gap_is_detected_and_counted(lab: Lab) -> None:
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc", buffer=100_000)
+        read_some(zh, "adc", 10)
+        lab.front._ticker.close()  # the hub stops publishing: its own cursor overflows
+        state = lab.front._state
+        assert state is not None
+        wait_for("the hub's cursor overflow", lambda: lab.server.hub.dropped(state, "adc") > 0)
+        dropped = lab.server.hub.dropped(state, "adc")
+        lab.front._tick(0.0)  # publishing again: the next batch follows a gap
+        readings = read_some(zh, "adc", 1)
+        lost = sum(r.lost for r in readings)
+        assert lost >= dropped > 0
+        assert zh.lost["adc"] == lost
+        t = np.concatenate([r.hub_t for r in readings])
+        assert len(t) and np.all(np.diff(t) > 0)
+
+
+def test_settings_refused_without_the_token(endpoint: str) -> None:
+    lab = Lab(endpoint, token=b"s3cret", adc=None)
+    try:
+        with ZenohHub.connect("lab", zenoh=endpoint) as zh:
+            with pytest.raises(DeviceError, match="unauthorized"):
+                zh.subscribe("imu", 200)
+            assert lab.front.refused == 1
+            assert not lab.front.info()["sensors"]["imu"]["published"]
+            zh.subscribe("adc")  # joining what is published needs no token
+            assert len(read_some(zh, "adc", 1)[0])
+        with ZenohHub.connect("lab", zenoh=endpoint, token="s3cret") as zh:
+            zh.subscribe("imu", 200)
+            assert lab.server.sensors["imu"]["rate"] == 200
+            assert len(read_some(zh, "imu", 1)[0])
+    finally:
+        lab.close()
+
+
+def test_info_and_encoding_readable_without_robocli(lab: Lab) -> None:
+    """A plain Zenoh program: the @info JSON, and a batch decoded from the README's
+    description alone (header, then 40-byte ADC records: 8 float32 volts, float64 t)."""
+    client = open_session(lab.endpoint, "client")
+    try:
+        replies = list(client.get("robocli/lab/@info", timeout=10))
+        info = json.loads(replies[0].ok.payload.to_bytes())
+        adc = info["sensors"]["adc"]
+        assert adc["published"] and adc["rate"] == 1000 and adc["key"] == "robocli/lab/adc"
+        got: list[Any] = []
+        sub = client.declare_subscriber("robocli/lab/adc", got.append)
+        wait_for("a batch", lambda: got)
+        sub.undeclare()
+        sample = got[0]
+        assert str(sample.encoding) == "application/octet-stream;robocli.batch.v1;sensor=adc"
+        raw = sample.payload.to_bytes()
+        magic, version, sensor, head, first, count, size, _stamp = BATCH_HEADER.unpack_from(raw)
+        assert (magic, version, sensor, head) == (b"RCZB", 1, MsgType.ADC, 32)
+        rec = np.frombuffer(raw, dtype=[("v", "<f4", 8), ("t", "<f8")], offset=head)
+        assert len(rec) == count and size == 40 * count
+        assert np.diff(rec["t"]) == pytest.approx(np.full(count - 1, 1e-3), abs=1e-6)
+    finally:
+        close_session(client)
+
+
+def test_batch_decoding_refuses_what_is_not_one() -> None:
+    good = encode_head(MsgType.ADC, 5, 1, 40, 1.0) + bytes(40)
+    assert decode_batch(good).end == 6
+    for bad in (good[:20], b"XXXX" + good[4:], good + b"x", good[:-1]):
+        with pytest.raises(ProtocolError):
+            decode_batch(bad)
