@@ -29,7 +29,7 @@ from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
 from robocli.errors import DeviceError, ProtocolError, TimeoutError
 from robocli.zenoh.keys import check_name, info_key, topic_key
-from robocli.zenoh.session import ZenohTarget, open_session
+from robocli.zenoh.session import ZenohTarget, close_session, open_session
 
 if TYPE_CHECKING:
     import zenoh
@@ -83,7 +83,7 @@ class RemotePioneer:
             ]
         except BaseException:
             if own_session:
-                session.close()  # type: ignore[no-untyped-call]
+                close_session(session)
             raise
         self._thread = threading.Thread(target=self._resend, daemon=True,
                                         name=f"remote-pioneer-{self.robot}")  # fmt: skip
@@ -204,7 +204,7 @@ class RemotePioneer:
         for sub in self._subs:
             sub.undeclare()  # type: ignore[no-untyped-call]
         if self._own:
-            self._session.close()  # type: ignore[no-untyped-call]
+            close_session(self._session)
 
     def __enter__(self) -> RemotePioneer:
         return self

@@ -43,6 +43,7 @@ def pioneer(
     for --silence, when the controller goes, and when the bridge ends."""
     from robocli.bridge.pioneer import PioneerBridge
     from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
 
     robot_name = check_name(name or "pioneer", "--name")
     target = zenoh_target(zenoh)
@@ -60,7 +61,7 @@ def pioneer(
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
-            session.close()  # type: ignore[no-untyped-call]
+            close_session(session)
 
 
 @arm_link()
@@ -75,6 +76,7 @@ def arm(
     stopped when its controller goes and when the bridge ends."""
     from robocli.bridge.arm import ArmBridge
     from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
 
     robot_name = check_name(name or "arm", "--name")
     target = zenoh_target(zenoh)
@@ -90,4 +92,4 @@ def arm(
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
-            session.close()  # type: ignore[no-untyped-call]
+            close_session(session)

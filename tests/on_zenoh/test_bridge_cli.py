@@ -38,6 +38,12 @@ def test_connect_once_json_through_a_bridge(bridged, endpoint) -> None:
     assert abs(state["t"] - data["state"]["t"]) < 1 and state["t"] > 1.7e9  # epoch seconds
 
 
+def test_list_shows_the_robot_while_its_bridge_runs(bridged, endpoint) -> None:
+    proc = run("list", "--zenoh", endpoint, "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert {"name": "r1", "kind": "pioneer"} in json.loads(proc.stdout)
+
+
 def test_connect_names_a_missing_bridge(bridged, endpoint) -> None:
     proc = run("connect", "pioneer", "zenoh/nobody", "--zenoh", endpoint, "--timeout", "1")
     assert "no bridge named 'nobody'" in one_line_error(proc, 3)
