@@ -27,15 +27,16 @@ from typing import TYPE_CHECKING, Any
 from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
 from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
-from robocli.errors import DeviceError, ProtocolError, TimeoutError
-from robocli.zenoh.keys import check_name, info_key, topic_key
-from robocli.zenoh.session import ZenohTarget, close_session, open_session
+from robocli.errors import ConnectionLost, DeviceError, ProtocolError, TimeoutError
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
 
 if TYPE_CHECKING:
     import zenoh
 
 log = logging.getLogger("robocli.bridge")
 
+_DELETE = import_zenoh().SampleKind.DELETE
 #: Seconds between re-sends of a set-point (well inside the bridge's 0.5 s silence rule).
 DEFAULT_RESEND_S = 0.15
 
@@ -74,12 +75,16 @@ class RemotePioneer:
         self._token: Any = None  # our liveliness token while we hold the robot
         self.fault: str | None = None  #: the bridge's last fault or stop reason for us
         self._closed = False
+        self._gone: str | None = None  # why the bridge is gone (its @alive token went)
         try:
             self.info = self._query_info()
             self._subs = [
                 session.declare_subscriber(topic_key(self.robot, "state"), self._on_state),
                 session.declare_subscriber(topic_key(self.robot, "laser"), self._on_laser),
                 session.declare_subscriber(control_key(self.robot, "event"), self._on_event),
+                session.liveliness().declare_subscriber(
+                    alive_key(self.robot, "pioneer"), self._on_alive
+                ),
             ]
         except BaseException:
             if own_session:
@@ -126,13 +131,21 @@ class RemotePioneer:
         with self._cond:
             return self._laser
 
+    @property
+    def connected(self) -> bool:
+        """False once the bridge left (its liveliness token went) or :meth:`close` began."""
+        return self._gone is None and not self._closed
+
     def wait_for_state(self, timeout: float | None = None) -> PioneerState:
-        """Block until the next state arrives and return it."""
+        """Block until the next state arrives and return it; :class:`ConnectionLost` once
+        the bridge left, :class:`TimeoutError` after ``timeout`` s."""
         limit = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + limit
         with self._cond:
             count = self._states
             while self._states == count:
+                if self._gone is not None:
+                    raise ConnectionLost(f"{self.url}: {self._gone}")
                 left = deadline - time.monotonic()
                 if left <= 0 or self._closed:
                     raise TimeoutError(f"{self.url}: no state within {limit:g} s")
@@ -272,6 +285,13 @@ class RemotePioneer:
             return
         with self._cond:
             self._laser = data
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == _DELETE:
+            with self._cond:
+                self._gone = f"the bridge {self.robot} left (its liveliness token went)"
+                self._setpoint = None
+                self._cond.notify_all()
 
     def _on_event(self, sample: zenoh.Sample) -> None:
         try:

@@ -10,7 +10,7 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from cli.helpers import one_line_error, run
+from cli.helpers import one_line_error, read_lines, run, running
 from cli.test_screens import terminal
 
 from on_zenoh.bridge_helpers import DEADLINE, bridge_process, wait_for
@@ -36,6 +36,20 @@ def test_connect_once_json_through_a_bridge(bridged, endpoint) -> None:
     assert {"x", "y", "th", "v", "w", "battery", "sonar"} <= set(state)
     assert len(state["sonar"]) == 16 and state["battery"] > 10
     assert abs(state["t"] - data["state"]["t"]) < 1 and state["t"] > 1.7e9  # epoch seconds
+
+
+def test_connect_streams_json_lines_and_ends_when_the_bridge_leaves(endpoint) -> None:
+    with PioneerSim() as simulator:
+        url = simulator.serve_tcp("127.0.0.1", 0)
+        with bridge_process(["pioneer", url, "--zenoh", endpoint, "--name", "r1"]) as (b, _):
+            with running("connect", "pioneer", "zenoh/r1", "--zenoh", endpoint, "--json") as c:
+                assert c.stdout is not None and c.stderr is not None
+                lines = read_lines(c.stdout, 2)
+                counts = [json.loads(line)["state"]["sip_count"] for line in lines]
+                assert len(counts) == 2 and counts[1] > counts[0]
+                b.terminate()
+                assert c.wait(DEADLINE) == 1
+                assert "the bridge r1 left" in c.stderr.read()
 
 
 def test_list_shows_the_robot_while_its_bridge_runs(bridged, endpoint) -> None:

@@ -24,7 +24,7 @@ from on_zenoh.bridge_helpers import (
     wait_for,
 )
 from robocli.bridge import RemotePioneer
-from robocli.errors import DeviceError
+from robocli.errors import ConnectionLost, DeviceError
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
 
@@ -169,6 +169,10 @@ def test_the_robot_stops_when_the_bridge_ends(sim, endpoint) -> None:
             bridge.send_signal(signal.SIGTERM)
             wait_for(lambda: _stopped(simulator), "the robot stops")
             assert bridge.wait(DEADLINE) == 130  # interrupted, as Ctrl-C
+            # the client sees the bridge leave (liveliness), not a timeout
+            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+            with pytest.raises(ConnectionLost, match="left"):
+                driver.wait_for_state(timeout=DEADLINE)
 
 
 def test_a_bad_command_is_ignored_and_the_bridge_goes_on(sim, endpoint) -> None:
