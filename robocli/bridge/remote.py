@@ -36,7 +36,8 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("robocli.bridge")
 
-_DELETE = import_zenoh().SampleKind.DELETE
+_ZENOH = import_zenoh()
+_DELETE = _ZENOH.SampleKind.DELETE
 #: Seconds between re-sends of a set-point (well inside the bridge's 0.5 s silence rule).
 DEFAULT_RESEND_S = 0.15
 
@@ -231,9 +232,12 @@ class RemotePioneer:
     # ------------------------------------------------------------------ internals
 
     def _send(self, point: tuple[float, float]) -> None:
+        """Put a set-point, ahead of bulk data (camera frames) on a shared link: interactive
+        priority, sent at once rather than batched."""
         self._session.put(control_key(self.robot, "velocity"),
                           encode({"holder": self.holder, "v": point[0], "w": point[1]}),
-                          encoding=JSON_ENCODING)  # fmt: skip
+                          encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
+                          express=True)  # fmt: skip
 
     def _resend(self) -> None:
         """Re-send a moving set-point every ``resend`` s while held (the silence rule)."""
