@@ -84,7 +84,7 @@ class RemotePioneer:
                 session.declare_subscriber(topic_key(self.robot, "laser"), self._on_laser),
                 session.declare_subscriber(control_key(self.robot, "event"), self._on_event),
                 session.liveliness().declare_subscriber(
-                    alive_key(self.robot, "pioneer"), self._on_alive
+                    alive_key(self.robot, "pioneer"), self._on_alive, history=True
                 ),
             ]
         except BaseException:
@@ -199,7 +199,8 @@ class RemotePioneer:
             self._setpoint = None
         try:
             self._send((0.0, 0.0))
-            self._ask({"op": "release", "holder": self.holder})
+            if self._gone is None:  # (a bridge that left answers nothing: no wait for it)
+                self._ask({"op": "release", "holder": self.holder})
         finally:
             token.undeclare()
 

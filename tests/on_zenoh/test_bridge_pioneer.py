@@ -175,6 +175,21 @@ def test_the_robot_stops_when_the_bridge_ends(sim, endpoint) -> None:
                 driver.wait_for_state(timeout=DEADLINE)
 
 
+def test_a_killed_bridge_stops_the_robot_and_its_clients_see_it_leave(sim, endpoint) -> None:
+    simulator, _ = sim
+    with _bridge(sim, endpoint, "--silence", "60") as (bridge, _):
+        with RemotePioneer.connect("r1", endpoint, holder="oscar") as driver:
+            driver.set_velocity(0.3, 0.1)
+            wait_for(lambda: _moving(simulator), "the robot moves")
+            bridge.kill()
+            wait_for(lambda: _stopped(simulator), "the robot stops (its link dropped)")
+            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+            with pytest.raises(ConnectionLost, match="left"):
+                driver.wait_for_state(timeout=DEADLINE)
+            driver.close()  # stops and releases nothing: the bridge is gone
+            assert not driver.held
+
+
 def test_a_bad_command_is_ignored_and_the_bridge_goes_on(sim, endpoint) -> None:
     simulator, _ = sim
     with _bridge(sim, endpoint) as (bridge, _):
