@@ -81,8 +81,8 @@ dump = _group("dump", "Show every packet, named and decoded, like a protocol ana
 sim = _group("sim", "Run a built-in simulator speaking the robot's real protocol.")
 bench_group = _group("bench", "Measure latency, jitter and per-packet cost.")
 
-connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
-teleop.command("pioneer", cls=PlainCommand)(teleop_commands.pioneer)
+connect.command("pioneer", cls=ZenohCommand)(pioneer.connect)
+teleop.command("pioneer", cls=ZenohCommand)(teleop_commands.pioneer)
 dump.command("pioneer", cls=PlainCommand)(dump_commands.pioneer)
 sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
 app.command("ports", cls=PlainCommand)(ports.ports)

@@ -66,7 +66,10 @@ class PioneerBridge:
         self.failure: BaseException | None = None  #: what ended the robot's link, if it ended
         self._done = threading.Event()
         self._closed = False
-        self._latched: str | None = None  # a fault: motion refused until the holder stops
+        # a stall (the trip): motion refused until the holder stops; then that trip is
+        # acknowledged, and the Pioneer's refusal of the next motion command for it is spent
+        self._latched: WatchdogTrip | None = None
+        self._acknowledged: WatchdogTrip | None = None
         self._bad_commands = 0
         self._offset = time.time() - time.monotonic()
         z = session
@@ -174,30 +177,36 @@ class PioneerBridge:
             if self._latched is not None:
                 if moving:
                     return  # a fault: the holder stops before the robot moves again
-                self._latched = None
+                self._acknowledged, self._latched = self._latched, None
             try:
-                self.robot.set_velocity(v, w)
-            except WatchdogTripped as exc:
-                self._latch(str(exc))
+                try:
+                    self.robot.set_velocity(v, w)
+                except WatchdogTripped as exc:
+                    if exc.trip != self._acknowledged:
+                        self._latch(exc.trip)
+                        return
+                    self.robot.set_velocity(v, w)  # that trip was reported and stopped for
             except RobocliError as exc:
                 self.gate.event("fault", holder=self.gate.holder, reason=str(exc))
 
     def _on_trip(self, trip: WatchdogTrip) -> None:
-        self._latch(f"the bridge sent nothing for {trip.silence:.1f} s, past the robot's "
-                    f"{trip.watchdog:g} s watchdog: the robot was stopped")  # fmt: skip
+        self._latch(trip)
 
-    def _latch(self, reason: str) -> None:
+    def _latch(self, trip: WatchdogTrip) -> None:
         """A stall: the robot was stopped by its watchdog. Motion is refused until a stop."""
-        if self._latched is None:
-            self._latched = reason
+        if self._latched is None and trip != self._acknowledged:
+            self._latched = trip
             self.gate.event(
                 "fault",
                 holder=self.gate.holder,
-                reason=reason + "; send a stop (v=w=0) before moving again",
+                reason=f"the bridge sent nothing for {trip.silence:.1f} s, past the robot's "
+                f"{trip.watchdog:g} s watchdog: the robot was stopped; send a stop (v=w=0) "
+                "before moving again",
             )
 
     def _grant(self, holder: str) -> None:
-        self._latched = None
+        if self._latched is not None:  # a new holder starts from a stopped robot
+            self._acknowledged, self._latched = self._latched, None
         self.robot.enable_motors()
 
     def _stop(self, reason: str) -> None:

@@ -27,15 +27,17 @@ from typing import TYPE_CHECKING, Any
 from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
 from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
-from robocli.errors import DeviceError, ProtocolError, TimeoutError
-from robocli.zenoh.keys import check_name, info_key, topic_key
-from robocli.zenoh.session import ZenohTarget, open_session
+from robocli.errors import ConnectionLost, DeviceError, ProtocolError, TimeoutError
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
 
 if TYPE_CHECKING:
     import zenoh
 
 log = logging.getLogger("robocli.bridge")
 
+_ZENOH = import_zenoh()
+_DELETE = _ZENOH.SampleKind.DELETE
 #: Seconds between re-sends of a set-point (well inside the bridge's 0.5 s silence rule).
 DEFAULT_RESEND_S = 0.15
 
@@ -68,21 +70,26 @@ class RemotePioneer:
         self._state: PioneerState | None = None
         self._laser: dict[str, Any] | None = None
         self._states = 0
-        self._offset = time.time() - time.monotonic()
+        #: epoch - monotonic seconds: a state's ``t`` plus this is Unix time
+        self.offset = time.time() - time.monotonic()
         self._setpoint: tuple[float, float] | None = None
         self._token: Any = None  # our liveliness token while we hold the robot
         self.fault: str | None = None  #: the bridge's last fault or stop reason for us
         self._closed = False
+        self._gone: str | None = None  # why the bridge is gone (its @alive token went)
         try:
             self.info = self._query_info()
             self._subs = [
                 session.declare_subscriber(topic_key(self.robot, "state"), self._on_state),
                 session.declare_subscriber(topic_key(self.robot, "laser"), self._on_laser),
                 session.declare_subscriber(control_key(self.robot, "event"), self._on_event),
+                session.liveliness().declare_subscriber(
+                    alive_key(self.robot, "pioneer"), self._on_alive, history=True
+                ),
             ]
         except BaseException:
             if own_session:
-                session.close()  # type: ignore[no-untyped-call]
+                close_session(session)
             raise
         self._thread = threading.Thread(target=self._resend, daemon=True,
                                         name=f"remote-pioneer-{self.robot}")  # fmt: skip
@@ -115,18 +122,31 @@ class RemotePioneer:
         return self.state.pose
 
     @property
+    def battery(self) -> float:
+        """Battery voltage (V) of the latest state."""
+        return self.state.battery
+
+    @property
     def laser(self) -> dict[str, Any] | None:
         """The latest laser scan as the bridge put it (JSON of ``robocli/<robot>/laser``)."""
         with self._cond:
             return self._laser
 
+    @property
+    def connected(self) -> bool:
+        """False once the bridge left (its liveliness token went) or :meth:`close` began."""
+        return self._gone is None and not self._closed
+
     def wait_for_state(self, timeout: float | None = None) -> PioneerState:
-        """Block until the next state arrives and return it."""
+        """Block until the next state arrives and return it; :class:`ConnectionLost` once
+        the bridge left, :class:`TimeoutError` after ``timeout`` s."""
         limit = self.timeout if timeout is None else timeout
         deadline = time.monotonic() + limit
         with self._cond:
             count = self._states
             while self._states == count:
+                if self._gone is not None:
+                    raise ConnectionLost(f"{self.url}: {self._gone}")
                 left = deadline - time.monotonic()
                 if left <= 0 or self._closed:
                     raise TimeoutError(f"{self.url}: no state within {limit:g} s")
@@ -179,7 +199,8 @@ class RemotePioneer:
             self._setpoint = None
         try:
             self._send((0.0, 0.0))
-            self._ask({"op": "release", "holder": self.holder})
+            if self._gone is None:  # (a bridge that left answers nothing: no wait for it)
+                self._ask({"op": "release", "holder": self.holder})
         finally:
             token.undeclare()
 
@@ -198,7 +219,7 @@ class RemotePioneer:
         for sub in self._subs:
             sub.undeclare()  # type: ignore[no-untyped-call]
         if self._own:
-            self._session.close()  # type: ignore[no-untyped-call]
+            close_session(self._session)
 
     def __enter__(self) -> RemotePioneer:
         return self
@@ -212,9 +233,12 @@ class RemotePioneer:
     # ------------------------------------------------------------------ internals
 
     def _send(self, point: tuple[float, float]) -> None:
+        """Put a set-point, ahead of bulk data (camera frames) on a shared link: interactive
+        priority, sent at once rather than batched."""
         self._session.put(control_key(self.robot, "velocity"),
                           encode({"holder": self.holder, "v": point[0], "w": point[1]}),
-                          encoding=JSON_ENCODING)  # fmt: skip
+                          encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
+                          express=True)  # fmt: skip
 
     def _resend(self) -> None:
         """Re-send a moving set-point every ``resend`` s while held (the silence rule)."""
@@ -266,6 +290,13 @@ class RemotePioneer:
             return
         with self._cond:
             self._laser = data
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == _DELETE:
+            with self._cond:
+                self._gone = f"the bridge {self.robot} left (its liveliness token went)"
+                self._setpoint = None
+                self._cond.notify_all()
 
     def _on_event(self, sample: zenoh.Sample) -> None:
         try:

@@ -1,11 +1,10 @@
 """``robocli bridge pioneer|arm``: put a robot on Eclipse Zenoh (thin layers over
-:mod:`robocli.bridge`), and the Zenoh side of ``connect pioneer`` and ``teleop pioneer``
-(PORT ``zenoh/<robot>``)."""
+:mod:`robocli.bridge`). The other side, ``connect|teleop pioneer zenoh/<robot>``, is in
+:mod:`robocli.commands.remote`."""
 
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import typer
 
@@ -21,9 +20,6 @@ from robocli.commands.pioneer import (
     connected,
     start_laser,
 )
-
-#: PORT of ``connect pioneer`` and ``teleop pioneer`` that names a robot behind a bridge
-ZENOH_PREFIX = "zenoh/"
 
 NameOpt = typer.Option(None, "--name", metavar="NAME",
                        help="The robot's name on Zenoh (default: pioneer or arm).")  # fmt: skip
@@ -47,6 +43,7 @@ def pioneer(
     for --silence, when the controller goes, and when the bridge ends."""
     from robocli.bridge.pioneer import PioneerBridge
     from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
 
     robot_name = check_name(name or "pioneer", "--name")
     target = zenoh_target(zenoh)
@@ -64,7 +61,7 @@ def pioneer(
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
-            session.close()  # type: ignore[no-untyped-call]
+            close_session(session)
 
 
 @arm_link()
@@ -79,6 +76,7 @@ def arm(
     stopped when its controller goes and when the bridge ends."""
     from robocli.bridge.arm import ArmBridge
     from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
 
     robot_name = check_name(name or "arm", "--name")
     target = zenoh_target(zenoh)
@@ -94,12 +92,4 @@ def arm(
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
-            session.close()  # type: ignore[no-untyped-call]
-
-
-def remote(port: str, zenoh: str | None, timeout: float, **options: Any) -> Any:
-    """The :class:`~robocli.bridge.RemotePioneer` of PORT ``zenoh/<robot>``."""
-    from robocli.bridge import RemotePioneer
-
-    robot = port[len(ZENOH_PREFIX) :]
-    return RemotePioneer.connect(robot, zenoh_target(zenoh), timeout=timeout, **options)
+            close_session(session)

@@ -29,6 +29,7 @@ from robocli.commands._common import (
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
@@ -53,6 +54,8 @@ SubtypeOpt = typer.Option(
     help="Override the robot's subtype (p3dx, p3at, ...).",
 )  # fmt: skip
 BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+#: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
+ZenohClientOpt = zenoh_option("client")
 TimeoutOpt = typer.Option(
     5.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
     help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
@@ -86,11 +89,17 @@ def connect(
     subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
+    zenoh: str | None = ZenohClientOpt,  # noqa: UP007
 ) -> None:
     """Connect to a Pioneer and show its live state until q or Ctrl-C (--once: one
-    snapshot; --json: machine-readable, SI units)."""
+    snapshot; --json: machine-readable, SI units). PORT zenoh/ROBOT: a robot behind a
+    bridge (robocli bridge pioneer), reached with --zenoh."""
     from robocli.commands._screens import live_view
+    from robocli.commands.remote import connect_remote, is_remote
 
+    if is_remote(port, zenoh):
+        connect_remote(port, zenoh, once, json_out, timeout)
+        return
     with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         if laser:
             start_laser(robot, wait=once)

@@ -24,7 +24,7 @@ from on_zenoh.bridge_helpers import (
     wait_for,
 )
 from robocli.bridge import RemotePioneer
-from robocli.errors import DeviceError
+from robocli.errors import ConnectionLost, DeviceError
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
 
@@ -169,6 +169,25 @@ def test_the_robot_stops_when_the_bridge_ends(sim, endpoint) -> None:
             bridge.send_signal(signal.SIGTERM)
             wait_for(lambda: _stopped(simulator), "the robot stops")
             assert bridge.wait(DEADLINE) == 130  # interrupted, as Ctrl-C
+            # the client sees the bridge leave (liveliness), not a timeout
+            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+            with pytest.raises(ConnectionLost, match="left"):
+                driver.wait_for_state(timeout=DEADLINE)
+
+
+def test_a_killed_bridge_stops_the_robot_and_its_clients_see_it_leave(sim, endpoint) -> None:
+    simulator, _ = sim
+    with _bridge(sim, endpoint, "--silence", "60") as (bridge, _):
+        with RemotePioneer.connect("r1", endpoint, holder="oscar") as driver:
+            driver.set_velocity(0.3, 0.1)
+            wait_for(lambda: _moving(simulator), "the robot moves")
+            bridge.kill()
+            wait_for(lambda: _stopped(simulator), "the robot stops (its link dropped)")
+            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+            with pytest.raises(ConnectionLost, match="left"):
+                driver.wait_for_state(timeout=DEADLINE)
+            driver.close()  # stops and releases nothing: the bridge is gone
+            assert not driver.held
 
 
 def test_a_bad_command_is_ignored_and_the_bridge_goes_on(sim, endpoint) -> None:
