@@ -12,7 +12,7 @@ CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
 CSRC   := csrc/checksum.c csrc/scip.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
-.PHONY: venv demo test test-load test-c asan valgrind bench lint soak wheel dist dist-check clean fuzz
+.PHONY: venv demo test test-load test-c asan valgrind bench lab lab-tools lint soak wheel dist dist-check clean fuzz
 
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -84,6 +84,25 @@ valgrind: csrc/test_core
 
 bench: $(STAMP)
 	$(PY) -m pytest -q -p no:cacheprovider bench --benchmark-columns=min,median,mean,ops,rounds
+
+# The lab in network namespaces (README "Lab in network namespaces"): robots, laptops and a lab
+# server, each in its own namespace on a bridge, robot uplinks shaped to LAB_UPLINK Mbit/s; the
+# same lab over each front-end at each size (ROBOTSxLAPTOPS). Root only: elsewhere it says why
+# in one line and does nothing. iproute2 (ip, tc) is installed with apt-get when missing.
+LAB_SIZES   ?= 1x1,1x4,2x4,2x8,4x8
+LAB_PIONEER ?= 4
+LAB_SECONDS ?= 10
+LAB_UPLINK  ?= 20
+LAB_ARGS    ?= --bridge
+
+lab-tools:
+	@if [ "$$(id -u)" = 0 ] && ! { command -v ip && command -v tc; } >/dev/null; then \
+	  apt-get update -q && apt-get install -y -q iproute2; fi
+
+lab: lab-tools $(STAMP)
+	@mkdir -p build
+	$(PY) -m robocli.bench.lab --skip-ok --sizes $(LAB_SIZES) --seconds $(LAB_SECONDS) \
+	  --uplink $(LAB_UPLINK) --pioneer $(LAB_PIONEER) --faults --json build/lab.json $(LAB_ARGS)
 
 # Release files in $(DIST_DIR): the sdist, and the wheel built from that sdist alone (`build`
 # with neither --sdist nor --wheel unpacks the sdist and builds there, so the C sources, header

@@ -14,6 +14,7 @@ import typer
 
 from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
+from robocli.commands import bridge as bridge_commands
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
@@ -82,8 +83,8 @@ dump = _group("dump", "Show every packet, named and decoded, like a protocol ana
 sim = _group("sim", "Run a built-in simulator speaking the robot's real protocol.")
 bench_group = _group("bench", "Measure latency, jitter and per-packet cost.")
 
-connect.command("pioneer", cls=PlainCommand)(pioneer.connect)
-teleop.command("pioneer", cls=PlainCommand)(teleop_commands.pioneer)
+connect.command("pioneer", cls=ZenohCommand)(pioneer.connect)
+teleop.command("pioneer", cls=ZenohCommand)(teleop_commands.pioneer)
 dump.command("pioneer", cls=PlainCommand)(dump_commands.pioneer)
 sim.command("pioneer", cls=PlainCommand)(pioneer.simulate)
 app.command("ports", cls=PlainCommand)(ports.ports)
@@ -119,6 +120,10 @@ app.command("record", cls=PlainCommand)(record.record)
 connect.command("laser", cls=PlainCommand)(laser_commands.connect)
 sim.command("laser", cls=PlainCommand)(laser_commands.simulate)
 dump.command("laser", cls=PlainCommand)(laser_dump.dump)
+
+bridge = _group("bridge", "Put a robot on Eclipse Zenoh: state for many, commands from one.")
+bridge.command("pioneer", cls=ZenohCommand)(bridge_commands.pioneer)
+bridge.command("arm", cls=ZenohCommand)(bridge_commands.arm)
 app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
 app.command("export", cls=PlainCommand)(export_command.export)

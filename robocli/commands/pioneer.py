@@ -32,6 +32,7 @@ from robocli.commands._common import (
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
+from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
@@ -56,6 +57,8 @@ SubtypeOpt = typer.Option(
     help="Override the robot's subtype (p3dx, p3at, ...).",
 )  # fmt: skip
 BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+#: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
+ZenohClientOpt = zenoh_option("client")
 TimeoutOpt = typer.Option(
     5.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
     help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
@@ -91,12 +94,18 @@ def connect(
     timeout: float = TimeoutOpt,
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
+    zenoh: str | None = ZenohClientOpt,  # noqa: UP007
 ) -> None:
     """Connect to a Pioneer and show its live state until q or Ctrl-C (--once: one
-    snapshot; --json: machine-readable, SI units; --foxglove: also to Foxglove)."""
+    snapshot; --json: machine-readable, SI units; --foxglove: also to Foxglove). PORT
+    zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), reached with --zenoh."""
     from robocli.commands._live import live_view as foxglove_view
     from robocli.commands._screens import live_view
+    from robocli.commands.remote import connect_remote, is_remote
 
+    if is_remote(port, zenoh):
+        connect_remote(port, zenoh, once, json_out, timeout)
+        return
     with foxglove_view(foxglove, foxglove_host) as view, \
             connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:  # fmt: skip
         if view is not None:

@@ -17,7 +17,14 @@ import typer
 
 from robocli.commands.arm import LINK, ArmLink, arm_link
 from robocli.commands.arm import connected as connected_arm
-from robocli.commands.pioneer import BaudOpt, PortArg, SubtypeOpt, TimeoutOpt, connected
+from robocli.commands.pioneer import (
+    BaudOpt,
+    PortArg,
+    SubtypeOpt,
+    TimeoutOpt,
+    ZenohClientOpt,
+    connected,
+)
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -52,13 +59,20 @@ def pioneer(
     subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
+    zenoh: str | None = ZenohClientOpt,  # noqa: UP007
 ) -> None:
-    """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot."""
+    """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot.
+    PORT zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), with --zenoh."""
     from robocli.commands._screens import StatusLine
+    from robocli.commands.remote import is_remote, teleop_remote
     from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
+    remote = is_remote(port, zenoh)
     _need_terminal()
     controller = TeleopController(max_v=max_v, max_w=max_w, release_timeout=release)
+    if remote:
+        teleop_remote(port, zenoh, controller, timeout)
+        return
     with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         robot.enable_motors()
         typer.echo(

@@ -1,0 +1,234 @@
+"""An arm on Zenoh: joints, TCP pose and status out to any number of watchers, trajectory
+uploads in from one controller at a time (:class:`~robocli.bridge.control.ControlGate`).
+
+Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
+
+* ``robocli/<robot>/state``, one put per joint sample: ``t`` (epoch s, received),
+  ``joints`` (rad), ``robot_time`` (s on the controller's clock, or null), ``tcp``:
+  ``position`` (m, base frame) and ``rotation`` (3x3, rows) of the flange;
+* ``robocli/<robot>/status``, one put per STATUS message: ``t``, ``drives_powered``,
+  ``e_stopped``, ``in_error``, ``in_motion``, ``motion_possible`` (true, false or null:
+  unknown), ``mode``, ``error_code``;
+* ``robocli/<robot>/@control/trajectory``, queried by the holder with ``{"holder": NAME,
+  "time": [s...], "joints": [[rad...]...], "first_duration": s (optional), "split": bool
+  (optional)}``: the trajectory is checked against the robot model and downloaded (the ABB
+  way); the reply is ``{"points": N}``, or an error reply ``{"error": ...}``.
+
+The silence rule does not apply to an arm (a trajectory runs without further commands): a
+running trajectory is stopped (STOP, -4) when its controller's liveliness goes, when it
+releases the arm, and when the bridge ends.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
+from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode
+from robocli.devices.arm import Arm
+from robocli.errors import ProtocolError, RobocliError, TimeoutError
+from robocli.kinematics import fk
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger("robocli.bridge")
+
+
+class ArmBridge:
+    """Put ``arm`` (state port needed; motion port for uploads) on ``session`` as ``name``
+    until :meth:`close`. The bridge owns neither: close them after it."""
+
+    def __init__(self, arm: Arm, session: zenoh.Session, name: str, *,
+                 token_wait: float = DEFAULT_TOKEN_WAIT_S) -> None:  # fmt: skip
+        self.arm = arm
+        self.name = check_name(name, "robot name")
+        self.failure: BaseException | None = None  #: what ended the arm's link, if it ended
+        self._done = threading.Event()
+        self._closed = False
+        self._offset = time.time() - time.monotonic()
+        self._uploads: queue.Queue[zenoh.Query | None] = queue.Queue(maxsize=4)
+        z = session
+        self.gate = ControlGate(z, self.name, stop=self._stop, silence=None,
+                                token_wait=token_wait)  # fmt: skip
+        self._state = z.declare_publisher(topic_key(self.name, "state"), encoding=JSON_ENCODING)
+        self._status = z.declare_publisher(topic_key(self.name, "status"),
+                                           encoding=JSON_ENCODING)  # fmt: skip
+        self._trajectory = z.declare_queryable(control_key(self.name, "trajectory"),
+                                               self._on_trajectory)  # fmt: skip
+        self._info = z.declare_queryable(info_key(self.name), self._on_info)
+        self._threads = [
+            threading.Thread(target=target, daemon=True, name=f"bridge-arm-{what}-{self.name}")
+            for target, what in ((self._publish, "state"), (self._upload, "upload"))
+        ]
+        for thread in self._threads:
+            thread.start()
+        self._alive = z.liveliness().declare_token(alive_key(self.name, "arm"))
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the bridge ends (closed, or a link failed: :attr:`failure`) or
+        ``timeout`` s pass; True when it ended."""
+        return self._done.wait(timeout)
+
+    def info(self) -> dict[str, Any]:
+        """What ``robocli/<robot>/@info`` answers."""
+        model = self.arm.robot
+        return {
+            "name": self.name, "kind": "arm", "model": model.name,
+            "joints": model.n_joints, "holder": self.gate.holder,
+            "keys": {"state": topic_key(self.name, "state"),
+                     "status": topic_key(self.name, "status"),
+                     "control": control_key(self.name),
+                     "trajectory": control_key(self.name, "trajectory"),
+                     "event": control_key(self.name, "event")},
+        }  # fmt: skip
+
+    # ------------------------------------------------------------------ state out
+
+    def _publish(self) -> None:
+        arm, last_status = self.arm, None
+        while not self._closed:
+            try:
+                sample = arm.wait_for_state(timeout=1.0)
+            except TimeoutError:
+                if arm.alive:
+                    continue
+                self._fail()
+                return
+            except RobocliError:
+                self._fail()
+                return
+            pose = fk(arm.robot, sample.joints)[0]
+            self._put(self._state, {
+                "t": sample.t + self._offset, "joints": list(sample.joints),
+                "robot_time": sample.robot_time,
+                "tcp": {"position": pose[:3, 3].tolist(), "rotation": pose[:3, :3].tolist()},
+            })  # fmt: skip
+            status = arm.status
+            if status is not None and status is not last_status:
+                last_status = status
+                self._put(self._status, {"t": status.t + self._offset, **status.as_dict()})
+        self._done.set()
+
+    def _fail(self) -> None:
+        try:
+            self.arm.check()
+        except RobocliError as exc:
+            self.failure = exc
+        else:
+            self.failure = TimeoutError(f"{self.name}: the arm's state stopped")
+        log.error("%s: the arm's link ended: %s", self.name, self.failure)
+        self.gate.event("fault", holder=self.gate.holder, reason=f"arm link: {self.failure}")
+        self._done.set()
+
+    def _put(self, publisher: Any, data: dict[str, Any]) -> None:
+        try:
+            publisher.put(encode(data))
+        except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
+            log.debug("%s: put failed", self.name, exc_info=True)
+
+    # ------------------------------------------------------------------ commands in
+
+    def _on_trajectory(self, query: zenoh.Query) -> None:
+        """Hand the upload to the upload thread (a download waits for each point's ack)."""
+        try:
+            self._uploads.put_nowait(query)
+        except queue.Full:
+            _reply_error(query, f"{self.name}: busy with other uploads")
+
+    def _upload(self) -> None:
+        while True:
+            query = self._uploads.get()
+            if query is None:
+                return
+            try:
+                n = self._download(query)
+            except RobocliError as exc:
+                _reply_error(query, str(exc))
+            except Exception as exc:  # noqa: BLE001 - one bad upload never ends this thread
+                log.error("%s: upload failed", self.name, exc_info=True)
+                _reply_error(query, f"upload failed: {exc}")
+            else:
+                query.reply(query.key_expr, encode({"points": n}), encoding=JSON_ENCODING)
+            finally:
+                query.drop()  # type: ignore[no-untyped-call]
+
+    def _download(self, query: zenoh.Query) -> int:
+        what = f"{self.name} trajectory"
+        raw = query.payload
+        data = decode(raw.to_bytes() if raw is not None else b"", what)
+        try:
+            times = np.asarray(data.get("time"), dtype=float)
+            joints = np.asarray(data.get("joints"), dtype=float)
+        except (TypeError, ValueError) as exc:
+            raise ProtocolError(f"{what}: time and joints must be numbers ({exc})") from None
+        if times.ndim != 1 or joints.ndim != 2 or len(times) != len(joints):
+            raise ProtocolError(f"{what}: time (N) and joints (N x joints) must match")
+        first = data.get("first_duration")
+        with self.gate.command(data.get("holder"), moving=False) as ok:
+            if not ok:
+                raise RobocliError(f"{what}: {data.get('holder')!r} does not hold {self.name}"
+                                   + (f" ({self.gate.holder} does)" if self.gate.holder
+                                      else ""))  # fmt: skip
+            return self.arm.download(
+                (times, joints),
+                split=bool(data.get("split", False)),
+                first_duration=None if first is None else float(first),
+            )
+
+    def _stop(self, reason: str) -> None:
+        if self.arm.running():
+            self.arm.stop()
+
+    def _on_info(self, query: zenoh.Query) -> None:
+        query.reply(query.key_expr, encode(self.info()), encoding=JSON_ENCODING)
+
+    # ------------------------------------------------------------------ closing
+
+    def close(self) -> None:
+        """Stop taking uploads, stop a running trajectory, undeclare everything."""
+        if self._closed:
+            return
+        self._closed = True
+        for entity in (self._trajectory, self._alive):
+            _undeclare(entity)
+        try:
+            self._uploads.put(None, timeout=1.0)
+        except queue.Full:
+            log.warning("%s: uploads still queued at close", self.name)
+        self.gate.close("the bridge ended")
+        for thread in self._threads:
+            thread.join(timeout=5.0)
+        for entity in (self._info, self._state, self._status):  # type: ignore[assignment]
+            _undeclare(entity)
+        self._done.set()
+
+    def __enter__(self) -> ArmBridge:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _reply_error(query: zenoh.Query, message: str) -> None:
+    try:
+        query.reply_err(encode({"error": message}), encoding=JSON_ENCODING)
+    except Exception:  # noqa: BLE001 - the querier may be gone
+        log.debug("reply failed", exc_info=True)
+
+
+def _undeclare(entity: Any) -> None:
+    try:
+        entity.undeclare()
+    except Exception:  # noqa: BLE001 - the session may be closed already
+        log.debug("undeclare failed", exc_info=True)
+
+
+__all__ = ["ArmBridge"]

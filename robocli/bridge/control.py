@@ -1,0 +1,288 @@
+"""One controller at a time for a robot on Zenoh, and the rules that stop the robot.
+
+A controller asks the queryable ``robocli/<robot>/@control`` with the JSON payload
+``{"op": "acquire", "holder": NAME}``; the reply is ``{"granted": true, "holder": NAME}``,
+or ``{"granted": false, "holder": OTHER, "reason": ...}`` while OTHER holds the robot. It
+then declares the liveliness token ``robocli/<robot>/@control/holder/NAME`` for as long as
+it holds the robot, and sends its commands (each naming ``holder``). ``{"op": "release",
+"holder": NAME}`` gives the robot back; ``{"op": "status"}`` (or no payload) tells who holds
+it. Commands from anyone else are ignored (counted, and announced once as an event).
+
+The robot is **stopped** (:class:`ControlGate` calls ``stop(reason)``):
+
+* when the holder's commands stop for ``silence`` seconds (0.5 by default) while the robot
+  was commanded to move: the holder keeps the robot, its next command moves it again;
+* when the holder's liveliness token goes (its process ended or was killed, its link broke,
+  its lease expired), or when no token came within ``token_wait`` seconds of the grant: the
+  robot is released;
+* when the holder releases the robot, and when the gate closes (the bridge ends).
+
+Every grant, refusal, stop and release is put on ``robocli/<robot>/@control/event``. The
+stops run in the gate's own thread; a stop that raises is logged and counted
+(``stop_errors``), and never ends that thread.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+from robocli.bridge.keys import (
+    JSON_ENCODING,
+    control_key,
+    decode,
+    encode,
+    holder_key,
+    text,
+)
+from robocli.errors import RobocliError
+from robocli.zenoh.keys import check_name
+from robocli.zenoh.session import import_zenoh
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger("robocli.bridge")
+_PUT = import_zenoh().SampleKind.PUT
+
+#: Seconds without a command from the holder after which a moving robot is stopped.
+DEFAULT_SILENCE_S = 0.5
+#: Seconds a granted holder has to declare its liveliness token before it loses the robot.
+DEFAULT_TOKEN_WAIT_S = 5.0
+
+
+class ControlGate:
+    """Who holds one robot, and when it must stop (see the module docstring).
+
+    ``stop(reason)`` stops the robot (it may raise: logged, counted); ``grant(holder)``
+    prepares the robot for a new holder (a Pioneer's motors on); a grant that raises is
+    answered as refused. ``silence`` None disables the silence rule (the holder's
+    liveliness and the bridge's end still stop the robot)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        robot: str,
+        *,
+        stop: Callable[[str], None],
+        grant: Callable[[str], None] | None = None,
+        silence: float | None = DEFAULT_SILENCE_S,
+        token_wait: float = DEFAULT_TOKEN_WAIT_S,
+    ) -> None:
+        self.robot = check_name(robot, "robot name")
+        self.silence = silence
+        self.token_wait = token_wait
+        self._stop = stop
+        self._grant = grant
+        self._cond = threading.Condition()
+        self._robot_lock = threading.RLock()  # commands and stops reach the robot in turn
+        self.holder: str | None = None  #: the controller holding the robot, None when free
+        self.counts = {"grants": 0, "refusals": 0, "stops": 0, "stop_errors": 0,
+                       "ignored_commands": 0, "commands": 0}  # fmt: skip
+        self._alive: set[str] = set()  # holder names whose tokens are up
+        self._token_seen = False
+        self._granted_at = 0.0
+        self._last_command = 0.0
+        self._moving = False  # the last command asked the robot to move
+        self._pending: list[tuple[str, bool]] = []  # (reason, release) for the gate thread
+        self._warned: set[str] = set()
+        self._closed = False
+        self._events = session.declare_publisher(control_key(robot, "event"),
+                                                 encoding=JSON_ENCODING)  # fmt: skip
+        self._tokens = session.liveliness().declare_subscriber(
+            holder_key(robot), self._on_token, history=True
+        )
+        self._queryable = session.declare_queryable(control_key(robot), self._on_query)
+        self._thread = threading.Thread(target=self._run, name=f"bridge-control-{robot}",
+                                        daemon=True)  # fmt: skip
+        self._thread.start()
+
+    # ------------------------------------------------------------------ commands
+
+    @contextmanager
+    def command(self, holder: object, moving: bool) -> Iterator[bool]:
+        """Around one command of ``holder``: yields True when it holds the robot (run the
+        command then; ``moving``: it asks the robot to move), False otherwise (ignore it).
+        Stops wait for the command to finish, so a command never lands after a stop that
+        released its holder."""
+        with self._robot_lock:
+            with self._cond:
+                ok = not self._closed and holder is not None and holder == self.holder
+                if ok:
+                    self._last_command = time.monotonic()
+                    self._moving = moving
+                    self.counts["commands"] += 1
+                    self._cond.notify_all()
+                else:
+                    self.counts["ignored_commands"] += 1
+                    who = str(holder)[:64]
+                    first = who not in self._warned and len(self._warned) < 64
+                    self._warned.add(who)
+            if not ok and first:
+                self.event("ignored", holder=who, reason=f"{who} does not hold {self.robot}"
+                           + (f" ({self.holder} does)" if self.holder else ""))  # fmt: skip
+            yield ok
+
+    def event(self, kind: str, **fields: Any) -> None:
+        """Put ``{"t": epoch s, "event": kind, **fields}`` on the event key (never raises)."""
+        try:
+            self._events.put(encode({"t": time.time(), "event": kind, **fields}))
+        except Exception:  # noqa: BLE001 - a lost session must not stop a stop
+            log.debug("event %s not put", kind, exc_info=True)
+
+    # ------------------------------------------------------------------ closing
+
+    def close(self, reason: str = "the bridge ended") -> None:
+        """Stop the robot (``reason``), release it, undeclare everything. Idempotent."""
+        with self._cond:
+            if self._closed:
+                return
+            self._closed = True
+            self._cond.notify_all()
+        self._thread.join(timeout=5.0)
+        self._do_stop(reason, release=True, always=True)
+        for entity in (self._queryable, self._tokens, self._events):
+            try:
+                entity.undeclare()  # type: ignore[no-untyped-call]
+            except Exception:  # noqa: BLE001 - the session may be closing already
+                log.debug("undeclare failed", exc_info=True)
+
+    # ------------------------------------------------------------------ zenoh callbacks
+
+    def _on_token(self, sample: zenoh.Sample) -> None:
+        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        with self._cond:
+            if sample.kind == _PUT:
+                self._alive.add(name)
+                if name == self.holder:
+                    self._token_seen = True
+            else:
+                self._alive.discard(name)
+                if name == self.holder:
+                    self._pending.append((f"the controller {name} left (its liveliness "
+                                          "token went)", True))  # fmt: skip
+            self._cond.notify_all()
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        try:
+            raw = query.payload
+            request = decode(raw.to_bytes(), "control request") if raw is not None else {}
+            reply = self._answer(request)
+        except RobocliError as exc:
+            query.reply_err(encode({"error": str(exc)}), encoding=JSON_ENCODING)
+            return
+        query.reply(query.key_expr, encode(reply), encoding=JSON_ENCODING)
+
+    def _answer(self, request: dict[str, Any]) -> dict[str, Any]:
+        op = request.get("op", "status")
+        if op == "status":
+            return {"holder": self.holder}
+        holder = check_name(text(request, "holder", "control request"), "holder")
+        if op == "acquire":
+            return self._acquire(holder)
+        if op == "release":
+            with self._cond:
+                mine = holder == self.holder
+            if mine:
+                self._do_stop(f"released by {holder}", release=True, always=True)
+            return {"holder": self.holder, "released": mine}
+        raise RobocliError(f"control request: op {op!r} is not acquire, release or status")
+
+    def _acquire(self, holder: str) -> dict[str, Any]:
+        with self._robot_lock:
+            with self._cond:
+                current = self.holder
+                if self._closed or (current is not None and current != holder):
+                    self.counts["refusals"] += 1
+                    why = ("the bridge is closing" if self._closed else
+                           f"{self.robot} is held by {current}")  # fmt: skip
+                    refused = {"granted": False, "holder": current, "reason": why}
+                else:
+                    refused = None
+                    self.holder = holder
+                    self._token_seen = holder in self._alive
+                    self._granted_at = time.monotonic()
+                    self._last_command = self._granted_at
+                    self.counts["grants"] += 1
+            if refused is not None:
+                self.event("refused", holder=current, refused=holder, reason=refused["reason"])
+                return refused
+            if current != holder and self._grant is not None:
+                try:
+                    self._grant(holder)
+                except Exception as exc:  # noqa: BLE001 - the robot cannot be prepared
+                    with self._cond:
+                        self.holder = None
+                    reason = f"{self.robot} cannot be driven: {exc}"
+                    self.event("refused", holder=None, refused=holder, reason=reason)
+                    return {"granted": False, "holder": None, "reason": reason}
+        log.info("%s: %s holds the robot", self.robot, holder)
+        self.event("granted", holder=holder)
+        return {"granted": True, "holder": holder}
+
+    # ------------------------------------------------------------------ the gate's thread
+
+    def _run(self) -> None:
+        """Apply the stop rules until closed; a stop that raises never ends this loop."""
+        while True:
+            with self._cond:
+                if self._closed:
+                    return
+                action = self._due(time.monotonic())
+                if action is None:
+                    self._cond.wait(self._wait(time.monotonic()))
+                    continue
+            self._do_stop(*action)
+
+    def _due(self, now: float) -> tuple[str, bool] | None:
+        """(reason, release) of the stop due now, or None (called under the condition)."""
+        if self._pending:
+            return self._pending.pop(0)
+        if self.holder is None:
+            return None
+        if not self._token_seen and now >= self._granted_at + self.token_wait:
+            return (f"the controller {self.holder} declared no liveliness token within "
+                    f"{self.token_wait:g} s", True)  # fmt: skip
+        if self._moving and self.silence is not None and now >= self._last_command + self.silence:
+            self._moving = False
+            return (f"no command from {self.holder} for {self.silence:g} s", False)
+        return None
+
+    def _wait(self, now: float) -> float:
+        due = math.inf
+        if self.holder is not None and not self._token_seen:
+            due = self._granted_at + self.token_wait
+        if self.holder is not None and self._moving and self.silence is not None:
+            due = min(due, self._last_command + self.silence)
+        return max(0.001, min(1.0, due - now))
+
+    def _do_stop(self, reason: str, release: bool, always: bool = False) -> None:
+        """Stop the robot (and release its holder); a stop that raises is logged, counted."""
+        with self._robot_lock:
+            with self._cond:
+                holder = self.holder
+                if release:
+                    self.holder = None
+                    self._token_seen = False
+                self._moving = False
+            if holder is None and not always:
+                return
+            try:
+                self._stop(reason)
+            except Exception as exc:  # noqa: BLE001 - the gate's thread must go on
+                self.counts["stop_errors"] += 1
+                log.error("%s: stopping (%s) failed: %s", self.robot, reason, exc)
+                self.event("fault", holder=holder, reason=f"stopping failed: {exc}")
+            else:
+                self.counts["stops"] += 1
+                log.info("%s: stopped: %s", self.robot, reason)
+        self.event("released" if release and holder else "stopped", holder=holder,
+                   reason=reason)  # fmt: skip
+
+
+__all__ = ["DEFAULT_SILENCE_S", "DEFAULT_TOKEN_WAIT_S", "ControlGate"]

@@ -1,0 +1,247 @@
+"""A Pioneer on Zenoh: its state out to any number of watchers, velocity in from one
+controller at a time (:class:`~robocli.bridge.control.ControlGate`).
+
+Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
+
+* ``robocli/<robot>/state``, one put per SIP: ``t`` (epoch s, when the bridge received
+  it), ``x``, ``y`` (m), ``th`` (rad), ``v`` (m/s), ``w`` (rad/s, CCW +),
+  ``left_velocity``, ``right_velocity`` (m/s), ``battery`` (V), ``state_of_charge``
+  (0..1 or null), ``motors_enabled``, ``estop``, ``stall_left``, ``stall_right``,
+  ``bumpers_front``, ``bumpers_rear`` (bit masks), ``sonar`` (m per sonar, null before a
+  reading), ``digin``, ``digout``, ``analog`` (V), ``temperature`` (deg C or null),
+  ``sip_count``, ``holder`` (who drives it, or null);
+* ``robocli/<robot>/laser``, one put per scan: ``t``, ``pose`` (``x``, ``y`` m, ``th`` rad,
+  odometry at the scan), ``angles`` (rad), ``ranges`` (m, null: no return);
+* ``robocli/<robot>/@control/velocity``, put by the holder: ``{"holder": NAME, "v": m/s,
+  "w": rad/s}``, re-sent at least every 0.5 s while the robot should move; values beyond the
+  robot's limits are clamped to them.
+
+The Pioneer client keeps its own keep-alive and watchdog logic: if the bridge stalls past
+the robot's watchdog, the robot is stopped and the trip is a fault put on the event key; the
+bridge then ignores motion commands until the holder sends a stop (``v`` = ``w`` = 0).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
+from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, number
+from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
+from robocli.errors import ProtocolError, RobocliError, TimeoutError
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger("robocli.bridge")
+
+
+def state_json(state: PioneerState, n_sonar: int, offset: float) -> dict[str, Any]:
+    """``state`` as the JSON of ``robocli/<robot>/state`` (``offset``: epoch - monotonic)."""
+    data = {k: getattr(state, k) for k in state.__dataclass_fields__}
+    data["t"] = state.t + offset
+    del data["sonar_time"]
+    data["sonar"] = [None if math.isnan(r) else r for r in state.sonar[:n_sonar]]
+    return data
+
+
+class PioneerBridge:
+    """Put ``robot`` on ``session`` as ``name`` until :meth:`close` (see the module).
+
+    ``silence``: seconds without a command after which a moving robot is stopped (None: only
+    the holder's liveliness and the bridge's end stop it); ``token_wait``: seconds a new
+    holder has to declare its liveliness token. The bridge does not own ``robot`` or
+    ``session``: close them after it."""
+
+    def __init__(self, robot: Pioneer, session: zenoh.Session, name: str, *,
+                 silence: float | None = DEFAULT_SILENCE_S,
+                 token_wait: float = DEFAULT_TOKEN_WAIT_S) -> None:  # fmt: skip
+        self.robot = robot
+        self.name = check_name(name, "robot name")
+        self.failure: BaseException | None = None  #: what ended the robot's link, if it ended
+        self._done = threading.Event()
+        self._closed = False
+        # a stall (the trip): motion refused until the holder stops; then that trip is
+        # acknowledged, and the Pioneer's refusal of the next motion command for it is spent
+        self._latched: WatchdogTrip | None = None
+        self._acknowledged: WatchdogTrip | None = None
+        self._bad_commands = 0
+        self._offset = time.time() - time.monotonic()
+        z = session
+        self.gate = ControlGate(z, self.name, stop=self._stop, grant=self._grant,
+                                silence=silence, token_wait=token_wait)  # fmt: skip
+        self._state = z.declare_publisher(topic_key(self.name, "state"), encoding=JSON_ENCODING)
+        self._laser = z.declare_publisher(topic_key(self.name, "laser"), encoding=JSON_ENCODING)
+        self._velocity = z.declare_subscriber(control_key(self.name, "velocity"),
+                                              self._on_velocity)  # fmt: skip
+        self._info = z.declare_queryable(info_key(self.name), self._on_info)
+        robot.on_watchdog_trip(self._on_trip)
+        self._thread = threading.Thread(target=self._publish, daemon=True,
+                                        name=f"bridge-pioneer-{self.name}")  # fmt: skip
+        self._thread.start()
+        self._alive = z.liveliness().declare_token(alive_key(self.name, "pioneer"))
+
+    # ------------------------------------------------------------------ serving
+
+    def wait(self, timeout: float | None = None) -> bool:
+        """Block until the bridge ends (closed, or the robot's link failed: :attr:`failure`)
+        or ``timeout`` s pass; True when it ended."""
+        return self._done.wait(timeout)
+
+    def info(self) -> dict[str, Any]:
+        """What ``robocli/<robot>/@info`` answers."""
+        r = self.robot
+        return {
+            "name": self.name, "kind": "pioneer",
+            "identity": {"name": r.identity.name, "type": r.identity.type,
+                         "subtype": r.identity.subtype},
+            "subtype": r.params.subtype, "url": r.transport.url,
+            "max_velocity": r.max_velocity, "max_rot_velocity": r.max_rot_velocity,
+            "sonar": len(r.params.sonar), "simulator": r.is_simulator,
+            "holder": self.gate.holder, "silence": self.gate.silence,
+            "keys": {"state": topic_key(self.name, "state"),
+                     "laser": topic_key(self.name, "laser"),
+                     "control": control_key(self.name),
+                     "velocity": control_key(self.name, "velocity"),
+                     "event": control_key(self.name, "event")},
+        }  # fmt: skip
+
+    def _publish(self) -> None:
+        """Put every SIP's state (and each new laser scan) until closed or the link fails."""
+        robot, n_sonar, last_scan = self.robot, len(self.robot.params.sonar), -math.inf
+        while not self._closed:
+            try:
+                state = robot.wait_for_sip(timeout=1.0)
+            except TimeoutError:
+                if robot.connected:
+                    continue
+                self._fail(robot)
+                return
+            except RobocliError:
+                self._fail(robot)
+                return
+            data = state_json(state, n_sonar, self._offset)
+            data["holder"] = self.gate.holder
+            self._put(self._state, data)
+            scan = robot.laser
+            if scan is not None and scan.t > last_scan:
+                last_scan = scan.t
+                self._put(self._laser, {
+                    "t": scan.t + self._offset,
+                    "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
+                    "angles": list(scan.angles),
+                    "ranges": [None if math.isinf(r) else r for r in scan.ranges],
+                })  # fmt: skip
+        self._done.set()
+
+    def _fail(self, robot: Pioneer) -> None:
+        try:
+            robot.state  # noqa: B018 - raises the error that ended the link
+        except RobocliError as exc:
+            self.failure = exc
+        else:
+            self.failure = TimeoutError(f"{robot.transport.url}: no SIP")
+        log.error("%s: the robot's link ended: %s", self.name, self.failure)
+        self.gate.event("fault", holder=self.gate.holder, reason=f"robot link: {self.failure}")
+        self._done.set()
+
+    def _put(self, publisher: Any, data: dict[str, Any]) -> None:
+        try:
+            publisher.put(encode(data))
+        except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
+            log.debug("%s: put failed", self.name, exc_info=True)
+
+    # ------------------------------------------------------------------ commands
+
+    def _on_velocity(self, sample: zenoh.Sample) -> None:
+        what = f"{self.name} velocity command"
+        try:
+            data = decode(sample.payload.to_bytes(), what)
+            v = number(data, "v", what)
+            w = number(data, "w", what) if "w" in data else 0.0
+        except ProtocolError as exc:
+            self._bad_commands += 1
+            if self._bad_commands == 1:
+                log.warning("%s (later ones only counted)", exc)
+                self.gate.event("ignored", holder=self.gate.holder, reason=str(exc))
+            return
+        moving = v != 0.0 or w != 0.0
+        with self.gate.command(data.get("holder"), moving) as ok:
+            if not ok:
+                return
+            if self._latched is not None:
+                if moving:
+                    return  # a fault: the holder stops before the robot moves again
+                self._acknowledged, self._latched = self._latched, None
+            try:
+                try:
+                    self.robot.set_velocity(v, w)
+                except WatchdogTripped as exc:
+                    if exc.trip != self._acknowledged:
+                        self._latch(exc.trip)
+                        return
+                    self.robot.set_velocity(v, w)  # that trip was reported and stopped for
+            except RobocliError as exc:
+                self.gate.event("fault", holder=self.gate.holder, reason=str(exc))
+
+    def _on_trip(self, trip: WatchdogTrip) -> None:
+        self._latch(trip)
+
+    def _latch(self, trip: WatchdogTrip) -> None:
+        """A stall: the robot was stopped by its watchdog. Motion is refused until a stop."""
+        if self._latched is None and trip != self._acknowledged:
+            self._latched = trip
+            self.gate.event(
+                "fault",
+                holder=self.gate.holder,
+                reason=f"the bridge sent nothing for {trip.silence:.1f} s, past the robot's "
+                f"{trip.watchdog:g} s watchdog: the robot was stopped; send a stop (v=w=0) "
+                "before moving again",
+            )
+
+    def _grant(self, holder: str) -> None:
+        if self._latched is not None:  # a new holder starts from a stopped robot
+            self._acknowledged, self._latched = self._latched, None
+        self.robot.enable_motors()
+
+    def _stop(self, reason: str) -> None:
+        self.robot.stop()
+
+    def _on_info(self, query: zenoh.Query) -> None:
+        query.reply(query.key_expr, encode(self.info()), encoding=JSON_ENCODING)
+
+    # ------------------------------------------------------------------ closing
+
+    def close(self) -> None:
+        """Stop taking commands, stop the robot, undeclare everything. Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        for entity in (self._velocity, self._alive):
+            _undeclare(entity)
+        self.gate.close("the bridge ended")
+        self._thread.join(timeout=5.0)
+        for entity in (self._info, self._state, self._laser):  # type: ignore[assignment]
+            _undeclare(entity)
+        self._done.set()
+
+    def __enter__(self) -> PioneerBridge:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _undeclare(entity: Any) -> None:
+    try:
+        entity.undeclare()
+    except Exception:  # noqa: BLE001 - the session may be closed already
+        log.debug("undeclare failed", exc_info=True)
+
+
+__all__ = ["PioneerBridge", "state_json"]

@@ -1,0 +1,334 @@
+"""A Pioneer through a bridge on Zenoh, as a program or a notebook uses it.
+
+>>> with RemotePioneer.connect("r1", "tcp/192.168.1.10:7447") as robot:  # doctest: +SKIP
+...     x, y, th = robot.state.pose         # what the bridge last put (m, m, rad)
+...     robot.set_velocity(0.2, 0.0)        # takes the robot; refused while another holds it
+...     robot.stop()
+
+Watching needs nothing but the state key; the first command takes the robot (the
+``@control`` queryable, then this holder's liveliness token). The set-point is re-sent every
+``resend`` seconds until changed, as the Pioneer client's keep-alive does, so the bridge's
+0.5 s silence rule stops the robot only when this program stops or stalls. :meth:`close`
+(and leaving the ``with`` block) stops the robot and gives it back.
+"""
+
+from __future__ import annotations
+
+import getpass
+import logging
+import math
+import os
+import re
+import socket
+import threading
+import time
+from typing import TYPE_CHECKING, Any
+
+from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
+from robocli.devices.pioneer.commands import _finite
+from robocli.devices.pioneer.state import PioneerState
+from robocli.errors import ConnectionLost, DeviceError, ProtocolError, TimeoutError
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
+
+if TYPE_CHECKING:
+    import zenoh
+
+log = logging.getLogger("robocli.bridge")
+
+_ZENOH = import_zenoh()
+_DELETE = _ZENOH.SampleKind.DELETE
+#: Seconds between re-sends of a set-point (well inside the bridge's 0.5 s silence rule).
+DEFAULT_RESEND_S = 0.15
+
+
+def default_holder() -> str:
+    """``user-host-pid``: a holder name that tells a class who drives."""
+    try:
+        user = getpass.getuser()
+    except Exception:  # noqa: BLE001 - no user name in this environment
+        user = "user"
+    raw = f"{user}-{socket.gethostname().split('.')[0]}-{os.getpid()}"
+    return re.sub(r"[^A-Za-z0-9_.\-]", "-", raw)[:63].lstrip(".-") or f"robocli-{os.getpid()}"
+
+
+class RemotePioneer:
+    """A Pioneer behind a bridge named ``robot`` (see the module). Make one with
+    :meth:`connect`, or hand it an open ``session`` (not closed by :meth:`close`)."""
+
+    def __init__(self, session: zenoh.Session, robot: str, *, holder: str | None = None,
+                 timeout: float = 5.0, resend: float = DEFAULT_RESEND_S,
+                 own_session: bool = False) -> None:  # fmt: skip
+        self.robot = check_name(robot, "robot name")
+        self.holder = check_name(holder or default_holder(), "holder")
+        self.timeout = timeout
+        self.resend = resend
+        self.url = f"zenoh/{self.robot}"
+        self._session = session
+        self._own = own_session
+        self._cond = threading.Condition()
+        self._state: PioneerState | None = None
+        self._laser: dict[str, Any] | None = None
+        self._states = 0
+        #: epoch - monotonic seconds: a state's ``t`` plus this is Unix time
+        self.offset = time.time() - time.monotonic()
+        self._setpoint: tuple[float, float] | None = None
+        self._token: Any = None  # our liveliness token while we hold the robot
+        self.fault: str | None = None  #: the bridge's last fault or stop reason for us
+        self._closed = False
+        self._gone: str | None = None  # why the bridge is gone (its @alive token went)
+        try:
+            self.info = self._query_info()
+            self._subs = [
+                session.declare_subscriber(topic_key(self.robot, "state"), self._on_state),
+                session.declare_subscriber(topic_key(self.robot, "laser"), self._on_laser),
+                session.declare_subscriber(control_key(self.robot, "event"), self._on_event),
+                session.liveliness().declare_subscriber(
+                    alive_key(self.robot, "pioneer"), self._on_alive, history=True
+                ),
+            ]
+        except BaseException:
+            if own_session:
+                close_session(session)
+            raise
+        self._thread = threading.Thread(target=self._resend, daemon=True,
+                                        name=f"remote-pioneer-{self.robot}")  # fmt: skip
+        self._thread.start()
+
+    @classmethod
+    def connect(cls, robot: str, zenoh: str | ZenohTarget | None = None, *,
+                holder: str | None = None, timeout: float = 5.0,
+                resend: float = DEFAULT_RESEND_S) -> RemotePioneer:  # fmt: skip
+        """Connect to ``zenoh`` (an endpoint such as ``tcp/127.0.0.1:7447``, or a JSON5
+        config file) as a client and find the bridge ``robot``: :class:`TimeoutError`
+        when no bridge of that name answers within ``timeout`` s."""
+        session = open_session(zenoh, "client")
+        return cls(session, robot, holder=holder, timeout=timeout, resend=resend,
+                   own_session=True)  # fmt: skip
+
+    # ------------------------------------------------------------------ watching
+
+    @property
+    def state(self) -> PioneerState:
+        """The latest state the bridge put (``t``: monotonic time here, when it came);
+        waits up to ``timeout`` s for the first."""
+        with self._cond:
+            if self._state is not None:
+                return self._state
+        return self.wait_for_state()
+
+    @property
+    def pose(self) -> tuple[float, float, float]:
+        return self.state.pose
+
+    @property
+    def battery(self) -> float:
+        """Battery voltage (V) of the latest state."""
+        return self.state.battery
+
+    @property
+    def laser(self) -> dict[str, Any] | None:
+        """The latest laser scan as the bridge put it (JSON of ``robocli/<robot>/laser``)."""
+        with self._cond:
+            return self._laser
+
+    @property
+    def connected(self) -> bool:
+        """False once the bridge left (its liveliness token went) or :meth:`close` began."""
+        return self._gone is None and not self._closed
+
+    def wait_for_state(self, timeout: float | None = None) -> PioneerState:
+        """Block until the next state arrives and return it; :class:`ConnectionLost` once
+        the bridge left, :class:`TimeoutError` after ``timeout`` s."""
+        limit = self.timeout if timeout is None else timeout
+        deadline = time.monotonic() + limit
+        with self._cond:
+            count = self._states
+            while self._states == count:
+                if self._gone is not None:
+                    raise ConnectionLost(f"{self.url}: {self._gone}")
+                left = deadline - time.monotonic()
+                if left <= 0 or self._closed:
+                    raise TimeoutError(f"{self.url}: no state within {limit:g} s")
+                self._cond.wait(left)
+            assert self._state is not None
+            return self._state
+
+    # ------------------------------------------------------------------ driving
+
+    @property
+    def held(self) -> bool:
+        """True while this program holds the robot."""
+        return self._token is not None
+
+    def acquire(self) -> None:
+        """Take the robot; :class:`DeviceError` (exit 4) naming the holder when another
+        controller holds it, :class:`TimeoutError` when the bridge does not answer."""
+        if self._token is not None:
+            return
+        reply = self._ask({"op": "acquire", "holder": self.holder})
+        if not reply.get("granted"):
+            raise DeviceError(f"{self.url}: refused: {reply.get('reason') or 'held'} "
+                              f"(holder: {reply.get('holder')})")  # fmt: skip
+        self._token = self._session.liveliness().declare_token(holder_key(self.robot, self.holder))
+        self.fault = None
+
+    def set_velocity(self, v: float, w: float = 0.0) -> None:
+        """Drive at ``v`` m/s and ``w`` rad/s (CCW +), re-sent until changed; takes the robot
+        first (see :meth:`acquire`)."""
+        point = (_finite("v", v), _finite("w", w))
+        self.acquire()
+        with self._cond:
+            self._setpoint = point
+            self._cond.notify_all()
+        self._send(point)
+
+    def stop(self) -> None:
+        """Stop the robot (when this program holds it)."""
+        if self._token is not None:
+            with self._cond:
+                self._setpoint = (0.0, 0.0)
+            self._send((0.0, 0.0))
+
+    def release(self) -> None:
+        """Stop the robot and give it back (the bridge stops it as the token goes, too)."""
+        token, self._token = self._token, None
+        if token is None:
+            return
+        with self._cond:
+            self._setpoint = None
+        try:
+            self._send((0.0, 0.0))
+            if self._gone is None:  # (a bridge that left answers nothing: no wait for it)
+                self._ask({"op": "release", "holder": self.holder})
+        finally:
+            token.undeclare()
+
+    def close(self) -> None:
+        """Stop and release the robot, stop watching; close the session when it is ours."""
+        if self._closed:
+            return
+        try:
+            self.release()
+        except Exception:  # noqa: BLE001 - the bridge may be gone: the token's end stops it
+            log.debug("%s: release failed", self.url, exc_info=True)
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+        self._thread.join(timeout=2.0)
+        for sub in self._subs:
+            sub.undeclare()  # type: ignore[no-untyped-call]
+        if self._own:
+            close_session(self._session)
+
+    def __enter__(self) -> RemotePioneer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def __repr__(self) -> str:
+        return f"<RemotePioneer {self.robot} as {self.holder}>"
+
+    # ------------------------------------------------------------------ internals
+
+    def _send(self, point: tuple[float, float]) -> None:
+        """Put a set-point, ahead of bulk data (camera frames) on a shared link: interactive
+        priority, sent at once rather than batched."""
+        self._session.put(control_key(self.robot, "velocity"),
+                          encode({"holder": self.holder, "v": point[0], "w": point[1]}),
+                          encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
+                          express=True)  # fmt: skip
+
+    def _resend(self) -> None:
+        """Re-send a moving set-point every ``resend`` s while held (the silence rule)."""
+        with self._cond:
+            while not self._closed:
+                self._cond.wait(self.resend)
+                point = self._setpoint
+                if point is None or point == (0.0, 0.0) or self._token is None:
+                    continue
+                try:
+                    self._send(point)
+                except Exception:  # noqa: BLE001 - a closed session ends with close()
+                    log.debug("%s: re-send failed", self.url, exc_info=True)
+
+    def _ask(self, request: dict[str, Any]) -> dict[str, Any]:
+        return self._get(control_key(self.robot), encode(request), "control reply")
+
+    def _query_info(self) -> dict[str, Any]:
+        return self._get(info_key(self.robot), None, "info reply")
+
+    def _get(self, key: str, payload: bytes | None, what: str) -> dict[str, Any]:
+        replies = self._session.get(key, payload=payload, timeout=self.timeout)
+        for reply in replies:
+            if reply.ok is not None:
+                return decode(reply.ok.payload.to_bytes(), f"{self.url} {what}")
+            if reply.err is not None:
+                err = decode(reply.err.payload.to_bytes(), f"{self.url} {what}")
+                raise DeviceError(f"{self.url}: {err.get('error', err)}")
+        raise TimeoutError(f"{self.url}: no bridge named {self.robot!r} answered within "
+                           f"{self.timeout:g} s")  # fmt: skip
+
+    def _on_state(self, sample: zenoh.Sample) -> None:
+        try:
+            data = decode(sample.payload.to_bytes(), f"{self.url} state")
+            state = _state_of(data, time.monotonic())
+        except ProtocolError as exc:
+            log.warning("%s", exc)
+            return
+        with self._cond:
+            self._state = state
+            self._states += 1
+            self._cond.notify_all()
+
+    def _on_laser(self, sample: zenoh.Sample) -> None:
+        try:
+            data = decode(sample.payload.to_bytes(), f"{self.url} laser")
+        except ProtocolError as exc:
+            log.warning("%s", exc)
+            return
+        with self._cond:
+            self._laser = data
+
+    def _on_alive(self, sample: zenoh.Sample) -> None:
+        if sample.kind == _DELETE:
+            with self._cond:
+                self._gone = f"the bridge {self.robot} left (its liveliness token went)"
+                self._setpoint = None
+                self._cond.notify_all()
+
+    def _on_event(self, sample: zenoh.Sample) -> None:
+        try:
+            data = decode(sample.payload.to_bytes(), f"{self.url} event")
+        except ProtocolError:
+            return
+        if data.get("holder") != self.holder or data.get("event") not in (
+            "fault",
+            "released",
+            "stopped",
+        ):
+            return
+        self.fault = str(data.get("reason"))
+        with self._cond:
+            self._setpoint = None  # never re-send a stale set-point after a fault
+        if data.get("event") == "released" and self._token is not None:
+            token, self._token = self._token, None
+            token.undeclare()
+
+
+def _state_of(data: dict[str, Any], t: float) -> PioneerState:
+    """A :class:`PioneerState` from the JSON of ``robocli/<robot>/state`` (``t``: here)."""
+    try:
+        sonar = tuple(math.nan if r is None else float(r) for r in data.get("sonar") or ())
+        fields = {k: data[k] for k in PioneerState.__dataclass_fields__
+                  if k not in ("t", "sonar", "sonar_time")}  # fmt: skip
+        for k in ("x", "y", "th", "v", "w", "left_velocity", "right_velocity", "battery",
+                  "analog"):  # fmt: skip
+            fields[k] = float(fields[k])
+        return PioneerState(t=t, sonar=sonar, sonar_time=(t,) * len(sonar), **fields)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProtocolError(f"state: missing or bad field ({exc})") from None
+
+
+__all__ = ["DEFAULT_RESEND_S", "RemotePioneer", "default_holder"]

@@ -1,0 +1,95 @@
+"""``robocli bridge pioneer|arm``: put a robot on Eclipse Zenoh (thin layers over
+:mod:`robocli.bridge`). The other side, ``connect|teleop pioneer zenoh/<robot>``, is in
+:mod:`robocli.commands.remote`."""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from robocli.commands._common import sigterm_as_interrupt
+from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
+from robocli.commands.arm import LINK, ArmLink, HostArg, arm_link
+from robocli.commands.arm import connected as connected_arm
+from robocli.commands.pioneer import (
+    BaudOpt,
+    PortArg,
+    SubtypeOpt,
+    TimeoutOpt,
+    connected,
+    start_laser,
+)
+
+NameOpt = typer.Option(None, "--name", metavar="NAME",
+                       help="The robot's name on Zenoh (default: pioneer or arm).")  # fmt: skip
+SilenceOpt = typer.Option(
+    0.5, "--silence", min=0.05, max=60.0, metavar="SECONDS",
+    help="Stop a moving robot when its controller sends nothing for this long.",
+)  # fmt: skip
+
+
+def pioneer(
+    port: str = PortArg,
+    zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
+    name: str | None = NameOpt,  # noqa: UP007
+    silence: float = SilenceOpt,
+    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    baud: int = BaudOpt,
+    timeout: float = TimeoutOpt,
+) -> None:
+    """Put a Pioneer on Zenoh: its state for any number of watchers, velocity from one
+    controller at a time, until Ctrl-C. The robot stops when its controller's commands stop
+    for --silence, when the controller goes, and when the bridge ends."""
+    from robocli.bridge.pioneer import PioneerBridge
+    from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
+
+    robot_name = check_name(name or "pioneer", "--name")
+    target = zenoh_target(zenoh)
+    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+        start_laser(robot, wait=False)
+        session = zenoh_session(zenoh, "server")
+        try:
+            with sigterm_as_interrupt(), PioneerBridge(robot, session, robot_name,
+                                                       silence=silence) as bridge:  # fmt: skip
+                typer.echo(f"bridge {robot_name}: pioneer {robot.params.subtype} on "
+                           f"{robot.transport.url}, Zenoh {target}")  # fmt: skip
+                sys.stdout.flush()
+                while not bridge.wait(0.5):
+                    pass
+                if bridge.failure is not None:
+                    raise bridge.failure
+        finally:
+            close_session(session)
+
+
+@arm_link()
+def arm(
+    host: str = HostArg,
+    zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
+    name: str | None = NameOpt,  # noqa: UP007
+    link: ArmLink = LINK,
+) -> None:
+    """Put an arm on Zenoh: joints, TCP pose and status for any number of watchers,
+    trajectory uploads from one controller at a time, until Ctrl-C. A running trajectory is
+    stopped when its controller goes and when the bridge ends."""
+    from robocli.bridge.arm import ArmBridge
+    from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import close_session
+
+    robot_name = check_name(name or "arm", "--name")
+    target = zenoh_target(zenoh)
+    with connected_arm(host, link) as robot:
+        robot.wait_for_state()
+        session = zenoh_session(zenoh, "server")
+        try:
+            with sigterm_as_interrupt(), ArmBridge(robot, session, robot_name) as bridge:
+                typer.echo(f"bridge {robot_name}: arm {robot.robot.name}, Zenoh {target}")
+                sys.stdout.flush()
+                while not bridge.wait(0.5):
+                    pass
+                if bridge.failure is not None:
+                    raise bridge.failure
+        finally:
+            close_session(session)

@@ -1,0 +1,97 @@
+"""Faults of a bridge: a stop that raises never ends the thread that applies the stop rules;
+a bridge that stalled past the robot's watchdog reports a fault and never resumes motion."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+
+from on_zenoh.bridge_helpers import Events, bridge_process, wait_for
+from robocli.bridge import RemotePioneer
+from robocli.bridge.control import ControlGate
+from robocli.sim.pioneer.server import PioneerSim
+from robocli.zenoh import open_session
+
+
+@pytest.fixture
+def server(endpoint: str) -> Iterator[Any]:
+    session = open_session(endpoint, "server")
+    try:
+        yield session
+    finally:
+        session.close()
+
+
+def test_a_stop_that_raises_never_ends_the_gates_thread(server, endpoint) -> None:
+    calls: list[str] = []
+
+    def stop(reason: str) -> None:
+        calls.append(reason)
+        if len(calls) == 1:
+            raise RuntimeError("the robot's link broke")
+
+    gate = ControlGate(server, "g1", stop=stop, silence=0.2)
+    client = open_session(endpoint, "client")
+    try:
+        events = Events(client, "robocli/g1/@control/event")
+        wait_for(lambda: _acquire(client, "ivan"), "the grant")
+        token = client.liveliness().declare_token("robocli/g1/@control/holder/ivan")
+        for expected in (1, 2):  # the first stop raises; the thread still applies the second
+            with gate.command("ivan", moving=True) as ok:
+                assert ok
+            wait_for(lambda n=expected: len(calls) >= n, f"stop {expected}")
+        assert gate.counts["stop_errors"] == 1 and gate.counts["stops"] == 1
+        fault = wait_for(lambda: events.find(event="fault"), "the fault event")
+        assert "link broke" in fault["reason"]
+        assert gate.holder == "ivan"  # a silence stop keeps the holder
+        with gate.command("mallory", moving=True) as ok:
+            assert not ok
+        token.undeclare()
+        wait_for(lambda: gate.holder is None, "the holder's token went")
+    finally:
+        gate.close()
+        client.close()
+    assert calls[-1] == "the bridge ended"
+
+
+def _acquire(session: Any, holder: str) -> bool:
+    body = json.dumps({"op": "acquire", "holder": holder}).encode()
+    for reply in session.get("robocli/g1/@control", payload=body, timeout=5.0):
+        return bool(reply.ok is not None and json.loads(reply.ok.payload.to_bytes())["granted"])
+    return False
+
+
+def test_a_bridge_stalled_past_the_watchdog_reports_a_fault_and_never_resumes(endpoint) -> None:
+    """SIGSTOP the bridge while a controller drives: the robot's watchdog stops it. On
+    SIGCONT the bridge reports a fault, ignores motion until the holder sends a stop, and
+    the controller does not re-send its stale set-point."""
+    with PioneerSim(watchdog_s=1.0) as simulator:
+        url = simulator.serve_tcp("127.0.0.1", 0)
+        with bridge_process(["pioneer", url, "--zenoh", endpoint, "--name", "r1",
+                             "--silence", "60"]) as (bridge, _):  # fmt: skip
+            with RemotePioneer.connect("r1", endpoint, holder="judy") as driver:
+                events = Events(driver._session, "robocli/r1/@control/event")
+                driver.set_velocity(0.3)
+                wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "the robot moves")
+                os.kill(bridge.pid, signal.SIGSTOP)
+                try:
+                    wait_for(lambda: simulator.snapshot().watchdog_trips >= 1,
+                             "the robot's watchdog stops it")  # fmt: skip
+                finally:
+                    os.kill(bridge.pid, signal.SIGCONT)
+                fault = wait_for(lambda: events.find(event="fault"), "a fault event")
+                assert fault["holder"] == "judy" and "watchdog" in fault["reason"]
+                wait_for(lambda: driver.fault is not None, "the controller hears of it")
+                # the holder's stale set-point, sent again by hand, is ignored
+                driver._send((0.3, 0.0))
+                seen = driver.wait_for_state().sip_count
+                wait_for(lambda: driver.wait_for_state().sip_count >= seen + 5, "5 more SIPs")
+                assert simulator.snapshot().trans_vel_set == 0
+                driver.stop()  # the holder stops: motion may resume on its next command
+                driver.set_velocity(0.2)
+                wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "moving again")
