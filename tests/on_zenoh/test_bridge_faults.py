@@ -82,6 +82,9 @@ def test_a_bridge_stalled_past_the_watchdog_reports_a_fault_and_never_resumes(en
                 try:
                     wait_for(lambda: simulator.snapshot().watchdog_trips >= 1,
                              "the robot's watchdog stops it")  # fmt: skip
+                    # 3 SIP cycles more: the bridge's silence is then well past the watchdog
+                    sips = simulator.snapshot().sips_sent
+                    wait_for(lambda: simulator.snapshot().sips_sent >= sips + 3, "3 SIP cycles")
                 finally:
                     os.kill(bridge.pid, signal.SIGCONT)
                 fault = wait_for(lambda: events.find(event="fault"), "a fault event")
