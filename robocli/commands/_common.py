@@ -209,6 +209,22 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def shielded() -> Iterator[None]:
+    """Ctrl-C and SIGTERM are ignored inside (a bounded step, such as writing a recording
+    on the way out): a second Ctrl-C must not leave the file half written."""
+    try:
+        saved = [(s, signal.signal(s, signal.SIG_IGN)) for s in (signal.SIGINT, signal.SIGTERM)]
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, handler in saved:
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
 def listening(address: str) -> Iterator[None]:
     """Around a server's bind on ``address`` (``sim``, ``serve``, ``dump --listen``): a port
     already in use is no robot out of reach (exit 3) but a failure (exit 1); an address that
