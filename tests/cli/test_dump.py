@@ -199,7 +199,8 @@ def test_live_session_recorded_then_replayed_the_same(tmp_path: Path) -> None:
     replay = run("dump", "pioneer", "--file", str(record))
     assert replay.returncode == 0, replay.stderr
     assert [(a, n) for _, a, n in packet_lines(replay.stdout)] == [(a, n) for _, a, n in packets]
-    first = json.loads(record.read_text().splitlines()[0])
+    start, first = (json.loads(x) for x in record.read_text().splitlines()[:2])
+    assert start["event"] == "start" and abs(start["unix_time"] - time.time()) < 600
     assert set(first) == {"t", "dir", "hex"} and first["dir"] == "c2s"
 
 
