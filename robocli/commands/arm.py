@@ -33,6 +33,7 @@ from robocli.commands._common import (
     rounded,
     shielded,
     sigterm_as_interrupt,
+    unix_stamped,
 )
 from robocli.defaults import ARM_ENV
 
@@ -448,7 +449,8 @@ def _count(rec: Any) -> int:
 
 def describe(arm: Arm) -> dict[str, Any]:
     """Joints (deg and rad), TCP pose (flange position in m, roll-pitch-yaw in deg) and
-    status of the last state."""
+    status of the last state; ``t`` its receive time as Unix time (``t_mono``: on
+    ``time.monotonic()``), ``robot_time`` the controller's."""
     from robocli.kinematics.fk import fk
 
     sample = arm.joints
@@ -459,7 +461,8 @@ def describe(arm: Arm) -> dict[str, Any]:
            math.atan2(r[1, 0], r[0, 0]))  # fmt: skip
     st = arm.status
     return {
-        "t": sample.t, "robot_time": sample.robot_time, "joints_rad": list(sample.joints),
+        **unix_stamped({"t": sample.t}), "robot_time": sample.robot_time,
+        "joints_rad": list(sample.joints),
         "joints_deg": sample.degrees(), "tcp_m": [float(v) for v in pose[:3, 3]],
         "tcp_rpy_deg": [math.degrees(v) for v in rpy],
         "status": st.as_dict() if st is not None else None,
