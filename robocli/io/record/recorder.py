@@ -144,6 +144,9 @@ class Recorder:
             if self._owned:
                 self._file.close()
             raise RecordingError(f"cannot write {path}: {exc}") from None
+        from robocli.io.record.fastwrite import MessageAdder
+
+        self._add_message = MessageAdder(self._writer).add
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
@@ -249,8 +252,7 @@ class Recorder:
         """Add one message to channel ``cid`` (writer thread only)."""
         seq = self._sequence.get(cid, 0)
         self._sequence[cid] = seq + 1
-        self._writer.add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
-                                 seq)  # fmt: skip
+        self._add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns, seq)
         self.stats.messages += 1
 
     def decode_failed(self, where: str, exc: BaseException) -> None:
