@@ -187,7 +187,8 @@ def test_json_lines_rounded() -> None:
     assert records[5]["fields"]["subtype"] == "p3dx" and records[5]["dir"] == "rx"
     sip = next(r["fields"] for r in records if r["name"] == "SIP")
     assert sip["battery"] == 130 and len(sip["sonar"]) == 16
-    assert all(len(str(r["t"]).split(".")[-1]) <= 6 for r in records)
+    assert all(len(str(r["t_rel"]).split(".")[-1]) <= 6 for r in records)
+    assert {r["t"] for r in records} == {None}  # a trace says not when it began
 
 
 def test_live_session_recorded_then_replayed_the_same(tmp_path: Path) -> None:
