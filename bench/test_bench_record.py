@@ -99,8 +99,9 @@ def test_writer_per_sip(benchmark: Any, sips: list[bytes]) -> None:
     benchmark.extra_info.update({"writer_us_per_sip": now * 1e6,
                                  "writer_us_per_sip_before": before * 1e6,
                                  "writer_ratio_median": ratios[len(ratios) // 2]})  # fmt: skip
+    each = ", ".join(f"{r:.2f}" for r in ratios)
     print(f"\nwriter: {now * 1e6:.1f} us per SIP, before {before * 1e6:.1f} us (best of "
-          f"{len(runs)}); now/before per round: {', '.join(f'{r:.2f}' for r in ratios)}")
+          f"{len(runs)}); now/before per round: {each}")  # fmt: skip
 
 
 def _thread_cpu(name: str) -> float:
