@@ -209,6 +209,22 @@ def sigterm_as_interrupt() -> Iterator[None]:
 
 
 @contextlib.contextmanager
+def shielded() -> Iterator[None]:
+    """Ctrl-C and SIGTERM are ignored inside (a bounded step, such as writing a recording
+    on the way out): a second Ctrl-C must not leave the file half written."""
+    try:
+        saved = [(s, signal.signal(s, signal.SIG_IGN)) for s in (signal.SIGINT, signal.SIGTERM)]
+    except ValueError:  # not the main thread
+        yield
+        return
+    try:
+        yield
+    finally:
+        for sig, handler in saved:
+            signal.signal(sig, handler)
+
+
+@contextlib.contextmanager
 def listening(address: str) -> Iterator[None]:
     """Around a server's bind on ``address`` (``sim``, ``serve``, ``dump --listen``): a port
     already in use is no robot out of reach (exit 3) but a failure (exit 1); an address that
@@ -269,7 +285,7 @@ def explain_refusal(url: str) -> Iterator[None]:
 #: Decimals kept in JSON output, by field name: the protocol's resolution in SI units
 #: (odometry 0.485 mm and 2*pi/4096 rad, speeds 1 mm/s and 0.1 deg/s, battery 0.1 V...).
 RESOLUTION = {
-    "t": 6, "x": 4, "y": 4, "th": 4, "v": 3, "w": 4, "left_velocity": 3,
+    "t": 6, "t_mono": 6, "x": 4, "y": 4, "th": 4, "v": 3, "w": 4, "left_velocity": 3,
     "right_velocity": 3, "battery": 1, "state_of_charge": 2, "sonar": 3, "analog": 3,
     "temperature": 1, "ranges": 3, "angles": 4, "range": 3, "angle": 4,
 }  # fmt: skip
@@ -287,6 +303,21 @@ def rounded(data: Any, digits: int = 6, resolution: dict[str, int] = RESOLUTION)
     if hasattr(data, "tolist"):
         return rounded(data.tolist(), digits, resolution)
     return data
+
+
+def unix_stamped(data: dict[str, Any], key: str = "t") -> dict[str, Any]:
+    """``data`` with its ``time.monotonic()`` reading ``key`` given as Unix time (s), the one
+    time base of every ``--json`` output, and the monotonic reading kept as ``t_mono``."""
+    import time
+
+    out: dict[str, Any] = {}
+    for k, v in data.items():
+        if k == key and isinstance(v, (int, float)):
+            out[k] = v + time.time() - time.monotonic()
+            out["t_mono"] = v
+        else:
+            out[k] = v
+    return out
 
 
 def print_json(data: Any) -> None:

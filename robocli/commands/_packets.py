@@ -69,11 +69,25 @@ class PacketView:
     ) -> None:
         self.json_out, self.hex_out, self.full, self.count = json_out, hex_out, full, count
         self.writer = writer
+        #: Unix time (s) of ``t`` 0, when known: JSON gives ``t`` on it (None otherwise)
+        #: and the seconds since the start as ``t_rel``
+        self.epoch: float | None = None
         self.printed = 0
         self.in_session = False
         self.simulator = False  #: the robot said it is a simulator (name, CONFIG serial)
         self._heap: list[tuple[float, int, str, bytes]] = []
         self._seq = itertools.count()
+
+    def start(self, unix_time: float | None) -> None:
+        """Say when ``t`` 0 is (Unix time, s), once; a capture being written says it too."""
+        if self.epoch is None and unix_time is not None:
+            self.epoch = unix_time
+            if self.writer is not None:
+                self.writer.begin(unix_time)
+
+    def stamp(self, t: float | None) -> dict[str, float | None]:
+        """``t`` (Unix time, when known) and ``t_rel`` (seconds since the start) of JSON."""
+        return {"t": None if t is None or self.epoch is None else self.epoch + t, "t_rel": t}
 
     @property
     def done(self) -> bool:
@@ -99,7 +113,8 @@ class PacketView:
         if self.writer is not None:
             self.writer.write(t or 0.0, direction, arcos.frame(payload))
         if self.json_out:
-            record = {"t": t, "dir": direction, "type": payload[0], "name": name, "fields": fields}
+            record = {**self.stamp(t), "dir": direction, "type": payload[0], "name": name,
+                      "fields": fields}  # fmt: skip
             sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
         else:
             sys.stdout.write(self._text(direction, name, fields, t) + "\n")
@@ -230,9 +245,9 @@ class ArmPacketView(PacketView):
         way, _, port = direction.partition(":")
         name, fields = describe_message(payload, self.order, self.real, self.n_joints)
         if self.writer is not None:
-            self.writer.write(t or 0.0, way, payload)
+            self.writer.write(t or 0.0, way, payload, port or None)
         if self.json_out:
-            record = {"t": t, "port": port or None, "dir": way, "name": name,
+            record = {**self.stamp(t), "port": port or None, "dir": way, "name": name,
                       "fields": fields}  # fmt: skip
             if self.hex_out:
                 record["hex"] = payload.hex()
@@ -257,3 +272,33 @@ def _short_sm(value: Any) -> str:
     if isinstance(value, list):
         return "[" + ",".join(_short_sm(v) for v in value) + "]"
     return str(value)
+
+
+class HubPacketView(PacketView):
+    """``dump hub``'s view of ros4mat messages, live (from the proxy's threads, one at a
+    time) or from a capture: named and decoded as :func:`robocli.devices.hub.tools.describe`
+    does, each printed at once (the proxy gives them in order)."""
+
+    def show(self, direction: str, payload: bytes, t: float | None) -> None:
+        """Print one whole frame now (``direction``: "tx" client to hub, "rx" back)."""
+        from robocli.devices.hub.tools import describe
+
+        name, fields = describe(payload)
+        if self.writer is not None:
+            self.writer.write(t or 0.0, direction, payload)
+        way = "c2s" if direction == "tx" else "s2c"
+        if self.json_out:
+            record = {**self.stamp(t), "dir": way, "name": name, **fields}
+            record.update(rounded(self.stamp(t)))  # a field of the message never hides it
+            if self.hex_out:
+                record["hex"] = payload.hex()
+            line = json.dumps(record, default=str)
+        else:
+            text = " ".join(f"{k}={v}" for k, v in fields.items())
+            stamp = f"{t:10.6f}" if t is not None else f"{'-':>10}"
+            line = f"{stamp} {'->' if way == 'c2s' else '<-'} {name:<14} {text}"
+            if self.hex_out:
+                line += "\n" + " " * 14 + payload[:256].hex(" ")
+        sys.stdout.write(line + "\n")
+        sys.stdout.flush()
+        self.printed += 1

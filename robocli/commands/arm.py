@@ -31,7 +31,9 @@ from robocli.commands._common import (
     print_json_line,
     reader_may_leave,
     rounded,
+    shielded,
     sigterm_as_interrupt,
+    unix_stamped,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
@@ -39,6 +41,7 @@ from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
+    from robocli.devices.arm.state import Recorder
     from robocli.io.trajlog import TrajectoryLog
 
 HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
@@ -351,7 +354,7 @@ def upload(
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
     from robocli.devices.arm import StillMoving
-    from robocli.io.trajlog import check_writable, write_log
+    from robocli.io.trajlog import check_writable
 
     if monitor is not None and wait == 0:
         raise typer.BadParameter("--monitor records until the end: give --wait > 0")
@@ -366,32 +369,59 @@ def upload(
             typer.echo("moving to the first point")
             arm.move_to(traj.positions[0])
             arm.wait_until_idle(max(wait, 600.0))
-        rec = arm.record() if monitor is not None else None
-        with _Progress() as progress:
-            send = arm.stream if stream else arm.download
-            kw: dict[str, Any] = {} if stream else {"split": split}
-            sent = send(traj, progress=progress, **kw)
-        if wait == 0:  # fire and forget: the activated trajectory runs on
-            arm.close(stop=False)
-            typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
-            return
-        try:
-            arm.wait_until_idle(wait)
-        except StillMoving:
-            arm.close(stop=False)  # --wait bounds the waiting, not the motion
-            raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
-                              f"{wait:g} s and keeps moving (not waiting longer)") from None
-        finally:
-            if rec is not None and monitor is not None:
-                rec.stop()
-        if rec is not None and monitor is not None:
-            log = rec.log()
-            write_log(log, monitor)
-            typer.echo(f"recorded {len(log)} samples -> {monitor}")
+        kept = recording(arm, monitor) if monitor is not None else contextlib.nullcontext()
+        with kept:  # the log is written however the run ends
+            with _Progress() as progress:
+                send = arm.stream if stream else arm.download
+                kw: dict[str, Any] = {} if stream else {"split": split}
+                sent = send(traj, progress=progress, **kw)
+            if wait == 0:  # fire and forget: the activated trajectory runs on
+                arm.close(stop=False)
+                typer.echo(f"uploaded {sent} points; the arm is moving, not waiting")
+                return
+            try:
+                arm.wait_until_idle(wait)
+            except StillMoving:
+                arm.close(stop=False)  # --wait bounds the waiting, not the motion
+                raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
+                                  f"{wait:g} s and keeps moving (not waiting longer)") from None
     typer.echo(f"uploaded {sent} points; arm idle")
 
 
 # ------------------------------------------------------------------------------ monitor, connect
+
+
+@contextlib.contextmanager
+def recording(arm: Arm, out: Path, max_samples: int | None = None) -> Iterator[Recorder]:
+    """Record ``arm``'s joint samples (:meth:`Arm.record`) and write them to ``out`` however
+    the block ends: its end, Ctrl-C or SIGTERM, a ``--wait`` that ran out, a lost link.
+    Says on stderr how many samples went where; the block's own error (its exit code) goes
+    on. Ctrl-C and SIGTERM wait while the log is written."""
+    from robocli.errors import RobocliError
+
+    rec = arm.record() if max_samples is None else arm.record(max_samples)
+    try:
+        yield rec
+    except BaseException:
+        with shielded():
+            rec.stop()
+            try:
+                _write_recording(rec, out)
+            except RobocliError as exc:  # the block's error is the one to exit with
+                typer.echo(f"{out} not written: {exc}", err=True)
+        raise
+    with shielded():
+        rec.stop()
+        _write_recording(rec, out)
+
+
+def _write_recording(rec: Recorder, out: Path) -> None:
+    from robocli.io.trajlog import write_log
+
+    log = rec.log()
+    write_log(log, out)
+    typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}",
+               err=True)  # fmt: skip
 
 
 @arm_link(motion=False)
@@ -399,41 +429,26 @@ def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
     samples: int | None = typer.Option(  # noqa: UP007
-        None, "--samples", min=2, max=1_000_000, help="States to record (or --duration)."
+        None, "--samples", min=2, max=1_000_000, help="States to record (default: until Ctrl-C)."
     ),
     duration: float | None = typer.Option(  # noqa: UP007
         None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
     ),
     link: ArmLink = LINK,
 ) -> None:
-    """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log."""
-    from robocli.devices.arm import TooFewSamples
-    from robocli.errors import EXIT_INTERRUPTED
-    from robocli.io.trajlog import check_writable, write_log
+    """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log, for
+    --samples, --duration or until Ctrl-C; the log is written however it ends."""
+    from robocli.io.trajlog import check_writable
 
-    if (samples is None) == (duration is None):
-        raise typer.BadParameter("give --samples or --duration")
+    if samples is not None and duration is not None:
+        raise typer.BadParameter("give --samples or --duration, not both")
     check_writable(out)  # before recording: not after the whole --duration
-    with connected(host, link) as arm:
-        rec = arm.record() if samples is None else arm.record(2 * samples)
+    with connected(host, link) as arm, recording(arm, out, samples and 2 * samples) as rec:
+        if samples is None and duration is None:
+            typer.echo(f"recording to {out} until Ctrl-C", err=True)
         end = time.monotonic() + (duration if duration is not None else math.inf)
-        interrupted = False
-        try:
-            while time.monotonic() < end and (samples is None or _count(rec) < samples):
-                arm.wait_for_state(link.timeout)
-        except KeyboardInterrupt:
-            interrupted = True  # keep what was recorded, then exit 130
-        rec.stop()
-        try:
-            log = rec.log()
-        except TooFewSamples:
-            if interrupted:  # too early for a log: interrupted all the same
-                raise typer.Exit(EXIT_INTERRUPTED) from None
-            raise
-    write_log(log, out)
-    typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}")
-    if interrupted:
-        raise typer.Exit(EXIT_INTERRUPTED)
+        while time.monotonic() < end and (samples is None or _count(rec) < samples):
+            arm.wait_for_state(link.timeout)
 
 
 def _count(rec: Any) -> int:
@@ -443,7 +458,8 @@ def _count(rec: Any) -> int:
 
 def describe(arm: Arm) -> dict[str, Any]:
     """Joints (deg and rad), TCP pose (flange position in m, roll-pitch-yaw in deg) and
-    status of the last state."""
+    status of the last state; ``t`` its receive time as Unix time (``t_mono``: on
+    ``time.monotonic()``), ``robot_time`` the controller's."""
     from robocli.kinematics.fk import fk
 
     sample = arm.joints
@@ -454,7 +470,8 @@ def describe(arm: Arm) -> dict[str, Any]:
            math.atan2(r[1, 0], r[0, 0]))  # fmt: skip
     st = arm.status
     return {
-        "t": sample.t, "robot_time": sample.robot_time, "joints_rad": list(sample.joints),
+        **unix_stamped({"t": sample.t}), "robot_time": sample.robot_time,
+        "joints_rad": list(sample.joints),
         "joints_deg": sample.degrees(), "tcp_m": [float(v) for v in pose[:3, 3]],
         "tcp_rpy_deg": [math.degrees(v) for v in rpy],
         "status": st.as_dict() if st is not None else None,

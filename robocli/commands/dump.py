@@ -15,7 +15,6 @@ The views that name and render the packets are in :mod:`robocli.commands._packet
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import queue
 import time
@@ -33,9 +32,8 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands.arm import LINK, ArmLink, arm_host, arm_link
-from robocli.commands.hub import HubArg
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
-from robocli.defaults import ARM_ENV, PIONEER_ENV
+from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 
 if TYPE_CHECKING:
     from robocli.io.capture import CaptureStats
@@ -145,6 +143,8 @@ def _show_capture(view: Any, file: Path, protocol: str, noun: str,
     stats = CaptureStats()
     try:
         for item in read_capture(file, protocol, stats):
+            if view.epoch is None:
+                view.start(stats.start_unix)  # read before the first frame, when it says
             view.show(item.direction, item.frame[part], item.t)
             if view.done:
                 return None
@@ -182,6 +182,7 @@ class _Feed:
     def __init__(self, view: Any, bound: int = 0) -> None:
         self.view = view
         self.start = time.monotonic()
+        view.start(time.time())  # Unix time of t 0, for JSON and a capture being written
         self.queue: queue.Queue[tuple[str, bytes, float]] = queue.Queue(bound)
         self.dropped = 0
 
@@ -377,7 +378,11 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
 
 
 def hub(
-    host: str = HubArg,
+    ctx: typer.Context,
+    host: str | None = typer.Argument(  # noqa: UP007
+        None, help="Hub address HOST[:PORT]; omit with --file.", show_default=False,
+        metavar="HOST", envvar=HUB_ENV, show_envvar=True,
+    ),  # fmt: skip
     listen: str = typer.Option(
         "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
     ),
@@ -387,9 +392,43 @@ def hub(
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", help="Also record the session (.jsonl capture)."
     ),
+    file: Path | None = typer.Option(  # noqa: UP007
+        None, "--file", "-f", metavar="CAPTURE", exists=True, dir_okay=False,
+        help="Decode a capture (dump hub -o, or a record .mcap) instead.",
+    ),  # fmt: skip
 ) -> None:
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
-    printed, named and decoded, and passed on unchanged."""
+    printed, named and decoded, and passed on unchanged. --file decodes a capture."""
+    from robocli.commands._packets import HubPacketView
+
+    if file is not None and from_env(ctx, "host"):
+        host = None  # $ROBOCLI_HUB names a hub; --file reads a capture instead
+    if (host is None) == (file is None):
+        raise typer.BadParameter("give HOST or --file (one of them)")
+    if output is not None and file is not None and _same_file(output, file):
+        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
+    writer = _hub_capture(output) if output is not None else None  # before connecting
+    view = HubPacketView(json_out=json_out, hex_out=hex_out, count=count, writer=writer)
+    try:
+        if file is not None:
+            with reader_may_leave(), sigterm_as_interrupt():
+                stats = _show_capture(view, file, "ros4mat", "messages")
+            if stats is not None and stats.frames == 0:
+                from robocli.errors import RobocliError
+
+                raise RobocliError(f"{file}: no ros4mat message ({stats.dropped_bytes} bytes "
+                                   "dropped)")  # fmt: skip
+        else:
+            assert host is not None
+            _hub_live(view, host, listen)
+    finally:
+        if writer is not None:
+            writer.close()
+
+
+def _hub_live(view: Any, host: str, listen: str) -> None:
+    """Relay ros4mat clients on ``listen`` to the hub at ``host``, each message shown by
+    ``view`` from the proxy's threads, until ``--count``, Ctrl-C (exit 130) or ``| head``."""
     import threading
 
     from robocli.devices.hub.client import parse_hub
@@ -400,37 +439,21 @@ def hub(
     upstream = parse_hub(host)
     bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
                                port_range=(0, 65535))  # fmt: skip
-    writer = _hub_capture(output) if output is not None else None  # before connecting
     check_upstream(*upstream)
     done = threading.Event()
     broken = threading.Event()
-    printed = 0
 
     def show(msg: Message) -> None:
-        nonlocal printed
         if done.is_set():
             return
-        if writer is not None:
-            writer.write(msg.t, "tx" if msg.direction == "c2s" else "rx", msg.frame)
-        if json_out:
-            record = {"t": round(msg.t, 6), "dir": msg.direction, "name": msg.name, **msg.fields}
-            if hex_out:
-                record["hex"] = msg.frame.hex()
-            line = json.dumps(record, default=str)
-        else:
-            arrow = "->" if msg.direction == "c2s" else "<-"
-            text = " ".join(f"{k}={v}" for k, v in msg.fields.items())
-            line = f"{msg.t:10.6f} {arrow} {msg.name:<14} {text}"
-            if hex_out:
-                line += "\n" + " " * 14 + msg.frame[:256].hex(" ")
+        view.start(time.time() - msg.t)  # the first message dates the proxy's start
         try:
-            typer.echo(line)
+            view.show("tx" if msg.direction == "c2s" else "rx", msg.frame, msg.t)
         except BrokenPipeError:  # `dump hub ... | head`: the main thread stops quietly
             broken.set()
             done.set()
             return
-        printed += 1
-        if count and printed >= count:
+        if view.done:
             done.set()
 
     with sigterm_as_interrupt(), reader_may_leave():
@@ -450,9 +473,6 @@ def hub(
                 raise BrokenPipeError
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
-        finally:
-            if writer is not None:
-                writer.close()
 
 
 def _hub_capture(path: Path) -> Any:

@@ -29,6 +29,7 @@ from robocli.commands._common import (
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
+    unix_stamped,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
@@ -143,14 +144,15 @@ def _snapshot(robot: Pioneer) -> dict[str, Any]:
     """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
     where nothing was seen; angles in rad)."""
     data = robot.snapshot()
+    data["state"] = unix_stamped(data["state"])  # Unix t, as every --json; t_mono kept
     scan = robot.laser
     if scan is not None and "laser" not in data:
-        data["laser"] = {
+        data["laser"] = unix_stamped({
             "t": scan.t,
             "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
             "angles": list(scan.angles),
             "ranges": [None if math.isinf(r) else r for r in scan.ranges],
-        }
+        })  # fmt: skip
     return data
 
 

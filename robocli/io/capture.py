@@ -4,16 +4,22 @@ Formats, by suffix:
 
 * ``.jsonl``: one JSON object per chunk of bytes, in time order::
 
+      {"event": "start", "unix_time": 1764033000.123456}
       {"t": 0.046518, "dir": "s2c", "hex": "fafb03000000"}
+      {"t": 0.051002, "dir": "c2s", "port": "motion", "hex": "..."}
 
   ``t`` is seconds since the capture started, ``dir`` is ``c2s`` (host to robot) or ``s2c``
-  (robot to host), ``hex`` the bytes as they arrived (any chunking; frames may span lines).
-  This is the format of the recorded traces in ``tests/data/arcos`` and of
-  ``robocli dump pioneer PORT --output FILE.jsonl``; lines without ``hex`` are events and
-  are skipped.
+  (robot to host), ``hex`` the bytes as they arrived (any chunking; frames may span lines),
+  ``port`` (optional) the link of a device with several (an arm's ``motion`` and ``state``
+  ports: each framed apart, read back as direction ``tx:motion``). The ``start`` event
+  (optional: older captures and the traces lack it) gives the Unix time of ``t`` 0
+  (:attr:`CaptureStats.start_unix`). This is the format of the recorded traces in
+  ``tests/data/arcos`` and of ``robocli dump pioneer|arm|hub --output FILE.jsonl``; other
+  lines without ``hex`` are events and are skipped.
 * ``.mcap``: a recording of ``robocli record`` (:mod:`robocli.io.record`): the frames of
   the raw channels of one link speaking the protocol asked for, in log-time order, ``t``
-  in seconds since the recording's first message (needs ``robocli[record]``);
+  in seconds since the recording's first message, whose log time is the ``start_unix``
+  (needs ``robocli[record]``);
 * anything else: raw bytes of one direction (what a serial sniffer or ``cat`` saved).
 
 Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size is read in
@@ -26,6 +32,7 @@ bytes that form no frame are counted in :class:`CaptureStats`. Reading gives up,
 from __future__ import annotations
 
 import json
+import math
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -69,7 +76,8 @@ class CapturedFrame:
     """One frame of a capture."""
 
     t: float | None  #: seconds since the capture started, when the format has it
-    direction: str  #: "tx" host->robot, "rx" robot->host, "?" unknown (raw files)
+    #: "tx" host->robot, "rx" robot->host, "?" unknown (raw files); "tx:motion" with a port
+    direction: str
     frame: bytes  #: one whole frame (sync/prefix included)
 
 
@@ -81,6 +89,8 @@ class CaptureStats:
     bytes_read: int = 0
     frames: int = 0
     dropped_bytes: int = 0
+    #: Unix time (s) of the capture's ``t`` 0, when it says (read before its first frame)
+    start_unix: float | None = None
 
 
 def read_capture(
@@ -165,7 +175,7 @@ def _read_jsonl(stream: IO[bytes], protocol: str, stats: CaptureStats,
                 _skip_line(stream, stats, gap)
                 gap.check()
                 continue
-            record = _record(line)
+            record = _record(line, stats)
             if record is None:
                 stats.dropped_bytes += len(line.strip())
                 gap.check()
@@ -182,9 +192,10 @@ def _read_jsonl(stream: IO[bytes], protocol: str, stats: CaptureStats,
             stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
 
 
-def _record(line: bytes) -> tuple[float | None, str, bytes] | None:
+def _record(line: bytes, stats: CaptureStats) -> tuple[float | None, str, bytes] | None:
     """(t, direction, bytes) of one capture line; None for a line that is not a record
-    (an event line without bytes gives empty bytes)."""
+    (an event line without bytes gives empty bytes; a ``start`` event sets
+    ``stats.start_unix``)."""
     if not line.strip():
         return None
     try:
@@ -192,9 +203,16 @@ def _record(line: bytes) -> tuple[float | None, str, bytes] | None:
         data = bytes.fromhex(record.get("hex", ""))
         t = record.get("t")
         t = float(t) if t is not None else None
-    except (ValueError, TypeError, AttributeError, RecursionError):  # not JSON, not an object,
-        return None  # bad hex or t, or nested too deeply
-    return t, _DIRECTIONS.get(str(record.get("dir")), "?"), data
+        if record.get("event") == "start" and stats.start_unix is None:
+            start = float(record["unix_time"])
+            stats.start_unix = start if math.isfinite(start) else None
+    except (ValueError, TypeError, AttributeError, KeyError, RecursionError):  # not JSON, not
+        return None  # an object, bad hex or t, or nested too deeply
+    direction = _DIRECTIONS.get(str(record.get("dir")), "?")
+    port = record.get("port")
+    if isinstance(port, str) and port:
+        direction = f"{direction}:{port[:32]}"
+    return t, direction, data
 
 
 def _skip_line(stream: IO[bytes], stats: CaptureStats, gap: _Gap) -> None:
@@ -223,10 +241,27 @@ class CaptureWriter:
             raise CaptureFileError(f"{path}: cannot write ({why})") from None
         self._lock = threading.Lock()
         self.records = 0
+        self.start_unix: float | None = None
 
-    def write(self, t: float, direction: str, data: bytes) -> None:
-        """Append ``data`` sent ("tx") or received ("rx") at ``t`` s since the start."""
-        line = json.dumps({"t": round(t, 6), "dir": _NAMES.get(direction, "?"), "hex": data.hex()})
+    def begin(self, start_unix: float) -> None:
+        """Say when ``t`` 0 was (Unix time, s): a ``start`` event line, once, before the
+        records (a capture without it stays readable, without a time base)."""
+        with self._lock:
+            if self.start_unix is not None or self._file.closed:
+                return
+            self.start_unix = start_unix
+            self._file.write(json.dumps({"event": "start", "unix_time": round(start_unix, 6)})
+                             + "\n")  # fmt: skip
+            self._file.flush()
+
+    def write(self, t: float, direction: str, data: bytes, port: str | None = None) -> None:
+        """Append ``data`` sent ("tx") or received ("rx") at ``t`` s since the start, on
+        ``port`` (an arm's ``motion`` or ``state``: kept, so that replays tell them apart)."""
+        record: dict[str, object] = {"t": round(t, 6), "dir": _NAMES.get(direction, "?")}
+        if port:
+            record["port"] = port
+        record["hex"] = data.hex()
+        line = json.dumps(record)
         with self._lock:
             if not self._file.closed:
                 self._file.write(line + "\n")

@@ -78,8 +78,8 @@ def test_connect_and_monitor_embedded_sim(tmp_path: Path, capsys) -> None:
     code, out, _ = run(capsys, "connect", "arm", "sim", "--json", "--count", "3")
     assert code == 0 and len(out.strip().splitlines()) == 3
     log = tmp_path / "m.csv"
-    code, out, _ = run(capsys, "monitor", "arm", "sim", "--samples", "10", "--out", str(log))
-    assert code == 0 and log.exists() and "recorded" in out
+    code, _, err = run(capsys, "monitor", "arm", "sim", "--samples", "10", "--out", str(log))
+    assert code == 0 and log.exists() and "recorded" in err
 
 
 def _bad_log(tmp_path: Path, q_row: list[float]) -> Path:

@@ -45,11 +45,37 @@ def test_capture_is_read_back(tmp_path: Path) -> None:
     assert len(lines) == 24  # a text line and a hex line per message
     assert "<- JOINT_POSITION" in lines[0] and "seq=0 joints=[" in lines[0]
     frames = list(read_capture(out, "sm-le"))
-    assert len(frames) == 12 and {f.direction for f in frames} == {"rx"}
+    assert len(frames) == 12 and {f.direction for f in frames} == {"rx:state"}  # the port kept
     assert bytes.fromhex(lines[1].replace(" ", "")) == frames[0].frame
     names = [sm.decode(f.frame).msg_type.name for f in frames]  # type: ignore[union-attr]
     again = dump("--file", str(out), "--json")
-    assert [json.loads(x)["name"] for x in again.stdout.splitlines()] == names
+    records = [json.loads(x) for x in again.stdout.splitlines()]
+    assert [(r["name"], r["port"]) for r in records] == [(n, "state") for n in names]
+
+
+def test_a_capture_keeps_motion_and_state_apart(tmp_path: Path) -> None:
+    """Frames of both ports in one capture: ``--file`` says each one's port (``dump arm -o``
+    dropped it, so motion and state traffic could not be told apart); a capture without
+    ports (the traces, older captures) still reads, its port null."""
+    from robocli.io.capture import CaptureWriter
+
+    state_types = {sm.MsgType.JOINT_POSITION, sm.MsgType.STATUS, sm.MsgType.JOINT_FEEDBACK}
+    old = list(read_capture(DATA / "exchange_le.jsonl", "sm-le"))
+    ports = []
+    out = tmp_path / "both.jsonl"
+    with CaptureWriter(out) as writer:
+        for f in old:
+            port = "state" if sm.decode(f.frame).msg_type in state_types else "motion"
+            writer.write(f.t or 0.0, f.direction, f.frame, port)
+            ports.append(port)
+    assert {"motion", "state"} <= set(ports)
+    done = dump("--file", str(out), "--json")
+    assert done.returncode == 0, done.stderr
+    assert [json.loads(x)["port"] for x in done.stdout.splitlines()] == ports
+    text = dump("--file", str(out)).stdout.splitlines()
+    assert [line.split()[1] for line in text] == ports
+    before = dump("--file", str(DATA / "exchange_le.jsonl"), "--json")
+    assert {json.loads(x)["port"] for x in before.stdout.splitlines()} == {None}
 
 
 @pytest.mark.parametrize("variant,options", [

@@ -187,7 +187,8 @@ def test_json_lines_rounded() -> None:
     assert records[5]["fields"]["subtype"] == "p3dx" and records[5]["dir"] == "rx"
     sip = next(r["fields"] for r in records if r["name"] == "SIP")
     assert sip["battery"] == 130 and len(sip["sonar"]) == 16
-    assert all(len(str(r["t"]).split(".")[-1]) <= 6 for r in records)
+    assert all(len(str(r["t_rel"]).split(".")[-1]) <= 6 for r in records)
+    assert {r["t"] for r in records} == {None}  # a trace says not when it began
 
 
 def test_live_session_recorded_then_replayed_the_same(tmp_path: Path) -> None:
@@ -199,7 +200,8 @@ def test_live_session_recorded_then_replayed_the_same(tmp_path: Path) -> None:
     replay = run("dump", "pioneer", "--file", str(record))
     assert replay.returncode == 0, replay.stderr
     assert [(a, n) for _, a, n in packet_lines(replay.stdout)] == [(a, n) for _, a, n in packets]
-    first = json.loads(record.read_text().splitlines()[0])
+    start, first = (json.loads(x) for x in record.read_text().splitlines()[:2])
+    assert start["event"] == "start" and abs(start["unix_time"] - time.time()) < 600
     assert set(first) == {"t", "dir", "hex"} and first["dir"] == "c2s"
 
 

@@ -187,6 +187,42 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
     assert len(capture.read_text().splitlines()) >= 6
 
 
+@pytest.mark.parametrize("json_out", [False, True])
+def test_dump_hub_file_reads_back_what_the_live_dump_showed(
+    server: HubServer, tmp_path: Path, wait: Any, json_out: bool
+) -> None:
+    """``dump hub -o`` wrote captures that nothing read back: ``dump hub --file`` shows the
+    same messages, decoded the same, as the live dump did (JSON: the same Unix ``t``)."""
+    capture = tmp_path / "hub.jsonl"
+    fmt = ["--json"] if json_out else []
+    proc = cli("dump", "hub", f"127.0.0.1:{server.port}", "--listen", "127.0.0.1:0", *fmt,
+               "--hex", "--count", "10", "-o", str(capture))  # fmt: skip
+    assert proc.stderr is not None
+    line = proc.stderr.readline()
+    port = int(line.split(" connect to ", 1)[1].split(",", 1)[0].rsplit(":", 1)[1])
+    with Hub.connect("127.0.0.1", port) as h:
+        h.subscribe("adc", 100)
+        h.subscribe("imu", 50)
+        ring = server.hub.channel("adc").ring
+        assert ring is not None
+        pushed = ring.pushed
+        wait(lambda: ring.pushed > pushed, 30, "a batch of ADC samples")
+        h.read("adc")
+        h.read("imu")  # the 10th message: the proxy stops after it
+    code, live, err = finish(proc)
+    assert code == 0, err
+    code, replay, err = finish(cli("dump", "hub", "--file", str(capture), *fmt, "--hex"))
+    assert code == 0 and err == "", err
+    if not json_out:
+        assert replay == live and len(live.splitlines()) == 20  # a text and a hex line each
+        return
+    a, b = ([json.loads(x) for x in out.splitlines()] for out in (live, replay))
+    assert len(a) == len(b) == 10
+    for x, y in zip(a, b, strict=True):
+        assert abs(x.pop("t") - y.pop("t")) < 1e-5 and x == y
+    assert [m["name"] for m in b][:2] == ["CONNECT", "CONNECT_ACK"]
+
+
 def test_laser_rows_summarise_each_scan(server: HubServer) -> None:
     proc = cli("subscribe", "hokuyo", "--rate", "40", "--hub", f"127.0.0.1:{server.port}",
                "--count", "3", "--format", "csv")  # fmt: skip

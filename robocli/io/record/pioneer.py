@@ -3,8 +3,9 @@ laser scans (see :mod:`.sources` for the topics)."""
 
 from __future__ import annotations
 
+import json
 import math
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from robocli.devices.pioneer.state import Odometry, build_state
 from robocli.errors import InvalidArgument
@@ -69,6 +70,8 @@ class PioneerDecoder:
         # per transducer: (x, y, cos th, sin th); the scan's JSON around its ranges
         self._sonar_geometry = [(p.x, p.y, math.cos(p.th), math.sin(p.th)) for p in params.sonar]
         self._echoes: dict[tuple[int, float], tuple[int, str] | None] = {}
+        self._texts: dict[float, str] = {}  # sonar ranges as JSON numbers
+        self._n_sonar = len(params.sonar)
         self._sonar_json = (f',"frame_id":"{self.base}","pose":{json_text(S.pose())},'
                             f'"start_angle":{-math.pi!r},"end_angle":{math.pi - step!r},'
                             '"ranges":[')  # fmt: skip
@@ -113,17 +116,46 @@ class PioneerDecoder:
                   f'"{self.base}","translation":{xyz},"rotation":{quat}}}'.encode(),
                   ns)  # fmt: skip
         rec.write(self._cid("sonar", "foxglove.LaserScan"), self._sonar_scan(stamp), ns)
+        rec.write(self._cid("state", "robocli.pioneer.State"), self._state(st, stamp, sonar), ns)
+
+    def _state(self, st: Any, stamp: str, sonar: list[float]) -> bytes:
+        """The state message, written as text (this runs for every SIP): the same JSON as
+        ``json_text`` of its dict, which it falls back to for a NaN or an infinity."""
+        if not math.isfinite(st.x + st.y + st.th + st.v + st.w + st.left_velocity
+                             + st.right_velocity + st.battery + st.analog):  # fmt: skip
+            return self._state_dict(st, stamp, sonar)  # null for what is not a number
+        texts = self._texts
+        if len(texts) > _ECHO_CACHE:
+            texts.clear()
+        ranges = []
+        for r in sonar[: self._n_sonar]:
+            text = texts.get(r)
+            if text is None:
+                text = texts[r] = repr(r) if math.isfinite(r) else "null"
+            ranges.append(text)
+        b = ("false", "true")
+        text = (f'{{"timestamp":{stamp},"x":{st.x!r},"y":{st.y!r},"th":{st.th!r},"v":{st.v!r},'
+                f'"w":{st.w!r},"left_velocity":{st.left_velocity!r},"right_velocity":'
+                f'{st.right_velocity!r},"battery":{st.battery!r},"motors_enabled":'
+                f'{b[st.motors_enabled]},"estop":{b[st.estop]},"stall_left":'
+                f'{b[st.stall_left]},"stall_right":{b[st.stall_right]},"bumpers_front":'
+                f'{st.bumpers_front:d},"bumpers_rear":{st.bumpers_rear:d},"sonar":'
+                f'[{",".join(ranges)}],"digin":{st.digin:d},"digout":{st.digout:d},'
+                f'"analog":{st.analog!r},"sip_count":{self.sips:d}}}')  # fmt: skip
+        return text.encode()
+
+    def _state_dict(self, st: Any, stamp: str, sonar: list[float]) -> bytes:
         state = {
-            "timestamp": {"sec": sec, "nsec": nsec}, "x": st.x, "y": st.y, "th": st.th,
+            "timestamp": json.loads(stamp), "x": st.x, "y": st.y, "th": st.th,
             "v": st.v, "w": st.w, "left_velocity": st.left_velocity,
             "right_velocity": st.right_velocity, "battery": st.battery,
             "motors_enabled": st.motors_enabled, "estop": st.estop,
             "stall_left": st.stall_left, "stall_right": st.stall_right,
             "bumpers_front": st.bumpers_front, "bumpers_rear": st.bumpers_rear,
-            "sonar": [r if r == r else None for r in sonar[: len(self.params.sonar)]],
+            "sonar": [r if r == r else None for r in sonar[: self._n_sonar]],
             "digin": st.digin, "digout": st.digout, "analog": st.analog, "sip_count": self.sips,
         }  # fmt: skip
-        rec.write(self._cid("state", "robocli.pioneer.State"), json_text(state).encode(), ns)
+        return json_text(state).encode()
 
     def _sonar_scan(self, stamp: str) -> bytes:
         """The latest sonar ranges as a 360-bin scan about base_link: each echo point (from

@@ -337,6 +337,8 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
                     ", ".join(links), links[0])  # fmt: skip
     chosen = {c.id: c for c in raws if c.metadata.get("link") == links[0]}
     start = summary_info.start_ns
+    if stats is not None:
+        stats.start_unix = start / 1e9
     framers: dict[int, Framer] = {}
     try:
         for channel_id, log_ns, data in _ordered(path, summary_info, set(chosen)):

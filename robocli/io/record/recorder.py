@@ -53,6 +53,10 @@ COMPRESSIONS = ("zstd", "lz4", "none")
 #: How long the writer sleeps when the queue is empty (s): listeners never wake it, so that
 #: a listener's cost is an append.
 _IDLE_S = 0.1
+#: A backlog of this many bytes (a stalled disk or a starved process), once written, is
+#: handed back to the operating system (glibc keeps freed memory otherwise: resident memory
+#: would stay at the backlog's peak for the rest of the recording).
+_TRIM_AFTER = 16 << 20
 
 
 class RecordingError(RobocliError):
@@ -144,6 +148,9 @@ class Recorder:
             if self._owned:
                 self._file.close()
             raise RecordingError(f"cannot write {path}: {exc}") from None
+        from robocli.io.record.fastwrite import MessageAdder
+
+        self._add_message = MessageAdder(self._writer).add
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
@@ -230,11 +237,12 @@ class Recorder:
                 self.stats.queue_peak = len(queue)
         return True
 
-    def _take(self) -> deque[tuple[Callable[..., None], tuple[Any, ...]]]:
+    def _take(self) -> tuple[deque[tuple[Callable[..., None], tuple[Any, ...]]], int]:
+        """What is queued, and its bytes."""
         with self._lock:
             items, self._queue = self._queue, deque()
-            self._queued_bytes = 0
-        return items
+            size, self._queued_bytes = self._queued_bytes, 0
+        return items, size
 
     # ------------------------------------------------------------------ writing (writer thread)
 
@@ -263,8 +271,7 @@ class Recorder:
         """Add one message to channel ``cid`` (writer thread only)."""
         seq = self._sequence.get(cid, 0)
         self._sequence[cid] = seq + 1
-        self._writer.add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
-                                 seq)  # fmt: skip
+        self._add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns, seq)
         self.stats.messages += 1
         mirrored = self._mirrored.get(cid)
         if mirrored:
@@ -282,9 +289,15 @@ class Recorder:
 
     def _run(self) -> None:
         last_chunk = time.monotonic()
+        backlog = False
         try:
             while True:
-                items = self._take()
+                items, size = self._take()
+                if size >= _TRIM_AFTER:
+                    backlog = True
+                elif backlog and size < _TRIM_AFTER // 16:  # caught up: give the memory back
+                    backlog = False
+                    _trim()
                 if not items:
                     if self._closing:
                         break
@@ -362,3 +375,14 @@ class Recorder:
 
     def __repr__(self) -> str:
         return f"<Recorder {self.path} messages={self.stats.messages}>"
+
+
+def _trim() -> None:
+    """Return freed heap memory to the operating system (glibc's ``malloc_trim``; nothing
+    elsewhere)."""
+    import ctypes
+
+    try:
+        ctypes.CDLL(None).malloc_trim(0)
+    except (OSError, AttributeError):  # not glibc
+        pass
