@@ -382,11 +382,18 @@ def test_subscribe_says_how_many_samples_the_hub_dropped(server: HubServer) -> N
 
 def test_subscribe_says_the_total_lost_at_the_end(server: HubServer) -> None:
     """The total lost is said at the end even when a "so far" line already gave it (the
-    losses all came before the last reading): the last line was "lost so far"."""
-    code, out, err = finish(cli("subscribe", "adc", "--rate", "1000", "--buffer", "10",
-                                "--poll", "2", "--count", "10", "--format", "csv",
-                                "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
-    assert code == 0 and len(out.splitlines()) == 11, err  # one full reading
+    losses all came before the last reading): the last line was "lost so far".
+
+    The hub loses samples when its 10-sample buffer overflows before the first pull; a hub
+    starved by a loaded machine may sample so late that the first pull finds no overflow:
+    that run has nothing to say, and the command is run again (at most 5 times)."""
+    for _ in range(5):
+        code, out, err = finish(cli("subscribe", "adc", "--rate", "1000", "--buffer", "10",
+                                    "--poll", "2", "--count", "10", "--format", "csv",
+                                    "--hub", f"127.0.0.1:{server.port}"))  # fmt: skip
+        assert code == 0 and len(out.splitlines()) == 11, err  # one full reading
+        if err.strip():
+            break
     said = err.strip().splitlines()
     assert "so far" in said[0] and len(said) == 2, err
     assert said[-1].startswith(said[0].split(" so far")[0]) and "so far" not in said[-1], err
