@@ -11,12 +11,12 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from cli.helpers import run
+from cli.helpers import run, running
 
 from robocli.devices.laser import Laser, Scan
-from robocli.io.record import RAW_ENCODING, Recorder, raw_frames
+from robocli.io.record import RAW_ENCODING, Recorder, info, raw_frames
 from robocli.sim.hokuyo import HokuyoSim
-from tests.io.readback import by_topic, decoded
+from tests.io.readback import by_topic, decoded, wait_for
 
 
 @pytest.fixture
@@ -97,3 +97,19 @@ def test_record_laser_cli_then_dump_laser_file(tmp_path: Path) -> None:
     assert any(r.startswith("MD") for r in requests) and requests[-1] == "QT"
     frames = [x for x in lines if x["dir"] == "rx" and x["line"].startswith("MD")]
     assert len(frames) >= len(topics["/laser/scan"])
+
+
+def test_a_lost_laser_ends_the_recording_with_its_error_and_a_whole_file(tmp_path: Path) -> None:
+    path = tmp_path / "lost.mcap"
+    with HokuyoSim("utm-30lx") as sim:
+        url = sim.serve_tcp("127.0.0.1", 0)
+        with running("record", "--laser", url, "-o", str(path)) as proc:
+            assert proc.stderr is not None
+            assert "recording to" in proc.stderr.readline()
+            wait_for(lambda: path.stat().st_size > 4096, what="scans on disk")
+            sim.close()  # the scanner goes away
+            code = proc.wait(60)
+            err = proc.stderr.read()
+    assert code == 1, err  # the link's own exit code: lost
+    assert "robocli: " in err and "link lost" in err and "Traceback" not in err
+    assert info(path).summary and len(by_topic(path)["/laser/scan"]) >= 1
