@@ -107,7 +107,9 @@ def connect(
             connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot, \
             _hokuyo(laser, robot, once) as hokuyo:  # fmt: skip
         if view is not None:
-            view.add(robot)
+            name = view.add(robot)
+            if hokuyo is not None:  # its scans on the robot, as the robot model mounts it
+                view.add(hokuyo.laser, parent=f"{name}/base_link", mount=hokuyo.mount)
         if not no_laser:
             start_laser(robot, wait=once)
         if once:

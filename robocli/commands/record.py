@@ -225,8 +225,11 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             Arm.connect(h, mp, sp, motion=False, stop_on_failure=False, **arm_options)
         )
         devices[rec.add(device)] = device
-    if hokuyo is not None:
-        devices.update(_connect_laser(stack, rec, hokuyo, arm_options["timeout"]))
+    if hokuyo is not None:  # on the first Pioneer, as its robot model says
+        first = next((n for n in devices if n.startswith("pioneer")), None)
+        on = {} if first is None else {"parent": f"{first}/base_link",
+                                       "mount": devices[first].params.laser_mount}  # fmt: skip
+        devices.update(_connect_laser(stack, rec, hokuyo, arm_options["timeout"], on))
     if hub is not None:
         address = stack.enter_context(_hub_address(hub))
         from robocli.commands.hub import open_hub
@@ -239,16 +242,17 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
     return devices
 
 
-def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str,
-                   timeout: float) -> dict[str, Any]:  # fmt: skip
-    """A Hokuyo recorded from its handshake on, streaming (closing sends QT, recorded)."""
+def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeout: float,
+                   on: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    """A Hokuyo recorded from its handshake on, streaming (closing sends QT, recorded);
+    ``on``: the frame it is mounted on and where (see :func:`attach_laser`)."""
     from robocli.commands.laser import laser_url
     from robocli.devices.laser import Laser
 
     url = stack.enter_context(laser_url(port))
     listener = rec.listener("laser", "scip2", url=url)
     laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listener=listener))
-    name = rec.add(laser, listener.name)
+    name = rec.add(laser, listener.name, **on)
     laser.start()
     return {name: laser}
 

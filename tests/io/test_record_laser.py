@@ -89,6 +89,11 @@ def test_record_laser_cli_then_dump_laser_file(tmp_path: Path) -> None:
     topics = by_topic(path)
     assert len(topics["/laser/scan"]) >= 1
     assert "/pioneer/laser" not in topics  # --no-laser: the Pioneer simulator's laser is off
+    tf = decoded(topics["/laser/tf"][0])  # on the robot, 18 mm ahead (the P3-DX's mount)
+    assert (tf["parent_frame_id"], tf["child_frame_id"]) == ("pioneer/base_link", "laser/laser")
+    assert tf["translation"] == {"x": 0.018, "y": 0.0, "z": 0.0}
+    assert tf["rotation"] == {"x": 0.0, "y": 0.0, "z": 0.0, "w": 1.0}
+    assert len(topics["/laser/tf"]) == len(topics["/laser/scan"])
     dump = run("dump", "laser", "--file", str(path), "--json", timeout=60)
     assert dump.returncode == 0, dump.stderr
     lines = [json.loads(line) for line in dump.stdout.splitlines()]
