@@ -23,7 +23,8 @@ Hub        ``imu`` (robocli.Imu), ``adc``, ``battery``, ``sysinfo``, ``gps`` (Lo
            ``laser`` (LaserScan), ``camera`` (CompressedImage for JPEG, else RawImage rgb8),
            ``stereo/left|right``, ``depth/rgb`` and ``depth/image`` (RawImage mono16, mm)
 Laser      ``scan`` (a Hokuyo's streamed scans, LaserScan in ``NAME/laser``; publish time:
-           the sensor's timestamp on the host clock); raw channels of protocol ``scip2``
+           the sensor's timestamp on the host clock), ``tf`` (on a robot: FrameTransform
+           from its ``base_link`` at the mount); raw channels of protocol ``scip2``
 ========== =================================================================================
 """
 
