@@ -188,6 +188,7 @@ FUZZ_SECONDS ?= 60
 FUZZ_TIMEOUT ?= 10
 FUZZ_RSS_MB  ?= 2048
 FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat framer-scip2 \
+                framer-scip2-requests \
                 decode-arcos decode-simple_message decode-ros4mat decode-scip2 \
                 decode-hub-reply hub-server-requests capture-readers \
                 file-readers

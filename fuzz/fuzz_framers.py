@@ -8,6 +8,7 @@ must satisfy the protocol's own framing rule. A difference, or any exception, is
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 
 import reference
@@ -22,6 +23,7 @@ TARGETS = {
     "framer-sm-be": ("sm-be", ("sm-be",)),
     "framer-ros4mat": ("ros4mat", ("ros4mat",)),
     "framer-scip2": ("scip2", ("scip2",)),
+    "framer-scip2-requests": ("scip2-requests", ("scip2",)),
 }
 
 
@@ -81,9 +83,72 @@ def seed_inputs(frames: list[bytes]) -> list[bytes]:
     return [*whole, *bytewise, b"\x00\x05\x00\xfa\xff" + b"".join(frames)]
 
 
+def _reference_requests(stream: bytes, max_line: int) -> tuple[list[bytes], int, int, int]:
+    """What a request framer must make of a whole ``stream`` (an oracle written apart from
+    :class:`RequestFramer`): (lines, dropped bytes, over-long lines, pending bytes). A line
+    ends at LF, CR or CR LF; empty lines are skipped; a line longer than ``max_line`` is
+    dropped whole, even while still unterminated."""
+    parts = re.split(rb"\r\n|\r|\n", stream)
+    done, tail = parts[:-1], parts[-1]
+    lines = [p for p in done if 0 < len(p) <= max_line]
+    long = [p for p in done if len(p) > max_line]
+    dropped = sum(len(p) for p in long)
+    if len(tail) > max_line:
+        long.append(tail)
+        dropped += len(tail)
+    return lines, dropped, len(long), len(tail) if len(tail) <= max_line else 0
+
+
+def fuzz_requests(data: bytes) -> None:
+    """One input: the simulator's :class:`RequestFramer`, fed in chunks, gives the lines,
+    counters and pending bytes of the oracle after every chunk; every line is one the
+    simulator can take (no terminator, within the limit), and its session's parser either
+    reads it or refuses it with a robocli error."""
+    from robocli.errors import RobocliError
+    from robocli.sim.hokuyo.framing import MAX_REQUEST, RequestFramer
+
+    max_frame, chunks = _chunks(data)
+    limit = MAX_REQUEST if max_frame is None else max_frame % 97 + 1
+    framer = RequestFramer(limit)
+    fed = b""
+    got: list[bytes] = []
+    for chunk in chunks:
+        fed += chunk
+        lines = framer.feed(chunk)
+        got += lines
+        want, dropped, long, pending = _reference_requests(fed, limit)
+        assert got == want, (got, want)
+        stats = framer.stats
+        assert (stats.frames, stats.dropped_bytes, stats.bad_lengths) == (
+            len(want), dropped, long,
+        ), (stats, dropped, long)  # fmt: skip
+        assert framer.pending == pending, (framer.pending, pending)
+        for line in lines:
+            assert 0 < len(line) <= limit and b"\r" not in line and b"\n" not in line, line
+            try:
+                scip2.parse_request(line)
+            except RobocliError:
+                pass
+
+
+def request_seeds(blocks: list[bytes]) -> list[bytes]:
+    """Request lines (the echo lines of the golden reply blocks, and every command the
+    simulator knows) with each terminator, whole, byte by byte and run together."""
+    lines = {b.split(b"\n", 1)[0] for b in blocks}
+    lines |= {b"QT", b"BM", b"RS", b"RT", b"VV", b"PP", b"II", b"SCIP2.0", b"TM0", b"TM1",
+              b"TM2", b"GD0000108001", b"MD0044072501000", b"ME0000108001101;tag"}  # fmt: skip
+    out = []
+    for i, line in enumerate(sorted(lines)):
+        end = (b"\n", b"\r", b"\r\n")[i % 3]
+        out += [b"\x00\x00" + line + end, b"\x00\x01" + line + end]
+    return [*out, b"\x00\x05" + b"\n".join(sorted(lines)) + b"\r\n\r\n", b"\x80\x03" + b"X" * 300]
+
+
 def target(name: str) -> tuple[Callable[[bytes], None], tuple[str, ...]]:
     """(one-input function, seed kinds) of a harness name."""
     protocol, kinds = TARGETS[name]
+    if protocol == "scip2-requests":
+        return fuzz_requests, kinds
 
     def one_input(data: bytes) -> None:
         fuzz_framer(protocol, data)

@@ -1,7 +1,8 @@
 """Run one fuzz harness with atheris: ``python fuzz/run.py TARGET [libFuzzer options]``.
 
 Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat``,
-``framer-scip2`` (the C framers against the reference framer), ``decode-arcos``,
+``framer-scip2`` (the C framers against the reference framer), ``framer-scip2-requests``
+(the Hokuyo simulator's request framer against an oracle), ``decode-arcos``,
 ``decode-simple_message``, ``decode-ros4mat`` (the Python protocol decoders),
 ``decode-scip2`` (the C scan decoder against the pure-Python one, and the SCIP parsers),
 ``decode-hub-reply`` (the hub client's whole receive path: framing, inflation, records, JPEG
@@ -31,6 +32,7 @@ NAMES = (
     "framer-sm-be",
     "framer-ros4mat",
     "framer-scip2",
+    "framer-scip2-requests",
     "decode-arcos",
     "decode-simple_message",
     "decode-ros4mat",
@@ -53,6 +55,8 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
 
     if name.startswith("framer-"):
         one_input, kinds = fuzz_framers.target(name)
+        if name == "framer-scip2-requests":
+            return one_input, fuzz_framers.request_seeds(harness.seeds(kinds))
         return one_input, fuzz_framers.seed_inputs(harness.seeds(kinds))
     if name in fuzz_hub.TARGETS:
         one_input, kinds = fuzz_hub.TARGETS[name]

@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from rich.console import RenderableType
 
+    from robocli.devices.laser import MountedLaser, PlacedScan
     from robocli.devices.pioneer import Pioneer
     from robocli.devices.pioneer.state import PioneerState
 
@@ -58,7 +59,24 @@ def laser_text(robot: Pioneer) -> str | None:
     return f"nearest {rng:.2f} m at {math.degrees(bearing):+.0f} deg  ({len(scan)} readings)"
 
 
-def render(robot: Pioneer) -> RenderableType:
+def hokuyo_text(placed: PlacedScan) -> str:
+    """A one-line summary of a Hokuyo scan placed on the robot: the nearest return, its
+    bearing from the robot and where it is in the odometry frame, and the valid count."""
+    import numpy as np
+
+    scan = placed.scan
+    n, valid = len(scan.ranges), int(np.count_nonzero(scan.valid))
+    if not valid:
+        return f"nothing in range  (0/{n} valid)"
+    robot_xy, odom_xy = placed.robot_points, placed.odom_points
+    i = int(np.nanargmin(np.hypot(robot_xy[:, 0], robot_xy[:, 1])))
+    rng = math.hypot(*robot_xy[i])
+    bearing = math.atan2(robot_xy[i, 1], robot_xy[i, 0])
+    return (f"nearest {rng:.2f} m at {math.degrees(bearing):+.0f} deg, odom "
+            f"({odom_xy[i, 0]:+.2f}, {odom_xy[i, 1]:+.2f}) m  ({valid}/{n} valid)")  # fmt: skip
+
+
+def render(robot: Pioneer, hokuyo: MountedLaser | None = None) -> RenderableType:
     """The live view of ``robot``: at most 18 lines of at most 80 columns."""
     from rich.table import Table
 
@@ -91,6 +109,9 @@ def render(robot: Pioneer) -> RenderableType:
     laser = laser_text(robot)
     if laser is not None:
         table.add_row("laser", laser)
+    placed = hokuyo.latest if hokuyo is not None else None
+    if placed is not None:
+        table.add_row("hokuyo", hokuyo_text(placed))
     s = robot.stats
     table.add_row(
         "link", f"{s.sips} SIPs  {s.bad_checksums} bad checksums  {s.dropped_bytes} B dropped"
@@ -98,22 +119,24 @@ def render(robot: Pioneer) -> RenderableType:
     return table
 
 
-def live_view(robot: Pioneer) -> None:
+def live_view(robot: Pioneer, hokuyo: MountedLaser | None = None) -> None:
     """Redraw :func:`render` at every SIP until ``q`` (when stdin is a terminal) or Ctrl-C;
     always leave the cursor on a fresh line. Output that is not a terminal (a pipe, a file)
     gets one line per SIP instead, flushed as it comes: a redrawn screen reaches a pipe only
-    when the view ends."""
+    when the view ends. ``hokuyo``: a laser on the robot, its latest scan shown too."""
     from rich.live import Live
 
     if not sys.stdout.isatty():
         while True:
-            print(state_line(robot.state), flush=True)
+            placed = hokuyo.latest if hokuyo is not None else None
+            extra = f"  hokuyo {hokuyo_text(placed)}" if placed is not None else ""
+            print(state_line(robot.state) + extra, flush=True)
             robot.wait_for_sip()
     try:
-        with keyboard() as read_key, Live(render(robot), auto_refresh=False) as live:
+        with keyboard() as read_key, Live(render(robot, hokuyo), auto_refresh=False) as live:
             while True:
                 robot.wait_for_sip()
-                live.update(render(robot), refresh=True)
+                live.update(render(robot, hokuyo), refresh=True)
                 if read_key is not None and read_key(0) in ("q", "Q", "esc"):
                     return
     finally:

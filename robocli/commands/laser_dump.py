@@ -3,8 +3,9 @@
 
 Live, it connects as a client (the handshake, VV/PP/II, TM, BM are shown as they happen) and
 streams MD until ``--count`` scans or Ctrl-C. ``--file`` decodes a capture: a ``.jsonl`` of
-``{"t", "dir": "c2s"|"s2c", "hex"}`` chunks (the format of ``dump pioneer --output``), or
-raw bytes the sensor sent.
+``{"t", "dir": "c2s"|"s2c", "hex"}`` chunks (the format of ``dump pioneer --output``), a
+recording of ``record --laser`` (``.mcap``: its raw ``scip2`` channels), or raw bytes the
+sensor sent.
 """
 
 from __future__ import annotations
@@ -70,7 +71,7 @@ def dump(
         metavar="CAPTURE",
         exists=True,
         dir_okay=False,
-        help="Decode a capture (.jsonl chunks or raw sensor bytes) instead of a laser.",
+        help="Decode a capture (.jsonl chunks, a .mcap recording or raw sensor bytes).",
     ),  # fmt: skip
     model: str = ModelOpt,
     baud: int = BaudOpt,
@@ -102,6 +103,9 @@ def _dump_file(view: _View, file: Path) -> None:
     from robocli.protocols.scip2 import fast
     from robocli.sim.hokuyo.framing import RequestFramer
 
+    if file.suffix == ".mcap":
+        _dump_recording(view, file)
+        return
     rx, tx = fast.reply_framer(), RequestFramer()
     shown = gap = 0
     with file.open("rb") as stream:
@@ -120,6 +124,19 @@ def _dump_file(view: _View, file: Path) -> None:
         raise RobocliError(f"{file}: no SCIP line decoded ({dropped} bytes dropped)")
     if dropped:
         typer.echo(f"robocli: {file}: {shown} blocks decoded, {dropped} bytes dropped", err=True)
+
+
+def _dump_recording(view: _View, file: Path) -> None:
+    """Show the lines of a recording's raw ``scip2`` channels (``record --laser``)."""
+    from robocli.io.capture import CaptureStats
+    from robocli.io.record import raw_frames
+
+    stats = CaptureStats()
+    for t, direction, frame in raw_frames(file, "scip2", stats):
+        view.show(direction, frame, t)
+    if stats.dropped_bytes:
+        typer.echo(f"robocli: {file}: {stats.frames} blocks decoded, {stats.dropped_bytes} "
+                   "bytes dropped", err=True)  # fmt: skip
 
 
 def _chunks(stream: IO[bytes], jsonl: bool) -> Iterator[tuple[float, str, bytes, int]]:

@@ -37,6 +37,7 @@ from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
 
 if TYPE_CHECKING:
+    from robocli.devices.laser import MountedLaser, PlacedScan
     from robocli.devices.pioneer import Pioneer
 
 
@@ -87,8 +88,13 @@ def connect(
     json_out: bool = typer.Option(
         False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
     ),
-    laser: bool = typer.Option(
-        True, "--laser/--no-laser", help="Start a simulator's laser and show it (simulators only)."
+    laser: str | None = typer.Option(  # noqa: UP007
+        None, "--laser", metavar="URL", show_default=False,
+        help="A Hokuyo laser on the robot (placed as the robot model says): serial device, "
+        "pyserial URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot.",
+    ),  # fmt: skip
+    no_laser: bool = typer.Option(
+        False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
     ),
     subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     baud: int = BaudOpt,
@@ -108,22 +114,46 @@ def connect(
         connect_remote(port, zenoh, once, json_out, timeout)
         return
     with foxglove_view(foxglove, foxglove_host) as view, \
-            connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:  # fmt: skip
+            connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot, \
+            _hokuyo(laser, robot, once) as hokuyo:  # fmt: skip
         if view is not None:
-            view.add(robot)
-        if laser:
+            name = view.add(robot)
+            if hokuyo is not None:  # its scans on the robot, as the robot model mounts it
+                view.add(hokuyo.laser, parent=f"{name}/base_link", mount=hokuyo.mount)
+        if not no_laser:
             start_laser(robot, wait=once)
         if once:
+            placed = hokuyo.place(hokuyo.laser.scan()) if hokuyo is not None else None
             if json_out:
-                print_json(rounded(_snapshot(robot)))
+                print_json(rounded(_snapshot(robot, placed)))
             else:
-                _print_snapshot(robot)
+                _print_snapshot(robot, placed)
         elif json_out:
             while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
-                print_json_line(rounded(_snapshot(robot)))
+                latest = hokuyo.latest if hokuyo is not None else None
+                print_json_line(rounded(_snapshot(robot, latest)))
                 robot.wait_for_sip()
         else:
-            live_view(robot)
+            live_view(robot, hokuyo)
+
+
+@contextlib.contextmanager
+def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLaser | None]:
+    """The Hokuyo of ``--laser`` on ``robot`` (streaming unless ``once``), or None."""
+    if url is None:
+        yield None
+        return
+    from robocli.commands._mounted import on_robot
+    from robocli.devices.laser import MountedLaser
+
+    with on_robot(url, robot) as laser:
+        mounted = MountedLaser(laser, robot)
+        try:
+            if not once:
+                laser.start()
+            yield mounted
+        finally:
+            mounted.close()
 
 
 def start_laser(robot: Pioneer, wait: bool) -> None:
@@ -140,11 +170,15 @@ def start_laser(robot: Pioneer, wait: bool) -> None:
             robot.wait_for_laser(1.0)
 
 
-def _snapshot(robot: Pioneer) -> dict[str, Any]:
+def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
     """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
-    where nothing was seen; angles in rad)."""
+    where nothing was seen; angles in rad), and the ``--laser`` Hokuyo's placed scan."""
     data = robot.snapshot()
     data["state"] = unix_stamped(data["state"])  # Unix t, as every --json; t_mono kept
+    if hokuyo is not None:
+        from robocli.commands._mounted import placed_json
+
+        data["hokuyo"] = placed_json(hokuyo)
     scan = robot.laser
     if scan is not None and "laser" not in data:
         data["laser"] = unix_stamped({
@@ -256,8 +290,14 @@ def _load_map(world_type: Any, path: Path) -> Any:
 # ---------------------------------------------------------------------- rendering
 
 
-def _print_snapshot(robot: Pioneer) -> None:
-    from robocli.commands._screens import laser_text, pose_text, sonar_text, velocity_text
+def _print_snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> None:
+    from robocli.commands._screens import (
+        hokuyo_text,
+        laser_text,
+        pose_text,
+        sonar_text,
+        velocity_text,
+    )
 
     st = robot.state
     ident = robot.identity
@@ -270,3 +310,5 @@ def _print_snapshot(robot: Pioneer) -> None:
     laser = laser_text(robot)
     if laser is not None:
         typer.echo(f"laser     {laser}")
+    if hokuyo is not None:
+        typer.echo(f"hokuyo    {hokuyo_text(hokuyo)}")

@@ -1,11 +1,11 @@
 """``robocli record`` and ``robocli info``: thin layers over :mod:`robocli.io.record`.
 
-``record`` connects to every source given (a Pioneer, arms, a hub; ``sim`` starts an embedded
-simulator as everywhere else), records them into one MCAP file on one timeline, and ends on
-``--duration``, ``--count``, Ctrl-C, SIGTERM or a lost link, always closing the file with
-its summary. It says on stderr what it recorded. Exit codes: 0 for a duration or count
-reached, 130 for Ctrl-C/SIGTERM, the link's own code for a lost link (the file is written
-all the same), 1 when the file could not be written.
+``record`` connects to every source given (a Pioneer, arms, a hub, a Hokuyo laser; ``sim``
+starts an embedded simulator as everywhere else), records them into one MCAP file on one
+timeline, and ends on ``--duration``, ``--count``, Ctrl-C, SIGTERM or a lost link, always
+closing the file with its summary. It says on stderr what it recorded. Exit codes: 0 for a
+duration or count reached, 130 for Ctrl-C/SIGTERM, the link's own code for a lost link (the
+file is written all the same), 1 when the file could not be written.
 """
 
 from __future__ import annotations
@@ -85,8 +85,11 @@ def record(
         None, "--count", "-n", min=1, help="Stop after N messages recorded."
     ),
     compression: str = typer.Option("zstd", "--compression", help="zstd, lz4 or none."),
-    laser: bool = typer.Option(
-        True, "--laser/--no-laser", help="Start a Pioneer simulator's laser (simulators only)."
+    laser: str | None = typer.Option(  # noqa: UP007
+        None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
+    ),
+    no_laser: bool = typer.Option(
+        False, "--no-laser", help="Do not start a Pioneer simulator's own (ARCOS) laser."
     ),
     byte_order: str = typer.Option("little", "--byte-order", help="Arms: little or big."),
     real_size: int = typer.Option(4, "--real-size", help="Arms: bytes per real, 4 or 8."),
@@ -95,13 +98,13 @@ def record(
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
-    """Record Pioneers, arms and a hub into one MCAP file (Foxglove's schemas, raw frames
-    for dump --file) until --duration, --count or Ctrl-C."""
+    """Record Pioneers, arms, a hub and a Hokuyo laser into one MCAP file (Foxglove's
+    schemas, raw frames for dump --file) until --duration, --count or Ctrl-C."""
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.record import COMPRESSIONS, Recorder
 
-    if not (pioneer or arm or hub):
-        raise typer.BadParameter("give at least one of --pioneer, --arm, --hub")
+    if not (pioneer or arm or hub or laser):
+        raise typer.BadParameter("give at least one of --pioneer, --arm, --hub, --laser")
     if output.suffix != ".mcap":
         raise typer.BadParameter(f"--output {output}: a recording needs a .mcap name")
     if compression not in COMPRESSIONS:
@@ -119,9 +122,9 @@ def record(
             rec.mirror(view)
         try:
             try:
-                devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, laser,
+                devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, not no_laser,
                                    dict(byte_order=byte_order, real_size=real_size,
-                                        robot=robot, timeout=timeout))  # fmt: skip
+                                        robot=robot, timeout=timeout), laser)  # fmt: skip
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
                 start = time.monotonic()  # --duration counts from here, not from connecting
                 done = _until(rec, start, duration, count, devices)
@@ -186,6 +189,8 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
                 device.wait_for_sip(0)  # raises why the session ended
             elif name.startswith("arm"):
                 device.check()
+            elif name.startswith("laser"):
+                device.session.check()
         return time.monotonic() >= end or (count is not None and rec.stats.messages >= count)
 
     return done
@@ -193,8 +198,9 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
 
 def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], arms: list[str],
              hub: str | None, sensors: list[tuple[str, dict[str, Any]]], laser: bool,
-             arm_options: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
-    """Connect every source (simulators started on ``stack``) and add it to ``rec``."""
+             arm_options: dict[str, Any], hokuyo: str | None = None) -> dict[str, Any]:  # fmt: skip
+    """Connect every source (simulators started on ``stack``) and add it to ``rec``;
+    ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
     from robocli.commands._common import explain_refusal, pioneer_url
     from robocli.commands.arm import arm_host
     from robocli.devices.arm import Arm
@@ -219,6 +225,11 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             Arm.connect(h, mp, sp, motion=False, stop_on_failure=False, **arm_options)
         )
         devices[rec.add(device)] = device
+    if hokuyo is not None:  # on the first Pioneer, as its robot model says
+        first = next((n for n in devices if n.startswith("pioneer")), None)
+        on = {} if first is None else {"parent": f"{first}/base_link",
+                                       "mount": devices[first].params.laser_mount}  # fmt: skip
+        devices.update(_connect_laser(stack, rec, hokuyo, arm_options["timeout"], on))
     if hub is not None:
         address = stack.enter_context(_hub_address(hub))
         from robocli.commands.hub import open_hub
@@ -229,6 +240,21 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             client.subscribe(name, **args)
         devices["hub"] = client
     return devices
+
+
+def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeout: float,
+                   on: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
+    """A Hokuyo recorded from its handshake on, streaming (closing sends QT, recorded);
+    ``on``: the frame it is mounted on and where (see :func:`attach_laser`)."""
+    from robocli.commands.laser import laser_url
+    from robocli.devices.laser import Laser
+
+    url = stack.enter_context(laser_url(port))
+    listener = rec.listener("laser", "scip2", url=url)
+    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listener=listener))
+    name = rec.add(laser, listener.name, **on)
+    laser.start()
+    return {name: laser}
 
 
 @contextlib.contextmanager

@@ -10,6 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from robocli.robots.geometry import Mount
+
 
 @dataclass(frozen=True)
 class SonarPose:
@@ -78,13 +80,22 @@ class RobotParams:
     max_rot_velocity: float = math.radians(500)  #: rad/s, absolute
     sonar: tuple[SonarPose, ...] = field(default=_P3DX_SONAR)
     sonar_max_range: float = 5.0  #: m (MobileSim's p3dx model)
+    #: Where a laser scanner sits (``params/*.p`` LaserX, LaserY mm, LaserTh deg,
+    #: LaserFlipped); the robot's centre where robocli does not know the model's values
+    laser_mount: Mount = field(default=Mount())
+
+
+#: The P3-DX's laser: ``p3dx.p`` gives LaserX 18, LaserY 0, LaserTh 0, not flipped.
+_P3DX_LASER = Mount(0.018, 0.0, 0.0)
 
 
 ROBOT_PARAMS: dict[str, RobotParams] = {
     p.subtype: p
     for p in (
-        RobotParams("p3dx", dist_conv=0.485, vel_conv=1.0, diff_conv=0.0056),
-        RobotParams("p3dx-sh", dist_conv=1.0, vel_conv=1.0, diff_conv=0.0056),
+        RobotParams("p3dx", dist_conv=0.485, vel_conv=1.0, diff_conv=0.0056,
+                    laser_mount=_P3DX_LASER),
+        RobotParams("p3dx-sh", dist_conv=1.0, vel_conv=1.0, diff_conv=0.0056,
+                    laser_mount=_P3DX_LASER),
         RobotParams(
             "p3at", dist_conv=0.465, vel_conv=1.0, diff_conv=0.0034, radius=0.5, width=0.505,
             length_front=0.313, length_rear=0.313, max_velocity=1.2,
@@ -118,4 +129,4 @@ ROBOT_PARAMS: dict[str, RobotParams] = {
 }  # fmt: skip
 
 
-__all__ = ["ROBOT_PARAMS", "RobotParams", "SonarPose"]
+__all__ = ["ROBOT_PARAMS", "Mount", "RobotParams", "SonarPose"]

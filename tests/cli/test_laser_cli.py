@@ -136,3 +136,42 @@ def test_dump_file_reads_in_bounded_memory_and_gives_up_on_noise(tmp_path: Path)
     assert "16 MiB without a SCIP block" in one_line_error(
         run("dump", "laser", "--file", "/dev/zero"), 1
     )
+
+
+def test_connect_pioneer_with_a_hokuyo_sim_places_its_scan() -> None:
+    """`connect pioneer sim --laser sim`: the Hokuyo (18 mm ahead of a P3-DX at the default
+    room's start) reads 7.982 m to the wall at x = 8 straight ahead: (8, 0) in odom."""
+    proc = run("connect", "pioneer", "sim", "--laser", "sim", "--once", "--json", timeout=90)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    h = data["hokuyo"]
+    ahead = h["angles"].index(0.0)
+    assert h["ranges"][ahead] == pytest.approx(7.982, abs=0.0015)
+    assert h["points_robot"][ahead] == pytest.approx([8.0, 0.0], abs=0.0015)
+    assert h["points_odom"][ahead] == pytest.approx([8.0, 0.0], abs=0.0015)
+    assert h["mount"] == {"x": 0.018, "y": 0.0, "th": 0.0, "flipped": False}
+    assert h["pose"] == {"x": 0.0, "y": 0.0, "th": 0.0}
+    assert len(h["ranges"]) == len(h["angles"]) == len(h["points_odom"]) == 1081
+    assert abs(h["t"] - time.time()) < 600  # Unix epoch
+    assert "laser" in data  # the simulator's own (ARCOS) laser still starts by default
+
+
+def test_connect_pioneer_laser_text_jsonl_and_usage(sim_url: str) -> None:
+    proc = run("connect", "pioneer", "sim", "--laser", sim_url, "--once", "--no-laser",
+               timeout=90)  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert re.search(r"^hokuyo +nearest .* odom \(", proc.stdout, re.M), proc.stdout
+    assert "\nlaser " not in proc.stdout  # --no-laser: no ARCOS laser
+    with running("connect", "pioneer", "sim", "--laser", "sim", "--json") as p:
+        assert p.stdout is not None
+        deadline = time.monotonic() + 30
+        while True:
+            line = json.loads(p.stdout.readline())
+            if "hokuyo" in line:
+                break
+            assert time.monotonic() < deadline
+        assert len(line["hokuyo"]["points_odom"]) == 1081
+        p.send_signal(signal.SIGINT)
+        assert p.wait(30) == 130
+    bad = run("connect", "pioneer", "sim", "--once", "--laser")
+    assert bad.returncode == 2 and "--laser" in bad.stderr

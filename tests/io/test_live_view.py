@@ -151,6 +151,10 @@ def _live_url(line: str) -> str:
     [
         (["connect", "pioneer", "sim", "--json"], "/pioneer/pose", "foxglove.PoseInFrame"),
         (["connect", "arm", "sim", "--json"], "/arm/tf", "foxglove.FrameTransforms"),
+        (["connect", "pioneer", "sim", "--laser", "sim", "--json"], "/laser/scan",
+         "foxglove.LaserScan"),
+        (["connect", "pioneer", "sim", "--laser", "sim", "--json"], "/laser/tf",
+         "foxglove.FrameTransform"),
     ],
 )
 def test_connect_foxglove(argv: list[str], topic: str, schema: str) -> None:

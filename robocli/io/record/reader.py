@@ -315,14 +315,13 @@ _REORDER_NS = 2_000_000_000
 def raw_frames(path: str | Path, protocol: str, stats: Any = None
                ) -> Iterator[tuple[float, str, bytes]]:  # fmt: skip
     """The frames of the raw channels of one link speaking ``protocol`` (``arcos``,
-    ``sm-le``/``sm-be``: either byte order, ``ros4mat``), in log-time order, as
+    ``sm-le``/``sm-be``: either byte order, ``ros4mat``, ``scip2``), in log-time order, as
     ``(t, direction, frame)``: ``t`` in seconds since the first message of the recording,
     ``direction`` ``tx``/``rx`` with ``:port`` for an arm link (what
     :func:`robocli.io.capture.read_capture` makes its frames of). With several such links
     the first is read and the others are named in a warning log. ``stats`` (a
-    :class:`~robocli.io.capture.CaptureStats`, optional) is updated as it goes."""
-    from robocli.core import Framer
-
+    :class:`~robocli.io.capture.CaptureStats`, optional) is updated as it goes. ``scip2``
+    (a Hokuyo): reply blocks on ``rx``, request lines (without their terminator) on ``tx``."""
     summary_info = info(path)
     raws = [c for c in summary_info.channels if c.encoding == RAW_ENCODING
             and _family(c.metadata.get("protocol", "")) == _family(protocol)]  # fmt: skip
@@ -339,14 +338,15 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
     start = summary_info.start_ns
     if stats is not None:
         stats.start_unix = start / 1e9
-    framers: dict[int, Framer] = {}
+    framers: dict[int, Any] = {}
     try:
         for channel_id, log_ns, data in _ordered(path, summary_info, set(chosen)):
             channel = chosen[channel_id]
             meta = channel.metadata
             framer = framers.get(channel_id)
             if framer is None:
-                framer = framers[channel_id] = Framer(meta.get("protocol", protocol))
+                framer = framers[channel_id] = _framer(meta.get("protocol", protocol),
+                                                       meta.get("direction", ""))  # fmt: skip
             if stats is not None:
                 stats.bytes_read += len(data)
             way = meta.get("direction", "?")
@@ -360,6 +360,18 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
         if stats is not None:
             for framer in framers.values():
                 stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def _framer(protocol: str, direction: str) -> Any:
+    """The framer of one raw channel: the protocol's C framer, except for what a SCIP
+    client sends (request lines, framed as the simulator frames them)."""
+    if protocol == "scip2" and direction == "tx":
+        from robocli.sim.hokuyo.framing import RequestFramer
+
+        return RequestFramer()
+    from robocli.core import Framer
+
+    return Framer(protocol)
 
 
 def _ordered(path: str | Path, summary_info: RecordingInfo,

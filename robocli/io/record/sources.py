@@ -22,6 +22,9 @@ Arm        ``joint_states`` (JOINT_POSITION) and ``joint_feedback`` (JOINT_FEEDB
 Hub        ``imu`` (robocli.Imu), ``adc``, ``battery``, ``sysinfo``, ``gps`` (LocationFix),
            ``laser`` (LaserScan), ``camera`` (CompressedImage for JPEG, else RawImage rgb8),
            ``stereo/left|right``, ``depth/rgb`` and ``depth/image`` (RawImage mono16, mm)
+Laser      ``scan`` (a Hokuyo's streamed scans, LaserScan in ``NAME/laser``; publish time:
+           the sensor's timestamp on the host clock), ``tf`` (on a robot: FrameTransform
+           from its ``base_link`` at the mount); raw channels of protocol ``scip2``
 ========== =================================================================================
 """
 
@@ -39,9 +42,11 @@ def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> s
     """Record ``device`` into ``rec`` (see :meth:`Recorder.add`); returns its name."""
     from robocli.devices.arm import Arm
     from robocli.devices.hub.client import Hub
+    from robocli.devices.laser import Laser
     from robocli.devices.pioneer import Pioneer
     from robocli.io.record.arm import attach_arm
     from robocli.io.record.hub import attach_hub
+    from robocli.io.record.laser import attach_laser
     from robocli.io.record.pioneer import attach_pioneer
 
     if isinstance(device, Pioneer):
@@ -50,5 +55,7 @@ def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> s
         return attach_arm(rec, device, name or "arm", **options)
     if isinstance(device, Hub):
         return attach_hub(rec, device, name or "hub", **options)
-    raise InvalidArgument(f"cannot record a {type(device).__name__}: give a Pioneer, an Arm "
-                          "or a Hub")  # fmt: skip
+    if isinstance(device, Laser):
+        return attach_laser(rec, device, name, **options)
+    raise InvalidArgument(f"cannot record a {type(device).__name__}: give a Pioneer, an Arm, "
+                          "a Hub or a Laser")  # fmt: skip
