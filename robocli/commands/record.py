@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import SIM, print_json, sigterm_as_interrupt
+from robocli.commands._common import SIM, print_json, shielded, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
 
 if TYPE_CHECKING:
@@ -138,31 +138,13 @@ def record(
             except KeyboardInterrupt:
                 interrupted = True
             finally:
-                with _shielded():
+                with shielded():
                     stack.close()  # devices stop first: their stop sequences are recorded
         finally:
-            with _shielded():
+            with shielded():
                 _close(rec, output, time.monotonic() - start)
     if interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
-
-
-@contextlib.contextmanager
-def _shielded() -> Iterator[None]:
-    """Ctrl-C and SIGTERM are ignored while the devices and the file close (both bounded):
-    a second Ctrl-C must not leave the file without its summary."""
-    import signal
-
-    try:
-        saved = [(s, signal.signal(s, signal.SIG_IGN)) for s in (signal.SIGINT, signal.SIGTERM)]
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        for sig, handler in saved:
-            signal.signal(sig, handler)
 
 
 def _close(rec: Recorder, output: Path, seconds: float) -> None:
