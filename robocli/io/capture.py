@@ -31,8 +31,12 @@ bytes that form no frame are counted in :class:`CaptureStats`. Reading gives up,
 
 from __future__ import annotations
 
+import io
 import json
 import math
+import os
+import select
+import stat
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -112,7 +116,7 @@ def read_capture(
             for t, direction, frame in raw_frames(path, protocol, stats):
                 yield CapturedFrame(t, direction, frame)
             return
-        stream = path.open("rb")
+        stream = _open(path)
     except OSError as exc:
         raise CaptureFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
     gap = _Gap(path, protocol, stats, max_gap)
@@ -125,6 +129,54 @@ def read_capture(
     except OSError as exc:
         raise CaptureFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
+
+
+#: How often a read from a pipe wakes to let a pending Ctrl-C through (s).
+PIPE_WAKE = 0.2
+
+
+class _WakingPipe(io.RawIOBase):
+    """A pipe's (or terminal's) reading end whose reads wake every :data:`PIPE_WAKE` s.
+
+    A signal that lands after Python checked for signals and before a blocking ``read()``
+    began is only seen once ``read()`` returns: from a writer that keeps the pipe open and
+    sends nothing, never. Ctrl-C was then lost (one ``dump --file FIFO`` in eight, on a
+    loaded machine). Waiting in ``select()`` with a timeout bounds that to one wake-up."""
+
+    def __init__(self, raw: io.FileIO) -> None:
+        super().__init__()
+        self._raw = raw
+
+    def readable(self) -> bool:
+        return True
+
+    def fileno(self) -> int:
+        return self._raw.fileno()
+
+    def readinto(self, buffer: bytearray | memoryview) -> int | None:  # type: ignore[override]
+        fd = self._raw.fileno()
+        while not select.select([fd], [], [], PIPE_WAKE)[0]:
+            pass  # back in Python: a pending signal raises here
+        return self._raw.readinto(buffer)
+
+    def close(self) -> None:
+        try:
+            self._raw.close()
+        finally:
+            super().close()
+
+
+def _open(path: Path) -> IO[bytes]:
+    """``path`` for reading; a pipe, socket or character device through :class:`_WakingPipe`."""
+    raw = io.FileIO(path, "rb")
+    try:
+        mode = os.fstat(raw.fileno()).st_mode
+    except OSError:
+        raw.close()
+        raise
+    if stat.S_ISREG(mode) or stat.S_ISBLK(mode):
+        return io.BufferedReader(raw)
+    return io.BufferedReader(_WakingPipe(raw))
 
 class _Gap:
     """Gives up reading after ``limit`` bytes of the file without a frame."""
