@@ -307,6 +307,8 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
                     return self._current_state()
                 left = deadline - time.monotonic()
                 if left <= 0:
+                    if timeout is None:  # the robot's silence limit: as the supervisor says it
+                        raise self._silence_error()
                     raise TimeoutError(f"{self.transport.url}: no SIP within {limit:g} s")
                 cond.wait(left)
 

@@ -216,18 +216,20 @@ class KeepAlive:
             if trip is not None:
                 self._trip_listeners.notify(trip)
 
+    def _silence_error(self) -> TimeoutError:
+        """What a robot silent for ``sip_timeout`` is said to be, whoever notices first."""
+        return TimeoutError(
+            f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
+            "(robot off, cable unplugged, or session closed)"
+        )
+
     def _supervise_step(self) -> float:
         """No SIP for ``sip_timeout``: fail (the session stops the robot). With a dead-man:
         stop a moving robot ``deadman`` s after the last motion command."""
         now = time.monotonic()
         silent_at = self._last_sip + self.sip_timeout
         if now > silent_at:
-            self._session.fail(
-                TimeoutError(
-                    f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
-                    "(robot off, cable unplugged, or session closed)"
-                )
-            )
+            self._session.fail(self._silence_error())
             return self.sip_timeout
         wait = silent_at - now
         if self.deadman is not None:
