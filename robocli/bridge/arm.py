@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode
+from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, put, undeclare
 from robocli.devices.arm import Arm
 from robocli.errors import ProtocolError, RobocliError, TimeoutError
 from robocli.kinematics import fk
@@ -106,7 +106,7 @@ class ArmBridge:
                 self._fail()
                 return
             pose = fk(arm.robot, sample.joints)[0]
-            self._put(self._state, {
+            put(self._state, {
                 "t": sample.t + self._offset, "joints": list(sample.joints),
                 "robot_time": sample.robot_time,
                 "tcp": {"position": pose[:3, 3].tolist(), "rotation": pose[:3, :3].tolist()},
@@ -114,7 +114,7 @@ class ArmBridge:
             status = arm.status
             if status is not None and status is not last_status:
                 last_status = status
-                self._put(self._status, {"t": status.t + self._offset, **status.as_dict()})
+                put(self._status, {"t": status.t + self._offset, **status.as_dict()})
         self._done.set()
 
     def _fail(self) -> None:
@@ -127,12 +127,6 @@ class ArmBridge:
         log.error("%s: the arm's link ended: %s", self.name, self.failure)
         self.gate.event("fault", holder=self.gate.holder, reason=f"arm link: {self.failure}")
         self._done.set()
-
-    def _put(self, publisher: Any, data: dict[str, Any]) -> None:
-        try:
-            publisher.put(encode(data))
-        except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
-            log.debug("%s: put failed", self.name, exc_info=True)
 
     # ------------------------------------------------------------------ commands in
 
@@ -198,7 +192,7 @@ class ArmBridge:
             return
         self._closed = True
         for entity in (self._trajectory, self._alive):
-            _undeclare(entity)
+            undeclare(entity)
         try:
             self._uploads.put(None, timeout=1.0)
         except queue.Full:
@@ -207,7 +201,7 @@ class ArmBridge:
         for thread in self._threads:
             thread.join(timeout=5.0)
         for entity in (self._info, self._state, self._status):  # type: ignore[assignment]
-            _undeclare(entity)
+            undeclare(entity)
         self._done.set()
 
     def __enter__(self) -> ArmBridge:
@@ -222,13 +216,6 @@ def _reply_error(query: zenoh.Query, message: str) -> None:
         query.reply_err(encode({"error": message}), encoding=JSON_ENCODING)
     except Exception:  # noqa: BLE001 - the querier may be gone
         log.debug("reply failed", exc_info=True)
-
-
-def _undeclare(entity: Any) -> None:
-    try:
-        entity.undeclare()
-    except Exception:  # noqa: BLE001 - the session may be closed already
-        log.debug("undeclare failed", exc_info=True)
 
 
 __all__ = ["ArmBridge"]

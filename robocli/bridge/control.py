@@ -39,6 +39,7 @@ from robocli.bridge.keys import (
     encode,
     holder_key,
     text,
+    undeclare,
 )
 from robocli.errors import RobocliError
 from robocli.zenoh.keys import check_name
@@ -147,10 +148,7 @@ class ControlGate:
         self._thread.join(timeout=5.0)
         self._do_stop(reason, release=True, always=True)
         for entity in (self._queryable, self._tokens, self._events):
-            try:
-                entity.undeclare()  # type: ignore[no-untyped-call]
-            except Exception:  # noqa: BLE001 - the session may be closing already
-                log.debug("undeclare failed", exc_info=True)
+            undeclare(entity)
 
     # ------------------------------------------------------------------ zenoh callbacks
 

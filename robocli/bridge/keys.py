@@ -27,6 +27,7 @@ in Unix epoch seconds: any Zenoh program can watch and drive a robot without rob
 from __future__ import annotations
 
 import json
+import logging
 import math
 from typing import Any
 
@@ -85,6 +86,23 @@ def text(data: dict[str, Any], name: str, what: str) -> str:
     if not isinstance(value, str):
         raise ProtocolError(f"{what}: {name!r} must be a string, not {value!r}")
     return value
+
+
+def put(publisher: Any, data: dict[str, Any]) -> None:
+    """Put ``data`` as JSON; a session that is closing drops it (logged, never raised: the
+    loops that put end with the session)."""
+    try:
+        publisher.put(encode(data))
+    except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
+        logging.getLogger(__name__).debug("put failed", exc_info=True)
+
+
+def undeclare(entity: Any) -> None:
+    """Undeclare a Zenoh entity; one of a session already closed is left (logged)."""
+    try:
+        entity.undeclare()
+    except Exception:  # noqa: BLE001 - the session may be closed already
+        logging.getLogger(__name__).debug("undeclare failed", exc_info=True)
 
 
 def _finite(data: Any) -> Any:

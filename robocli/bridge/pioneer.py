@@ -30,7 +30,15 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, number
+from robocli.bridge.keys import (
+    JSON_ENCODING,
+    control_key,
+    decode,
+    encode,
+    number,
+    put,
+    undeclare,
+)
 from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
 from robocli.errors import ProtocolError, RobocliError, TimeoutError
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
@@ -127,11 +135,11 @@ class PioneerBridge:
                 return
             data = state_json(state, n_sonar, self._offset)
             data["holder"] = self.gate.holder
-            self._put(self._state, data)
+            put(self._state, data)
             scan = robot.laser
             if scan is not None and scan.t > last_scan:
                 last_scan = scan.t
-                self._put(self._laser, {
+                put(self._laser, {
                     "t": scan.t + self._offset,
                     "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
                     "angles": list(scan.angles),
@@ -149,12 +157,6 @@ class PioneerBridge:
         log.error("%s: the robot's link ended: %s", self.name, self.failure)
         self.gate.event("fault", holder=self.gate.holder, reason=f"robot link: {self.failure}")
         self._done.set()
-
-    def _put(self, publisher: Any, data: dict[str, Any]) -> None:
-        try:
-            publisher.put(encode(data))
-        except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
-            log.debug("%s: put failed", self.name, exc_info=True)
 
     # ------------------------------------------------------------------ commands
 
@@ -223,11 +225,11 @@ class PioneerBridge:
             return
         self._closed = True
         for entity in (self._velocity, self._alive):
-            _undeclare(entity)
+            undeclare(entity)
         self.gate.close("the bridge ended")
         self._thread.join(timeout=5.0)
         for entity in (self._info, self._state, self._laser):  # type: ignore[assignment]
-            _undeclare(entity)
+            undeclare(entity)
         self._done.set()
 
     def __enter__(self) -> PioneerBridge:
@@ -235,13 +237,6 @@ class PioneerBridge:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _undeclare(entity: Any) -> None:
-    try:
-        entity.undeclare()
-    except Exception:  # noqa: BLE001 - the session may be closed already
-        log.debug("undeclare failed", exc_info=True)
 
 
 __all__ = ["PioneerBridge", "state_json"]
