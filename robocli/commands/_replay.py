@@ -13,7 +13,7 @@ from robocli.commands._common import bind_address, listening, sigterm_as_interru
 __all__ = ["LoopOpt", "ReplayOpt", "SpeedOpt", "abb_replay", "check_replay"]
 
 ReplayOpt = typer.Option(
-    None, "--replay", metavar="FILE.mcap", dir_okay=False,
+    None, "--replay", metavar="FILE.mcap", exists=True, dir_okay=False,
     help="Play this recording back instead of simulating.",
 )  # fmt: skip
 SpeedOpt = typer.Option(None, "--speed", help="Replay speed (default 1).")

@@ -12,7 +12,9 @@ from robocli.io.export import FORMATS
 
 
 def export(
-    recording: Path = typer.Argument(..., dir_okay=False, help="An MCAP recording."),
+    recording: Path = typer.Argument(
+        ..., exists=True, dir_okay=False, metavar="FILE", help="An MCAP recording."
+    ),
     fmt: str = typer.Option(
         ..., "--format", "-f", metavar="|".join(FORMATS), help="What to write."
     ),
