@@ -14,7 +14,8 @@ from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
-from robocli.sim.serving import REAP_WAIT_S, Server, Ticker
+from robocli.sim.serving import REAP_WAIT_S, Server
+from robocli.sim.ticker import Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 

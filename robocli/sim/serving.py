@@ -1,4 +1,4 @@
-"""The serving layer of the built-in simulators: TCP and pty links, limits, a ticker.
+"""The serving layer of the built-in simulators: TCP and pty links and their limits.
 
 A simulator is a :class:`Session` per client link plus whatever it shares between them (its
 robot). This module owns everything about bytes on the wire, so the sessions never see a
@@ -29,8 +29,8 @@ socket:
   request while one of its replies waits. ``output_budget`` bounds the output waiting over
   all links. On a pty, output the line cannot take is dropped as on a serial line with nobody
   listening.
-* :class:`Ticker`: periodic work (physics, SIPs, a state stream) on absolute deadlines
-  ``t0 + k * period``; it pushes through :meth:`Link.send`.
+* Periodic work (physics, SIPs, a state stream) runs on a
+  :class:`~robocli.sim.ticker.Ticker` and pushes through :meth:`Link.send`.
 
 Nothing here is global: two servers in one process are independent. :meth:`Server.close` stops
 and joins every thread within a bounded time. Protocol-agnostic: the protocol name only picks
@@ -63,6 +63,7 @@ from robocli.sim.links import (
     TcpLink,
     UnframedHook,
 )
+from robocli.sim.ticker import JOIN_TIMEOUT_S
 
 __all__ = [
     "BUSY_REASON",
@@ -72,14 +73,12 @@ __all__ = [
     "Server",
     "Session",
     "SessionFactory",
-    "Ticker",
     "UnframedHook",
 ]
 
 log = logging.getLogger("robocli.sim.serving")
 
 BUSY_REASON = "robot busy: another client holds it"
-JOIN_TIMEOUT_S = 2.0  #: close() waits at most this long for the threads, in total
 REFUSE_LINGER_S = 0.5  #: a refused client has this long to read the refusal line
 MAX_REFUSING = 8  #: refused connections lingering at once; beyond, they are closed bare
 REAP_WAIT_S = 2.0
@@ -446,64 +445,3 @@ def listen(host: str, port: int, backlog: int = LISTEN_BACKLOG) -> socket.socket
             raise TransportError(f"port {port} is in use: is another simulator running?") from exc
         raise TransportError(f"cannot listen on {host}:{port}: {exc.strerror or exc}") from exc
     return sock
-
-
-# ============================================================================ the ticker
-
-
-class Ticker:
-    """Calls ``tick(now)`` every ``period`` wall seconds, on absolute deadlines
-    ``t0 + k * period`` (no drift); when more than a period late it skips the missed ticks
-    and counts them in :attr:`skipped`.
-
-    An exception in ``tick`` is logged with its traceback and counted in :attr:`errors`; the
-    ticker goes on (one bad tick must not stop a robot's stream).
-    """
-
-    def __init__(self, period: float, tick: Callable[[float], None], name: str) -> None:
-        if not period > 0:
-            raise ValueError("period must be > 0")
-        self.period, self.name = period, name
-        self.errors = 0
-        self.ticks = 0
-        self.skipped = 0
-        self._tick = tick
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    def start(self) -> None:
-        """Start ticking (once; later calls do nothing)."""
-        if self._thread is None and not self._stop.is_set():
-            self._thread = threading.Thread(target=self._loop, name=self.name, daemon=True)
-            self._thread.start()
-
-    def close(self, timeout: float = JOIN_TIMEOUT_S) -> None:
-        """Stop and join (within ``timeout`` s). Idempotent."""
-        self._stop.set()
-        t = self._thread
-        if t is not None and t is not threading.current_thread():
-            t.join(timeout)
-            if t.is_alive():
-                log.warning("ticker %s did not stop within %.1f s", self.name, timeout)
-
-    def _loop(self) -> None:
-        period, stop = self.period, self._stop
-        t0 = time.monotonic()
-        k = 0
-        while not stop.is_set():
-            k += 1
-            delay = t0 + k * period - time.monotonic()
-            if delay > 0:
-                if stop.wait(delay):
-                    break
-            elif -delay > period:
-                skipped = int(-delay / period)
-                log.debug("%s %.1f ms late; skipping %d ticks", self.name, -delay * 1e3, skipped)
-                k += skipped
-                self.skipped += skipped
-            try:
-                self._tick(time.monotonic())
-            except Exception:  # logged whole and counted; the stream goes on
-                self.errors += 1
-                log.exception("%s: tick failed", self.name)
-            self.ticks += 1

@@ -20,7 +20,8 @@ import pytest
 from robocli.errors import TransportError
 from robocli.protocols import arcos
 from robocli.protocols.common import REFUSAL_PREFIX, find_refusal
-from robocli.sim.serving import BUSY_REASON, Link, Server, Ticker
+from robocli.sim.serving import BUSY_REASON, Link, Server
+from robocli.sim.ticker import Ticker
 
 pytestmark = pytest.mark.timeout(30)
 

@@ -35,7 +35,7 @@ from typing import TYPE_CHECKING, Any
 from robocli.errors import DeviceError, RobocliError
 from robocli.hub.frontends.ros4mat import SENSOR_IDS, body_parts
 from robocli.hub.registry import ClientState, Hub
-from robocli.sim.serving import Ticker
+from robocli.sim.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
 from robocli.zenoh.keys import alive_key, check_name, info_key, settings_key, topic_key
 from robocli.zenoh.session import import_zenoh

@@ -32,7 +32,8 @@ from robocli.errors import InvalidArgument
 from robocli.sim.hokuyo.framing import RequestFramer
 from robocli.sim.hokuyo.model import MODELS, HokuyoModel, measure
 from robocli.sim.hokuyo.session import ScipSession
-from robocli.sim.serving import Link, Server, Ticker
+from robocli.sim.serving import Link, Server
+from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
 __all__ = ["HokuyoSim"]

@@ -22,7 +22,7 @@ from robocli.sim.laser import LMS200
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.pioneer.session import ArcosController, ArcosSession
 from robocli.sim.replay import FrameSchedule, recorded_frames
-from robocli.sim.serving import Ticker
+from robocli.sim.ticker import Ticker
 
 __all__ = ["PioneerReplay", "ReplayController"]
 

@@ -49,7 +49,8 @@ from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.session import PRE_SYNC, ArcosController, sonar_batch
 from robocli.sim.pioneer.simext import Georef
-from robocli.sim.serving import Server, Ticker
+from robocli.sim.serving import Server
+from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
 __all__ = ["PioneerSim", "SimState", "serve_many", "sonar_batch"]
