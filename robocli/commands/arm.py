@@ -10,22 +10,32 @@ generic``), as an ABB never executes streamed points.
 from __future__ import annotations
 
 import contextlib
-import functools
-import inspect
 import math
 import sys
 import time
-from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any
 
 import typer
 
+from robocli.commands._arm import (
+    LINK,
+    ArmLink,
+    ByteOrder,
+    HostArg,
+    OrderOpt,
+    Profile,
+    RealOpt,
+    RealSize,
+    RobotOpt,
+    Shape,
+    arm_link,
+    check_wire,
+    connected,
+)
 from robocli.commands._common import (
-    SIM,
     bind_address,
-    bundled,
     listening,
     print_json,
     print_json_line,
@@ -37,134 +47,11 @@ from robocli.commands._common import (
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
-from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
     from robocli.devices.arm.state import Recorder
     from robocli.io.trajlog import TrajectoryLog
-
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         envvar=ARM_ENV, show_envvar=True)  # fmt: skip
-MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
-StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
-#: Choices of options (Literal: Typer checks them, lists them in -h and completes them).
-ByteOrder = Literal["little", "big"]
-RealSize = Literal[4, 8]
-Profile = Literal["abb", "generic"]
-Shape = Literal["circle", "rectangle"]
-OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
-RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
-RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
-TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
-
-EMBEDDED_STATE_MS = 5.0
-
-
-@contextlib.contextmanager
-def arm_host(
-    host: str,
-    motion_port: int,
-    state_port: int,
-    byte_order: str = "little",
-    real_size: int = 4,
-    robot: str = "irb120",
-    profile: str = "abb",
-) -> Iterator[tuple[str, int, int]]:
-    """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
-    ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
-    ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
-    needs: an ABB never executes streamed points)."""
-    if host != SIM:
-        from robocli.transports import InvalidURL, parse_host
-
-        try:
-            host = parse_host(host, what="HOST")
-        except InvalidURL as exc:  # the ports have their own options
-            raise InvalidURL(f"HOST {host!r}: {exc.reason} (ports: --motion-port, "
-                             "--state-port)", exc.reason) from None  # fmt: skip
-        yield host, motion_port, state_port
-        return
-    from robocli.sim.abb.server import AbbSim
-
-    with AbbSim(robot, profile=profile, state_ms=EMBEDDED_STATE_MS, feedback=True,
-                real=8 if real_size == 8 else 4,
-                byteorder=">" if byte_order == "big" else "<") as simulator:  # fmt: skip
-        motion, state = simulator.serve_tcp("127.0.0.1", 0, 0)
-        yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
-
-
-def sim_profile(stream: bool) -> str:
-    """The embedded simulator's profile for a command's ``--stream``."""
-    return "generic" if stream else "abb"
-
-
-def check_wire(byte_order: str, real_size: int) -> None:
-    if byte_order not in ("little", "big"):
-        raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
-    if real_size not in (4, 8):
-        raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
-
-
-@dataclass(frozen=True)
-class ArmLink:
-    """How a command reaches the arm, as its link options gave it: the motion port (opened
-    when ``motion``) and the state port, the wire format, the robot model, seconds per wait."""
-
-    motion_port: int
-    state_port: int
-    byte_order: str
-    real_size: int
-    robot: str
-    timeout: float
-    motion: bool = True
-
-
-#: Where a command takes the link options: ``link: ArmLink = LINK`` (see :func:`arm_link`).
-LINK: Any = None
-#: The link options, in the order -h lists them.
-_LINK_OPTIONS = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-    for name, kind, option in (
-        ("motion_port", int, MotionPortOpt),
-        ("state_port", int, StatePortOpt),
-        ("byte_order", ByteOrder, OrderOpt),
-        ("real_size", RealSize, RealOpt),
-        ("robot", str, RobotOpt),
-        ("timeout", float, TimeoutOpt),
-    )
-]
-
-
-def arm_link(motion: bool = True) -> Callable[[Callable[..., None]], Callable[..., None]]:
-    """Give a command the arm's link options in place of its ``link: ArmLink = LINK``:
-    --motion-port (not with ``motion`` false: the state port alone), --state-port,
-    --byte-order, --real-size, --robot, --timeout; they reach it checked, as an
-    :class:`ArmLink`."""
-    options = [p for p in _LINK_OPTIONS if motion or p.name != "motion_port"]
-    return bundled("link", options, functools.partial(_link, motion))
-
-
-def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
-    """The options as an :class:`ArmLink` (without --motion-port: the default, not opened)."""
-    check_wire(wire["byte_order"], wire["real_size"])
-    return ArmLink(motion_port, motion=motion, **wire)
-
-
-@contextlib.contextmanager
-def connected(host: str, link: ArmLink, stream: bool = False) -> Iterator[Arm]:
-    """The arm at ``host`` (``sim``: an embedded simulator, the streaming one with
-    ``stream``), SIGTERM stopping it as Ctrl-C does."""
-    from robocli.devices.arm import Arm
-
-    with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
-                                          link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, motion=link.motion, byte_order=link.byte_order,
-                         real_size=link.real_size, robot=link.robot,
-                         timeout=link.timeout) as arm:  # fmt: skip
-            yield arm
-
 
 # ------------------------------------------------------------------------------ sim abb
 

@@ -62,7 +62,7 @@ def _check_paper_model(target: str, paper: bool) -> None:
 def _arm_wire(target: str, byte_order: str | None, real_size: int | None) -> tuple[str, int]:
     """``--byte-order`` and ``--real-size``: the Simple Message variant of an arm target
     (and of the simulator the bench starts); refused for the other targets."""
-    from robocli.commands.arm import check_wire
+    from robocli.commands._arm import check_wire
 
     given = [name for name, value in (("--byte-order", byte_order), ("--real-size", real_size))
              if value is not None]  # fmt: skip

@@ -8,10 +8,10 @@ import sys
 
 import typer
 
+from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
+from robocli.commands._arm import connected as connected_arm
 from robocli.commands._common import sigterm_as_interrupt
 from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
-from robocli.commands.arm import LINK, ArmLink, HostArg, arm_link
-from robocli.commands.arm import connected as connected_arm
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,

@@ -24,6 +24,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands._common import (
     PORT_HELP,
     from_env,
@@ -31,7 +32,6 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
-from robocli.commands.arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 

@@ -183,8 +183,8 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
              arm_options: dict[str, Any], hokuyo: str | None = None) -> dict[str, Any]:  # fmt: skip
     """Connect every source (simulators started on ``stack``) and add it to ``rec``;
     ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
+    from robocli.commands._arm import arm_host
     from robocli.commands._common import explain_refusal, pioneer_url
-    from robocli.commands.arm import arm_host
     from robocli.devices.arm import Arm
     from robocli.devices.pioneer import Pioneer
 

@@ -15,8 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands.arm import LINK, ArmLink, arm_link
-from robocli.commands.arm import connected as connected_arm
+from robocli.commands._arm import LINK, ArmLink, arm_link
+from robocli.commands._arm import connected as connected_arm
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
