@@ -21,6 +21,7 @@ from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import laser as laser_commands
 from robocli.commands import router as router_commands
+from robocli.commands import serial as serial_command
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
@@ -110,7 +111,7 @@ dump.command("arm", cls=PlainCommand)(dump_commands.arm)
 teleop.command("arm", cls=PlainCommand)(teleop_commands.arm)
 
 app.command("subscribe", cls=ZenohCommand)(hub_commands.subscribe)
-app.command("serial", cls=hub_commands.SerialCommand)(hub_commands.serial)
+app.command("serial", cls=serial_command.SerialCommand)(serial_command.serial)
 connect.command("hub")(hub_commands.connect)
 dump.command("hub")(dump_commands.hub)
 bench_group.command("throughput")(hub_commands.throughput)

@@ -66,7 +66,7 @@ def test_serial_cli(pty_hub: tuple[HubServer, str, int]) -> None:
 
 
 def test_serial_timeout_range_is_the_hubs_cap() -> None:
-    from robocli.commands.hub import SERIAL_MAX_WAIT_S
+    from robocli.commands.serial import SERIAL_MAX_WAIT_S
     from robocli.hub.sources.real import MAX_SERIAL_WAIT_S
 
     assert SERIAL_MAX_WAIT_S == MAX_SERIAL_WAIT_S
