@@ -47,7 +47,8 @@ from robocli.errors import InvalidArgument, TimeoutError, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
-from robocli.sim.pioneer.session import PRE_SYNC, ArcosController, sonar_batch
+from robocli.sim.pioneer.packets import sonar_batch
+from robocli.sim.pioneer.session import PRE_SYNC, ArcosController
 from robocli.sim.pioneer.simext import Georef
 from robocli.sim.serving import Server
 from robocli.sim.ticker import Ticker
