@@ -15,6 +15,11 @@ import numpy.typing as npt
 
 from robocli.bench.stats import Progress, Run
 
+REPLY_TIMEOUT_S = 10.0
+"""How long a round trip may take before the bench says the robot stopped answering. A slow
+reply is a sample of the tail the bench reports (on a busy machine, with client and robot
+pinned to one CPU, one took over 2 s); only a reply that never comes ends the run."""
+
 if TYPE_CHECKING:
     from robocli.core import Responder
     from robocli.devices.pioneer import Pioneer
@@ -29,12 +34,12 @@ def pioneer_rtt(
     :meth:`~robocli.devices.pioneer.Pioneer.request_config` (the caller reads the reply),
     after ``warmup`` unrecorded ones."""
     for _ in range(warmup):
-        robot.request_config(timeout=2.0)
+        robot.request_config(timeout=REPLY_TIMEOUT_S)
     clock = time.perf_counter
     samples = run.samples
     while run.count < run.n:
         start = clock()
-        robot.request_config(timeout=2.0)
+        robot.request_config(timeout=REPLY_TIMEOUT_S)
         samples[run.count] = clock() - start
         run.count += 1
         if progress is not None and run.count % 256 == 0:
