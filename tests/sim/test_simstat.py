@@ -45,6 +45,18 @@ def types_until_sips(client: RawClient, n: int) -> list[int]:
     return out
 
 
+def types_after_sip(client: RawClient, k: int, n: int) -> list[int]:
+    """The packet types the client received after the ``k``-th SIP of its link, until ``n``
+    SIPs more have come. SIPs are numbered as the simulator counts them (``sips_sent``): it
+    sends them all, in order, on this one link, so a snapshot's count places the client's
+    stream at the instant of the snapshot, however late the client reads it."""
+    while sum(p[0] == PacketType.SIP for _, p in client.log) < k + n:
+        assert client.next(5.0) is not None
+    order = [p[0] for _, p in client.log]
+    sips = [i for i, t in enumerate(order) if t == PacketType.SIP]
+    return order[sips[k - 1] + 1 : sips[k + n - 1] + 1]
+
+
 def test_simstat_replies_field_by_field_like_trace_i(make_sim: MakeSim, connect: Connect) -> None:
     theirs = [arcos.decode_simstat(p[1:]) for p in recorded("i_simstat", "rx") if p[0] == 0x62]
     assert len(theirs) > 10
@@ -53,9 +65,11 @@ def test_simstat_replies_field_by_field_like_trace_i(make_sim: MakeSim, connect:
     client.open_session()
     client.flush()
     client.send(Command.SIM_STAT, 1)
-    order = types_until_sips(client, 2)
+    client.expect(PacketType.SIM_STAT, 10.0)
+    types_until_sips(client, 2)  # two cycles more: no second reply
+    order = [p[0] for _, p in client.log]
     assert order.count(PacketType.SIM_STAT) == 1
-    assert order.index(PacketType.SIM_STAT) == order.index(PacketType.SIP) + 1  # after a SIP [i]
+    assert order[order.index(PacketType.SIM_STAT) - 1] == PacketType.SIP  # after a SIP [i]
     got = [p for p in client.log if p[1][0] == PacketType.SIM_STAT][-1][1]
     assert len(got) - 1 == 56
     ours = arcos.decode_simstat(got[1:])
@@ -92,12 +106,15 @@ def test_simstat_modes_none_two_and_zero(make_sim: MakeSim, connect: Connect) ->
     client.send_raw(arcos.frame(bytes((Command.SIM_STAT,))))  # no argument = 0: no reply [i]
     assert PacketType.SIM_STAT not in types_until_sips(client, 3)
 
+    sent_at = sim.snapshot().sips_sent
     client.send(Command.SIM_STAT, 2)
-    order = types_until_sips(client, 5)
-    first = order.index(PacketType.SIM_STAT)
-    # from the second SIP after the request, a 0x62 right before every SIP [i]
-    assert order[:first].count(PacketType.SIP) == 1
-    assert order[first:] == [PacketType.SIM_STAT, PacketType.SIP] * 4
+    taken_by = sim.wait_until(lambda s: s.simstat_mode == 2, 30).sips_sent
+    # from the second SIP after the request, a 0x62 right before every SIP [i]: the request
+    # was taken between SIPs sent_at and taken_by, however long the machine delayed it
+    assert types_after_sip(client, taken_by + 1, 4) == [PacketType.SIM_STAT, PacketType.SIP] * 4
+    order = [p[0] for _, p in client.log]
+    sips_before = order[: order.index(PacketType.SIM_STAT)].count(PacketType.SIP)
+    assert sent_at + 1 <= sips_before <= taken_by + 1
     stat = arcos.decode_simstat([p for _, p in client.log if p[0] == 0x62][-1][1:])
     assert stat["flags"] == arcos.SIMSTAT_FLAG_ODOM_ERROR  # odometry-error fields, no GPS
     assert (stat["latitude"], stat["longitude"], stat["altitude"], stat["gps_dop"]) == (
@@ -106,9 +123,9 @@ def test_simstat_modes_none_two_and_zero(make_sim: MakeSim, connect: Connect) ->
     assert sim.snapshot().simstat_mode == 2
 
     client.send(Command.SIM_STAT, 0)
-    order = types_until_sips(client, 4)
-    assert order.count(PacketType.SIM_STAT) <= 1  # one more can come [i]
-    assert PacketType.SIM_STAT not in order[order.index(PacketType.SIP) + 1 :]
+    taken_by = sim.wait_until(lambda s: s.simstat_mode == 0, 30).sips_sent
+    # one more can come, before the next SIP [i]; none after it
+    assert PacketType.SIM_STAT not in types_after_sip(client, taken_by + 1, 3)
 
 
 def test_odometry_error_fields_report_the_modelled_noise(
