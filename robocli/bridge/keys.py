@@ -89,19 +89,25 @@ def text(data: dict[str, Any], name: str, what: str) -> str:
 
 
 def put(publisher: Any, data: dict[str, Any]) -> None:
-    """Put ``data`` as JSON; a session that is closing drops it (logged, never raised: the
-    loops that put end with the session)."""
+    """Put ``data`` as JSON. A session that is closing refuses it (``zenoh.ZError``): that is
+    logged, never raised, since the loops that put end with the session. Any other error (a
+    value JSON cannot take) is a bug, and raises."""
+    import zenoh  # the bridges run only with the zenoh extra; loaded already
+
+    payload = encode(data)
     try:
-        publisher.put(encode(data))
-    except Exception:  # noqa: BLE001 - a closing session: the loop ends with it
+        publisher.put(payload)
+    except zenoh.ZError:
         logging.getLogger(__name__).debug("put failed", exc_info=True)
 
 
 def undeclare(entity: Any) -> None:
     """Undeclare a Zenoh entity; one of a session already closed is left (logged)."""
+    import zenoh
+
     try:
         entity.undeclare()
-    except Exception:  # noqa: BLE001 - the session may be closed already
+    except zenoh.ZError:
         logging.getLogger(__name__).debug("undeclare failed", exc_info=True)
 
 
