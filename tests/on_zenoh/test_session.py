@@ -127,3 +127,18 @@ def test_an_endpoint_means_no_shared_memory_and_no_multicast() -> None:
     server = zenoh_config(None, "server")
     assert json.loads(server.get_json("listen/endpoints")) == [DEFAULT_ENDPOINT]
     assert json.loads(server.get_json("mode")) == "peer"
+
+
+def test_payload_decoding_is_bounded_and_typed() -> None:
+    """What a callback decodes raises ProtocolError only: deep nesting (RecursionError),
+    numbers out of a float's range (OverflowError later), NaN, a size past the cap."""
+    from robocli.errors import ProtocolError
+    from robocli.zenoh.payload import decode_object
+
+    assert decode_object(b'{"v": 0.5, "w": -3}', "x", 100) == {"v": 0.5, "w": -3}
+    for bad in (b"[" * 100_000, b'{"v": 1e400}', b'{"v": -1e400}', b'{"v": 1' + b"0" * 400 + b"}",
+                b'{"v": NaN}', b'{"v": Infinity}', b"\xff", b"[1]", b"{" * 10):  # fmt: skip
+        with pytest.raises(ProtocolError):
+            decode_object(bad, "x", 1 << 20)
+    with pytest.raises(ProtocolError, match="more than"):
+        decode_object(b"{}" + b" " * 100, "x", 100)
