@@ -196,6 +196,61 @@ def test_batch_decoding_refuses_what_is_not_one() -> None:
             decode_batch(bad)
 
 
+def test_batch_decoding_bounds_the_sample_count_by_the_body() -> None:
+    """A header claiming 2^32-1 samples in a body of one; an IMU body too short; an
+    unknown sensor; a stamp that is no time."""
+    for bad in (encode_head(MsgType.ADC, 0, 0xFFFFFFFF, 40, 1.0) + bytes(40),
+                encode_head(MsgType.IMU, 0, 2, 44, 1.0) + bytes(44),
+                encode_head(0x10, 0, 1, 40, 1.0) + bytes(40),
+                encode_head(MsgType.ADC, 0, 1, 40, float("nan")) + bytes(40),
+                encode_head(MsgType.WEBCAM, 0, 2, 22, 1.0) + bytes(22)):  # fmt: skip
+        with pytest.raises(ProtocolError):
+            decode_batch(bad)
+    assert decode_batch(encode_head(MsgType.WEBCAM, 0, 1, 30, 1.0) + bytes(30)).count == 1
+
+
+def test_a_reader_drops_and_counts_batches_that_cannot_be_its_hubs(lab: Lab) -> None:
+    """Without a lab's ACL anyone may put on the hub's keys (with it, the router drops
+    them: test_lab_acl.py): what cannot be the hub's batch is counted, never read."""
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc")
+        got = read_some(zh, "adc", 10)
+        forger = open_session(lab.endpoint, "client")
+        try:
+            now, record = lab.server.hub.clock(), np.zeros(1, [("v", "<f4", 8), ("t", "<f8")])
+            record["v"], record["t"] = 1234.5, now
+            body = record.tobytes()
+            for head in (encode_head(MsgType.ADC, 0, 0xFFFFFFFF, 40, now),  # 2^32-1 samples
+                         encode_head(MsgType.ADC, 1 << 40, 1, 40, now + 0.01),  # a 2^40 gap
+                         encode_head(MsgType.IMU, 0, 1, 40, now)):  # another sensor  # fmt: skip
+                forger.put("robocli/lab/adc", head + body)
+            forger.put("robocli/lab/adc", b"not a batch")
+
+            def rejected() -> bool:
+                got.append(zh.read("adc"))
+                return zh.rejected.get("adc", 0) >= 4
+
+            wait_for("4 batches rejected", rejected)
+        finally:
+            close_session(forger)
+        got += read_some(zh, "adc", 10)
+        assert not any(np.isclose(r.data, 1234.5).any() for r in got)
+        assert sum(r.lost for r in got) < 1000 and zh.lost.get("adc", 0) < 1000
+
+
+def test_a_settings_query_that_does_not_decode_gets_an_error_reply(lab: Lab) -> None:
+    session = open_session(lab.endpoint, "client")
+    try:
+        for bad in (b"[" * 100_000, b'{"params": {"channels": 1e400}}', b"{" + b"1" * 400):
+            replies = list(session.get("robocli/lab/@settings/adc", payload=bad,
+                                       timeout=DEADLINE_S))  # fmt: skip
+            assert len(replies) == 1 and replies[0].err is not None, bad[:20]
+            assert "error" in json.loads(replies[0].err.payload.to_bytes())
+    finally:
+        close_session(session)
+    assert lab.front.refused == 3
+
+
 def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -> None:
     def published(sensor: str) -> bool:
         return bool(lab.front.info()["sensors"][sensor]["published"])
