@@ -1,0 +1,182 @@
+"""A lab behind a router with access control, run from ``examples/lab-router.json5`` (the
+shipped example, which is what ``robocli router --users FILE --acl`` generates): the hub
+``hub1``, the bridge ``r1`` and the students ``alice`` and ``bob`` connect as Zenoh clients
+with their own credentials, on loopback, multicast scouting off. Bob, with valid lab
+credentials, cannot drive alice's robot, release it for her, keep her token alive once
+she is gone, or put sensor batches on the hub's keys; alice and the hub still work."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from on_zenoh.bridge_helpers import DEADLINE, Events, bridge_process, wait_for
+from on_zenoh.conftest import free_endpoint
+from on_zenoh.test_cli_zenoh import robocli, running
+from robocli.bridge import RemotePioneer
+from robocli.devices.hub.over_zenoh import ZenohHub
+from robocli.errors import DeviceError, TimeoutError
+from robocli.sim.pioneer.server import PioneerSim
+from robocli.zenoh import open_session
+from robocli.zenoh.acl import lab_access_control
+from robocli.zenoh.batch import encode_head
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+
+@dataclass
+class Lab:
+    """The router's endpoint and each user's client configuration."""
+
+    endpoint: str
+    configs: dict[str, Path]
+
+    def session(self, user: str) -> Any:
+        return open_session(str(self.configs[user]), "client")
+
+
+def _passwords() -> dict[str, str]:
+    lines = (EXAMPLES / "lab-users.txt").read_text().split()
+    return dict(line.split(":", 1) for line in lines)  # type: ignore[misc]
+
+
+@pytest.fixture
+def lab(tmp_path: Path) -> Iterator[Lab]:
+    """The example router (from its own folder, as the README runs it) on a free port."""
+    for name in ("lab-router.json5", "lab-users.txt"):
+        shutil.copy(EXAMPLES / name, tmp_path / name)
+    endpoint = free_endpoint()
+    configs = {}
+    for user, password in _passwords().items():
+        cfg = {"mode": "client", "connect": {"endpoints": [endpoint]},
+               "scouting": {"multicast": {"enabled": False}},
+               "transport": {"auth": {"usrpwd": {"user": user, "password": password}}}}  # fmt: skip
+        configs[user] = tmp_path / f"{user}.json5"
+        configs[user].write_text(json.dumps(cfg))
+    with running("router", "--config", str(tmp_path / "lab-router.json5"), "--listen", endpoint,
+                 ready="zenoh router", cwd=tmp_path):  # fmt: skip
+        yield Lab(endpoint, configs)
+
+
+def test_the_example_is_what_robocli_router_acl_generates() -> None:
+    z = pytest.importorskip("zenoh")
+    example = z.Config.from_file(str(EXAMPLES / "lab-router.json5"))
+    generated = z.Config()  # through Zenoh's parser too: it adds its defaults to both
+    generated.insert_json5("access_control", json.dumps(lab_access_control(_passwords())))
+    assert example.get_json("access_control") == generated.get_json("access_control")
+    assert json.loads(example.get_json("access_control/default_permission")) == "deny"
+    assert json.loads(example.get_json("scouting/multicast/enabled")) is False
+
+
+def _stopped(simulator: PioneerSim) -> bool:
+    state = simulator.snapshot()
+    return state.trans_vel_set == 0 and state.rot_vel_set == 0
+
+
+def test_another_user_cannot_drive_release_or_keep_alive_the_holder(lab: Lab) -> None:
+    with PioneerSim() as simulator:
+        port = simulator.serve_tcp("127.0.0.1", 0)
+        args = ["pioneer", port, "--zenoh", str(lab.configs["r1"]), "--name", "r1"]
+        with bridge_process(args):
+            alice = RemotePioneer.connect("r1", str(lab.configs["alice"]))
+            bob = lab.session("bob")
+            try:
+                assert alice.holder == "alice"  # the configuration's user
+                events = Events(bob, "robocli/r1/@control/event")
+                alice.set_velocity(0.3)
+                wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "alice drives")
+                alice.stop()
+                wait_for(lambda: _stopped(simulator), "alice's stop")
+                # bob, in alice's name: set-points, a release, a token of hers
+                for _ in range(5):
+                    bob.put("robocli/r1/@control/alice/velocity", b'{"v":0.5,"w":0.5}')
+                release = bob.get("robocli/r1/@control/alice/request",
+                                  payload=b'{"op":"release"}', timeout=1.0)  # fmt: skip
+                assert [r for r in release if r.ok is not None] == []  # the router dropped it
+                forged = bob.liveliness().declare_token("robocli/r1/@control/alice/alive")
+                # and as himself: refused while alice holds it; his commands ignored
+                reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
+                assert reply["granted"] is False and reply["holder"] == "alice"
+                bob.put("robocli/r1/@control/bob/velocity", b'{"v":0.5}')
+                wait_for(lambda: events.find(event="ignored", holder="bob"), "bob ignored")
+                assert _stopped(simulator)  # none of bob's set-points reached the robot
+                assert _ask(bob, "robocli/r1/@control", {"op": "status"}) == {"holder": "alice"}
+                # alice goes without a word: her token goes, bob's forgery keeps nothing
+                alice._session.close()
+                gone = wait_for(lambda: events.find(event="released", holder="alice"),
+                                "alice's robot released when her session ends")  # fmt: skip
+                assert "left" in gone["reason"]
+                forged.undeclare()
+                reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
+                assert reply == {"granted": True, "holder": "bob"}
+            finally:
+                alice.close()
+                bob.close()
+
+
+def _ask(session: Any, key: str, request: dict[str, Any]) -> dict[str, Any]:
+    for reply in session.get(key, payload=json.dumps(request).encode(), timeout=DEADLINE):
+        sample = reply.ok if reply.ok is not None else reply.err
+        result: dict[str, Any] = json.loads(sample.payload.to_bytes())
+        return result
+    raise AssertionError(f"no reply on {key}")
+
+
+def test_another_user_cannot_put_sensor_batches_on_the_hubs_keys(lab: Lab) -> None:
+    hub_args = ["serve", "--sim", "--no-tcp", "--zenoh", str(lab.configs["hub1"]),
+                "--name", "hub1", "--publish", "adc=100"]  # fmt: skip
+    with running(*hub_args, ready="hub serving"):
+        with ZenohHub.connect("hub1", zenoh=str(lab.configs["alice"]), history=False) as hub:
+            hub.subscribe("adc")
+            wait_for(lambda: len(hub.read("adc").t) > 0, "alice reads the hub's samples")
+            bob, probe = lab.session("bob"), []
+            sub = hub.zsession.declare_subscriber("robocli/bob/probe", probe.append)
+            try:
+                record = np.zeros(1, [("v", "<f4", 8), ("t", "<f8")])
+                record["v"], record["t"] = 1234.5, 1.0
+                body = record.tobytes()
+                for first in (0, 1 << 40):
+                    head = encode_head(0x20, first, 1, len(body), 1.0)
+                    bob.put("robocli/hub1/adc", head + body)
+                bob.put("robocli/bob/probe", b"after the forgeries")  # bob's own key: passes
+                wait_for(lambda: probe, "bob's own put, after his forged ones")
+                readings = []
+
+                def more() -> bool:
+                    readings.append(hub.read("adc"))
+                    return len(readings[-1].t) > 0
+
+                wait_for(more, "the hub's samples after bob's forgeries")
+                assert not any(np.isclose(r.data, 1234.5).any() for r in readings)
+                assert hub.rejected.get("adc", 0) == 0  # nothing forged even reached alice
+                assert sum(r.lost for r in readings) < 1000  # no gap of 2^40 either
+            finally:
+                sub.undeclare()
+                bob.close()
+        out = robocli("list", "--zenoh", str(lab.configs["bob"]), "--json")
+        assert {"name": "hub1", "kind": "hub"} in json.loads(out.stdout)
+
+
+def test_a_holder_name_that_is_not_its_user_is_dropped_by_the_router(lab: Lab) -> None:
+    with PioneerSim() as simulator:
+        port = simulator.serve_tcp("127.0.0.1", 0)
+        args = ["pioneer", port, "--zenoh", str(lab.configs["r1"]), "--name", "r1"]
+        with bridge_process(args):
+            with RemotePioneer.connect("r1", str(lab.configs["bob"]), holder="alice",
+                                       timeout=1.0) as fake:  # fmt: skip
+                with pytest.raises(TimeoutError):
+                    fake.set_velocity(0.2)
+                assert not fake.held
+            with RemotePioneer.connect("r1", str(lab.configs["bob"])) as bob:
+                bob.set_velocity(0.2)
+                wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "bob drives as bob")
+                with pytest.raises(DeviceError):
+                    with RemotePioneer.connect("r1", str(lab.configs["alice"])) as alice:
+                        alice.set_velocity(0.1)
