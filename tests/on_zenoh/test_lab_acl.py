@@ -180,3 +180,23 @@ def test_a_holder_name_that_is_not_its_user_is_dropped_by_the_router(lab: Lab) -
                 with pytest.raises(DeviceError):
                     with RemotePioneer.connect("r1", str(lab.configs["alice"])) as alice:
                         alice.set_velocity(0.1)
+
+
+def test_router_acl_from_a_users_file_and_its_usage_errors(tmp_path: Path) -> None:
+    users = tmp_path / "users.txt"
+    users.write_text("alice:pa\n")
+    alone = robocli("router", "--listen", free_endpoint(), "--acl")
+    assert alone.returncode == 2 and "--acl needs --users" in alone.stderr
+    bad = tmp_path / "bad.txt"
+    bad.write_text("alice:pa\n@admin:px\n")
+    refused = robocli("router", "--listen", free_endpoint(), "--users", str(bad), "--acl")
+    assert refused.returncode == 2 and "'@admin'" in refused.stderr, refused.stderr
+    endpoint = free_endpoint()
+    cfg = tmp_path / "alice.json5"
+    cfg.write_text(json.dumps({"mode": "client", "connect": {"endpoints": [endpoint]},
+                               "transport": {"auth": {"usrpwd": {"user": "alice",
+                                                                 "password": "pa"}}}}))  # fmt: skip
+    with running("router", "--listen", endpoint, "--users", str(users), "--acl",
+                 ready="zenoh router"):  # fmt: skip
+        listed = robocli("list", "--zenoh", str(cfg), "--json")
+        assert listed.returncode == 0 and json.loads(listed.stdout) == [], listed.stderr

@@ -142,3 +142,17 @@ def test_payload_decoding_is_bounded_and_typed() -> None:
             decode_object(bad, "x", 1 << 20)
     with pytest.raises(ProtocolError, match="more than"):
         decode_object(b"{}" + b" " * 100, "x", 100)
+
+
+def test_a_server_configured_as_a_client_listens_nowhere(tmp_path: Path) -> None:
+    """A hub or bridge behind a lab's ACL router is a client: were it to listen on 7447 as
+    well, a program of its host could reach it around the router's checks."""
+    from robocli.zenoh.session import zenoh_config
+
+    path = tmp_path / "hub1.json5"
+    path.write_text('{ mode: "client", connect: { endpoints: ["tcp/127.0.0.1:9"] } }')
+    listen = json.loads(zenoh_config(str(path), "server").get_json("listen/endpoints"))
+    assert DEFAULT_ENDPOINT not in json.dumps(listen)
+    path.write_text('{ mode: "peer" }')  # a peer's file naming no endpoint: loopback
+    listen = json.loads(zenoh_config(str(path), "server").get_json("listen/endpoints"))
+    assert listen == [DEFAULT_ENDPOINT]
