@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
+import sys
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,7 +19,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from on_zenoh.bridge_helpers import DEADLINE, Events, bridge_process, wait_for
+from on_zenoh.bridge_helpers import DEADLINE, Events, bridge_process, read_line, wait_for
 from on_zenoh.conftest import free_endpoint
 from on_zenoh.test_cli_zenoh import robocli, running
 from robocli.bridge import RemotePioneer
@@ -80,7 +82,7 @@ def _stopped(simulator: PioneerSim) -> bool:
     return state.trans_vel_set == 0 and state.rot_vel_set == 0
 
 
-def test_another_user_cannot_drive_release_or_keep_alive_the_holder(lab: Lab) -> None:
+def test_another_user_cannot_drive_the_robot_or_release_it_for_its_holder(lab: Lab) -> None:
     with PioneerSim() as simulator:
         port = simulator.serve_tcp("127.0.0.1", 0)
         args = ["pioneer", port, "--zenoh", str(lab.configs["r1"]), "--name", "r1"]
@@ -94,13 +96,12 @@ def test_another_user_cannot_drive_release_or_keep_alive_the_holder(lab: Lab) ->
                 wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "alice drives")
                 alice.stop()
                 wait_for(lambda: _stopped(simulator), "alice's stop")
-                # bob, in alice's name: set-points, a release, a token of hers
+                # bob, in alice's name: set-points, a release
                 for _ in range(5):
                     bob.put("robocli/r1/@control/alice/velocity", b'{"v":0.5,"w":0.5}')
                 release = bob.get("robocli/r1/@control/alice/request",
                                   payload=b'{"op":"release"}', timeout=1.0)  # fmt: skip
                 assert [r for r in release if r.ok is not None] == []  # the router dropped it
-                forged = bob.liveliness().declare_token("robocli/r1/@control/alice/alive")
                 # and as himself: refused while alice holds it; his commands ignored
                 reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
                 assert reply["granted"] is False and reply["holder"] == "alice"
@@ -108,16 +109,47 @@ def test_another_user_cannot_drive_release_or_keep_alive_the_holder(lab: Lab) ->
                 wait_for(lambda: events.find(event="ignored", holder="bob"), "bob ignored")
                 assert _stopped(simulator)  # none of bob's set-points reached the robot
                 assert _ask(bob, "robocli/r1/@control", {"op": "status"}) == {"holder": "alice"}
-                # alice goes without a word: her token goes, bob's forgery keeps nothing
-                alice._session.close()
-                gone = wait_for(lambda: events.find(event="released", holder="alice"),
-                                "alice's robot released when her session ends")  # fmt: skip
-                assert "left" in gone["reason"]
-                forged.undeclare()
-                reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
-                assert reply == {"granted": True, "holder": "bob"}
             finally:
                 alice.close()
+                bob.close()
+
+
+_HOLD = """
+import sys, time
+from robocli.bridge import RemotePioneer
+robot = RemotePioneer.connect("r1", sys.argv[1])
+robot.acquire()
+print("held", flush=True)
+time.sleep(600)
+"""
+
+
+def test_a_forged_token_does_not_keep_a_killed_holder_holding(lab: Lab) -> None:
+    with PioneerSim() as simulator:
+        port = simulator.serve_tcp("127.0.0.1", 0)
+        args = ["pioneer", port, "--zenoh", str(lab.configs["r1"]), "--name", "r1"]
+        with bridge_process(args):
+            bob = lab.session("bob")
+            holder = subprocess.Popen([sys.executable, "-c", _HOLD, str(lab.configs["alice"])],
+                                      stdout=subprocess.PIPE, text=True)  # fmt: skip
+            try:
+                assert read_line(holder, DEADLINE).strip() == "held"
+                events = Events(bob, "robocli/r1/@control/event")
+                forged = bob.liveliness().declare_token("robocli/r1/@control/alice/alive")
+                reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
+                assert reply["granted"] is False and reply["holder"] == "alice"
+                holder.kill()  # no goodbye: only its session's end tells
+                gone = wait_for(lambda: events.find(event="released", holder="alice"),
+                                "alice's robot released when she is killed")  # fmt: skip
+                assert "left" in gone["reason"]
+                reply = _ask(bob, "robocli/r1/@control/bob/request", {"op": "acquire"})
+                assert reply == {"granted": True, "holder": "bob"}
+                forged.undeclare()
+            finally:
+                holder.kill()
+                holder.wait(DEADLINE)
+                if holder.stdout is not None:
+                    holder.stdout.close()
                 bob.close()
 
 
