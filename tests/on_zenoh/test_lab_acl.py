@@ -177,8 +177,12 @@ def test_another_user_cannot_put_sensor_batches_on_the_hubs_keys(lab: Lab) -> No
                 for first in (0, 1 << 40):
                     head = encode_head(0x20, first, 1, len(body), 1.0)
                     bob.put("robocli/hub1/adc", head + body)
-                bob.put("robocli/bob/probe", b"after the forgeries")  # bob's own key: passes
-                wait_for(lambda: probe, "bob's own put, after his forged ones")
+
+                def probed() -> bool:  # bob's own key passes; until alice's subscriber is known
+                    bob.put("robocli/bob/probe", b"after the forgeries")
+                    return bool(probe)
+
+                wait_for(probed, "bob's own put, after his forged ones")
                 readings = []
 
                 def more() -> bool:
