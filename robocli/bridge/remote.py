@@ -177,7 +177,11 @@ class RemotePioneer:
         controller holds it, :class:`TimeoutError` when the bridge does not answer."""
         if self._token is not None:
             return
-        reply = self._ask({"op": "acquire"})
+        try:
+            reply = self._ask({"op": "acquire"})
+        except TimeoutError as exc:
+            raise TimeoutError(f"{exc}; under a lab router's ACL only the user {self.holder} "
+                               f"may ask as {self.holder}") from None  # fmt: skip
         if not reply.get("granted"):
             raise DeviceError(f"{self.url}: refused: {reply.get('reason') or 'held'} "
                               f"(holder: {reply.get('holder')})")  # fmt: skip

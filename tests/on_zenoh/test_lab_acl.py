@@ -207,7 +207,7 @@ def test_a_holder_name_that_is_not_its_user_is_dropped_by_the_router(lab: Lab) -
         with bridge_process(args):
             with RemotePioneer.connect("r1", str(lab.configs["bob"]), holder="alice",
                                        timeout=1.0) as fake:  # fmt: skip
-                with pytest.raises(TimeoutError):
+                with pytest.raises(TimeoutError, match="only the user alice may ask as alice"):
                     fake.set_velocity(0.2)
                 assert not fake.held
             with RemotePioneer.connect("r1", str(lab.configs["bob"])) as bob:
