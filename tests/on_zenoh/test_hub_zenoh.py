@@ -251,6 +251,27 @@ def test_a_settings_query_that_does_not_decode_gets_an_error_reply(lab: Lab) -> 
     assert lab.front.refused == 3
 
 
+def test_a_reply_that_does_not_decode_is_a_protocol_error(endpoint: str) -> None:
+    """Something answering a hub's @info with 100,000 '[' (a RecursionError in the reader
+    before), then its @settings with an error that is no JSON."""
+    server = open_session(endpoint, "server")
+    info = server.declare_queryable("robocli/fake/@info",
+                                    lambda q: q.reply(q.key_expr, b"[" * 100_000))  # fmt: skip
+    try:
+        with pytest.raises(ProtocolError, match="nested too deeply"):
+            ZenohHub.connect("fake", zenoh=endpoint)
+    finally:
+        info.undeclare()
+    server.declare_queryable("robocli/fake/@info", lambda q: q.reply(q.key_expr, b"{}"))
+    server.declare_queryable("robocli/fake/@settings/*", lambda q: q.reply_err(b"[" * 100_000))
+    try:
+        with ZenohHub.connect("fake", zenoh=endpoint) as zh:
+            with pytest.raises(DeviceError, match=r"refused: \[\[\["):
+                zh.subscribe("adc", 100)
+    finally:
+        close_session(server)
+
+
 def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -> None:
     def published(sensor: str) -> bool:
         return bool(lab.front.info()["sensors"][sensor]["published"])

@@ -45,6 +45,7 @@ from robocli.errors import (
 from robocli.protocols.ros4mat import MsgType, sensor_type
 from robocli.zenoh.batch import BLOBS, Batch, decode_batch, head_size
 from robocli.zenoh.keys import ALIVE_ALL, check_name, info_key, parse_alive, settings_key, topic_key
+from robocli.zenoh.payload import decode_object
 from robocli.zenoh.session import (
     DEFAULT_ENDPOINT,
     ZenohTarget,
@@ -64,6 +65,7 @@ HUB_NAMES: dict[MsgType, str] = {
     MsgType.KINECT: "depth", MsgType.WEBCAM_STEREO: "stereo",
 }  # fmt: skip
 """A sensor's ros4mat id -> its name on the hub (and in its Zenoh key)."""
+MAX_REPLY = 16 << 20  #: the largest @info or @settings reply decoded (bytes)
 HISTORY_BATCHES = 1 << 10  #: the most batches of history a joining subscriber asks for
 HISTORY_SHARE = 0.5
 """A joining subscriber asks for the history that fills this share of its buffer (the
@@ -215,17 +217,13 @@ class ZenohHub(Hub):
         replies = self.zsession.get(key, payload=payload, timeout=self.timeout)
         for reply in replies:
             if reply.ok is not None:
-                raw = reply.ok.payload.to_bytes()
-                try:
-                    return json.loads(raw)
-                except ValueError:
-                    raise ProtocolError(f"{key}: a reply that is not JSON") from None
-            err = reply.err
-            text = err.payload.to_bytes().decode("utf-8", "replace") if err else ""
+                return decode_object(reply.ok.payload.to_bytes(), f"{key} reply", MAX_REPLY)
+            raw = reply.err.payload.to_bytes() if reply.err is not None else b""
             try:
-                text = str(json.loads(text).get("error", text))
-            except (ValueError, AttributeError):
-                pass
+                error = decode_object(raw, f"{key} error", MAX_REPLY)
+                text = str(error.get("error", error))[:500]
+            except ProtocolError:  # not the hub's JSON: its first bytes as text
+                text = raw[:500].decode("utf-8", "replace")
             raise DeviceError(f"hub {self.name} refused: {text}")
         raise TimeoutError(f"no hub named {self.name!r} answers on Zenoh ({key})")
 
