@@ -215,3 +215,27 @@ def test_every_control_request_gets_a_reply_even_one_that_does_not_decode(sim, e
             assert acquire(session, "r1", "erin") == {"granted": True, "holder": "erin"}
         finally:
             session.close()
+
+
+def test_a_watcher_skips_states_that_do_not_decode(sim, endpoint, caplog) -> None:
+    """States put by anyone on an open network (a lab's ACL keeps them to the bridge's
+    user): each bad one is a warning, never an exception in Zenoh's thread."""
+    with _bridge(sim, endpoint):
+        with RemotePioneer.connect("r1", endpoint, holder="watcher") as watcher:
+            good = watcher.wait_for_state()
+            forger = open_session(endpoint, "client")
+            try:
+                body = {k: v for k, v in json.loads(
+                    json.dumps(good.__dict__, default=list)).items() if k != "t"}  # fmt: skip
+                bad = [b"[" * 100_000, b"\xff",
+                       json.dumps({**body, "battery": 10**400}).encode(),
+                       json.dumps({**body, "x": "far"}).encode()]  # fmt: skip
+                with caplog.at_level("WARNING", logger="robocli.bridge"):
+                    for payload in bad:
+                        forger.put("robocli/r1/state", payload)
+                    wait_for(lambda: len([r for r in caplog.records
+                                          if "state" in r.getMessage()]) >= len(bad),
+                             "a warning per bad state")  # fmt: skip
+                assert watcher.wait_for_state().sip_count > good.sip_count
+            finally:
+                forger.close()
