@@ -96,9 +96,21 @@ def test_another_user_cannot_drive_the_robot_or_release_it_for_its_holder(lab: L
                 wait_for(lambda: simulator.snapshot().trans_vel_set > 0.1, "alice drives")
                 alice.stop()
                 wait_for(lambda: _stopped(simulator), "alice's stop")
-                # bob, in alice's name: set-points, a release
-                for _ in range(5):
-                    bob.put("robocli/r1/@control/alice/velocity", b'{"v":0.5,"w":0.5}')
+                seen: list[bytes] = []
+                for key in ("robocli/r1/state", "robocli/bob/probe"):
+                    alice._session.declare_subscriber(
+                        key, lambda s: seen.append(s.payload.to_bytes()))  # fmt: skip
+                # bob, in alice's name or through wildcards: set-points, states, a release
+                for key in ("robocli/r1/@control/alice/velocity", "robocli/*/@control/*/velocity",
+                            "robocli/r1/state", "robocli/*/state", "robocli/**"):  # fmt: skip
+                    bob.put(key, b'{"v":0.5,"w":0.5}')
+
+                def probed() -> bool:  # after bob's forgeries, on the same links
+                    bob.put("robocli/bob/probe", b"probe")
+                    return b"probe" in seen
+
+                wait_for(probed, "bob's probe reaches alice")
+                assert b'{"v":0.5,"w":0.5}' not in seen  # no state of bob's reached alice
                 release = bob.get("robocli/r1/@control/alice/request",
                                   payload=b'{"op":"release"}', timeout=1.0)  # fmt: skip
                 assert [r for r in release if r.ok is not None] == []  # the router dropped it
