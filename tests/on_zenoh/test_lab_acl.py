@@ -174,8 +174,9 @@ def _ask(session: Any, key: str, request: dict[str, Any]) -> dict[str, Any]:
 
 
 def test_another_user_cannot_put_sensor_batches_on_the_hubs_keys(lab: Lab) -> None:
+    # no --name: the hub is named hub1, its configuration's user
     hub_args = ["serve", "--sim", "--no-tcp", "--zenoh", str(lab.configs["hub1"]),
-                "--name", "hub1", "--publish", "adc=100"]  # fmt: skip
+                "--publish", "adc=100"]  # fmt: skip
     with running(*hub_args, ready="hub serving"):
         with ZenohHub.connect("hub1", zenoh=str(lab.configs["alice"]), history=False) as hub:
             hub.subscribe("adc")

@@ -156,3 +156,20 @@ def test_a_server_configured_as_a_client_listens_nowhere(tmp_path: Path) -> None
     path.write_text('{ mode: "peer" }')  # a peer's file naming no endpoint: loopback
     listen = json.loads(zenoh_config(str(path), "server").get_json("listen/endpoints"))
     assert listen == [DEFAULT_ENDPOINT]
+
+
+def test_a_server_is_named_after_its_configurations_user(tmp_path: Path, capsys) -> None:
+    """Under a lab's ACL a user serves under its own name only: that is the default name,
+    and another one is said on stderr."""
+    from robocli.commands._zenoh import server_name
+
+    path = tmp_path / "hub1.json5"
+    path.write_text('{ mode: "client", transport: { auth: { usrpwd: { user: "hub1", '
+                    'password: "x" } } } }')  # fmt: skip
+    assert server_name(None, str(path), "pioneer") == "hub1"
+    assert capsys.readouterr().err == ""
+    assert server_name("r9", str(path), "pioneer") == "r9"
+    assert "--name r9 is not the configuration's user hub1" in capsys.readouterr().err
+    assert server_name(None, "tcp/127.0.0.1:7447", "pioneer") == "pioneer"
+    with pytest.raises(typer.BadParameter):
+        server_name("@x", str(path), "pioneer")
