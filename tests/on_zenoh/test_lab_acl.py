@@ -218,8 +218,8 @@ def test_a_holder_name_that_is_not_its_user_is_dropped_by_the_router(lab: Lab) -
         port = simulator.serve_tcp("127.0.0.1", 0)
         args = ["pioneer", port, "--zenoh", str(lab.configs["r1"]), "--name", "r1"]
         with bridge_process(args):
-            with RemotePioneer.connect("r1", str(lab.configs["bob"]), holder="alice",
-                                       timeout=1.0) as fake:  # fmt: skip
+            with RemotePioneer.connect("r1", str(lab.configs["bob"]), holder="alice") as fake:
+                fake.timeout = 1.0  # what the router drops is never answered: wait 1 s only
                 with pytest.raises(TimeoutError, match="only the user alice may ask as alice"):
                     fake.set_velocity(0.2)
                 assert not fake.held
