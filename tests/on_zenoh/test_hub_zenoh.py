@@ -5,12 +5,15 @@ under the token, the batch encoding a non-robocli program can read."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub, alive
@@ -207,6 +210,22 @@ def test_batch_decoding_bounds_the_sample_count_by_the_body() -> None:
         with pytest.raises(ProtocolError):
             decode_batch(bad)
     assert decode_batch(encode_head(MsgType.WEBCAM, 0, 1, 30, 1.0) + bytes(30)).count == 1
+
+
+@settings(max_examples=300, deadline=None)
+@given(sensor=st.sampled_from([*SENSOR_IDS, 0, 0x10, 0xFF]), first=st.integers(0, 2**64 - 1),
+       count=st.integers(0, 8) | st.integers(0, 2**32 - 1), stamp=st.floats(),
+       body=st.binary(max_size=200))  # fmt: skip
+def test_batch_decoding_raises_protocol_errors_only(
+    sensor: int, first: int, count: int, stamp: float, body: bytes
+) -> None:
+    """Any header over any body: a batch whose samples fit its body, or a ProtocolError."""
+    try:
+        batch = decode_batch(encode_head(sensor, first, count, len(body), stamp) + body)
+    except ProtocolError:
+        return
+    assert batch.count * 22 <= len(batch.body)  # 22 bytes: the smallest record
+    assert math.isfinite(batch.stamp)
 
 
 def test_a_reader_drops_and_counts_batches_that_cannot_be_its_hubs(lab: Lab) -> None:

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 import typer
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from robocli.commands._zenoh import ZenohCommand, zenoh_option, zenoh_session
@@ -173,3 +175,19 @@ def test_a_server_is_named_after_its_configurations_user(tmp_path: Path, capsys)
     assert server_name(None, "tcp/127.0.0.1:7447", "pioneer") == "pioneer"
     with pytest.raises(typer.BadParameter):
         server_name("@x", str(path), "pioneer")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=256),
+                 st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(),
+                              lambda c: st.lists(c) | st.dictionaries(st.text(), c),
+                              max_leaves=20).map(lambda v: json.dumps(v).encode())))  # fmt: skip
+def test_payload_decoding_raises_protocol_errors_only(payload: bytes) -> None:
+    from robocli.errors import ProtocolError
+    from robocli.zenoh.payload import decode_object
+
+    try:
+        data = decode_object(payload, "x", 1 << 20)
+    except ProtocolError:
+        return
+    assert isinstance(data, dict)
