@@ -9,10 +9,11 @@ Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
 * ``robocli/<robot>/status``, one put per STATUS message: ``t``, ``drives_powered``,
   ``e_stopped``, ``in_error``, ``in_motion``, ``motion_possible`` (true, false or null:
   unknown), ``mode``, ``error_code``;
-* ``robocli/<robot>/@control/trajectory``, queried by the holder with ``{"holder": NAME,
-  "time": [s...], "joints": [[rad...]...], "first_duration": s (optional), "split": bool
-  (optional)}``: the trajectory is checked against the robot model and downloaded (the ABB
-  way); the reply is ``{"points": N}``, or an error reply ``{"error": ...}``.
+* ``robocli/<robot>/@control/<holder>/trajectory``, queried by the holder with ``{"time":
+  [s...], "joints": [[rad...]...], "first_duration": s (optional), "split": bool
+  (optional)}`` (who asks is the key's ``<holder>`` chunk): the trajectory is checked
+  against the robot model and downloaded (the ABB way); the reply is ``{"points": N}``,
+  or an error reply ``{"error": ...}``.
 
 The silence rule does not apply to an arm (a trajectory runs without further commands): a
 running trajectory is stopped (STOP, -4) when its controller's liveliness goes, when it
@@ -30,7 +31,16 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, put, undeclare
+from robocli.bridge.keys import (
+    JSON_ENCODING,
+    control_key,
+    decode,
+    holder_key,
+    holder_of,
+    put,
+    reply,
+    undeclare,
+)
 from robocli.devices.arm import Arm
 from robocli.errors import ProtocolError, RobocliError, TimeoutError
 from robocli.kinematics import fk
@@ -61,7 +71,7 @@ class ArmBridge:
         self._state = z.declare_publisher(topic_key(self.name, "state"), encoding=JSON_ENCODING)
         self._status = z.declare_publisher(topic_key(self.name, "status"),
                                            encoding=JSON_ENCODING)  # fmt: skip
-        self._trajectory = z.declare_queryable(control_key(self.name, "trajectory"),
+        self._trajectory = z.declare_queryable(holder_key(self.name, None, "trajectory"),
                                                self._on_trajectory)  # fmt: skip
         self._info = z.declare_queryable(info_key(self.name), self._on_info)
         self._threads = [
@@ -86,7 +96,7 @@ class ArmBridge:
             "keys": {"state": topic_key(self.name, "state"),
                      "status": topic_key(self.name, "status"),
                      "control": control_key(self.name),
-                     "trajectory": control_key(self.name, "trajectory"),
+                     "trajectory": holder_key(self.name, None, "trajectory"),
                      "event": control_key(self.name, "event")},
         }  # fmt: skip
 
@@ -135,7 +145,7 @@ class ArmBridge:
         try:
             self._uploads.put_nowait(query)
         except queue.Full:
-            _reply_error(query, f"{self.name}: busy with other uploads")
+            reply(query, {"error": f"{self.name}: busy with other uploads"}, error=True)
 
     def _upload(self) -> None:
         while True:
@@ -145,17 +155,18 @@ class ArmBridge:
             try:
                 n = self._download(query)
             except RobocliError as exc:
-                _reply_error(query, str(exc))
+                reply(query, {"error": str(exc)}, error=True)
             except Exception as exc:  # noqa: BLE001 - one bad upload never ends this thread
                 log.error("%s: upload failed", self.name, exc_info=True)
-                _reply_error(query, f"upload failed: {exc}")
+                reply(query, {"error": f"upload failed: {exc}"}, error=True)
             else:
-                query.reply(query.key_expr, encode({"points": n}), encoding=JSON_ENCODING)
+                reply(query, {"points": n})
             finally:
                 query.drop()  # type: ignore[no-untyped-call]
 
     def _download(self, query: zenoh.Query) -> int:
         what = f"{self.name} trajectory"
+        holder = holder_of(query.key_expr, self.name, "trajectory")
         raw = query.payload
         data = decode(raw.to_bytes() if raw is not None else b"", what)
         try:
@@ -166,9 +177,9 @@ class ArmBridge:
         if times.ndim != 1 or joints.ndim != 2 or len(times) != len(joints):
             raise ProtocolError(f"{what}: time (N) and joints (N x joints) must match")
         first = data.get("first_duration")
-        with self.gate.command(data.get("holder"), moving=False) as ok:
+        with self.gate.command(holder, moving=False) as ok:
             if not ok:
-                raise RobocliError(f"{what}: {data.get('holder')!r} does not hold {self.name}"
+                raise RobocliError(f"{what}: {holder} does not hold {self.name}"
                                    + (f" ({self.gate.holder} does)" if self.gate.holder
                                       else ""))  # fmt: skip
             return self.arm.download(
@@ -182,7 +193,7 @@ class ArmBridge:
             self.arm.stop()
 
     def _on_info(self, query: zenoh.Query) -> None:
-        query.reply(query.key_expr, encode(self.info()), encoding=JSON_ENCODING)
+        reply(query, self.info())
 
     # ------------------------------------------------------------------ closing
 
@@ -209,13 +220,6 @@ class ArmBridge:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-
-def _reply_error(query: zenoh.Query, message: str) -> None:
-    try:
-        query.reply_err(encode({"error": message}), encoding=JSON_ENCODING)
-    except Exception:  # noqa: BLE001 - the querier may be gone
-        log.debug("reply failed", exc_info=True)
 
 
 __all__ = ["ArmBridge"]

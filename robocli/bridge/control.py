@@ -1,12 +1,14 @@
 """One controller at a time for a robot on Zenoh, and the rules that stop the robot.
 
-A controller asks the queryable ``robocli/<robot>/@control`` with the JSON payload
-``{"op": "acquire", "holder": NAME}``; the reply is ``{"granted": true, "holder": NAME}``,
+A controller named NAME asks the queryable ``robocli/<robot>/@control/NAME/request`` with
+the JSON payload ``{"op": "acquire"}``; the reply is ``{"granted": true, "holder": NAME}``,
 or ``{"granted": false, "holder": OTHER, "reason": ...}`` while OTHER holds the robot. It
-then declares the liveliness token ``robocli/<robot>/@control/holder/NAME`` for as long as
-it holds the robot, and sends its commands (each naming ``holder``). ``{"op": "release",
-"holder": NAME}`` gives the robot back; ``{"op": "status"}`` (or no payload) tells who holds
-it. Commands from anyone else are ignored (counted, and announced once as an event).
+then declares the liveliness token ``robocli/<robot>/@control/NAME/alive`` for as long as
+it holds the robot, and puts its commands under ``robocli/<robot>/@control/NAME/``.
+``{"op": "release"}`` gives the robot back; the queryable ``robocli/<robot>/@control``
+tells who holds it. Commands from anyone else are ignored (counted, and announced once as
+an event). NAME is taken from the key, never from a payload: under the lab router's ACL
+(:mod:`robocli.zenoh.acl`) only the user NAME can put, query or declare a token there.
 
 The robot is **stopped** (:class:`ControlGate` calls ``stop(reason)``):
 
@@ -38,10 +40,12 @@ from robocli.bridge.keys import (
     decode,
     encode,
     holder_key,
+    holder_of,
+    reply,
     text,
     undeclare,
 )
-from robocli.errors import RobocliError
+from robocli.errors import ProtocolError, RobocliError
 from robocli.zenoh.keys import check_name
 from robocli.zenoh.session import import_zenoh
 
@@ -96,9 +100,11 @@ class ControlGate:
         self._events = session.declare_publisher(control_key(robot, "event"),
                                                  encoding=JSON_ENCODING)  # fmt: skip
         self._tokens = session.liveliness().declare_subscriber(
-            holder_key(robot), self._on_token, history=True
+            holder_key(robot, None, "alive"), self._on_token, history=True
         )
         self._queryable = session.declare_queryable(control_key(robot), self._on_query)
+        self._requests = session.declare_queryable(holder_key(robot, None, "request"),
+                                                   self._on_query)  # fmt: skip
         self._thread = threading.Thread(target=self._run, name=f"bridge-control-{robot}",
                                         daemon=True)  # fmt: skip
         self._thread.start()
@@ -147,13 +153,16 @@ class ControlGate:
             self._cond.notify_all()
         self._thread.join(timeout=5.0)
         self._do_stop(reason, release=True, always=True)
-        for entity in (self._queryable, self._tokens, self._events):
+        for entity in (self._requests, self._queryable, self._tokens, self._events):
             undeclare(entity)
 
     # ------------------------------------------------------------------ zenoh callbacks
 
     def _on_token(self, sample: zenoh.Sample) -> None:
-        name = str(sample.key_expr).rsplit("/", 1)[-1]
+        try:
+            name = holder_of(sample.key_expr, self.robot, "alive")
+        except ProtocolError:
+            return  # not a holder's token (a wildcard): nobody's
         with self._cond:
             if sample.kind == _PUT:
                 self._alive.add(name)
@@ -167,20 +176,32 @@ class ControlGate:
             self._cond.notify_all()
 
     def _on_query(self, query: zenoh.Query) -> None:
+        """Answer a control request; every query gets a reply, an error one when refused."""
         try:
+            key = str(query.key_expr)
+            holder = None if key == control_key(self.robot) else holder_of(
+                key, self.robot, "request")  # fmt: skip
             raw = query.payload
             request = decode(raw.to_bytes(), "control request") if raw is not None else {}
-            reply = self._answer(request)
+            answer = self._answer(request, holder)
         except RobocliError as exc:
-            query.reply_err(encode({"error": str(exc)}), encoding=JSON_ENCODING)
-            return
-        query.reply(query.key_expr, encode(reply), encoding=JSON_ENCODING)
+            reply(query, {"error": str(exc)}, error=True)
+        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread unanswered
+            log.error("%s: control request failed", self.robot, exc_info=True)
+            reply(query, {"error": f"control request failed: {exc}"}, error=True)
+        else:
+            reply(query, answer)
 
-    def _answer(self, request: dict[str, Any]) -> dict[str, Any]:
+    def _answer(self, request: dict[str, Any], holder: str | None) -> dict[str, Any]:
+        """``holder``: who the request's key names (None: the status key, which only tells)."""
         op = request.get("op", "status")
         if op == "status":
             return {"holder": self.holder}
-        holder = check_name(text(request, "holder", "control request"), "holder")
+        if holder is None:
+            raise RobocliError(
+                f"control request: {text(request, 'op', 'control request')} is "
+                f"asked on {holder_key(self.robot, 'NAME', 'request')}, as NAME"
+            )
         if op == "acquire":
             return self._acquire(holder)
         if op == "release":
@@ -189,7 +210,9 @@ class ControlGate:
             if mine:
                 self._do_stop(f"released by {holder}", release=True, always=True)
             return {"holder": self.holder, "released": mine}
-        raise RobocliError(f"control request: op {op!r} is not acquire, release or status")
+        raise RobocliError(
+            f"control request: op {str(op)[:32]!r} is not acquire, release or status"
+        )
 
     def _acquire(self, holder: str) -> dict[str, Any]:
         with self._robot_lock:

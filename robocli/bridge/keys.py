@@ -11,17 +11,23 @@ A bridge named ``<robot>`` uses, under ``robocli/<robot>/``:
 ``robocli/<robot>/@info``                   queryable: what the robot is, its keys, its holder
 ``robocli/<robot>/@alive/<kind>``           liveliness token while the bridge is up (``pioneer``
                                             or ``arm``): what ``robocli list --zenoh`` shows
-``robocli/<robot>/@control``                queryable: acquire, release, who holds the robot
-``robocli/<robot>/@control/holder/<name>``  liveliness token of the controller ``<name>``
-                                            holding the robot
+``robocli/<robot>/@control``                queryable: who holds the robot
 ``robocli/<robot>/@control/event``          put per control event (granted, refused, stopped,
                                             released, fault)
-``robocli/<robot>/@control/velocity``       put: a Pioneer's velocity set-point (holder only)
-``robocli/<robot>/@control/trajectory``     queryable: an arm's trajectory upload (holder only)
+``robocli/<robot>/@control/<holder>/*``     the keys of controller ``<holder>``: ``request``
+                                            (queryable: acquire, release), ``alive`` (its
+                                            liveliness token while it holds the robot),
+                                            ``velocity`` (put: a Pioneer's set-point),
+                                            ``trajectory`` (queryable: an arm's upload)
 ==========================================  ===================================================
 
 Every payload is UTF-8 JSON with the Zenoh encoding ``application/json``, in SI units, ``t``
 in Unix epoch seconds: any Zenoh program can watch and drive a robot without robocli.
+
+A controller is who the KEY says, never a name in a payload: ``<holder>`` is the key chunk
+after ``@control``, and under a lab router's ACL (``robocli router --users FILE --acl``,
+:mod:`robocli.zenoh.acl`) only the user of that name may put, query or declare a token
+there. Without the ACL the chunk is a name a controller chose, a claim.
 """
 
 from __future__ import annotations
@@ -31,8 +37,9 @@ import logging
 import math
 from typing import Any
 
-from robocli.errors import ProtocolError
+from robocli.errors import InvalidArgument, ProtocolError
 from robocli.zenoh.keys import ROOT, check_name
+from robocli.zenoh.payload import decode_object
 
 JSON_ENCODING = "application/json"
 #: The largest command or control payload a bridge decodes (bytes): a trajectory of a few
@@ -46,9 +53,28 @@ def control_key(robot: str, part: str | None = None) -> str:
     return base if part is None else f"{base}/{part}"
 
 
-def holder_key(robot: str, holder: str | None = None) -> str:
-    """The liveliness token of ``holder`` controlling ``robot`` (None: ``*``, any holder)."""
-    return control_key(robot, "holder/" + ("*" if holder is None else check_name(holder, "holder")))
+HOLDER_PARTS = ("request", "alive", "velocity", "trajectory")
+"""What lies under ``robocli/<robot>/@control/<holder>/``."""
+
+
+def holder_key(robot: str, holder: str | None, part: str) -> str:
+    """``robocli/<robot>/@control/<holder>/<part>`` (``holder`` None: ``*``, any holder)."""
+    if part not in HOLDER_PARTS:
+        raise InvalidArgument(f"part {part!r}: one of {', '.join(HOLDER_PARTS)}")
+    who = "*" if holder is None else check_name(holder, "holder")
+    return control_key(robot, f"{who}/{part}")
+
+
+def holder_of(key: object, robot: str, part: str) -> str:
+    """The holder a key of :func:`holder_key` names: the key chunk the router checked
+    under an ACL. :class:`ProtocolError` for any other key (a wildcard, a wrong part)."""
+    parts = str(key).split("/")
+    if len(parts) != 5 or parts[:3] != [ROOT, robot, "@control"] or parts[4] != part:
+        raise ProtocolError(f"{str(key)[:120]!r} is not a {part} key of {robot}")
+    try:
+        return check_name(parts[3], "holder")
+    except InvalidArgument as exc:
+        raise ProtocolError(str(exc)) from None
 
 
 def encode(data: dict[str, Any]) -> bytes:
@@ -57,17 +83,10 @@ def encode(data: dict[str, Any]) -> bytes:
 
 
 def decode(payload: bytes, what: str) -> dict[str, Any]:
-    """A JSON object from ``payload`` (at most :data:`MAX_PAYLOAD` bytes), else
+    """A JSON object from ``payload`` (at most :data:`MAX_PAYLOAD` bytes, finite numbers,
+    bounded nesting: :func:`robocli.zenoh.payload.decode_object`), else
     :class:`ProtocolError` naming ``what``."""
-    if len(payload) > MAX_PAYLOAD:
-        raise ProtocolError(f"{what}: {len(payload)} bytes, more than {MAX_PAYLOAD}")
-    try:
-        data = json.loads(payload.decode("utf-8"))
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise ProtocolError(f"{what}: not UTF-8 JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise ProtocolError(f"{what}: a JSON object was expected, not {type(data).__name__}")
-    return data
+    return decode_object(payload, what, MAX_PAYLOAD)
 
 
 def number(data: dict[str, Any], name: str, what: str) -> float:
@@ -101,6 +120,18 @@ def put(publisher: Any, data: dict[str, Any]) -> None:
         logging.getLogger(__name__).debug("put failed", exc_info=True)
 
 
+def reply(query: Any, data: dict[str, Any], *, error: bool = False) -> None:
+    """Answer ``query`` with ``data`` as JSON (an error reply when ``error``); a querier
+    that is gone is logged, never raised."""
+    try:
+        if error:
+            query.reply_err(encode(data), encoding=JSON_ENCODING)
+        else:
+            query.reply(query.key_expr, encode(data), encoding=JSON_ENCODING)
+    except Exception:  # noqa: BLE001 - the querier or the session may be gone
+        logging.getLogger(__name__).debug("reply failed", exc_info=True)
+
+
 def undeclare(entity: Any) -> None:
     """Undeclare a Zenoh entity; one of a session already closed is left (logged)."""
     import zenoh
@@ -121,5 +152,5 @@ def _finite(data: Any) -> Any:
     return data
 
 
-__all__ = ["JSON_ENCODING", "MAX_PAYLOAD", "control_key", "decode", "encode", "holder_key",
-           "number", "text"]  # fmt: skip
+__all__ = ["HOLDER_PARTS", "JSON_ENCODING", "MAX_PAYLOAD", "control_key", "decode", "encode",
+           "holder_key", "holder_of", "number", "reply", "text"]  # fmt: skip

@@ -12,9 +12,9 @@ Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
   ``sip_count``, ``holder`` (who drives it, or null);
 * ``robocli/<robot>/laser``, one put per scan: ``t``, ``pose`` (``x``, ``y`` m, ``th`` rad,
   odometry at the scan), ``angles`` (rad), ``ranges`` (m, null: no return);
-* ``robocli/<robot>/@control/velocity``, put by the holder: ``{"holder": NAME, "v": m/s,
-  "w": rad/s}``, re-sent at least every 0.5 s while the robot should move; values beyond the
-  robot's limits are clamped to them.
+* ``robocli/<robot>/@control/<holder>/velocity``, put by the holder: ``{"v": m/s, "w":
+  rad/s}``, re-sent at least every 0.5 s while the robot should move; values beyond the
+  robot's limits are clamped to them. Who sends is the key's ``<holder>`` chunk.
 
 The Pioneer client keeps its own keep-alive and watchdog logic: if the bridge stalls past
 the robot's watchdog, the robot is stopped and the trip is a fault put on the event key; the
@@ -34,9 +34,11 @@ from robocli.bridge.keys import (
     JSON_ENCODING,
     control_key,
     decode,
-    encode,
+    holder_key,
+    holder_of,
     number,
     put,
+    reply,
     undeclare,
 )
 from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
@@ -85,7 +87,7 @@ class PioneerBridge:
                                 silence=silence, token_wait=token_wait)  # fmt: skip
         self._state = z.declare_publisher(topic_key(self.name, "state"), encoding=JSON_ENCODING)
         self._laser = z.declare_publisher(topic_key(self.name, "laser"), encoding=JSON_ENCODING)
-        self._velocity = z.declare_subscriber(control_key(self.name, "velocity"),
+        self._velocity = z.declare_subscriber(holder_key(self.name, None, "velocity"),
                                               self._on_velocity)  # fmt: skip
         self._info = z.declare_queryable(info_key(self.name), self._on_info)
         robot.on_watchdog_trip(self._on_trip)
@@ -115,7 +117,7 @@ class PioneerBridge:
             "keys": {"state": topic_key(self.name, "state"),
                      "laser": topic_key(self.name, "laser"),
                      "control": control_key(self.name),
-                     "velocity": control_key(self.name, "velocity"),
+                     "velocity": holder_key(self.name, None, "velocity"),
                      "event": control_key(self.name, "event")},
         }  # fmt: skip
 
@@ -163,6 +165,7 @@ class PioneerBridge:
     def _on_velocity(self, sample: zenoh.Sample) -> None:
         what = f"{self.name} velocity command"
         try:
+            holder = holder_of(sample.key_expr, self.name, "velocity")
             data = decode(sample.payload.to_bytes(), what)
             v = number(data, "v", what)
             w = number(data, "w", what) if "w" in data else 0.0
@@ -173,7 +176,7 @@ class PioneerBridge:
                 self.gate.event("ignored", holder=self.gate.holder, reason=str(exc))
             return
         moving = v != 0.0 or w != 0.0
-        with self.gate.command(data.get("holder"), moving) as ok:
+        with self.gate.command(holder, moving) as ok:
             if not ok:
                 return
             if self._latched is not None:
@@ -215,7 +218,7 @@ class PioneerBridge:
         self.robot.stop()
 
     def _on_info(self, query: zenoh.Query) -> None:
-        query.reply(query.key_expr, encode(self.info()), encoding=JSON_ENCODING)
+        reply(query, self.info())
 
     # ------------------------------------------------------------------ closing
 

@@ -6,10 +6,12 @@
 ...     robot.stop()
 
 Watching needs nothing but the state key; the first command takes the robot (the
-``@control`` queryable, then this holder's liveliness token). The set-point is re-sent every
-``resend`` seconds until changed, as the Pioneer client's keep-alive does, so the bridge's
-0.5 s silence rule stops the robot only when this program stops or stalls. :meth:`close`
-(and leaving the ``with`` block) stops the robot and gives it back.
+holder's ``@control/<holder>/request`` queryable, then its liveliness token). The holder
+is the user name of a configuration that authenticates one (a lab's router checks that the
+keys under ``@control/<user>/`` are that user's), else ``user-host-pid``. The set-point is
+re-sent every ``resend`` seconds until changed, as the Pioneer client's keep-alive does,
+so the bridge's 0.5 s silence rule stops the robot only when this program stops or stalls.
+:meth:`close` (and leaving the ``with`` block) stops the robot and gives it back.
 """
 
 from __future__ import annotations
@@ -29,7 +31,13 @@ from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
 from robocli.errors import ConnectionLost, DeviceError, ProtocolError, TimeoutError
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
-from robocli.zenoh.session import ZenohTarget, close_session, import_zenoh, open_session
+from robocli.zenoh.session import (
+    ZenohTarget,
+    close_session,
+    config_user,
+    import_zenoh,
+    open_session,
+)
 
 if TYPE_CHECKING:
     import zenoh
@@ -101,7 +109,10 @@ class RemotePioneer:
                 resend: float = DEFAULT_RESEND_S) -> RemotePioneer:  # fmt: skip
         """Connect to ``zenoh`` (an endpoint such as ``tcp/127.0.0.1:7447``, or a JSON5
         config file) as a client and find the bridge ``robot``: :class:`TimeoutError`
-        when no bridge of that name answers within ``timeout`` s."""
+        when no bridge of that name answers within ``timeout`` s. ``holder`` (default:
+        the configuration's user, else :func:`default_holder`): the name this program
+        drives as; under a lab's ACL, only its own user name is let through."""
+        holder = holder or config_user(zenoh)
         session = open_session(zenoh, "client")
         return cls(session, robot, holder=holder, timeout=timeout, resend=resend,
                    own_session=True)  # fmt: skip
@@ -166,11 +177,17 @@ class RemotePioneer:
         controller holds it, :class:`TimeoutError` when the bridge does not answer."""
         if self._token is not None:
             return
-        reply = self._ask({"op": "acquire", "holder": self.holder})
+        try:
+            reply = self._ask({"op": "acquire"})
+        except TimeoutError as exc:
+            raise TimeoutError(f"{exc}; under a lab router's ACL only the user {self.holder} "
+                               f"may ask as {self.holder}") from None  # fmt: skip
         if not reply.get("granted"):
             raise DeviceError(f"{self.url}: refused: {reply.get('reason') or 'held'} "
                               f"(holder: {reply.get('holder')})")  # fmt: skip
-        self._token = self._session.liveliness().declare_token(holder_key(self.robot, self.holder))
+        self._token = self._session.liveliness().declare_token(
+            holder_key(self.robot, self.holder, "alive")
+        )
         self.fault = None
 
     def set_velocity(self, v: float, w: float = 0.0) -> None:
@@ -200,7 +217,7 @@ class RemotePioneer:
         try:
             self._send((0.0, 0.0))
             if self._gone is None:  # (a bridge that left answers nothing: no wait for it)
-                self._ask({"op": "release", "holder": self.holder})
+                self._ask({"op": "release"})
         finally:
             token.undeclare()
 
@@ -235,8 +252,8 @@ class RemotePioneer:
     def _send(self, point: tuple[float, float]) -> None:
         """Put a set-point, ahead of bulk data (camera frames) on a shared link: interactive
         priority, sent at once rather than batched."""
-        self._session.put(control_key(self.robot, "velocity"),
-                          encode({"holder": self.holder, "v": point[0], "w": point[1]}),
+        self._session.put(holder_key(self.robot, self.holder, "velocity"),
+                          encode({"v": point[0], "w": point[1]}),
                           encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
                           express=True)  # fmt: skip
 
@@ -254,7 +271,8 @@ class RemotePioneer:
                     log.debug("%s: re-send failed", self.url, exc_info=True)
 
     def _ask(self, request: dict[str, Any]) -> dict[str, Any]:
-        return self._get(control_key(self.robot), encode(request), "control reply")
+        return self._get(holder_key(self.robot, self.holder, "request"), encode(request),
+                         "control reply")  # fmt: skip
 
     def _query_info(self) -> dict[str, Any]:
         return self._get(info_key(self.robot), None, "info reply")

@@ -31,6 +31,7 @@ __all__ = [
     "with_default_zenoh",
     "zenoh_hub",
     "zenoh_option",
+    "server_name",
     "zenoh_session",
     "zenoh_target",
 ]
@@ -81,6 +82,26 @@ def zenoh_target(value: str | None) -> ZenohTarget:
     except InvalidArgument as exc:
         message = re.sub(r"^--zenoh:? ", "", str(exc))
         raise typer.BadParameter(message, param_hint="'--zenoh'") from None
+
+
+def server_name(name: str | None, value: str | None, fallback: str) -> str:
+    """A hub's or bridge's ``--name``: given, else the user the ``--zenoh`` configuration
+    authenticates as (a lab router's ACL lets a user serve under its own name only), else
+    ``fallback``. A name that is not that user is said on stderr (one line): under the
+    ACL, what it puts is dropped. A bad name is a usage error (exit 2)."""
+    from robocli.errors import InvalidArgument
+    from robocli.zenoh.keys import check_name
+    from robocli.zenoh.session import config_user
+
+    user = config_user(zenoh_target(value))
+    try:
+        chosen = check_name(name if name is not None else user or fallback, "--name")
+    except InvalidArgument as exc:
+        raise typer.BadParameter(str(exc).removeprefix("--name "), param_hint="'--name'") from None
+    if user is not None and chosen != user:
+        typer.echo(f"robocli: warning: --name {chosen} is not the configuration's user {user}: "
+                   f"a router with --acl drops what {chosen} puts", err=True)  # fmt: skip
+    return chosen
 
 
 def zenoh_session(value: str | None, role: Role) -> zenoh.Session:

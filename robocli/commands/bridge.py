@@ -11,7 +11,7 @@ import typer
 from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
 from robocli.commands._common import sigterm_as_interrupt
-from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
+from robocli.commands._zenoh import server_name, zenoh_option, zenoh_session, zenoh_target
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
@@ -22,7 +22,8 @@ from robocli.commands.pioneer import (
 )
 
 NameOpt = typer.Option(None, "--name", metavar="NAME",
-                       help="The robot's name on Zenoh (default: pioneer or arm).")  # fmt: skip
+                       help="The robot's name on Zenoh (default: the --zenoh configuration's "
+                       "user, else pioneer or arm).")  # fmt: skip
 SilenceOpt = typer.Option(
     0.5, "--silence", min=0.05, max=60.0, metavar="SECONDS",
     help="Stop a moving robot when its controller sends nothing for this long.",
@@ -42,10 +43,9 @@ def pioneer(
     controller at a time, until Ctrl-C. The robot stops when its controller's commands stop
     for --silence, when the controller goes, and when the bridge ends."""
     from robocli.bridge.pioneer import PioneerBridge
-    from robocli.zenoh.keys import check_name
     from robocli.zenoh.session import close_session
 
-    robot_name = check_name(name or "pioneer", "--name")
+    robot_name = server_name(name, zenoh, "pioneer")
     target = zenoh_target(zenoh)
     with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         start_laser(robot, wait=False)
@@ -75,10 +75,9 @@ def arm(
     trajectory uploads from one controller at a time, until Ctrl-C. A running trajectory is
     stopped when its controller goes and when the bridge ends."""
     from robocli.bridge.arm import ArmBridge
-    from robocli.zenoh.keys import check_name
     from robocli.zenoh.session import close_session
 
-    robot_name = check_name(name or "arm", "--name")
+    robot_name = server_name(name, zenoh, "arm")
     target = zenoh_target(zenoh)
     with connected_arm(host, link) as robot:
         robot.wait_for_state()

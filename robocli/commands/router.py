@@ -37,6 +37,12 @@ def router(
         metavar="FILE",
         help="Accept only clients with a user:password line of FILE (zenoh usrpwd).",
     ),  # fmt: skip
+    acl: bool = typer.Option(
+        False,
+        "--acl",
+        help="With --users: each user writes only under its own name (serves as "
+        "robocli/USER/..., commands robots as robocli/ROBOT/@control/USER/...); all read.",
+    ),
 ) -> None:
     """Run a Zenoh router until Ctrl-C: the lab server's, which robots and laptops connect
     to by endpoint (robocli serve/subscribe/list --zenoh CONFIG or ENDPOINT)."""
@@ -45,7 +51,7 @@ def router(
     with sigterm_as_interrupt():
         try:
             target = zenoh_target(listen) if config is None else None
-            running = start_router(target, config=config, listen=listen, users=users)
+            running = start_router(target, config=config, listen=listen, users=users, acl=acl)
         except ValueError as exc:  # InvalidArgument: a bad file or endpoint
             raise typer.BadParameter(str(exc)) from None
         try:

@@ -19,7 +19,7 @@ import typer
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
-from robocli.commands._zenoh import zenoh_option, zenoh_session
+from robocli.commands._zenoh import server_name, zenoh_option, zenoh_session
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -92,7 +92,10 @@ def serve(
     loop: bool = LoopOpt,
     zenoh: str | None = zenoh_option("server"),  # noqa: UP007
     name: str | None = typer.Option(  # noqa: UP007
-        None, "--name", help="The hub's name on Zenoh (default: this host's name)."
+        None,
+        "--name",
+        help="The hub's name on Zenoh (default: the --zenoh configuration's user, else this "
+        "host's name).",
     ),
     publish: str = typer.Option(
         ZENOH_PUBLISH,
@@ -167,13 +170,10 @@ def _zenoh_frontend(
 ) -> Any:
     """The hub's Zenoh front-end, started (its session listening on ``zenoh``)."""
     from robocli.hub.frontends.zenoh import ZenohFrontend
-    from robocli.zenoh.keys import check_name, default_name
+    from robocli.zenoh.keys import default_name
     from robocli.zenoh.session import close_session
 
-    try:
-        hub_name = check_name(name, "--name") if name is not None else default_name()
-    except ValueError as exc:
-        raise typer.BadParameter(str(exc).removeprefix("--name "), param_hint="'--name'") from None
+    hub_name = server_name(name, zenoh, default_name())
     sensors = _published(publish, srv)
     session = zenoh_session(zenoh, "server")
     try:

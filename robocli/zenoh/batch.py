@@ -24,13 +24,16 @@ follows a gap of that many samples. The put's Zenoh encoding is
 
 from __future__ import annotations
 
+import math
 import struct
 from dataclasses import dataclass
 from typing import Any
 
 from robocli.errors import ProtocolError
+from robocli.protocols.ros4mat import MsgType, record_dtype
 
-__all__ = ["BATCH_HEADER", "MAGIC", "SCHEMA", "VERSION", "Batch", "decode_batch", "encode_head"]
+__all__ = ["BATCH_HEADER", "BLOBS", "MAGIC", "SCHEMA", "VERSION", "Batch", "decode_batch",
+           "encode_head", "head_size"]  # fmt: skip
 
 MAGIC = b"RCZB"
 VERSION = 1
@@ -38,6 +41,14 @@ SCHEMA = "robocli.batch.v1"
 """The schema part of the put's encoding (``application/octet-stream;robocli.batch.v1;...``)."""
 BATCH_HEADER = struct.Struct("<4sBBHQIId")
 MAX_BODY = 256 << 20  #: the largest body a batch may announce (bytes)
+BLOBS = frozenset({MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.HOKUYO, MsgType.KINECT})
+"""Sensors whose records are info records followed by each frame's bytes."""
+
+
+def head_size(kind: MsgType) -> int:
+    """The bytes of one sample's record (for a sensor of :data:`BLOBS`, of its info
+    records: two for a stereo pair)."""
+    return record_dtype(kind).itemsize * (2 if kind == MsgType.WEBCAM_STEREO else 1)
 
 
 @dataclass(frozen=True)
@@ -64,7 +75,9 @@ def encode_head(sensor_id: int, first: int, count: int, body_size: int, stamp: f
 
 
 def decode_batch(payload: Any) -> Batch:
-    """A batch's header and body; :class:`ProtocolError` for bytes that are not one."""
+    """A batch's header and body; :class:`ProtocolError` for bytes that are not one: a
+    sensor robocli does not know, a body that is not ``count`` records (for images and
+    scans: shorter than ``count`` info records), a stamp that is not a finite time."""
     view = memoryview(payload).cast("B")
     if len(view) < BATCH_HEADER.size:
         raise ProtocolError(f"zenoh batch of {len(view)} bytes, shorter than its header")
@@ -75,4 +88,16 @@ def decode_batch(payload: Any) -> Batch:
         raise ProtocolError(
             f"zenoh batch: header of {head} and body of {size} bytes in {len(view)} bytes"
         )
+    try:
+        kind = MsgType(sensor)
+        per_sample = head_size(kind)
+    except (ValueError, ProtocolError):
+        raise ProtocolError(f"zenoh batch of an unknown sensor 0x{sensor:02x}") from None
+    records = count * per_sample
+    if records > size or (kind not in BLOBS and records != size):
+        raise ProtocolError(
+            f"zenoh batch: {count} samples of {per_sample} bytes in a body of {size} bytes"
+        )
+    if not math.isfinite(stamp) or stamp < 0:
+        raise ProtocolError(f"zenoh batch: a stamp of {stamp!r} s")
     return Batch(sensor, first, count, stamp, view[head:])

@@ -3,8 +3,9 @@ hubs and bridges and students' laptops connect by endpoint.
 
 Access control: ``users``, a file of ``user:password`` lines (Zenoh's *usrpwd*
 authentication): a client whose configuration does not present one of them is refused at
-connection. Everything listens on loopback unless an endpoint or a configuration file says
-otherwise.
+connection. ``acl``: besides, each user writes only under its own name
+(:mod:`robocli.zenoh.acl`). Everything listens on loopback unless an endpoint or a
+configuration file says otherwise.
 """
 
 from __future__ import annotations
@@ -15,12 +16,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument
+from robocli.zenoh.acl import lab_access_control
 from robocli.zenoh.session import ZenohTarget, close_session, open_session, zenoh_config
 
 if TYPE_CHECKING:
     import zenoh
 
-__all__ = ["Router", "check_users", "start_router"]
+__all__ = ["Router", "check_users", "router_config", "start_router"]
 
 MAX_USERS_BYTES = 1 << 20
 
@@ -47,8 +49,8 @@ class Router:
         self.close()
 
 
-def check_users(path: Path) -> int:
-    """The number of ``user:password`` lines of ``path``; :class:`InvalidArgument` for a
+def check_users(path: Path) -> list[str]:
+    """The users of the ``user:password`` lines of ``path``; :class:`InvalidArgument` for a
     file that cannot be read or holds none, or a line that is not one."""
     try:
         with path.open("rb") as f:
@@ -60,7 +62,23 @@ def check_users(path: Path) -> int:
     if bad or not lines:
         where = f"line {bad[0]} is not user:password" if bad else "no user:password line"
         raise InvalidArgument(f"--users {path}: {where}")
-    return len(lines)
+    return [line.split(":", 1)[0] for line in lines]
+
+
+def router_config(users: Path | None, acl: bool = False) -> dict[str, Any]:
+    """The configuration keys ``--users`` (and ``--acl``) add to a router's."""
+    if users is None:
+        if acl:
+            raise InvalidArgument("--acl needs --users: the ACL is per authenticated user")
+        return {}
+    names = check_users(users)
+    extra: dict[str, Any] = {"transport/auth/usrpwd": {"dictionary_file": str(users)}}
+    if acl:
+        try:
+            extra["access_control"] = lab_access_control(names)
+        except InvalidArgument as exc:
+            raise InvalidArgument(f"--users {users}: {exc}") from None
+    return extra
 
 
 def start_router(
@@ -69,14 +87,13 @@ def start_router(
     config: Path | None = None,
     listen: str | None = None,
     users: Path | None = None,
+    acl: bool = False,
 ) -> Router:
     """Open a Zenoh session in router mode: from ``config`` (a JSON5 file; ``listen`` added
     to its endpoints) or listening on ``target`` (default :data:`DEFAULT_ENDPOINT`).
-    ``users``: accept only clients presenting a ``user:password`` of that file."""
-    extra: dict[str, Any] = {}
-    if users is not None:
-        check_users(users)
-        extra["transport/auth/usrpwd"] = {"dictionary_file": str(users)}
+    ``users``: accept only clients presenting a ``user:password`` of that file; ``acl``:
+    and let each write only under its own name (:func:`router_config`)."""
+    extra = router_config(users, acl)
     if config is not None:
         spec: ZenohTarget | str | None = ZenohTarget(config_file=config)
         if listen is not None:

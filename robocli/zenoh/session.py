@@ -40,6 +40,7 @@ __all__ = [
     "ZenohMissing",
     "ZenohTarget",
     "close_session",
+    "config_user",
     "import_zenoh",
     "open_session",
     "parse_target",
@@ -113,9 +114,11 @@ def zenoh_config(
             raise InvalidArgument(f"--zenoh {target.config_file}: {_first_line(exc)}") from None
         if role == "router":
             config.insert_json5("mode", '"router"')
-        if role != "client" and not isinstance(json.loads(config.get_json("listen/endpoints")),
-                                                list):  # fmt: skip
-            # not set in the file: Zenoh's default is every interface; ours is loopback
+        listens = role != "client" and json.loads(config.get_json("mode")) != "client"
+        if listens and not isinstance(json.loads(config.get_json("listen/endpoints")), list):
+            # not set in the file: Zenoh's default is every interface; ours is loopback. A
+            # server whose file says client mode (a lab's ACL) listens nowhere: all it says
+            # goes through the router, which checks it
             config.insert_json5("listen/endpoints", json.dumps([DEFAULT_ENDPOINT]))
     else:
         config = z.Config()
@@ -131,6 +134,16 @@ def zenoh_config(
     for key, value in (extra or {}).items():
         config.insert_json5(key, json.dumps(value))
     return config
+
+
+def config_user(spec: str | ZenohTarget | None) -> str | None:
+    """The user name a configuration authenticates as (``transport/auth/usrpwd/user``), or
+    None (an endpoint, or a file without one)."""
+    target = spec if isinstance(spec, ZenohTarget) else parse_target(spec)
+    if target.config_file is None:
+        return None
+    user = json.loads(zenoh_config(target, "client").get_json("transport/auth/usrpwd/user"))
+    return user if isinstance(user, str) and user else None
 
 
 def open_session(

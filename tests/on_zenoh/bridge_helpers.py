@@ -85,6 +85,16 @@ class Events:
         return None
 
 
+def acquire(session: Any, robot: str, holder: str) -> dict[str, Any]:
+    """The reply to ``{"op": "acquire"}`` on ``holder``'s request key of ``robot``."""
+    return query(session, f"robocli/{robot}/@control/{holder}/request", {"op": "acquire"})
+
+
+def holder_token(session: Any, robot: str, holder: str) -> Any:
+    """``holder``'s liveliness token on ``robot`` (what a granted controller declares)."""
+    return session.liveliness().declare_token(f"robocli/{robot}/@control/{holder}/alive")
+
+
 def query(session: Any, key: str, payload: dict[str, Any] | None = None) -> dict[str, Any]:
     """The first reply to a query on ``key`` (JSON), ok or error."""
     body = None if payload is None else json.dumps(payload).encode()

@@ -10,7 +10,14 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import Events, bridge_process, query, wait_for
+from on_zenoh.bridge_helpers import (
+    Events,
+    acquire,
+    bridge_process,
+    holder_token,
+    query,
+    wait_for,
+)
 from robocli.sim.abb.server import AbbSim
 from robocli.zenoh import open_session
 
@@ -35,16 +42,14 @@ def _joints(events: Events) -> list[float]:
 
 
 def _take(session: Any, holder: str) -> Any:
-    assert query(session, "robocli/a1/@control", {"op": "acquire", "holder": holder}) == {
-        "granted": True, "holder": holder}  # fmt: skip
-    return session.liveliness().declare_token(f"robocli/a1/@control/holder/{holder}")
+    assert acquire(session, "a1", holder) == {"granted": True, "holder": holder}
+    return holder_token(session, "a1", holder)
 
 
 def _upload(session: Any, holder: str, q0: list[float], dq: float, seconds: float) -> Any:
     goal = [q0[0] + dq, *q0[1:]]
-    payload = {"holder": holder, "time": [0.0, seconds], "joints": [q0, goal],
-               "first_duration": 0.2}  # fmt: skip
-    return query(session, "robocli/a1/@control/trajectory", payload)
+    payload = {"time": [0.0, seconds], "joints": [q0, goal], "first_duration": 0.2}
+    return query(session, f"robocli/a1/@control/{holder}/trajectory", payload)
 
 
 def test_the_arm_bridge_streams_joints_and_takes_one_upload(arm) -> None:
@@ -86,3 +91,17 @@ def test_a_running_trajectory_stops_when_its_holder_goes(arm) -> None:
     gone = wait_for(lambda: events.find(event="released"), "a release event")
     assert gone["holder"] == "heidi"
     assert json.loads(json.dumps(query(session, "robocli/a1/@control"))) == {"holder": None}
+
+
+def test_an_upload_that_does_not_decode_gets_an_error_reply(arm) -> None:
+    _, session = arm
+    token = _take(session, "ivy")
+    try:
+        for bad in (b"[" * 100_000, b'{"time":[0,1e400],"joints":[[0,0,0,0,0,0],[0,0,0,0,0,0]]}',
+                    b'{"time":[0,1' + b"0" * 400 + b'],"joints":[]}'):  # fmt: skip
+            replies = list(session.get("robocli/a1/@control/ivy/trajectory", payload=bad,
+                                       timeout=20.0))  # fmt: skip
+            assert len(replies) == 1 and replies[0].err is not None, bad[:20]
+            assert "error" in json.loads(replies[0].err.payload.to_bytes())
+    finally:
+        token.undeclare()

@@ -40,7 +40,7 @@ def test_a_stop_that_raises_never_ends_the_gates_thread(server, endpoint) -> Non
     try:
         events = Events(client, "robocli/g1/@control/event")
         wait_for(lambda: _acquire(client, "ivan"), "the grant")
-        token = client.liveliness().declare_token("robocli/g1/@control/holder/ivan")
+        token = client.liveliness().declare_token("robocli/g1/@control/ivan/alive")
         for expected in (1, 2):  # the first stop raises; the thread still applies the second
             with gate.command("ivan", moving=True) as ok:
                 assert ok
@@ -60,8 +60,8 @@ def test_a_stop_that_raises_never_ends_the_gates_thread(server, endpoint) -> Non
 
 
 def _acquire(session: Any, holder: str) -> bool:
-    body = json.dumps({"op": "acquire", "holder": holder}).encode()
-    for reply in session.get("robocli/g1/@control", payload=body, timeout=5.0):
+    body = json.dumps({"op": "acquire"}).encode()
+    for reply in session.get(f"robocli/g1/@control/{holder}/request", payload=body, timeout=5.0):
         return bool(reply.ok is not None and json.loads(reply.ok.payload.to_bytes())["granted"])
     return False
 

@@ -26,10 +26,11 @@ def robocli(*args: str, timeout: float = 60.0) -> subprocess.CompletedProcess[st
 
 
 @contextmanager
-def running(*args: str, ready: str) -> Iterator[subprocess.Popen[str]]:
-    """A robocli process, once it printed a line containing ``ready``; killed at the end."""
+def running(*args: str, ready: str, cwd: Path | None = None) -> Iterator[subprocess.Popen[str]]:
+    """A robocli process (in ``cwd``), once it printed a line containing ``ready``; killed
+    at the end."""
     proc = subprocess.Popen([sys.executable, "-m", "robocli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=ENV)  # fmt: skip
+                            stderr=subprocess.PIPE, text=True, env=ENV, cwd=cwd)  # fmt: skip
     try:
         _until(proc, ready)
         yield proc

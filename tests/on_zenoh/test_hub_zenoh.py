@@ -5,12 +5,15 @@ under the token, the batch encoding a non-robocli program can read."""
 from __future__ import annotations
 
 import json
+import math
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub, alive
@@ -194,6 +197,98 @@ def test_batch_decoding_refuses_what_is_not_one() -> None:
     for bad in (good[:20], b"XXXX" + good[4:], good + b"x", good[:-1]):
         with pytest.raises(ProtocolError):
             decode_batch(bad)
+
+
+def test_batch_decoding_bounds_the_sample_count_by_the_body() -> None:
+    """A header claiming 2^32-1 samples in a body of one; an IMU body too short; an
+    unknown sensor; a stamp that is no time."""
+    for bad in (encode_head(MsgType.ADC, 0, 0xFFFFFFFF, 40, 1.0) + bytes(40),
+                encode_head(MsgType.IMU, 0, 2, 44, 1.0) + bytes(44),
+                encode_head(0x10, 0, 1, 40, 1.0) + bytes(40),
+                encode_head(MsgType.ADC, 0, 1, 40, float("nan")) + bytes(40),
+                encode_head(MsgType.WEBCAM, 0, 2, 22, 1.0) + bytes(22)):  # fmt: skip
+        with pytest.raises(ProtocolError):
+            decode_batch(bad)
+    assert decode_batch(encode_head(MsgType.WEBCAM, 0, 1, 30, 1.0) + bytes(30)).count == 1
+
+
+@settings(max_examples=300, deadline=None)
+@given(sensor=st.sampled_from([*SENSOR_IDS, 0, 0x10, 0xFF]), first=st.integers(0, 2**64 - 1),
+       count=st.integers(0, 8) | st.integers(0, 2**32 - 1), stamp=st.floats(),
+       body=st.binary(max_size=200))  # fmt: skip
+def test_batch_decoding_raises_protocol_errors_only(
+    sensor: int, first: int, count: int, stamp: float, body: bytes
+) -> None:
+    """Any header over any body: a batch whose samples fit its body, or a ProtocolError."""
+    try:
+        batch = decode_batch(encode_head(sensor, first, count, len(body), stamp) + body)
+    except ProtocolError:
+        return
+    assert batch.count * 22 <= len(batch.body)  # 22 bytes: the smallest record
+    assert math.isfinite(batch.stamp)
+
+
+def test_a_reader_drops_and_counts_batches_that_cannot_be_its_hubs(lab: Lab) -> None:
+    """Without a lab's ACL anyone may put on the hub's keys (with it, the router drops
+    them: test_lab_acl.py): what cannot be the hub's batch is counted, never read."""
+    with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
+        zh.subscribe("adc")
+        got = read_some(zh, "adc", 10)
+        forger = open_session(lab.endpoint, "client")
+        try:
+            now, record = lab.server.hub.clock(), np.zeros(1, [("v", "<f4", 8), ("t", "<f8")])
+            record["v"], record["t"] = 1234.5, now
+            body = record.tobytes()
+            for head in (encode_head(MsgType.ADC, 0, 0xFFFFFFFF, 40, now),  # 2^32-1 samples
+                         encode_head(MsgType.ADC, 1 << 40, 1, 40, now + 0.01),  # a 2^40 gap
+                         encode_head(MsgType.IMU, 0, 1, 40, now)):  # another sensor  # fmt: skip
+                forger.put("robocli/lab/adc", head + body)
+            forger.put("robocli/lab/adc", b"not a batch")
+
+            def rejected() -> bool:
+                got.append(zh.read("adc"))
+                return zh.rejected.get("adc", 0) >= 4
+
+            wait_for("4 batches rejected", rejected)
+        finally:
+            close_session(forger)
+        got += read_some(zh, "adc", 10)
+        assert not any(np.isclose(r.data, 1234.5).any() for r in got)
+        assert sum(r.lost for r in got) < 1000 and zh.lost.get("adc", 0) < 1000
+
+
+def test_a_settings_query_that_does_not_decode_gets_an_error_reply(lab: Lab) -> None:
+    session = open_session(lab.endpoint, "client")
+    try:
+        for bad in (b"[" * 100_000, b'{"params": {"channels": 1e400}}', b"{" + b"1" * 400):
+            replies = list(session.get("robocli/lab/@settings/adc", payload=bad,
+                                       timeout=DEADLINE_S))  # fmt: skip
+            assert len(replies) == 1 and replies[0].err is not None, bad[:20]
+            assert "error" in json.loads(replies[0].err.payload.to_bytes())
+    finally:
+        close_session(session)
+    assert lab.front.refused == 3
+
+
+def test_a_reply_that_does_not_decode_is_a_protocol_error(endpoint: str) -> None:
+    """Something answering a hub's @info with 100,000 '[' (a RecursionError in the reader
+    before), then its @settings with an error that is no JSON."""
+    server = open_session(endpoint, "server")
+    info = server.declare_queryable("robocli/fake/@info",
+                                    lambda q: q.reply(q.key_expr, b"[" * 100_000))  # fmt: skip
+    try:
+        with pytest.raises(ProtocolError, match="nested too deeply"):
+            ZenohHub.connect("fake", zenoh=endpoint)
+    finally:
+        info.undeclare()
+    server.declare_queryable("robocli/fake/@info", lambda q: q.reply(q.key_expr, b"{}"))
+    server.declare_queryable("robocli/fake/@settings/*", lambda q: q.reply_err(b"[" * 100_000))
+    try:
+        with ZenohHub.connect("fake", zenoh=endpoint) as zh:
+            with pytest.raises(DeviceError, match=r"refused: \[\[\["):
+                zh.subscribe("adc", 100)
+    finally:
+        close_session(server)
 
 
 def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -> None:

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 import typer
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from robocli.commands._zenoh import ZenohCommand, zenoh_option, zenoh_session
@@ -127,3 +129,65 @@ def test_an_endpoint_means_no_shared_memory_and_no_multicast() -> None:
     server = zenoh_config(None, "server")
     assert json.loads(server.get_json("listen/endpoints")) == [DEFAULT_ENDPOINT]
     assert json.loads(server.get_json("mode")) == "peer"
+
+
+def test_payload_decoding_is_bounded_and_typed() -> None:
+    """What a callback decodes raises ProtocolError only: deep nesting (RecursionError),
+    numbers out of a float's range (OverflowError later), NaN, a size past the cap."""
+    from robocli.errors import ProtocolError
+    from robocli.zenoh.payload import decode_object
+
+    assert decode_object(b'{"v": 0.5, "w": -3}', "x", 100) == {"v": 0.5, "w": -3}
+    for bad in (b"[" * 100_000, b'{"v": 1e400}', b'{"v": -1e400}', b'{"v": 1' + b"0" * 400 + b"}",
+                b'{"v": NaN}', b'{"v": Infinity}', b"\xff", b"[1]", b"{" * 10):  # fmt: skip
+        with pytest.raises(ProtocolError):
+            decode_object(bad, "x", 1 << 20)
+    with pytest.raises(ProtocolError, match="more than"):
+        decode_object(b"{}" + b" " * 100, "x", 100)
+
+
+def test_a_server_configured_as_a_client_listens_nowhere(tmp_path: Path) -> None:
+    """A hub or bridge behind a lab's ACL router is a client: were it to listen on 7447 as
+    well, a program of its host could reach it around the router's checks."""
+    from robocli.zenoh.session import zenoh_config
+
+    path = tmp_path / "hub1.json5"
+    path.write_text('{ mode: "client", connect: { endpoints: ["tcp/127.0.0.1:9"] } }')
+    listen = json.loads(zenoh_config(str(path), "server").get_json("listen/endpoints"))
+    assert DEFAULT_ENDPOINT not in json.dumps(listen)
+    path.write_text('{ mode: "peer" }')  # a peer's file naming no endpoint: loopback
+    listen = json.loads(zenoh_config(str(path), "server").get_json("listen/endpoints"))
+    assert listen == [DEFAULT_ENDPOINT]
+
+
+def test_a_server_is_named_after_its_configurations_user(tmp_path: Path, capsys) -> None:
+    """Under a lab's ACL a user serves under its own name only: that is the default name,
+    and another one is said on stderr."""
+    from robocli.commands._zenoh import server_name
+
+    path = tmp_path / "hub1.json5"
+    path.write_text('{ mode: "client", transport: { auth: { usrpwd: { user: "hub1", '
+                    'password: "x" } } } }')  # fmt: skip
+    assert server_name(None, str(path), "pioneer") == "hub1"
+    assert capsys.readouterr().err == ""
+    assert server_name("r9", str(path), "pioneer") == "r9"
+    assert "--name r9 is not the configuration's user hub1" in capsys.readouterr().err
+    assert server_name(None, "tcp/127.0.0.1:7447", "pioneer") == "pioneer"
+    with pytest.raises(typer.BadParameter):
+        server_name("@x", str(path), "pioneer")
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.one_of(st.binary(max_size=256),
+                 st.recursive(st.none() | st.booleans() | st.floats() | st.integers() | st.text(),
+                              lambda c: st.lists(c) | st.dictionaries(st.text(), c),
+                              max_leaves=20).map(lambda v: json.dumps(v).encode())))  # fmt: skip
+def test_payload_decoding_raises_protocol_errors_only(payload: bytes) -> None:
+    from robocli.errors import ProtocolError
+    from robocli.zenoh.payload import decode_object
+
+    try:
+        data = decode_object(payload, "x", 1 << 20)
+    except ProtocolError:
+        return
+    assert isinstance(data, dict)

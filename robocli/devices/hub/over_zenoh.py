@@ -11,7 +11,11 @@ the hub's cache. Batches wait in a bounded queue (``buffer`` samples, as the hub
 over ros4mat) until :meth:`read`, which decodes them with the ros4mat decoder: the same
 arrays, shapes and timestamps as :class:`Hub` gives. Samples missing from the sequence
 numbers of the batches are counted in :attr:`lost` (and ``Reading.lost``), batches seen twice
-are dropped and counted in :attr:`duplicates`. ``subscribe(name, rate)`` changes the
+are dropped and counted in :attr:`duplicates`; batches that cannot be the hub's (not
+batches, another sensor's, a sample count the body cannot hold, a gap in the numbering
+larger than the hub could have acquired since the previous batch) are dropped and counted
+in :attr:`rejected`, never read. Under a lab router's ACL (:mod:`robocli.zenoh.acl`) only
+the hub's user can put on its keys. ``subscribe(name, rate)`` changes the
 sensor's settings for everyone through the hub's settings queryable (with the token when
 the hub has one); ``subscribe(name)`` joins what is published.
 """
@@ -38,9 +42,10 @@ from robocli.errors import (
     TimeoutError,
     TransportError,
 )
-from robocli.protocols.ros4mat import MsgType, record_dtype, sensor_type
-from robocli.zenoh.batch import Batch, decode_batch
+from robocli.protocols.ros4mat import MsgType, sensor_type
+from robocli.zenoh.batch import BLOBS, Batch, decode_batch, head_size
 from robocli.zenoh.keys import ALIVE_ALL, check_name, info_key, parse_alive, settings_key, topic_key
+from robocli.zenoh.payload import decode_object
 from robocli.zenoh.session import (
     DEFAULT_ENDPOINT,
     ZenohTarget,
@@ -60,11 +65,14 @@ HUB_NAMES: dict[MsgType, str] = {
     MsgType.KINECT: "depth", MsgType.WEBCAM_STEREO: "stereo",
 }  # fmt: skip
 """A sensor's ros4mat id -> its name on the hub (and in its Zenoh key)."""
+MAX_REPLY = 16 << 20  #: the largest @info or @settings reply decoded (bytes)
 HISTORY_BATCHES = 1 << 10  #: the most batches of history a joining subscriber asks for
 HISTORY_SHARE = 0.5
 """A joining subscriber asks for the history that fills this share of its buffer (the
 rest leaves room for the live samples arriving before the first read)."""
-_BLOBS = (MsgType.WEBCAM, MsgType.WEBCAM_STEREO, MsgType.HOKUYO, MsgType.KINECT)
+GAP_MARGIN = 2.0
+"""A gap in the numbering may be this many times what the hub acquires at the sensor's
+rate between two batches' stamps (plus the reader's buffer), not more."""
 
 
 def hub_name_of(sensor: str) -> str:
@@ -88,21 +96,26 @@ def alive(session: zenoh.Session, timeout: float = 2.0) -> list[tuple[str, str]]
 
 class _Queue:
     """The batches of one sensor waiting for :meth:`ZenohHub.read` (at most ``limit``
-    samples: the oldest go first, counted)."""
+    samples: the oldest go first, counted); a payload that is not a batch of ``kind`` is
+    rejected (counted)."""
 
-    def __init__(self, limit: int) -> None:
+    def __init__(self, limit: int, kind: MsgType) -> None:
         self.limit = max(1, limit)
+        self.kind = kind
         self.items: deque[tuple[Batch, bytes]] = deque()
         self.samples = 0
         self.overflow = 0  # samples dropped because nobody read them in time
-        self.errors = 0  # payloads that were not batches
+        self.errors = 0  # payloads that were not batches of this sensor
         self.lock = threading.Lock()
 
     def push(self, payload: bytes) -> None:
         try:
             batch = decode_batch(payload)
         except ProtocolError:
-            self.errors += 1
+            batch = None
+        if batch is None or batch.sensor_id != int(self.kind):
+            with self.lock:
+                self.errors += 1
             return
         with self.lock:
             self.items.append((batch, payload))
@@ -156,6 +169,9 @@ class ZenohHub(Hub):
         """Batches received twice (history overlapping live samples), by sensor: dropped."""
         self.missed: dict[str, int] = {}
         """Batches Zenoh's miss detection reported lost for good, by sensor."""
+        self.rejected: dict[str, int] = {}
+        """Batches that cannot be the hub's (see the module), by sensor: dropped."""
+        self._hz: dict[str, float] = {}  # each sensor's rate when subscribed
 
     @classmethod
     def connect(  # type: ignore[override]
@@ -201,17 +217,13 @@ class ZenohHub(Hub):
         replies = self.zsession.get(key, payload=payload, timeout=self.timeout)
         for reply in replies:
             if reply.ok is not None:
-                raw = reply.ok.payload.to_bytes()
-                try:
-                    return json.loads(raw)
-                except ValueError:
-                    raise ProtocolError(f"{key}: a reply that is not JSON") from None
-            err = reply.err
-            text = err.payload.to_bytes().decode("utf-8", "replace") if err else ""
+                return decode_object(reply.ok.payload.to_bytes(), f"{key} reply", MAX_REPLY)
+            raw = reply.err.payload.to_bytes() if reply.err is not None else b""
             try:
-                text = str(json.loads(text).get("error", text))
-            except (ValueError, AttributeError):
-                pass
+                error = decode_object(raw, f"{key} error", MAX_REPLY)
+                text = str(error.get("error", error))[:500]
+            except ProtocolError:  # not the hub's JSON: its first bytes as text
+                text = raw[:500].decode("utf-8", "replace")
             raise DeviceError(f"hub {self.name} refused: {text}")
         raise TimeoutError(f"no hub named {self.name!r} answers on Zenoh ({key})")
 
@@ -255,7 +267,8 @@ class ZenohHub(Hub):
         hz = max(1e-3, float(settings.get("rate") or rate or 1))
         limit = buffer or max(1, int(hz))
         self._drop(key)
-        queue = self._queues[key] = _Queue(limit)
+        queue = self._queues[key] = _Queue(limit, sensor_type(name))
+        self._hz[key] = hz
         self._subscribed[key] = sensor_type(name)
         self._subs[key] = self._declare(sensor, key, queue, HISTORY_SHARE * limit / hz)
 
@@ -305,11 +318,12 @@ class ZenohHub(Hub):
             raise DeviceError(f"not subscribed to {name}")
         kind = self._subscribed[key]
         batches, lost = self._in_order(key, queue.take())
-        lost += queue.overflow
-        queue.overflow = 0
-        for b in batches:
-            if b.sensor_id != int(kind):
-                raise ProtocolError(f"{name}: a batch of sensor 0x{b.sensor_id:02x}")
+        with queue.lock:
+            lost += queue.overflow
+            queue.overflow = 0
+            if queue.errors:
+                self.rejected[key] = self.rejected.get(key, 0) + queue.errors
+                queue.errors = 0
         body = _join(kind, batches)
         n = sum(b.count for b in batches)
         stamp = batches[-1].stamp if batches else 0.0
@@ -328,7 +342,13 @@ class ZenohHub(Hub):
         it was put after every batch taken: a restarted hub numbering from 0 again."""
         out, lost = [], 0
         expected, last = self._next.get(key), self._stamp.get(key, -math.inf)
+        queue, hz = self._queues[key], self._hz.get(key, 1.0)
         for b in sorted(batches, key=lambda b: (b.stamp, b.first)):
+            if expected is not None and b.first > expected + (
+                GAP_MARGIN * hz * max(0.0, b.stamp - last) + queue.limit
+            ):
+                self.rejected[key] = self.rejected.get(key, 0) + 1
+                continue  # more samples missing than the hub acquired meanwhile
             if expected is not None and b.first < expected:
                 if not b.stamp > last:
                     self.duplicates[key] = self.duplicates.get(key, 0) + 1
@@ -377,9 +397,9 @@ class ZenohHub(Hub):
 def _join(kind: MsgType, batches: list[Batch]) -> bytes:
     """The bodies of ``batches`` as one ros4mat body: records end to end; for images and
     scans, every info record first, then every frame's bytes."""
-    if kind not in _BLOBS:
+    if kind not in BLOBS:
         return b"".join(b.body for b in batches)
-    size = record_dtype(kind).itemsize * (2 if kind == MsgType.WEBCAM_STEREO else 1)
+    size = head_size(kind)
     heads = [b.body[: b.count * size] for b in batches]
     tails = [b.body[b.count * size :] for b in batches]
     return b"".join(heads) + b"".join(tails)

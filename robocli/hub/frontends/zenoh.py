@@ -32,12 +32,13 @@ import threading
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
-from robocli.errors import DeviceError, RobocliError
+from robocli.errors import DeviceError, ProtocolError, RobocliError
 from robocli.hub.frontends.ros4mat import SENSOR_IDS, body_parts
 from robocli.hub.registry import ClientState, Hub
 from robocli.sim.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
 from robocli.zenoh.keys import alive_key, check_name, info_key, settings_key, topic_key
+from robocli.zenoh.payload import decode_object
 from robocli.zenoh.session import import_zenoh
 
 if TYPE_CHECKING:
@@ -290,16 +291,11 @@ class ZenohFrontend:
 
 def _query_json(query: Any) -> dict[str, Any]:
     payload = query.payload
-    raw = payload.to_bytes() if payload is not None else b"{}"
-    if len(raw) > MAX_QUERY_BYTES:
-        raise DeviceError(f"settings query of {len(raw)} bytes (at most {MAX_QUERY_BYTES})")
+    raw = payload.to_bytes() if payload is not None else b""
     try:
-        value = json.loads(raw or b"{}")
-    except ValueError as exc:
-        raise DeviceError(f"settings query is not JSON: {exc}") from None
-    if not isinstance(value, dict):
-        raise DeviceError("settings query: a JSON object expected")
-    return value
+        return decode_object(raw or b"{}", "settings query", MAX_QUERY_BYTES)
+    except ProtocolError as exc:  # refused as any other request: an error reply
+        raise DeviceError(str(exc)) from None
 
 
 def _plain(value: Any) -> Any:
