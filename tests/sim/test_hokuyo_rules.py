@@ -1,0 +1,187 @@
+"""The Hokuyo simulator against the rules third-party Hokuyo software relies on (issue 21):
+hokuyolx's state commands ``%ST``/``%SL``, the timer and scan stamps (a scan is measured
+after the request that asks for it, RS resets the timer and what the device resets), and
+whole frames on a pty whose reader stalls. Byte for byte over real sockets and ptys, with
+the raw client of ``test_hokuyo_sim``."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+from sim.test_hokuyo_sim import DEADLINE, Raw
+
+from robocli.protocols import scip2
+from robocli.sim.hokuyo import HokuyoSim
+
+
+def wait_for(pred: object, what: str) -> None:
+    end = time.monotonic() + DEADLINE  # bounds a failure only
+    while not pred():  # type: ignore[operator]
+        assert time.monotonic() < end, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+def state(code: str) -> bytes:
+    """The reply block of ``%ST`` in state ``code``."""
+    return b"%ST\n00P\n" + scip2.with_sum(code.encode()) + b"\n"
+
+
+@pytest.fixture(params=["tcp", "pty"])
+def ust(request: pytest.FixtureRequest) -> Iterator[Raw]:
+    with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
+        raw = Raw(sim.serve_tcp() if request.param == "tcp" else sim.serve_pty())
+        try:
+            yield raw
+        finally:
+            raw.close()
+
+
+# ============================================================================ %ST, %SL
+
+
+def test_hokuyolx_time_sync_and_the_states_it_reads(ust: Raw) -> None:
+    """hokuyolx's HokuyoLX() first asks ``%ST`` (its _force_standby), then TM0, TM1 x N,
+    TM2; then BM. Each state it may find has the code of hokuyolx's table."""
+    assert ust.ask(b"%ST\n") == b"%ST\n00P\n000@\n\n"  # standby, sum '@'
+    assert ust.ask(b"TM0\n") == b"TM0\n00P\n\n"
+    assert ust.ask(b"%ST\n") == state("002") == b"%ST\n00P\n002B\n\n"  # time adjust
+    tm1 = ust.ask(b"TM1\n")
+    assert tm1[:8] == b"TM1\n00P\n" and len(tm1) == 15
+    assert ust.ask(b"TM2\n") == b"TM2\n00P\n\n"
+    assert ust.ask(b"BM\n") == b"BM\n00P\n\n"
+    assert ust.ask(b"%ST\n") == state("003")  # single scan
+    assert ust.ask(b"MD0000108001000\n") == b"MD0000108001000\n00P\n\n"
+    ust.send(b"%ST\n")
+    while (block := ust.block()).startswith(b"MD"):  # frames may come first
+        pass
+    assert block == state("004")  # multi scan
+    ust.send(b"%SL;zz\n")  # sleep, from measuring: stream stopped, laser off
+    while (block := ust.block()).startswith(b"MD"):
+        pass
+    assert block == b"%SL;zz\n00P\n\n"
+    assert ust.ask(b"%ST\n") == state("005")
+    assert ust.ask(b"GD0000108001\n") == b"GD0000108001\n10Q\n\n"  # asleep: laser off
+    assert ust.ask(b"TM0\n") == b"TM0\n10Q\n\n"  # denied while asleep
+    assert ust.ask(b"QT\n") == b"QT\n00P\n\n"  # what hokuyolx sends to leave sleep
+    assert ust.ask(b"%ST;a\n") == b"%ST;a\n00P\n000@\n\n"
+    assert ust.ask(b"%STX\n") == b"%STX\n0Dd\n\n"  # too long
+    assert ust.ask(b"%XY\n") == b"%XY\n0Ee\n\n"  # no such command
+
+
+def test_the_urg_04lx_has_no_state_commands() -> None:
+    with HokuyoSim("urg-04lx", scip11=False) as sim:
+        raw = Raw(sim.serve_tcp())
+        try:
+            assert raw.ask(b"%ST\n") == b"%ST\n0Ee\n\n"
+            assert raw.ask(b"%SL\n") == b"%SL\n0Ee\n\n"
+        finally:
+            raw.close()
+
+
+# ============================================================================ time
+
+
+def _stamp(block: bytes) -> int:
+    return scip2.decode_scan(block).timestamp
+
+
+def _ii_time(raw: Raw) -> int:
+    """The II reply's TIME (6 hex digits in the simulator)."""
+    body = raw.ask(b"II\n").split(b"\n")
+    line = next(x for x in body if x.startswith(b"TIME:"))
+    return int(line[5:11], 16)
+
+
+@pytest.mark.parametrize("model", ["urg-04lx", "utm-30lx"])
+def test_the_first_gd_after_bm_was_measured_after_bm(model: str) -> None:
+    """TM1 reads t; TM2, BM, GD: the scan was measured with the laser on, so after t (the
+    scan GD found complete began while the laser was off, before t)."""
+    with HokuyoSim(model, scip11=False) as sim:
+        raw = Raw(sim.serve_tcp())
+        try:
+            for _ in range(3):
+                raw.ask(b"TM0\n")
+                t = scip2.decode_value(raw.ask(b"TM1\n")[8:12])
+                raw.ask(b"TM2\n")
+                raw.ask(b"BM\n")
+                stamp = _stamp(raw.ask(b"GD0100020001\n"))
+                assert t <= stamp <= _ii_time(raw) - round(sim.model.period * 1000)
+                again = _stamp(raw.ask(b"GD0100020001\n"))
+                assert stamp <= again  # the latest complete scan: never an older one
+                raw.ask(b"QT\n")
+        finally:
+            raw.close()
+
+
+@pytest.mark.parametrize("command", [b"RS", b"RT"])
+def test_after_rs_the_stamps_start_from_zero_without_a_wrap(command: bytes) -> None:
+    """BM, GD, RS (timer 0), BM, GD: the scan began after RS, so its stamp is small, not
+    the timer's 24-bit wrap of a scan begun before it (16777167)."""
+    with HokuyoSim("utm-30lx", timer_start_ms=5_000_000) as sim:
+        raw = Raw(sim.serve_tcp())
+        try:
+            raw.ask(b"BM\n")
+            assert _stamp(raw.ask(b"GD0000108001\n")) >= 5_000_000
+            assert raw.ask(command + b"\n") == command + b"\n00P\n\n"
+            raw.ask(b"BM\n")
+            stamp = _stamp(raw.ask(b"GD0000108001\n"))
+            assert 0 <= stamp <= _ii_time(raw) < 60_000
+            assert raw.ask(command + b"\n") == command + b"\n00P\n\n"
+            raw.ask(b"MD0000108001002\n")
+            stamps = [_stamp(raw.block()) for _ in range(2)]
+            assert 0 <= stamps[0] < stamps[1] < 60_000
+            assert stamps[1] - stamps[0] == 25
+        finally:
+            raw.close()
+
+
+def test_rs_resets_the_sensitivity_and_the_timer_only_moves_forward() -> None:
+    with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
+        raw = Raw(sim.serve_tcp())
+        try:
+            assert raw.ask(b"HS1\n") == b"HS1\n00P\n\n"
+            assert raw.ask(b"RS\n") == b"RS\n00P\n\n"  # normal sensitivity again (hokuyolx)
+            assert raw.ask(b"HS1\n") == b"HS1\n00P\n\n"
+            assert raw.ask(b"RT\n") == b"RT\n00P\n\n"
+            assert raw.ask(b"HS0\n") == b"HS0\n02R\n\n"
+            raw.ask(b"TM0\n")
+            times = [scip2.decode_value(raw.ask(b"TM1\n")[8:12]) for _ in range(20)]
+            raw.ask(b"TM2\n")
+            assert times == sorted(times)
+        finally:
+            raw.close()
+
+
+# ============================================================================ whole frames
+
+
+def test_a_stalled_pty_reader_gets_whole_frames_and_the_drops_are_counted() -> None:
+    """ME frames of 6.7 kB, a reader that stops reading, and a late tick that finds 40
+    scans due at once (a loaded machine): the simulator writes frames whole or not at all.
+    When the reader reads again, every frame it gets is whole, its sums right, in order;
+    the scans that did not fit were dropped whole and counted."""
+    with HokuyoSim("utm-30lx", time_scale=1.0) as sim:
+        raw = Raw(sim.serve_pty())
+        try:
+            assert raw.ask(b"ME0000108001000\n") == b"ME0000108001000\n00P\n\n"
+            (session,) = sim.sessions()
+            session.on_scans(sim.latest_scan() + 40)  # the late tick: 40 frames, 268 kB
+            wait_for(lambda: session.frames_dropped >= 30, "scans dropped while stalled")
+            frames = []
+            while len(frames) < 10:
+                frames.append(raw.block())
+            raw.send(b"QT\n")
+            while (block := raw.block()) != b"QT\n00P\n\n":
+                frames.append(block)
+        finally:
+            raw.close()
+    stamps = []
+    for f in frames:
+        assert f.startswith(b"ME0000108001000\n99b\n"), f[:40]
+        scan = scip2.decode_scan(f)  # every sum checked: a cut frame fails here
+        assert len(scan.ranges) == 1081
+        stamps.append(scan.timestamp)
+    assert stamps == sorted(set(stamps))
+    assert session.out.replies_dropped == 0
