@@ -175,3 +175,14 @@ def test_connect_pioneer_laser_text_jsonl_and_usage(sim_url: str) -> None:
         assert p.wait(30) == 130
     bad = run("connect", "pioneer", "sim", "--once", "--laser")
     assert bad.returncode == 2 and "--laser" in bad.stderr
+
+
+@pytest.mark.parametrize("command", ["connect", "dump"])
+def test_a_sensor_that_ignores_the_closing_qt_is_one_line_and_exit_3(command: str) -> None:
+    """The stop at the end of the stream runs in the command, not at garbage collection
+    (which printed an 18-line "Exception ignored in generator" and exited 0)."""
+    with HokuyoSim("ust-10lx", time_scale=2.0) as sim:
+        sim.ignore_qt = True  # QT while streaming: no reply, the stream goes on
+        proc = run(command, "laser", sim.serve_tcp(), "-n", "2", "--timeout", "0.3")
+    assert "did not answer QT" in one_line_error(proc, 3)
+    assert "Exception ignored" not in proc.stderr

@@ -300,7 +300,10 @@ class Laser:
                 break
             except TimeoutError:
                 if attempt == QT_TRIES - 1:
-                    raise
+                    raise TimeoutError(
+                        f"{self.url}: the sensor did not answer QT ({QT_TRIES} tries, "
+                        f"{self.timeout:g} s each): it may still be streaming"
+                    ) from None
                 log.info("%s: no reply to QT; sending it again", self.url)
         self._laser_on = False
 
