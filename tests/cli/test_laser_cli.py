@@ -186,3 +186,9 @@ def test_a_sensor_that_ignores_the_closing_qt_is_one_line_and_exit_3(command: st
         proc = run(command, "laser", sim.serve_tcp(), "-n", "2", "--timeout", "0.3")
     assert "did not answer QT" in one_line_error(proc, 3)
     assert "Exception ignored" not in proc.stderr
+
+
+def test_a_held_simulator_refuses_a_second_client_with_exit_4(sim_url: str) -> None:
+    with Laser.connect(sim_url, sync_samples=0):
+        proc = run("connect", "laser", sim_url, "--once")
+    assert "laser busy" in one_line_error(proc, 4)

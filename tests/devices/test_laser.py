@@ -16,7 +16,14 @@ import numpy as np
 import pytest
 
 from robocli import Laser
-from robocli.errors import ChecksumError, FramingError, RobocliError, TimeoutError
+from robocli.errors import (
+    ChecksumError,
+    ConnectionLost,
+    DeviceError,
+    FramingError,
+    RobocliError,
+    TimeoutError,
+)
 from robocli.protocols import scip2
 from robocli.sim.hokuyo import HokuyoSim
 
@@ -286,3 +293,16 @@ def test_a_pyserial_url_reaches_the_sensor() -> None:
             assert laser.url.startswith("socket://")
             assert laser.scan().ranges.size == 1081
             assert [s.remaining for s in laser.scans(count=2)] == [1, 0]
+
+
+def test_a_second_client_is_told_busy_not_link_lost() -> None:
+    """The simulator serves one client and refuses the next with a line, then closes: the
+    client reads that line (its handshake runs before the reader thread takes the link)
+    and raises DeviceError (exit 4), not ConnectionLost (exit 1)."""
+    with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
+        url = sim.serve_tcp()
+        with Laser.connect(url, sync_samples=0) as first:
+            with pytest.raises(DeviceError, match="laser busy: another client holds it") as err:
+                Laser.connect(url, timeout=5.0)
+            assert not isinstance(err.value, ConnectionLost)
+            assert first.scan().ranges.size == 1081  # the first client is undisturbed

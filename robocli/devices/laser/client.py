@@ -8,7 +8,8 @@
 Connecting does what urg_library does: QT until the sensor answers ``00`` (a one-char status
 means SCIP 1.1: it sends ``SCIP2.0``; ``0E`` means time-adjust mode: it sends ``TM2``); MD
 frames that a previous client left streaming are skipped and counted
-(:attr:`Laser.stale_frames`). Then VV, PP and II, the clock offset with TM0/TM1/TM2
+(:attr:`Laser.stale_frames`); a robocli simulator holding another client refuses this one
+(:class:`~robocli.errors.DeviceError`, "laser busy"). Then VV, PP and II, the clock offset with TM0/TM1/TM2
 (:meth:`Laser.sync_clock`), and BM turns the laser on.
 
 On the shared :class:`~robocli.devices.session.Session`: a reader thread takes the streamed
@@ -36,8 +37,9 @@ from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
-from robocli.errors import DeviceError, FramingError, ProtocolError, TimeoutError
+from robocli.errors import ConnectionLost, DeviceError, FramingError, ProtocolError, TimeoutError
 from robocli.protocols import scip2
+from robocli.protocols.common import find_refusal
 from robocli.protocols.scip2 import fast
 from robocli.transports import Transport, open_transport
 
@@ -65,7 +67,13 @@ def _stat_name(payload: bytes, direction: str) -> str:
 class Laser:
     """A connected scanner. Make one with :meth:`connect`; use it as a context manager."""
 
-    def __init__(self, transport: Transport, *, timeout: float = 2.0, check: bool = True) -> None:
+    def __init__(
+        self, transport: Transport, *, timeout: float = 2.0, check: bool = True,
+        start: bool = True,
+    ) -> None:  # fmt: skip
+        """``start``: start the reader thread now. :meth:`connect` starts it after the
+        handshake, whose replies it reads in the calling thread: the line a robocli server
+        sends before closing a link it refuses is still there to read then."""
         self.timeout = timeout
         self.check = check
         self.clock = SensorClock()
@@ -88,7 +96,8 @@ class Laser:
         self.scan_listeners: Listeners[ScanListener] = Listeners(
             self._session.stats, transport.url
         )  # fmt: skip
-        self._session.start()
+        if start:
+            self._session.start()
 
     # ---------------------------------------------------------------- connecting
 
@@ -109,11 +118,12 @@ class Laser:
         (``sync_samples`` TM1 round trips; 0: none) and turn the laser on. ``listener``
         sees every request and reply block from the first (``(direction, bytes, t)``)."""
         transport = open_transport(url, baudrate=baudrate, timeout=max(timeout, 1.0))
-        laser = cls(transport, timeout=timeout, check=check)
+        laser = cls(transport, timeout=timeout, check=check, start=False)
         if listener is not None:
             laser.session.listeners.add(listener)
         try:
             laser._handshake()
+            laser._session.start()
             laser.info = laser.read_info()
             if sync_samples > 0:
                 laser.sync_clock(sync_samples)
@@ -125,6 +135,9 @@ class Laser:
         return laser
 
     def _handshake(self) -> None:
+        """QT until the sensor is idle in SCIP 2.0. A robocli simulator that holds another
+        client refuses this one with a line (``robocli-refused: laser busy...``) and closes:
+        :class:`DeviceError` with its reason, not a lost link."""
         url = self.url
         for _ in range(4):
             try:
@@ -133,6 +146,11 @@ class Laser:
                 raise TimeoutError(
                     f"{url}: no SCIP sensor answered QT within {self.timeout:g} s"
                 ) from None
+            except ConnectionLost:
+                reason = find_refusal(self._session.raw_tail())
+                if reason is None:
+                    raise
+                raise DeviceError(f"{url}: {reason}") from None
             if reply.status == "00":
                 return
             if len(reply.status) == 1:  # SCIP 1.1
