@@ -185,3 +185,29 @@ def test_a_stalled_pty_reader_gets_whole_frames_and_the_drops_are_counted() -> N
         stamps.append(scan.timestamp)
     assert stamps == sorted(set(stamps))
     assert session.out.replies_dropped == 0
+
+
+def test_hokuyolx_runs_against_the_simulator() -> None:
+    """hokuyolx itself (MIT, PyPI): its constructor's %ST, TM time sync, PP and BM; a GD
+    scan and an MD stream with their stamps mapped to the host clock (it resyncs when a
+    stamp lies 300 ms off); the states it reads; sleep and back."""
+    hokuyolx = pytest.importorskip("hokuyolx")
+    with HokuyoSim("ust-10lx") as sim:
+        host, port = sim.serve_tcp().removeprefix("tcp://").rsplit(":", 1)
+        laser = hokuyolx.HokuyoLX(addr=(host, int(port)), timeout=DEADLINE)
+        try:
+            assert laser.model == "UST-10LX" and laser.laser_state()[0] == 3
+            before = time.time() * 1000
+            stamp, scan = laser.get_dist()
+            assert len(scan) == 1081 and stamp <= time.time() * 1000
+            assert stamp >= before - 300  # measured after the request, within the tolerance
+            got = list(laser.iter_dist(scans=3))
+            assert [pending for _, _, pending in got] == [2, 1, 0]
+            stamps = [t for _, t, _ in got]
+            assert stamps == sorted(stamps) and stamps[0] >= stamp
+            laser.sleep()
+            assert laser.laser_state()[0] == 5
+            laser.time_sync(N=2, dt=0.01)  # from sleep: QT, then TM0/TM1/TM2
+            assert laser.laser_state()[0] == 0
+        finally:
+            laser.close()
