@@ -9,8 +9,8 @@ Connecting does what urg_library does: QT until the sensor answers ``00`` (a one
 means SCIP 1.1: it sends ``SCIP2.0``; ``0E`` means time-adjust mode: it sends ``TM2``); MD
 frames that a previous client left streaming are skipped and counted
 (:attr:`Laser.stale_frames`); a robocli simulator holding another client refuses this one
-(:class:`~robocli.errors.DeviceError`, "laser busy"). Then VV, PP and II, the clock offset with TM0/TM1/TM2
-(:meth:`Laser.sync_clock`), and BM turns the laser on.
+(:class:`~robocli.errors.DeviceError`, "laser busy"). Then VV, PP and II, the clock offset
+with TM0/TM1/TM2 (:meth:`Laser.sync_clock`), and BM turns the laser on.
 
 On the shared :class:`~robocli.devices.session.Session`: a reader thread takes the streamed
 frames, every request waits for the reply whose echo is its own line (within ``timeout``),
@@ -30,7 +30,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
 from types import TracebackType
 
 from robocli.devices.laser.clock import SensorClock
@@ -351,7 +351,9 @@ class Laser:
                 cond.wait(min(left, 0.25))
             return self._queue.popleft()
 
-    def scans(self, count: int | None = None, **options: int | bool | None) -> Iterator[Scan]:
+    def scans(
+        self, count: int | None = None, **options: int | bool | None
+    ) -> Generator[Scan, None, None]:
         """Stream scans (see :meth:`start` for ``options``), ``count`` of them (None: until
         the loop ends); streaming stops (QT) when the loop ends, however it ends."""
         self.start(count=0 if count is None or count > 99 else count, **options)  # type: ignore[arg-type]
