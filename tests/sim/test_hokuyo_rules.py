@@ -6,6 +6,8 @@ the raw client of ``test_hokuyo_sim``."""
 
 from __future__ import annotations
 
+import os
+import select
 import time
 from collections.abc import Iterator
 
@@ -157,23 +159,34 @@ def test_rs_resets_the_sensitivity_and_the_timer_only_moves_forward() -> None:
 # ============================================================================ whole frames
 
 
-def test_a_stalled_pty_reader_gets_whole_frames_and_the_drops_are_counted() -> None:
-    """ME frames of 6.7 kB, a reader that stops reading, and a late tick that finds 40
-    scans due at once (a loaded machine): the simulator writes frames whole or not at all.
-    When the reader reads again, every frame it gets is whole, its sums right, in order;
-    the scans that did not fit were dropped whole and counted."""
-    with HokuyoSim("utm-30lx", time_scale=1.0) as sim:
+def _block_in_chunks(raw: Raw, chunk: int) -> bytes:
+    """The next reply block, read ``chunk`` bytes at a time (a slow serial reader)."""
+    end = time.monotonic() + DEADLINE  # bounds a failure only
+    while (i := raw.buf.find(b"\n\n")) < 0:
+        left = end - time.monotonic()
+        assert left > 0, f"no reply block; have {bytes(raw.buf[:80])!r}"
+        if select.select([raw.fd], [], [], left)[0]:
+            raw.buf += os.read(raw.fd, chunk)
+    block = bytes(raw.buf[: i + 2])
+    del raw.buf[: i + 2]
+    return block
+
+
+def test_a_pty_reader_slower_than_the_stream_gets_whole_frames_and_drops_counted() -> None:
+    """ME frames of 6.7 kB at 320 a second (2 MB/s) on a pty; the reader first stalls, then
+    reads 512 bytes at a time. The simulator writes a frame whole or not at all (the part
+    the line did not take goes first at the next tick) and drops, counted, the scans it has
+    no room for. Every frame the reader gets is whole, its sums right, in order, and the QT
+    reply comes after them. (Before, 18-35 % of the frames arrived cut.)"""
+    with HokuyoSim("utm-30lx", time_scale=8.0) as sim:
         raw = Raw(sim.serve_pty())
         try:
             assert raw.ask(b"ME0000108001000\n") == b"ME0000108001000\n00P\n\n"
             (session,) = sim.sessions()
-            session.on_scans(sim.latest_scan() + 40)  # the late tick: 40 frames, 268 kB
-            wait_for(lambda: session.frames_dropped >= 30, "scans dropped while stalled")
-            frames = []
-            while len(frames) < 10:
-                frames.append(raw.block())
-            raw.send(b"QT\n")
-            while (block := raw.block()) != b"QT\n00P\n\n":
+            wait_for(lambda: session.frames_dropped >= 10, "scans dropped while stalled")
+            frames = [_block_in_chunks(raw, 512) for _ in range(80)]
+            raw.send(b"QT\n")  # its reply comes after what the line holds
+            while (block := _block_in_chunks(raw, 512)) != b"QT\n00P\n\n":
                 frames.append(block)
         finally:
             raw.close()
@@ -184,7 +197,8 @@ def test_a_stalled_pty_reader_gets_whole_frames_and_the_drops_are_counted() -> N
         assert len(scan.ranges) == 1081
         stamps.append(scan.timestamp)
     assert stamps == sorted(set(stamps))
-    assert session.out.replies_dropped == 0
+    missing = sum((b - a) // 25 - 1 for a, b in zip(stamps, stamps[1:], strict=False))
+    assert session.frames_dropped >= missing  # every scan not received was counted
 
 
 def test_hokuyolx_runs_against_the_simulator() -> None:
@@ -199,8 +213,8 @@ def test_hokuyolx_runs_against_the_simulator() -> None:
             assert laser.model == "UST-10LX" and laser.laser_state()[0] == 3
             before = time.time() * 1000
             stamp, scan = laser.get_dist()
-            assert len(scan) == 1081 and stamp <= time.time() * 1000
-            assert stamp >= before - 300  # measured after the request, within the tolerance
+            # measured after the request (hokuyolx maps stamps within 300 ms, else resyncs)
+            assert len(scan) == 1081 and before - 300 <= stamp <= time.time() * 1000 + 300
             got = list(laser.iter_dist(scans=3))
             assert [pending for _, _, pending in got] == [2, 1, 0]
             stamps = [t for _, t, _ in got]

@@ -46,7 +46,7 @@ class FrameOutput:
         self._rest = b""  # the part of a frame the line has not taken yet
         self._waiting: deque[bytes] = deque()  # replies behind it, in order
         self._waiting_bytes = 0
-        self.scans_dropped = 0  #: scan frames not sent: the client read too slowly
+        self.scans_dropped = 0  #: scans not sent: the client read too slowly (or the clock lagged)
         self.replies_dropped = 0  #: replies not sent: more than MAX_WAITING waited
 
     def scan(self, frame: bytes) -> bool:
@@ -64,6 +64,11 @@ class FrameOutput:
                 return False
             self._write(frame)
             return True
+
+    def dropped(self, scans: int) -> None:
+        """Count ``scans`` not sent for another reason (a scan clock that fell behind)."""
+        with self._lock:
+            self.scans_dropped += scans
 
     def reply(self, data: bytes) -> None:
         """Send a reply whole, after what waits already."""

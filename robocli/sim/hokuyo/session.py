@@ -106,6 +106,7 @@ class ScipSession:
         self.sim, self.link, self.tcp = sim, link, tcp
         self.model: HokuyoModel = sim.model
         self.lock = threading.Lock()
+        self._sending = threading.Lock()  # the frames of one on_scans call go out together
         self.laser = False
         self.adjust = False  # TM0 .. TM2
         self.stream: Stream | None = None
@@ -148,25 +149,28 @@ class ScipSession:
     # ---------------------------------------------------------------- ticker thread
 
     def on_scans(self, k_now: int) -> None:
-        """Send the frames of the scans up to ``k_now`` (the latest complete) that are due."""
+        """Send the frames of the scans up to ``k_now`` (the latest complete) that are due.
+        Two calls at once (a late tick) send their frames one call after the other, in order."""
         self.out.flush()  # what the line did not take last time goes first
-        with self.lock:
-            s = self.stream
-            if s is None:
-                return
-            if s.next_k < k_now - MAX_BURST:  # the simulator stalled: no flood of old scans
-                skip = (k_now - MAX_BURST - s.next_k) // (s.interval + 1) + 1
-                s.next_k += skip * (s.interval + 1)
-            due: list[int] = []
-            while s.next_k <= k_now and (s.remaining is None or len(due) < s.remaining):
-                due.append(s.next_k)
-                s.next_k += s.interval + 1
-        for k in due:  # one write each: a pty's room is judged frame by frame
+        with self._sending:
             with self.lock:
-                if self.stream is not s:  # QT, or a new MD, came in between
+                s = self.stream
+                if s is None:
                     return
-                frame = self._frame(s, k)  # the count runs down even for a dropped one
-            self.out.scan(frame)  # whole, or dropped whole (counted)
+                if s.next_k < k_now - MAX_BURST:  # the simulator stalled: no flood of old scans
+                    skip = (k_now - MAX_BURST - s.next_k) // (s.interval + 1) + 1
+                    s.next_k += skip * (s.interval + 1)
+                    self.out.dropped(skip)
+                due: list[int] = []
+                while s.next_k <= k_now and (s.remaining is None or len(due) < s.remaining):
+                    due.append(s.next_k)
+                    s.next_k += s.interval + 1
+            for k in due:  # one write each: a pty's room is judged frame by frame
+                with self.lock:
+                    if self.stream is not s:  # QT, or a new MD, came in between
+                        return
+                    frame = self._frame(s, k)  # the count runs down even for a dropped one
+                self.out.scan(frame)  # whole, or dropped whole (counted)
 
     def _frame(self, s: Stream, k: int) -> bytes:
         if s.remaining is None:
