@@ -7,6 +7,7 @@ import json
 import math
 import re
 import signal
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -189,6 +190,22 @@ def test_a_sensor_that_ignores_the_closing_qt_is_one_line_and_exit_3(command: st
 
 
 def test_a_held_simulator_refuses_a_second_client_with_exit_4(sim_url: str) -> None:
-    with Laser.connect(sim_url, sync_samples=0):
-        proc = run("connect", "laser", sim_url, "--once")
+    """The first client keeps asking for scans (a client in use, whatever idle limit the
+    server keeps) while a second one connects: exit 4, one line, not "link lost" (exit 1)."""
+    done = threading.Event()
+    scans = []
+    with Laser.connect(sim_url, sync_samples=0) as first:
+
+        def use() -> None:
+            while not done.is_set():
+                scans.append(first.scan())
+
+        user = threading.Thread(target=use, daemon=True)
+        user.start()
+        try:
+            proc = run("connect", "laser", sim_url, "--once")
+        finally:
+            done.set()
+            user.join(30)
     assert "laser busy" in one_line_error(proc, 4)
+    assert scans and not user.is_alive()  # the first client was served throughout
