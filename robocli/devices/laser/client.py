@@ -355,7 +355,10 @@ class Laser:
         self, count: int | None = None, **options: int | bool | None
     ) -> Generator[Scan, None, None]:
         """Stream scans (see :meth:`start` for ``options``), ``count`` of them (None: until
-        the loop ends); streaming stops (QT) when the loop ends, however it ends."""
+        the loop ends); streaming stops (QT) when the generator ends or is closed. A loop
+        left early (``break``, an exception) closes it only when the generator is collected:
+        close it yourself (``with contextlib.closing(laser.scans()) as scans:``) so that the
+        QT, and the :class:`TimeoutError` of a sensor that does not answer it, happen there."""
         self.start(count=0 if count is None or count > 99 else count, **options)  # type: ignore[arg-type]
         try:
             n = 0
