@@ -117,20 +117,26 @@ def test_the_first_gd_after_bm_was_measured_after_bm(model: str) -> None:
             raw.close()
 
 
-@pytest.mark.parametrize("command", [b"RS", b"RT"])
+def _reset(raw: Raw, command: bytes) -> None:
+    if command == b"RB":  # armed by the first, done by the second within 1 s
+        assert raw.ask(b"RB\n") == b"RB\n01Q\n\n"
+    assert raw.ask(command + b"\n") == command + b"\n00P\n\n"
+
+
+@pytest.mark.parametrize("command", [b"RS", b"RT", b"RB"])
 def test_after_rs_the_stamps_start_from_zero_without_a_wrap(command: bytes) -> None:
     """BM, GD, RS (timer 0), BM, GD: the scan began after RS, so its stamp is small, not
-    the timer's 24-bit wrap of a scan begun before it (16777167)."""
+    the timer's 24-bit wrap of a scan begun before it (16777167). RT and a reboot too."""
     with HokuyoSim("utm-30lx", timer_start_ms=5_000_000) as sim:
         raw = Raw(sim.serve_tcp())
         try:
             raw.ask(b"BM\n")
             assert _stamp(raw.ask(b"GD0000108001\n")) >= 5_000_000
-            assert raw.ask(command + b"\n") == command + b"\n00P\n\n"
+            _reset(raw, command)
             raw.ask(b"BM\n")
             stamp = _stamp(raw.ask(b"GD0000108001\n"))
             assert 0 <= stamp <= _ii_time(raw) < 60_000
-            assert raw.ask(command + b"\n") == command + b"\n00P\n\n"
+            _reset(raw, command)
             raw.ask(b"MD0000108001002\n")
             stamps = [_stamp(raw.block()) for _ in range(2)]
             assert 0 <= stamps[0] < stamps[1] < 60_000
