@@ -212,18 +212,19 @@ def test_a_reader_slower_than_the_stream_gets_whole_frames_and_drops_counted(lin
 
 def test_hokuyolx_runs_against_the_simulator() -> None:
     """hokuyolx itself (MIT, PyPI): its constructor's %ST, TM time sync, PP and BM; a GD
-    scan and an MD stream with their stamps mapped to the host clock (it resyncs when a
-    stamp lies 300 ms off); the states it reads; sleep and back."""
+    scan and an MD stream with their stamps mapped to the host clock; the states it reads;
+    sleep and back."""
     hokuyolx = pytest.importorskip("hokuyolx")
     with HokuyoSim("ust-10lx") as sim:
         host, port = sim.serve_tcp().removeprefix("tcp://").rsplit(":", 1)
-        laser = hokuyolx.HokuyoLX(addr=(host, int(port)), timeout=DEADLINE)
+        # a stamp 300 ms off the host clock (a loaded machine) makes hokuyolx resync in the
+        # middle of a stream, which it cannot resume: 2 s of tolerance
+        laser = hokuyolx.HokuyoLX(addr=(host, int(port)), timeout=DEADLINE, time_tolerance=2000)
         try:
             assert laser.model == "UST-10LX" and laser.laser_state()[0] == 3
             before = time.time() * 1000
             stamp, scan = laser.get_dist()
-            # measured after the request (hokuyolx maps stamps within 300 ms, else resyncs)
-            assert len(scan) == 1081 and before - 300 <= stamp <= time.time() * 1000 + 300
+            assert len(scan) == 1081 and before - 2000 <= stamp <= time.time() * 1000 + 2000
             got = list(laser.iter_dist(scans=3))
             assert [pending for _, _, pending in got] == [2, 1, 0]
             stamps = [t for _, t, _ in got]
