@@ -5,6 +5,7 @@ frame (the pure-Python scan decode against the sensor's period)."""
 
 from __future__ import annotations
 
+import contextlib
 import time
 from typing import Any
 
@@ -35,12 +36,13 @@ def laser_scan_timing(
 
     try:
         with Laser.connect(url, listener=keep) as laser:
-            for i, scan in enumerate(laser.scans(n + 1)):
-                received.append(scan.received)
-                stamps.append(scan.stamp_ms)
-                delays.append(scan.received - scan.t)
-                if progress is not None:
-                    progress(i + 1)
+            with contextlib.closing(laser.scans(n + 1)) as scans:  # QT now, not at collection
+                for i, scan in enumerate(scans):
+                    received.append(scan.received)
+                    stamps.append(scan.stamp_ms)
+                    delays.append(scan.received - scan.t)
+                    if progress is not None:
+                        progress(i + 1)
     finally:
         out["period"] = np.diff(np.array(received))
         out["stamp_period"] = np.diff(np.array(stamps, dtype=np.float64)) / 1000.0

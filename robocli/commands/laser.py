@@ -127,15 +127,18 @@ def connect(
         if not jsonl:
             _print_identity(laser)
         n = 0
-        for scan in laser.scans(None, intensity=intensity, **area):
-            if jsonl:
-                print_json_line(scan_json(laser, scan))
-            else:
-                typer.echo(scan_line(scan))
-                sys.stdout.flush()
-            n += 1
-            if count and n >= count:
-                break
+        # closed here, not when the generator is collected: its QT (and the error of a
+        # sensor that does not answer it) belongs to this command, not to the garbage collector
+        with contextlib.closing(laser.scans(None, intensity=intensity, **area)) as scans:
+            for scan in scans:
+                if jsonl:
+                    print_json_line(scan_json(laser, scan))
+                else:
+                    typer.echo(scan_line(scan))
+                    sys.stdout.flush()
+                n += 1
+                if count and n >= count:
+                    break
 
 
 def _print_identity(laser: Laser) -> None:

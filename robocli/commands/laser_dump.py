@@ -10,6 +10,7 @@ sensor sent.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import threading
 from collections.abc import Iterator
@@ -90,9 +91,10 @@ def dump(
 
         with laser_url(port, model) as url:
             with Laser.connect(url, baudrate=baud, timeout=timeout, listener=view.show) as laser:
-                for n, _ in enumerate(laser.scans(None), 1):
-                    if count and n >= count:
-                        break
+                with contextlib.closing(laser.scans(None)) as scans:  # QT now, not at collection
+                    for n, _ in enumerate(scans, 1):
+                        if count and n >= count:
+                            break
 
 
 def _dump_file(view: _View, file: Path) -> None:

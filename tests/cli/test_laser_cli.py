@@ -7,6 +7,7 @@ import json
 import math
 import re
 import signal
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -175,3 +176,36 @@ def test_connect_pioneer_laser_text_jsonl_and_usage(sim_url: str) -> None:
         assert p.wait(30) == 130
     bad = run("connect", "pioneer", "sim", "--once", "--laser")
     assert bad.returncode == 2 and "--laser" in bad.stderr
+
+
+@pytest.mark.parametrize("command", ["connect", "dump"])
+def test_a_sensor_that_ignores_the_closing_qt_is_one_line_and_exit_3(command: str) -> None:
+    """The stop at the end of the stream runs in the command, not at garbage collection
+    (which printed an 18-line "Exception ignored in generator" and exited 0)."""
+    with HokuyoSim("ust-10lx", time_scale=2.0) as sim:
+        sim.ignore_qt = True  # QT while streaming: no reply, the stream goes on
+        proc = run(command, "laser", sim.serve_tcp(), "-n", "2", "--timeout", "0.3")
+    assert "did not answer QT" in one_line_error(proc, 3)
+    assert "Exception ignored" not in proc.stderr
+
+
+def test_a_held_simulator_refuses_a_second_client_with_exit_4(sim_url: str) -> None:
+    """The first client keeps asking for scans (a client in use, whatever idle limit the
+    server keeps) while a second one connects: exit 4, one line, not "link lost" (exit 1)."""
+    done = threading.Event()
+    scans = []
+    with Laser.connect(sim_url, sync_samples=0) as first:
+
+        def use() -> None:
+            while not done.is_set():
+                scans.append(first.scan())
+
+        user = threading.Thread(target=use, daemon=True)
+        user.start()
+        try:
+            proc = run("connect", "laser", sim_url, "--once")
+        finally:
+            done.set()
+            user.join(30)
+    assert "laser busy" in one_line_error(proc, 4)
+    assert scans and not user.is_alive()  # the first client was served throughout

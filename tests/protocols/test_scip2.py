@@ -126,7 +126,8 @@ def test_construct_lines() -> None:
      ("MD", {"start": 44, "end": 725, "count": 1}, None, b"MD0044072501001\n"),
      ("ME", {"start": 384, "end": 385, "count": 1}, None, b"ME0384038501001\n"),
      ("MS", {"start": 0, "end": 1080, "cluster": 2, "interval": 1}, "x", b"MS0000108002100;x\n"),
-     ("SCIP2.0", {}, None, b"SCIP2.0\n")],
+     ("SCIP2.0", {}, None, b"SCIP2.0\n"), ("%ST", {}, None, b"%ST\n"),
+     ("%SL", {}, "z", b"%SL;z\n")],
 )  # fmt: skip
 def test_build_and_parse_requests(
     command: str, params: dict[str, int], tag: str | None, line: bytes
@@ -150,7 +151,8 @@ def test_request_terminators() -> None:
     [(b"XX", "0E"), (b"GD00440725", "0C"), (b"GD004407250101", "0D"), (b"VV1", "0D"),
      (b"GDx044072501", "01"), (b"GD0044x72501", "02"), (b"GD00440725x1", "03"),
      (b"MD0044072501x01", "06"), (b"MD00440725010x1", "07"), (b"TMx", "01"),
-     (b"BM;" + b"a" * 17, "0G"), (b"BM;a-b", "0H")],
+     (b"BM;" + b"a" * 17, "0G"), (b"BM;a-b", "0H"), (b"%STX", "0D"), (b"%SX", "0E"),
+     (b"%S", "0E")],
 )  # fmt: skip
 def test_malformed_requests_get_the_sensor_status(line: bytes, status: str) -> None:
     assert scip2.parse_request(line).error == status

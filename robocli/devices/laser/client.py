@@ -8,8 +8,9 @@
 Connecting does what urg_library does: QT until the sensor answers ``00`` (a one-char status
 means SCIP 1.1: it sends ``SCIP2.0``; ``0E`` means time-adjust mode: it sends ``TM2``); MD
 frames that a previous client left streaming are skipped and counted
-(:attr:`Laser.stale_frames`). Then VV, PP and II, the clock offset with TM0/TM1/TM2
-(:meth:`Laser.sync_clock`), and BM turns the laser on.
+(:attr:`Laser.stale_frames`); a robocli simulator holding another client refuses this one
+(:class:`~robocli.errors.DeviceError`, "laser busy"). Then VV, PP and II, the clock offset
+with TM0/TM1/TM2 (:meth:`Laser.sync_clock`), and BM turns the laser on.
 
 On the shared :class:`~robocli.devices.session.Session`: a reader thread takes the streamed
 frames, every request waits for the reply whose echo is its own line (within ``timeout``),
@@ -29,15 +30,16 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator
 from types import TracebackType
 
 from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
-from robocli.errors import DeviceError, FramingError, ProtocolError, TimeoutError
+from robocli.errors import ConnectionLost, DeviceError, FramingError, ProtocolError, TimeoutError
 from robocli.protocols import scip2
+from robocli.protocols.common import find_refusal
 from robocli.protocols.scip2 import fast
 from robocli.transports import Transport, open_transport
 
@@ -65,7 +67,13 @@ def _stat_name(payload: bytes, direction: str) -> str:
 class Laser:
     """A connected scanner. Make one with :meth:`connect`; use it as a context manager."""
 
-    def __init__(self, transport: Transport, *, timeout: float = 2.0, check: bool = True) -> None:
+    def __init__(
+        self, transport: Transport, *, timeout: float = 2.0, check: bool = True,
+        start: bool = True,
+    ) -> None:  # fmt: skip
+        """``start``: start the reader thread now. :meth:`connect` starts it after the
+        handshake, whose replies it reads in the calling thread: the line a robocli server
+        sends before closing a link it refuses is still there to read then."""
         self.timeout = timeout
         self.check = check
         self.clock = SensorClock()
@@ -88,7 +96,8 @@ class Laser:
         self.scan_listeners: Listeners[ScanListener] = Listeners(
             self._session.stats, transport.url
         )  # fmt: skip
-        self._session.start()
+        if start:
+            self._session.start()
 
     # ---------------------------------------------------------------- connecting
 
@@ -109,11 +118,12 @@ class Laser:
         (``sync_samples`` TM1 round trips; 0: none) and turn the laser on. ``listener``
         sees every request and reply block from the first (``(direction, bytes, t)``)."""
         transport = open_transport(url, baudrate=baudrate, timeout=max(timeout, 1.0))
-        laser = cls(transport, timeout=timeout, check=check)
+        laser = cls(transport, timeout=timeout, check=check, start=False)
         if listener is not None:
             laser.session.listeners.add(listener)
         try:
             laser._handshake()
+            laser._session.start()
             laser.info = laser.read_info()
             if sync_samples > 0:
                 laser.sync_clock(sync_samples)
@@ -125,6 +135,9 @@ class Laser:
         return laser
 
     def _handshake(self) -> None:
+        """QT until the sensor is idle in SCIP 2.0. A robocli simulator that holds another
+        client refuses this one with a line (``robocli-refused: laser busy...``) and closes:
+        :class:`DeviceError` with its reason, not a lost link."""
         url = self.url
         for _ in range(4):
             try:
@@ -133,6 +146,11 @@ class Laser:
                 raise TimeoutError(
                     f"{url}: no SCIP sensor answered QT within {self.timeout:g} s"
                 ) from None
+            except ConnectionLost:
+                reason = find_refusal(self._session.raw_tail())
+                if reason is None:
+                    raise
+                raise DeviceError(f"{url}: {reason}") from None
             if reply.status == "00":
                 return
             if len(reply.status) == 1:  # SCIP 1.1
@@ -300,7 +318,10 @@ class Laser:
                 break
             except TimeoutError:
                 if attempt == QT_TRIES - 1:
-                    raise
+                    raise TimeoutError(
+                        f"{self.url}: the sensor did not answer QT ({QT_TRIES} tries, "
+                        f"{self.timeout:g} s each): it may still be streaming"
+                    ) from None
                 log.info("%s: no reply to QT; sending it again", self.url)
         self._laser_on = False
 
@@ -330,9 +351,14 @@ class Laser:
                 cond.wait(min(left, 0.25))
             return self._queue.popleft()
 
-    def scans(self, count: int | None = None, **options: int | bool | None) -> Iterator[Scan]:
+    def scans(
+        self, count: int | None = None, **options: int | bool | None
+    ) -> Generator[Scan, None, None]:
         """Stream scans (see :meth:`start` for ``options``), ``count`` of them (None: until
-        the loop ends); streaming stops (QT) when the loop ends, however it ends."""
+        the loop ends); streaming stops (QT) when the generator ends or is closed. A loop
+        left early (``break``, an exception) closes it only when the generator is collected:
+        close it yourself (``with contextlib.closing(laser.scans()) as scans:``) so that the
+        QT, and the :class:`TimeoutError` of a sensor that does not answer it, happen there."""
         self.start(count=0 if count is None or count > 99 else count, **options)  # type: ignore[arg-type]
         try:
             n = 0

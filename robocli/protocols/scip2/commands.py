@@ -49,9 +49,11 @@ _STREAM = cs.Struct(
 )
 _NONE = cs.Struct()
 
-#: command symbol -> declaration of its parameters (after the symbol, before ``;tag``)
+#: command symbol -> declaration of its parameters (after the symbol, before ``;tag``). The
+#: 3-character symbols that start with ``%`` are the state commands of the UST / UTM-30LX-EW
+#: firmware (hokuyolx): ``%ST`` asks the sensor's state, ``%SL`` puts it to sleep.
 PARAMS: dict[str, Any] = {
-    **{c: _NONE for c in ("VV", "PP", "II", "BM", "QT", "RS", "RT", "RB")},
+    **{c: _NONE for c in ("VV", "PP", "II", "BM", "QT", "RS", "RT", "RB", "%ST", "%SL")},
     "TM": cs.Struct("code" / _Digits(1)),
     "SS": cs.Struct("bitrate" / _Digits(6)),
     "CR": cs.Struct("speed" / _Digits(2)),
@@ -124,7 +126,7 @@ def parse_request(line: bytes) -> Request:
         return Request("SCIP2.0", echo=echo)
     text, sep, tag_raw = echo.partition(b";")
     tag = tag_raw.decode("ascii", "replace") if sep else None
-    command = text[:2].decode("ascii", "replace")
+    command = text[: 3 if text[:1] == b"%" else 2].decode("ascii", "replace")
     decl = PARAMS.get(command)
     if decl is None:
         return Request(command, tag=tag, error="0E", echo=echo)
@@ -132,7 +134,7 @@ def parse_request(line: bytes) -> Request:
         return Request(command, tag=tag, error="0G", echo=echo)
     if sep and not set(tag_raw) <= TAG_CHARS:
         return Request(command, tag=tag, error="0H", echo=echo)
-    body = text[2:]
+    body = text[len(command) :]
     size = decl.sizeof()
     if len(body) != size:
         return Request(command, tag=tag, error="0C" if len(body) < size else "0D", echo=echo)

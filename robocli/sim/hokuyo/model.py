@@ -11,6 +11,9 @@ Decisions where the brief marks a fact uncertain **[U]**:
   65533-65535 of one weak source are not used;
 * steps 0..AMIN-1 (URG-04LX: 0..43) may be requested and read code 19 ("non-measurable
   step"); an end step above AMAX is refused with status 04;
+* the state commands ``%ST``/``%SL`` (hokuyolx's UST/UTM family) are served by the UTM-30LX
+  (which stands for the UTM-30LX-EW when served over TCP) and the UST-10LX; the URG-04LX
+  answers them ``0E``;
 * the URG-04LX profile boots in SCIP 1.1 (``classic=True``, the default for that model) and
   needs the ``SCIP2.0`` switch; the UTM and UST boot in SCIP 2.0.
 """
@@ -51,6 +54,7 @@ class HokuyoModel:
     intensity: bool = True  #: GE/ME supported
     rt: bool = True  #: RT supported
     scip11: bool = False  #: boots in SCIP 1.1
+    state_commands: bool = True  #: ``%ST``/``%SL`` (UST and UTM-30LX-EW firmware)
     code_no_return: int = 1
     code_too_near: int = 2
     tcp_port: int = 10940
@@ -104,6 +108,7 @@ URG_04LX = HokuyoModel(
     modl="URG-04LX(Hokuyo Automatic Co.,Ltd.)",
     dmin=20, dmax=5600, ares=1024, amin=44, amax=725, afrt=384, rpm=600, bps=19200,
     intensity=False, rt=False, scip11=True, code_no_return=0, code_too_near=1,
+    state_commands=False,
 )  # fmt: skip
 #: UTM-30LX (USB): 1081 steps over 270 deg, 25 ms.
 UTM_30LX = HokuyoModel(

@@ -82,6 +82,10 @@ class HokuyoSim:
         self._ticker = Ticker(model.period / time_scale, self._tick, f"hokuyo-{model.name}")
         self.mute = False
         """Fault injection: answer nothing and stream nothing (a sensor that hung)."""
+        self.ignore_qt = False
+        """Fault injection: a QT while streaming gets no reply and the stream goes on (a
+        sensor whose stop was lost)."""
+        self._closed = threading.Event()
 
     # ---------------------------------------------------------------- time and scans
 
@@ -102,8 +106,19 @@ class HokuyoSim:
         """Index of the latest complete scan (-1 before the first one completes)."""
         return math.floor(self.now() / self.model.period + 1e-9) - 1
 
+    def first_scan_from(self, t: float) -> int:
+        """Index of the first scan that starts at or after simulated time ``t``."""
+        return math.ceil(t / self.model.period - 1e-9)
+
+    def wait_scan(self, k: int) -> None:
+        """Wait until scan ``k`` is complete (the scan clock; at most its period from its
+        start), or the simulator closes."""
+        done = self.scan_start(k + 1)
+        while (left := done - self.now()) > 0 and not self._closed.is_set():
+            self._closed.wait(left / self.time_scale + 1e-4)
+
     def reset_timer(self) -> None:
-        """RS/RT: the timer reads 0 now."""
+        """RS/RT: the timer reads 0 now (scans begun before it are never sent after it)."""
         self._timer_zero = self.now()
 
     def reboot(self) -> None:
@@ -203,6 +218,7 @@ class HokuyoSim:
 
     def close(self) -> None:
         """Stop the scan clock and every link (idempotent)."""
+        self._closed.set()
         self._ticker.close()
         if self._server is not None:
             self._server.close()

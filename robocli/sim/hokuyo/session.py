@@ -8,15 +8,24 @@ there). Requests are checked field by field: ``0C``/``0D`` for too few/too many 
 characters, ``0E`` for an unknown command (or GE/ME/RT on a model without them), ``01``..``07``
 for the numeric fields of G*/M* (SPEC p.11/p.13), ``0G``/``0H`` for a ``;string`` too long or
 with a bad character. In SCIP 1.1 every line but ``SCIP2.0`` is answered with the one-char
-status ``E`` (how UL recognises 1.1). Every reply is built whole and sent in one write.
+status ``E`` (how UL recognises 1.1). Every reply and every scan frame goes out whole or not
+at all (:class:`~robocli.sim.hokuyo.output.FrameOutput`).
+
+The UST and UTM-30LX-EW firmware (``model.state_commands``) also take ``%ST`` (the state, as
+one 3-digit code: 000 standby, 002 time adjust, 003 single scan, 004 multi scan, 005 sleep;
+hokuyolx's table) and ``%SL`` (sleep: laser off, motor stopped; from standby or measuring,
+``10`` otherwise). QT, BM, MD/MS/ME, RS/RT/RB wake a sleeping sensor.
+
+Time: a scan's stamp is the timer at the start of its measurement, and the scan a reply
+carries was measured after the request that made it: GD/GS/GE answer with the latest scan
+begun with the laser on (waiting for the first one after BM), MD streams the scans begun
+after the command. The timer only moves forward, from 0 at RS/RT/RB.
 """
 
 from __future__ import annotations
 
-import fcntl
-import struct
-import termios
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -25,6 +34,7 @@ import numpy.typing as npt
 
 from robocli.protocols import scip2
 from robocli.sim.hokuyo.model import HokuyoModel
+from robocli.sim.hokuyo.output import FrameOutput
 
 if TYPE_CHECKING:
     from robocli.sim.serving import Link
@@ -33,10 +43,11 @@ __all__ = ["ScipSession", "Stream", "encode_array"]
 
 RB_WINDOW_S = 1.0
 MAX_BURST = 40  #: scans a late tick sends at most (a loaded machine's stall), the newest
-PTY_READ_BUFFER = 4095  #: Linux n_tty's read buffer: FIONREAD on the slave stops there
 #: Commands the simulator serves (multi-echo HD/HE/ND/NE is answered ``0E``).
 _SUPPORTED = frozenset(("VV", "PP", "II", "BM", "QT", "RS", "RT", "RB", "TM", "SS", "CR",
-                        "HS", "GD", "GS", "GE", "MD", "MS", "ME"))  # fmt: skip
+                        "HS", "GD", "GS", "GE", "MD", "MS", "ME", "%ST", "%SL"))  # fmt: skip
+#: handler names of the ``%`` commands
+_HANDLER = {"%ST": "state", "%SL": "sleep"}
 
 
 def status(code: str) -> bytes:
@@ -59,10 +70,14 @@ class Scanner(Protocol):
     model: HokuyoModel
     scip11: bool
     mute: bool
+    ignore_qt: bool
 
+    def now(self) -> float: ...
     def timer_ms(self, t: float | None = None) -> int: ...
     def scan_start(self, k: int) -> float: ...
     def latest_scan(self) -> int: ...
+    def first_scan_from(self, t: float) -> int: ...
+    def wait_scan(self, k: int) -> None: ...
     def reset_timer(self) -> None: ...
     def reboot(self) -> None: ...
     def scan_values(self) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
@@ -91,13 +106,22 @@ class ScipSession:
         self.sim, self.link, self.tcp = sim, link, tcp
         self.model: HokuyoModel = sim.model
         self.lock = threading.Lock()
+        self._sending = threading.Lock()  # the frames of one on_scans call go out together
         self.laser = False
         self.adjust = False  # TM0 .. TM2
         self.stream: Stream | None = None
+        self.sleeping = False  # %SL .. a command that wakes it
+        self.first_scan = 0  # the first scan measured with the laser on (since BM/MD)
         self._rb_at: float | None = None
         self.high_sensitivity = False
         self.frames_sent = 0
-        self.frames_dropped = 0  #: frames not sent: the pty's reader left its buffer full
+        self.out = FrameOutput(link)
+        self._pending: tuple[int, Callable[[], bytes]] | None = None  # a G* waits for its scan
+
+    @property
+    def frames_dropped(self) -> int:
+        """Scan frames not sent: the client read too slowly (dropped whole)."""
+        return self.out.scans_dropped
 
     # ---------------------------------------------------------------- link thread
 
@@ -105,7 +129,16 @@ class ScipSession:
         if self.sim.mute:
             return None
         with self.lock:
-            return self._handle(frame, now)
+            reply = self._handle(frame, now)
+            pending, self._pending = self._pending, None
+        if pending is not None:  # a single scan measured after the request: wait for it
+            k, build = pending
+            self.sim.wait_scan(k)
+            with self.lock:
+                reply = build()
+        if reply:
+            self.out.reply(reply)
+        return None
 
     def on_close(self) -> None:
         with self.lock:
@@ -116,40 +149,28 @@ class ScipSession:
     # ---------------------------------------------------------------- ticker thread
 
     def on_scans(self, k_now: int) -> None:
-        """Send the frames of the scans up to ``k_now`` (the latest complete) that are due."""
-        with self.lock:
-            s = self.stream
-            if s is None:
-                return
-            if s.next_k < k_now - MAX_BURST:  # the simulator stalled: no flood of old scans
-                skip = (k_now - MAX_BURST - s.next_k) // (s.interval + 1) + 1
-                s.next_k += skip * (s.interval + 1)
-            due: list[int] = []
-            while s.next_k <= k_now and (s.remaining is None or len(due) < s.remaining):
-                due.append(s.next_k)
-                s.next_k += s.interval + 1
-        for k in due:  # one write each: a pty's room is judged frame by frame
+        """Send the frames of the scans up to ``k_now`` (the latest complete) that are due.
+        Two calls at once (a late tick) send their frames one call after the other, in order."""
+        self.out.flush()  # what the line did not take last time goes first
+        with self._sending:
             with self.lock:
-                if self.stream is not s:  # QT, or a new MD, came in between
+                s = self.stream
+                if s is None:
                     return
-                frame = self._frame(s, k)  # the count runs down even for a dropped one
-            if self._line_full():  # nobody reads the serial line: drop whole frames
-                self.frames_dropped += 1
-            else:
-                self.link.send(frame)
-
-    def _line_full(self) -> bool:
-        """On a pty: whether the client's side holds a full read buffer already (the
-        kernel then keeps ~18 kB more in its flip buffers: a frame written now might be cut,
-        so it is dropped whole instead, as the brief asks; section 5 item 11)."""
-        fd = getattr(self.link, "slave", None)
-        if fd is None:
-            return False
-        try:
-            queued = struct.unpack("i", fcntl.ioctl(fd, termios.FIONREAD, b"\0\0\0\0"))[0]
-        except OSError:
-            return False
-        return bool(queued >= PTY_READ_BUFFER)
+                if s.next_k < k_now - MAX_BURST:  # the simulator stalled: no flood of old scans
+                    skip = (k_now - MAX_BURST - s.next_k) // (s.interval + 1) + 1
+                    s.next_k += skip * (s.interval + 1)
+                    self.out.dropped(skip)
+                due: list[int] = []
+                while s.next_k <= k_now and (s.remaining is None or len(due) < s.remaining):
+                    due.append(s.next_k)
+                    s.next_k += s.interval + 1
+            for k in due:  # one write each: a pty's room is judged frame by frame
+                with self.lock:
+                    if self.stream is not s:  # QT, or a new MD, came in between
+                        return
+                    frame = self._frame(s, k)  # the count runs down even for a dropped one
+                self.out.scan(frame)  # whole, or dropped whole (counted)
 
     def _frame(self, s: Stream, k: int) -> bytes:
         if s.remaining is None:
@@ -196,12 +217,16 @@ class ScipSession:
             return self._reply(line, "0E")
         if cmd == "RT" and not self.model.rt:
             return self._reply(line, "0E")
+        if cmd[:1] == "%" and not self.model.state_commands:
+            return self._reply(line, "0E")
         if req.error is not None:
             return self._reply(line, req.error)
-        if self.adjust and cmd != "TM":
+        if self.adjust and cmd not in ("TM", "%ST"):
             return self._reply(line, "0E")
+        if self.sleeping and cmd in ("QT", "BM", "MD", "MS", "ME", "RS", "RT", "RB"):
+            self.sleeping = False  # woken up (the motor comes back to speed at once here)
         head, sep, string = line.partition(b";")
-        handler = getattr(self, f"_cmd_{cmd.lower()}")
+        handler = getattr(self, f"_cmd_{_HANDLER.get(cmd, cmd.lower())}")
         reply: bytes = handler(line, head, sep + string, head[2:], now)
         return reply
 
@@ -223,18 +248,43 @@ class ScipSession:
         if self.laser:
             return self._reply(line, "02")
         self.laser = True
+        self.first_scan = self.sim.first_scan_from(self.sim.now())
         return self._reply(line, "00")
 
     def _cmd_qt(self, line: bytes, *_: object) -> bytes:
+        if self.sim.ignore_qt and self.stream is not None:
+            return b""  # fault injection: the stop is lost
         self.stream, self.laser = None, False
         return self._reply(line, "00")
 
     def _cmd_rs(self, line: bytes, *_: object) -> bytes:
-        self.stream, self.laser = None, False
+        """RS/RT: laser off, streaming stopped, timer 0, normal sensitivity (hokuyolx's list;
+        RS also resets motor speed and bit rate, which the simulator does not change)."""
+        self.stream, self.laser, self.high_sensitivity = None, False, False
         self.sim.reset_timer()
         return self._reply(line, "00")
 
     _cmd_rt = _cmd_rs
+
+    def _state_code(self) -> str:
+        if self.adjust:
+            return "002"
+        if self.sleeping:
+            return "005"
+        if self.stream is not None:
+            return "004"
+        return "003" if self.laser else "000"
+
+    def _cmd_state(self, line: bytes, *_: object) -> bytes:
+        """%ST: the sensor's state as 3 digits (+ sum), valid in every state."""
+        return self._reply(line, "00", scip2.with_sum(self._state_code().encode()))
+
+    def _cmd_sleep(self, line: bytes, *_: object) -> bytes:
+        """%SL: from standby or measuring: stop, laser off, motor stopped."""
+        if self._state_code() not in ("000", "003", "004"):
+            return self._reply(line, "10")
+        self.stream, self.laser, self.sleeping = None, False, True
+        return self._reply(line, "00")
 
     def _cmd_rb(self, line: bytes, head: bytes, string: bytes, params: bytes, now: float) -> bytes:
         if self._rb_at is None or now - self._rb_at > RB_WINDOW_S:
@@ -242,6 +292,7 @@ class ScipSession:
             return self._reply(line, "01")
         self._rb_at = None
         self.stream, self.laser, self.adjust = None, False, False
+        self.high_sensitivity = self.sleeping = False
         self.sim.reboot()
         return self._reply(line, "00")
 
@@ -250,7 +301,7 @@ class ScipSession:
         if code == "0":
             if self.adjust:
                 return self._reply(line, "02")
-            if self.stream is not None:
+            if self.stream is not None or self.sleeping:
                 return self._reply(line, "10")
             self.adjust, self.laser = True, False
             return self._reply(line, "00")
@@ -306,8 +357,15 @@ class ScipSession:
         if not self.laser:
             return self._reply(line, "10")
         kind = head[:2].decode()
-        k = max(self.sim.latest_scan(), 0)
-        return line + b"\n" + status("00") + self._data(kind, start, end, cluster, k)
+        k = max(self.sim.latest_scan(), self.first_scan)  # measured with the laser on
+
+        def build() -> bytes:
+            return line + b"\n" + status("00") + self._data(kind, start, end, cluster, k)
+
+        if k > self.sim.latest_scan():  # not complete yet: on_frame waits for it
+            self._pending = (k, build)
+            return b""
+        return build()
 
     _cmd_gs = _cmd_ge = _cmd_gd
 
@@ -321,10 +379,11 @@ class ScipSession:
             return self._reply(line, "07")
         count = int(params[11:13])
         self.laser = True
+        self.first_scan = self.sim.first_scan_from(self.sim.now())  # begun after the command
         self.stream = Stream(
             kind=head[:2].decode(), head=head[:13], string=string, start=start, end=end,
             cluster=cluster, interval=int(params[10:11]), remaining=count or None,
-            next_k=self.sim.latest_scan() + 2,  # the first scan begun after the command
+            next_k=self.first_scan,
         )  # fmt: skip
         return self._reply(line, "00")
 
