@@ -82,6 +82,29 @@ def test_pioneer_client_gets_the_recorded_stream(pioneer_recording: Path) -> Non
     assert last[0] > 0.01, "the recorded robot drove"
 
 
+def test_pioneer_replay_sends_the_laser_only_from_the_clients_request(
+        pioneer_recording: Path) -> None:  # fmt: skip
+    """As the live simulator: a client that did not ask for the laser gets none of the
+    recorded laser packets (ARIA logs each one no handler wanted); after its request, whole
+    recorded scans, from the first packet of a scan on."""
+    raw = [i[2].data[3:-2] for i in by_topic(pioneer_recording)["/pioneer/raw/rx"]]
+    recorded_laser = [f for f in raw if f[0] == 0x61]
+    assert recorded_laser, "the recording has its laser"
+    seen: Frames = []
+    with PioneerReplay(pioneer_recording, speed=4.0, loop=True) as replay:
+        url = replay.serve_tcp("127.0.0.1", 0)
+        with Pioneer.connect(url, listeners=[lambda d, p, t: seen.append((d, p))]) as robot:
+            wait_for(lambda: replay.schedule.laps >= 1, what="a whole lap of the recording")
+            assert _sips(seen) and not _laser(seen)
+            assert replay.withheld >= len(recorded_laser)
+            robot.start_laser()
+            scan = robot.wait_for_laser(30.0)
+            assert len(scan.ranges) == 181
+    got = _laser(seen)
+    assert got[0][3:5] == b"\0\0", "the first packet sent begins a scan"
+    assert all(p in recorded_laser for p in got)
+
+
 def _same(a: Any, b: Any) -> bool:
     return (abs(a[0] - b[0]) < 1e-9 and abs(a[1] - b[1]) < 1e-9
             and abs(math.remainder(a[2] - b[2], 2 * math.pi)) < 1e-9)  # fmt: skip
