@@ -16,7 +16,7 @@ from typing import Any
 
 from websockets.sync.client import ClientConnection, connect
 
-from tests.io.readback import conforms
+from tests.io.readback import viewer_checked
 
 SUBPROTOCOLS = ("foxglove.websocket.v1", "foxglove.sdk.v1")
 MESSAGE_DATA = 0x01
@@ -108,7 +108,8 @@ class FoxgloveClient:
 
     def messages(self, sub: int, n: int) -> list[tuple[int, Any]]:
         """The next ``n`` messages of subscription ``sub``: (log time ns, JSON payload),
-        each checked against its channel's advertised JSON schema."""
+        each checked against its channel's advertised JSON schema, as a viewer takes it
+        (:func:`~tests.io.readback.viewer_checked`)."""
         channel = self.channels[self.subscriptions[sub]]
         deadline = time.monotonic() + self.timeout
         out: list[tuple[int, Any]] = []
@@ -116,8 +117,8 @@ class FoxgloveClient:
             while self.pending:
                 got, log_ns, payload = self.pending.pop(0)
                 if got == sub:
-                    data = json.loads(payload)
-                    conforms(data, channel.schema, channel.topic)
+                    data = viewer_checked(channel.schema_name, channel.schema,
+                                          json.loads(payload), channel.topic)
                     out.append((log_ns, data))
             if len(out) < n:
                 self._handle(self._recv(deadline))

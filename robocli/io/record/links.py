@@ -52,20 +52,30 @@ _ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 
 
 def json_text(message: Any) -> str:
-    """Compact JSON of ``message``; NaN and infinities (no reading) become null."""
+    """Compact JSON of ``message`` (a dict). A number without a value (NaN, an infinity:
+    no reading) is left out, never written as null, which Foxglove's schemas cannot say
+    (:mod:`robocli.io.schemas`): a field holding one is omitted, and so is a list holding
+    one (a list with a hole would shift the indexes after it)."""
     try:
         return _ENCODE(message)
     except ValueError:
         return _ENCODE(_finite(message))
 
 
+_MISSING = object()
+
+
 def _finite(value: Any) -> Any:
+    """``value`` without its non-finite numbers (see :func:`json_text`); ``_MISSING`` for
+    a number or a list that has none left to say."""
     if isinstance(value, float):
-        return value if math.isfinite(value) else None
+        return value if math.isfinite(value) else _MISSING
     if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
+        out = {k: _finite(v) for k, v in value.items()}
+        return {k: v for k, v in out.items() if v is not _MISSING}
     if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
+        items = [_finite(v) for v in value]
+        return _MISSING if any(v is _MISSING for v in items) else items
     return value
 
 

@@ -37,9 +37,11 @@ TICK_S = 0.005  #: how often the stream is checked for frames due (wall s)
 _NOT_STREAMED = frozenset({PacketType.SYNC0, PacketType.SYNC1, PacketType.SYNC2,
                            PacketType.CONFIG, PacketType.SIM_INFO})  # fmt: skip
 #: Packets sent only on a request of the link's (``ArcosSession.requests``), by type.
-_REQUESTED: dict[int, str] = {PacketType.ENCODER: "encoder", PacketType.IO: "io", PacketType.BATTERY: "battery"}
+_REQUESTED: dict[int, str] = {PacketType.ENCODER: "encoder", PacketType.IO: "io",
+                              PacketType.BATTERY: "battery"}  # fmt: skip
 #: The laser format each packet type belongs to.
-_LASER: dict[int, int] = {PacketType.SIM_LASER_A: LASER_PLAIN, PacketType.SIM_LASER: LASER_EXTENDED}
+_LASER: dict[int, int] = {PacketType.SIM_LASER_A: LASER_PLAIN,
+                          PacketType.SIM_LASER: LASER_EXTENDED}  # fmt: skip
 
 
 class ReplayController(ArcosController):
