@@ -10,7 +10,8 @@ base64 strings with ``"contentEncoding": "base64"``, as Foxglove's JSON encoding
 
 Data with no well-known schema gets a ``robocli.*`` schema that names every field with its
 unit: joint states shaped like ``sensor_msgs/JointState``, IMU like ``sensor_msgs/Imu``, ADC,
-battery, the Pioneer's state, the arm's status, the hub's system information. Units are SI
+battery, the Pioneer's state, the arm's status, the hub's system information, and the raw
+frames of every link (``robocli.RawFrame``). Units are SI
 (m, rad, s, m/s, rad/s, V, A, T) unless a field's description says otherwise.
 
 Every schema stays inside the JSON-schema subset Foxglove and Lichtblick read: one ``type``
@@ -301,6 +302,17 @@ ROBOCLI: dict[str, dict[str, Any]] = {
                        "properties": {k: _number(f"{k}, kB") for k in ("used", "free", "buffers")}},
             "state": _integer("Source state code"),
         },  # fmt: skip
+    ),
+    "robocli.RawFrame": _robocli(
+        "robocli.RawFrame",
+        "One whole frame as it went over a link (framing and checksum included), base64",
+        {
+            "link": _string("The link's name (the topic's first part)"),
+            "protocol": _string("arcos, sm-le, sm-be, ros4mat or scip2"),
+            "direction": _string("tx: robocli sent it; rx: robocli received it"),
+            "port": _string("The arm's port, motion or state (empty for other links)"),
+            "data": dict(_BASE64, description="The frame's bytes, base64"),
+        },
     ),
 }
 

@@ -140,3 +140,9 @@ def decoded(item: tuple[Any, Any, Any]) -> Any:
     assert schema is not None and schema.encoding == "jsonschema"
     return viewer_checked(schema.name, json.loads(schema.data), json.loads(message.data),
                           channel.topic)
+
+
+def frame_of(item: tuple[Any, Any, Any]) -> bytes:
+    """The frame one raw channel's message carries (its base64 ``data``), the message
+    checked as :func:`decoded` checks it."""
+    return base64.b64decode(decoded(item)["data"], validate=True)

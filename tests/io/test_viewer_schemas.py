@@ -20,8 +20,8 @@ from robocli.devices.hub.client import Hub
 from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
-from robocli.io.record import Recorder, pull_hub
-from robocli.io.record.links import json_text
+from robocli.io.record import Recorder, RecordingError, pull_hub
+from robocli.io.record.links import json_text, raw_frame
 from robocli.io.schemas import FOXGLOVE, SCHEMAS
 from robocli.sim.hokuyo.server import HokuyoSim
 from tests.io.readback import (
@@ -84,6 +84,13 @@ def test_what_robocli_does_not_know_is_left_out_not_null() -> None:
     viewer_checked("robocli.JointState", SCHEMAS["robocli.JointState"], joints)
 
 
+def test_a_malformed_raw_frame_is_a_typed_error() -> None:
+    for data in (b"{}", b"not json", b'{"data": "not base64!"}', b'{"data": 3}'):
+        with pytest.raises(RecordingError, match="raw frame"):
+            raw_frame("json", data)
+    assert raw_frame("robocli.raw", b"\xfa\xfb") == b"\xfa\xfb"  # older recordings: as is
+
+
 @pytest.fixture
 def laser_url() -> Iterator[str]:
     with HokuyoSim("utm-30lx", time_scale=2.0) as sim:
@@ -121,17 +128,18 @@ def test_every_channel_of_a_recording_loads_in_a_viewer(
             arm.wait_for_state(30.0)
     topics = by_topic(path)
     assert TOPICS | {"/laser/scan"} <= set(topics), sorted(TOPICS - set(topics))
+    raw = {t for t in topics if "/raw/" in t}  # every link's frames, in a viewer too
+    assert raw >= {"/pioneer/raw/tx", "/pioneer/raw/rx", "/hub/raw/tx", "/hub/raw/rx",
+                   "/laser/raw/tx", "/laser/raw/rx", "/arm/raw/state/rx"}  # fmt: skip
     known: list[bool] = []
     for topic, items in topics.items():
         schema, channel, _ = items[0]
-        if channel.message_encoding == "robocli.raw":
-            continue
         assert schema is not None, f"{topic}: no schema"
         assert schema.encoding == "jsonschema", topic
         foxglove_subset(json.loads(schema.data), f"{topic} ({schema.name})")
-        if channel.message_encoding == "json":
-            for item in items:
-                decoded(item)  # valid under its schema and, if Foxglove's, under theirs
+        assert channel.message_encoding == "json", topic
+        for item in items:
+            decoded(item)  # valid under its schema and, if Foxglove's, under theirs
     for item in topics["/pioneer/state"]:
         state = decoded(item)
         assert len(state["sonar"]) == len(state["sonar_known"]) == 16

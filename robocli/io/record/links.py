@@ -2,17 +2,45 @@
 
 from __future__ import annotations
 
+import base64
+import binascii
 import json
 import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
-__all__ = ["RAW_ENCODING", "RawLink", "Sink", "json_text", "new_link", "raw_link"]
+__all__ = ["RAW_ENCODING", "RAW_SCHEMA", "RawLink", "Sink", "is_raw", "json_text", "new_link",
+           "raw_frame", "raw_link"]
 
-#: Message encoding of the raw-bytes channels: each message is one whole frame as it went
-#: over the link (framing and checksum included), in the protocol named by the channel's
-#: ``protocol`` metadata.
+#: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
+#: as every channel: a viewer shows them): each message is one whole frame as it went over
+#: the link (framing and checksum included), base64 in its ``data``, with its ``link``,
+#: ``protocol`` (also the channel's metadata, as ``direction`` and ``port``).
+RAW_SCHEMA = "robocli.RawFrame"
+#: Message encoding of the raw channels of recordings made before :data:`RAW_SCHEMA`: each
+#: message the frame's bytes themselves, without a schema (no viewer knows the encoding).
+#: Read, never written.
 RAW_ENCODING = "robocli.raw"
+
+
+def is_raw(encoding: str, schema: str) -> bool:
+    """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel."""
+    return schema == RAW_SCHEMA or encoding == RAW_ENCODING
+
+
+def raw_frame(encoding: str, data: bytes) -> bytes:
+    """The frame a raw channel's message holds: ``data`` itself for :data:`RAW_ENCODING`,
+    else the base64 ``data`` of the JSON. Raises
+    :class:`~robocli.io.record.recorder.RecordingError` for a message that has none."""
+    if encoding == RAW_ENCODING:
+        return data
+    try:
+        text = json.loads(data)["data"]
+        return base64.b64decode(text, validate=True)
+    except (ValueError, KeyError, TypeError, binascii.Error) as exc:
+        from robocli.io.record.recorder import RecordingError
+
+        raise RecordingError(f"a raw frame's message is malformed ({exc})") from None
 
 
 
@@ -96,6 +124,7 @@ class RawLink:
         if port is not None:
             self._metadata["port"] = port
         self._cids: dict[str, int] = {}
+        self._heads: dict[str, bytes] = {}  # the JSON between the stamp and the bytes
         #: called as ``decoder(direction, payload, log_ns)`` after the raw message is written
         self.decoder: Callable[[str, bytes, int], None] | None = None
         self._put = rec.put
@@ -108,11 +137,17 @@ class RawLink:
         cid = self._cids.get(direction)
         if cid is None:
             part = f"{self.port}/{direction}" if self.port else direction
-            cid = self.rec.channel(f"/{self.name}/raw/{part}", None, encoding=RAW_ENCODING,
+            cid = self.rec.channel(f"/{self.name}/raw/{part}", RAW_SCHEMA,
                                    metadata={**self._metadata, "direction": direction})  # fmt: skip
             self._cids[direction] = cid
+            fields = {"link": self.name, "protocol": self.protocol, "direction": direction,
+                      "port": self.port or ""}  # fmt: skip
+            self._heads[direction] = f',{json_text(fields)[1:-1]},"data":"'.encode()
         ns = self.rec.log_ns(t)
-        self.rec.write(cid, self._reframe(payload) if self._reframe else payload, ns)
+        frame = self._reframe(payload) if self._reframe else payload
+        sec, nsec = divmod(ns, 1_000_000_000)
+        self.rec.write(cid, b'{"timestamp":{"sec":%d,"nsec":%d}%s%s"}' % (
+            sec, nsec, self._heads[direction], base64.b64encode(frame)), ns)  # fmt: skip
         if self.decoder is not None:
             self.decoder(direction, payload, ns)
 

@@ -32,6 +32,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError, TransportError
+from robocli.io.record.links import RAW_SCHEMA
 from robocli.io.schemas import SCHEMAS, schema_bytes
 
 if TYPE_CHECKING:
@@ -159,7 +160,7 @@ class LiveView:
         cid = self._by_topic.get(topic)
         if cid is not None:
             return cid
-        if schema is None or schema not in SCHEMAS or encoding != "json":
+        if schema is None or schema not in SCHEMAS or encoding != "json" or schema == RAW_SCHEMA:
             self._by_topic[topic] = -1
             return -1
         fg = self._fg
