@@ -21,7 +21,8 @@ from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
 from robocli.io.record import Recorder, RecordingError, pull_hub
-from robocli.io.record.links import json_text, raw_frame
+from robocli.io.record.links import json_text
+from robocli.io.record.reader import raw_frame
 from robocli.io.schemas import FOXGLOVE, SCHEMAS
 from robocli.sim.hokuyo.server import HokuyoSim
 from tests.io.readback import (

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import base64
-import binascii
 import json
 import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
 __all__ = ["RAW_ENCODING", "RAW_SCHEMA", "RawLink", "Sink", "is_raw", "json_text", "new_link",
-           "raw_frame", "raw_link"]
+           "raw_link"]
 
 #: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
@@ -26,21 +25,6 @@ RAW_ENCODING = "robocli.raw"
 def is_raw(encoding: str, schema: str) -> bool:
     """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel."""
     return schema == RAW_SCHEMA or encoding == RAW_ENCODING
-
-
-def raw_frame(encoding: str, data: bytes) -> bytes:
-    """The frame a raw channel's message holds: ``data`` itself for :data:`RAW_ENCODING`,
-    else the base64 ``data`` of the JSON. Raises
-    :class:`~robocli.io.record.recorder.RecordingError` for a message that has none."""
-    if encoding == RAW_ENCODING:
-        return data
-    try:
-        text = json.loads(data)["data"]
-        return base64.b64decode(text, validate=True)
-    except (ValueError, KeyError, TypeError, binascii.Error) as exc:
-        from robocli.io.record.recorder import RecordingError
-
-        raise RecordingError(f"a raw frame's message is malformed ({exc})") from None
 
 
 

@@ -11,7 +11,10 @@ complete chunk), saying so.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import heapq
+import json
 import logging
 import os
 import struct
@@ -22,7 +25,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from robocli.errors import RobocliError
-from robocli.io.record.links import is_raw, raw_frame
+from robocli.io.record.links import RAW_ENCODING, is_raw
 from robocli.io.record.recorder import RecordingError
 
 log = logging.getLogger("robocli.io.record")
@@ -362,6 +365,19 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
         if stats is not None:
             for framer in framers.values():
                 stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def raw_frame(encoding: str, data: bytes) -> bytes:
+    """The frame a raw channel's message holds: ``data`` itself for :data:`RAW_ENCODING`,
+    else the base64 ``data`` of the JSON. Raises
+    :class:`RecordingError` for a message that has none."""
+    if encoding == RAW_ENCODING:
+        return data
+    try:
+        text = json.loads(data)["data"]
+        return base64.b64decode(text, validate=True)
+    except (ValueError, KeyError, TypeError, binascii.Error) as exc:
+        raise RecordingError(f"a raw frame's message is malformed ({exc})") from None
 
 
 def _framer(protocol: str, direction: str) -> Any:
