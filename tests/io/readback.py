@@ -73,27 +73,42 @@ FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
 }
 #: What the subset Foxglove and Lichtblick read has no use for: a field has one type.
 _UNIONS = ("anyOf", "oneOf", "allOf", "not", "$ref", "if", "patternProperties")
+_SCALARS = ("string", "number", "integer", "boolean")
 
 
 def foxglove_subset(schema: Any, where: str = "$") -> None:
-    """Assert ``schema`` is inside the JSON-schema subset Foxglove's viewers read: every
-    field one ``type`` string (not a list, not ``null``), no union keyword, an object's
-    fields under ``properties`` and an array's under ``items``, recursively."""
+    """Assert ``schema`` is inside the JSON-schema subset Foxglove's viewers read (the rules
+    of Lichtblick's ``parseJsonSchema``, the viewer that refused robocli's channels): an
+    object at the root, whose fields each have one ``type`` string (not a list, not
+    ``null``) among object (with ``properties``), array, string, number, integer, boolean;
+    a string's ``contentEncoding`` base64 or none; an array's ``items`` one of those but
+    an array, and a string item without ``contentEncoding``; no union keyword;
+    recursively."""
+    assert isinstance(schema, dict) and schema.get("type") == "object", \
+        f"{where}: the root is not an object"  # fmt: skip
+    _field(schema, where, item=False)
+
+
+def _field(schema: Any, where: str, item: bool) -> None:
     assert isinstance(schema, dict), f"{where}: not a schema object"
     kind = schema.get("type")
     assert isinstance(kind, str), f"{where}: type {kind!r} is not one type string"
-    assert kind in ("object", "array", "string", "number", "integer", "boolean"), \
-        f"{where}: type {kind!r}"  # fmt: skip
+    allowed = ("object", *_SCALARS) if item else ("object", "array", *_SCALARS)
+    assert kind in allowed, f"{where}: type {kind!r} (not one of {', '.join(allowed)})"
     for key in _UNIONS:
         assert key not in schema, f"{where}: {key} (a union)"
-    if kind == "object":
+    if kind == "string":
+        encoding = schema.get("contentEncoding")
+        assert encoding in ((None,) if item else (None, "base64")), \
+            f"{where}: contentEncoding {encoding!r}"  # fmt: skip
+    elif kind == "object":
         props = schema.get("properties")
         assert isinstance(props, dict) and props, f"{where}: an object without properties"
         for key, sub in props.items():
-            foxglove_subset(sub, f"{where}.{key}")
+            _field(sub, f"{where}.{key}", item=False)
         assert set(schema.get("required", ())) <= set(props), f"{where}: required not a field"
     elif kind == "array":
-        foxglove_subset(schema.get("items"), f"{where}[]")
+        _field(schema.get("items"), f"{where}[]", item=True)
 
 
 def conforms(value: Any, schema: dict[str, Any], where: str = "$") -> None:

@@ -66,9 +66,16 @@ def test_foxglove_subset_refuses_what_lichtblick_refused() -> None:
     with pytest.raises(AssertionError, match="one type string"):
         foxglove_subset(union)
     with pytest.raises(AssertionError, match="type 'null'"):
-        foxglove_subset({"type": "null"})
+        foxglove_subset({"type": "object", "properties": {"t": {"type": "null"}}})
     with pytest.raises(AssertionError, match="anyOf"):
-        foxglove_subset({"type": "number", "anyOf": [{"type": "number"}]})
+        foxglove_subset({"type": "object", "properties": {
+            "x": {"type": "number", "anyOf": [{"type": "number"}]}}})  # fmt: skip
+    with pytest.raises(AssertionError, match="not one of"):  # no array of arrays
+        foxglove_subset({"type": "object", "properties": {
+            "m": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}}}})
+    with pytest.raises(AssertionError, match="contentEncoding"):  # base64 or nothing
+        foxglove_subset({"type": "object", "properties": {
+            "b": {"type": "string", "contentEncoding": "base16"}}})  # fmt: skip
 
 
 def test_what_robocli_does_not_know_is_left_out_not_null() -> None:
