@@ -98,3 +98,19 @@ def test_a_client_that_reads_nothing_is_disconnected_and_its_place_given_back() 
             wait_for(lambda: server.subscribers(cid) == 1, what="its subscription")
             view.write(cid, FRAME, 10**18 + 1)
             assert client.messages(sub, 1)[0][0] == 10**18 + 1
+
+
+def test_what_a_client_sends_is_bounded_and_a_bad_request_harms_no_one(view: LiveView) -> None:
+    cid = view.channel("/hub/camera", "foxglove.RawImage")
+    with FoxgloveClient(view.url) as good, FoxgloveClient(view.url) as bad:
+        for junk in ("not json", "[1, 2]", '{"op": "subscribe"}',
+                     '{"op": "subscribe", "subscriptions": [{"id": -1, "channelId": 1}]}',
+                     '{"op": "subscribe", "subscriptions": [{"id": 1, "channelId": 99}]}',
+                     '{"op": "unsubscribe", "subscriptionIds": "x"}'):  # fmt: skip
+            bad.ws.send(junk)
+        bad.ws.send(b"x" * (1 << 17))  # past the largest request: that client is closed
+        wait_for(lambda: view.server.clients == 1, what="the bad client closed")
+        sub = good.subscribe(good.wait_for_topics({"/hub/camera"})["/hub/camera"])
+        wait_for(lambda: view.server.subscribers(cid) == 1, what="the good subscription")
+        view.write(cid, FRAME, 10**18)
+        assert good.messages(sub, 1)[0][0] == 10**18
