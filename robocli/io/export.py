@@ -53,6 +53,7 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
     recording at ``path``, in file order (a channel's messages in the order written)."""
     from mcap.records import Channel, Message, Schema
 
+    from robocli.io.record.links import RAW_SCHEMA
     from robocli.io.record.reader import _check_magic, _open, iter_messages
 
     schemas: dict[int, str] = {}
@@ -63,8 +64,9 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
             if isinstance(record, Schema):
                 schemas[record.id] = record.name
             elif isinstance(record, Channel):
-                if record.message_encoding == "json":
-                    channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+                schema = schemas.get(record.schema_id, "")
+                if record.message_encoding == "json" and schema != RAW_SCHEMA:
+                    channels[record.id] = (record.topic, schema)
             elif isinstance(record, Message) and record.channel_id in channels:
                 topic, schema = channels[record.channel_id]
                 try:

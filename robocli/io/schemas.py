@@ -10,8 +10,18 @@ base64 strings with ``"contentEncoding": "base64"``, as Foxglove's JSON encoding
 
 Data with no well-known schema gets a ``robocli.*`` schema that names every field with its
 unit: joint states shaped like ``sensor_msgs/JointState``, IMU like ``sensor_msgs/Imu``, ADC,
-battery, the Pioneer's state, the arm's status, the hub's system information. Units are SI
+battery, the Pioneer's state, the arm's status, the hub's system information, and the raw
+frames of every link (``robocli.RawFrame``). Units are SI
 (m, rad, s, m/s, rad/s, V, A, T) unless a field's description says otherwise.
+
+Every schema stays inside the JSON-schema subset Foxglove and Lichtblick read: one ``type``
+string per field, no ``["number", "null"]`` union, no ``null``. What robocli does not know
+is left out of the message (a plot shows a gap there), never written as null: a number
+without a value (NaN, an infinity: see :func:`robocli.io.record.links.json_text`), a
+controller's clock it did not send, a status flag the arm reports as unknown. So a
+robocli schema requires only the fields that always have a value; a number, or a list or
+object of numbers, may be absent. A list cannot have a hole: the Pioneer's ``sonar`` is 0
+for a sonar that has not reported yet, and ``sonar_known`` says which have.
 
 No I/O here: :data:`SCHEMAS` maps a schema name to its JSON document, and the builders return
 plain dicts ready for :func:`json.dumps`.
@@ -107,6 +117,22 @@ def _stamped(title: str, description: str, properties: dict[str, Any],
                    ("timestamp", *required))  # fmt: skip
 
 
+def _has_number(schema: dict[str, Any]) -> bool:
+    """Whether a number is in ``schema`` (itself, its items or its properties)."""
+    items = schema.get("items")
+    return (schema.get("type") == "number" or (items is not None and _has_number(items))
+            or any(_has_number(p) for p in schema.get("properties", {}).values()))  # fmt: skip
+
+
+def _robocli(title: str, description: str, properties: dict[str, Any],
+             unknown: tuple[str, ...] = ()) -> dict[str, Any]:  # fmt: skip
+    """A robocli message (stamped): every field required but those that may be left out,
+    which are those holding a number and those named in ``unknown`` (see the module
+    docstring)."""
+    required = tuple(k for k, v in properties.items() if k not in unknown and not _has_number(v))
+    return _stamped(title, description, properties, required)
+
+
 # ---------------------------------------------------------------------- Foxglove's schemas
 
 _FRAME_TRANSFORM = _stamped(
@@ -189,8 +215,9 @@ _XYZ_GYRO = _vector3("Angular velocity", "rad/s")
 _XYZ_MAG = _vector3("Magnetic field", "T")
 
 ROBOCLI: dict[str, dict[str, Any]] = {
-    "robocli.pioneer.State": _stamped(
-        "robocli.pioneer.State", "One Pioneer SIP in SI units (odometry pose unwrapped)",
+    "robocli.pioneer.State": _robocli(
+        "robocli.pioneer.State", "One Pioneer SIP in SI units (odometry pose unwrapped); a "
+        "number without a value is left out",
         {
             "x": _number("Odometry x, m"), "y": _number("Odometry y, m"),
             "th": _number("Odometry heading, rad, in [-pi, pi)"),
@@ -205,15 +232,16 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "stall_right": _boolean("Right wheel stalled"),
             "bumpers_front": _integer("Front bumper switches, bit mask"),
             "bumpers_rear": _integer("Rear bumper switches, bit mask"),
-            "sonar": {"type": "array", "items": {"type": ["number", "null"]},
-                      "description": "Latest range per sonar index, m (null: none yet)"},
+            "sonar": _numbers("Latest range per sonar index, m (0: none yet, see sonar_known)"),
+            "sonar_known": {"type": "array", "items": {"type": "boolean"},
+                            "description": "Per sonar index: it has reported a range"},
             "digin": _integer("Digital inputs, bit mask"),
             "digout": _integer("Digital outputs, bit mask"),
             "analog": _number("Selected analog input, V"),
             "sip_count": _integer("SIPs decoded by the recorder"),
         },  # fmt: skip
     ),
-    "robocli.JointState": _stamped(
+    "robocli.JointState": _robocli(
         "robocli.JointState",
         "Joint positions, shaped like sensor_msgs/JointState (empty arrays: not reported)",
         {
@@ -222,23 +250,25 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "velocity": _numbers("Velocities, rad/s"),
             "effort": _numbers("Efforts, N m"),
             "source": _string("joint_position or joint_feedback"),
-            "robot_time": {"type": ["number", "null"],
-                           "description": "The controller's own clock, s (JOINT_FEEDBACK)"},
+            "robot_time": _number("The controller's own clock, s (JOINT_FEEDBACK; absent: "
+                                  "not sent)"),
         },  # fmt: skip
     ),
-    "robocli.arm.Status": _stamped(
-        "robocli.arm.Status", "The controller's STATUS (null: unknown)",
+    "robocli.arm.Status": _robocli(
+        "robocli.arm.Status", "The controller's STATUS (a flag it reports as unknown is left "
+        "out)",
         {
-            "drives_powered": {"type": ["boolean", "null"], "description": "Drives powered"},
-            "e_stopped": {"type": ["boolean", "null"], "description": "Emergency stop"},
-            "in_error": {"type": ["boolean", "null"], "description": "In error"},
-            "in_motion": {"type": ["boolean", "null"], "description": "Moving"},
-            "motion_possible": {"type": ["boolean", "null"], "description": "Can move"},
+            "drives_powered": _boolean("Drives powered"),
+            "e_stopped": _boolean("Emergency stop"),
+            "in_error": _boolean("In error"),
+            "in_motion": _boolean("Moving"),
+            "motion_possible": _boolean("Can move"),
             "mode": _string("MANUAL, AUTO or UNKNOWN"),
             "error_code": _integer("Controller error code"),
         },  # fmt: skip
+        unknown=("drives_powered", "e_stopped", "in_error", "in_motion", "motion_possible"),
     ),
-    "robocli.Imu": _stamped(
+    "robocli.Imu": _robocli(
         "robocli.Imu", "One IMU sample, shaped like sensor_msgs/Imu (no orientation)",
         {
             "frame_id": _string("IMU frame"),
@@ -247,11 +277,11 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "magnetic_field": _XYZ_MAG,
         },
     ),
-    "robocli.Adc": _stamped(
+    "robocli.Adc": _robocli(
         "robocli.Adc", "One sample of the hub's 8-channel ADC",
         {"channels": _numbers("Channels 0..7, V")},
     ),
-    "robocli.Battery": _stamped(
+    "robocli.Battery": _robocli(
         "robocli.Battery", "One battery sample",
         {
             "voltage": _number("Pack voltage, V"), "current": _number("Current, A"),
@@ -260,11 +290,10 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "state_of_charge": _number("State of charge, 0..1"),
         },  # fmt: skip
     ),
-    "robocli.SysInfo": _stamped(
+    "robocli.SysInfo": _robocli(
         "robocli.SysInfo", "The hub computer's load, memory and temperature",
         {
-            "cpu_temperature": {"type": ["number", "null"],
-                                "description": "CPU temperature, deg C (null: no sensor)"},
+            "cpu_temperature": _number("CPU temperature, deg C (absent: no sensor)"),
             "load": _numbers("Unix load averages over 1, 5, 15 min"),
             "cpu": {"type": "object", "description": "CPU time split, %",
                     "properties": {k: _number(f"{k}, %") for k in
@@ -273,6 +302,17 @@ ROBOCLI: dict[str, dict[str, Any]] = {
                        "properties": {k: _number(f"{k}, kB") for k in ("used", "free", "buffers")}},
             "state": _integer("Source state code"),
         },  # fmt: skip
+    ),
+    "robocli.RawFrame": _robocli(
+        "robocli.RawFrame",
+        "One whole frame as it went over a link (framing and checksum included), base64",
+        {
+            "link": _string("The link's name (the topic's first part)"),
+            "protocol": _string("arcos, sm-le, sm-be, ros4mat or scip2"),
+            "direction": _string("tx: robocli sent it; rx: robocli received it"),
+            "port": _string("The arm's port, motion or state (empty for other links)"),
+            "data": dict(_BASE64, description="The frame's bytes, base64"),
+        },
     ),
 }
 

@@ -16,7 +16,7 @@ from typing import Any
 
 from websockets.sync.client import ClientConnection, connect
 
-from tests.io.readback import conforms
+from tests.io.readback import viewer_checked
 
 SUBPROTOCOLS = ("foxglove.websocket.v1", "foxglove.sdk.v1")
 MESSAGE_DATA = 0x01
@@ -33,18 +33,22 @@ class Channel:
 
 
 class FoxgloveClient:
-    """``with FoxgloveClient(url) as c:`` connected, ``c.server_info`` read."""
+    """``with FoxgloveClient(url) as c:`` connected, ``c.server_info`` read. ``max_queue``:
+    the frames the connection's own thread receives ahead of the reader (then it stops
+    reading from the socket); ``close_timeout``: how long closing waits for the server's
+    close frame (which a client that stopped reading may never get)."""
 
-    def __init__(self, url: str, timeout: float = 30.0) -> None:
+    def __init__(self, url: str, timeout: float = 30.0, max_queue: int = 16,
+                 close_timeout: float = 10.0) -> None:  # fmt: skip
         self.timeout = timeout
         self._stack = contextlib.ExitStack()
         self.ws: ClientConnection = self._stack.enter_context(
-            connect(url, subprotocols=list(SUBPROTOCOLS), open_timeout=timeout)  # type: ignore[arg-type]
+            connect(url, subprotocols=list(SUBPROTOCOLS), open_timeout=timeout,  # type: ignore[arg-type]
+                    max_queue=max_queue, max_size=None, close_timeout=close_timeout)
         )
         self.channels: dict[int, Channel] = {}
         self.subscriptions: dict[int, int] = {}  # subscription id -> channel id
         self.pending: list[tuple[int, int, bytes]] = []
-        self.requests: dict[int, str] = {}  # channel id -> its subscribe request
         self.server_info = self._next_json("serverInfo")
 
     def __enter__(self) -> FoxgloveClient:
@@ -67,13 +71,7 @@ class FoxgloveClient:
             self.pending.append((sub, log_ns, frame[13:]))
             return None
         msg: dict[str, Any] = json.loads(frame)
-        if msg["op"] == "status" and "nknown channel" in msg.get("message", ""):
-            # foxglove-sdk 0.30 may send an advertise before the client's channel table has
-            # it: a subscribe right after is refused. The channel was advertised: ask again.
-            cid = int(msg["message"].rsplit(":", 1)[-1])
-            if cid in self.requests:
-                self.ws.send(self.requests[cid])
-        elif msg["op"] == "advertise":
+        if msg["op"] == "advertise":
             for ch in msg["channels"]:
                 schema = json.loads(ch["schema"]) if ch.get("schemaEncoding") == "jsonschema" \
                     else {}  # fmt: skip
@@ -102,13 +100,13 @@ class FoxgloveClient:
         request = json.dumps(
             {"op": "subscribe", "subscriptions": [{"id": sub, "channelId": channel.id}]}
         )
-        self.requests[channel.id] = request
         self.ws.send(request)
         return sub
 
     def messages(self, sub: int, n: int) -> list[tuple[int, Any]]:
         """The next ``n`` messages of subscription ``sub``: (log time ns, JSON payload),
-        each checked against its channel's advertised JSON schema."""
+        each checked against its channel's advertised JSON schema, as a viewer takes it
+        (:func:`~tests.io.readback.viewer_checked`)."""
         channel = self.channels[self.subscriptions[sub]]
         deadline = time.monotonic() + self.timeout
         out: list[tuple[int, Any]] = []
@@ -116,8 +114,8 @@ class FoxgloveClient:
             while self.pending:
                 got, log_ns, payload = self.pending.pop(0)
                 if got == sub:
-                    data = json.loads(payload)
-                    conforms(data, channel.schema, channel.topic)
+                    data = viewer_checked(channel.schema_name, channel.schema,
+                                          json.loads(payload), channel.topic)
                     out.append((log_ns, data))
             if len(out) < n:
                 self._handle(self._recv(deadline))

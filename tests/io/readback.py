@@ -1,5 +1,7 @@
 """Reading recordings back with the ``mcap`` package's own readers (not robocli's), and
-checking JSON messages against the schema their channel names."""
+checking JSON messages as a viewer takes them: against the schema their channel names
+(jsonschema), that schema against the subset Foxglove reads, and a message on a Foxglove
+well-known schema against Foxglove's own (``@foxglove/schemas``, vendored)."""
 
 from __future__ import annotations
 
@@ -63,35 +65,87 @@ def stream_messages(path: Path) -> tuple[list[Any], bool]:
                 out.append(record)
 
 
+#: Foxglove's own JSON schemas of the well-known schemas robocli writes (@foxglove/schemas
+#: 2.1.0, vendored: tests/data/foxglove_schemas/README.md), by schema name.
+FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
+    p.stem: json.loads(p.read_text())
+    for p in (Path(__file__).parents[1] / "data" / "foxglove_schemas").glob("foxglove.*.json")
+}
+#: What the subset Foxglove and Lichtblick read has no use for: a field has one type.
+_UNIONS = ("anyOf", "oneOf", "allOf", "not", "$ref", "if", "patternProperties")
+_SCALARS = ("string", "number", "integer", "boolean")
+
+
+def foxglove_subset(schema: Any, where: str = "$") -> None:
+    """Assert ``schema`` is inside the JSON-schema subset Foxglove's viewers read (the rules
+    of Lichtblick's ``parseJsonSchema``, the viewer that refused robocli's channels): an
+    object at the root, whose fields each have one ``type`` string (not a list, not
+    ``null``) among object (with ``properties``), array, string, number, integer, boolean;
+    a string's ``contentEncoding`` base64 or none; an array's ``items`` one of those but
+    an array, and a string item without ``contentEncoding``; no union keyword;
+    recursively."""
+    assert isinstance(schema, dict) and schema.get("type") == "object", \
+        f"{where}: the root is not an object"  # fmt: skip
+    _field(schema, where, item=False)
+
+
+def _field(schema: Any, where: str, item: bool) -> None:
+    assert isinstance(schema, dict), f"{where}: not a schema object"
+    kind = schema.get("type")
+    assert isinstance(kind, str), f"{where}: type {kind!r} is not one type string"
+    allowed = ("object", *_SCALARS) if item else ("object", "array", *_SCALARS)
+    assert kind in allowed, f"{where}: type {kind!r} (not one of {', '.join(allowed)})"
+    for key in _UNIONS:
+        assert key not in schema, f"{where}: {key} (a union)"
+    if kind == "string":
+        encoding = schema.get("contentEncoding")
+        assert encoding in ((None,) if item else (None, "base64")), \
+            f"{where}: contentEncoding {encoding!r}"  # fmt: skip
+    elif kind == "object":
+        props = schema.get("properties")
+        assert isinstance(props, dict) and props, f"{where}: an object without properties"
+        for key, sub in props.items():
+            _field(sub, f"{where}.{key}", item=False)
+        assert set(schema.get("required", ())) <= set(props), f"{where}: required not a field"
+    elif kind == "array":
+        _field(schema.get("items"), f"{where}[]", item=True)
+
+
 def conforms(value: Any, schema: dict[str, Any], where: str = "$") -> None:
-    """Assert ``value`` fits ``schema`` (the JSON Schema keywords robocli's schemas use)."""
-    kinds = schema.get("type")
-    if kinds is not None:
-        allowed = kinds if isinstance(kinds, list) else [kinds]
-        checks = {
-            "object": lambda v: isinstance(v, dict), "array": lambda v: isinstance(v, list),
-            "string": lambda v: isinstance(v, str), "boolean": lambda v: isinstance(v, bool),
-            "integer": lambda v: isinstance(v, int) and not isinstance(v, bool),
-            "number": lambda v: isinstance(v, (int, float)) and not isinstance(v, bool),
-            "null": lambda v: v is None,
-        }  # fmt: skip
-        assert any(checks[k](value) for k in allowed), f"{where}: {value!r} is not {kinds}"
-    if isinstance(value, dict):
-        for key in schema.get("required", []):
-            assert key in value, f"{where}: missing {key!r}"
-        for key, sub in schema.get("properties", {}).items():
-            if key in value:
-                conforms(value[key], sub, f"{where}.{key}")
-    if isinstance(value, list) and "items" in schema:
-        for i, item in enumerate(value):
-            conforms(item, schema["items"], f"{where}[{i}]")
-    if isinstance(value, (int, float)) and not isinstance(value, bool):
-        assert schema.get("minimum", value) <= value <= schema.get("maximum", value), where
+    """Assert ``value`` is valid under ``schema`` (jsonschema), with every base64 string
+    (``"contentEncoding": "base64"``) decodable."""
+    import jsonschema
+
+    error = jsonschema.exceptions.best_match(jsonschema.Draft7Validator(schema).iter_errors(value))
+    assert error is None, f"{where}: {error.message} at {list(error.absolute_path)}"
+    _base64(value, schema, where)
+
+
+def _base64(value: Any, schema: dict[str, Any], where: str) -> None:
     if schema.get("contentEncoding") == "base64":
         try:
             base64.b64decode(value, validate=True)
         except binascii.Error as exc:
             raise AssertionError(f"{where}: not base64 ({exc})") from None
+    if isinstance(value, dict):
+        for key, sub in schema.get("properties", {}).items():
+            if key in value:
+                _base64(value[key], sub, f"{where}.{key}")
+    if isinstance(value, list) and "items" in schema:
+        for i, item in enumerate(value):
+            _base64(item, schema["items"], f"{where}[{i}]")
+
+
+def viewer_checked(name: str, schema: dict[str, Any], value: Any, where: str = "$") -> Any:
+    """``value``, asserted valid under its channel's ``schema`` (named ``name``), that
+    schema inside Foxglove's subset, and, on a Foxglove well-known schema, valid under
+    Foxglove's own JSON schema of it."""
+    foxglove_subset(schema, f"{where} schema {name}")
+    conforms(value, schema, where)
+    if name.startswith("foxglove."):
+        assert name in FOXGLOVE_SCHEMAS, f"{name}: no vendored Foxglove schema"
+        conforms(value, FOXGLOVE_SCHEMAS[name], f"{where} (Foxglove's {name})")
+    return value
 
 
 def decoded(item: tuple[Any, Any, Any]) -> Any:
@@ -99,6 +153,11 @@ def decoded(item: tuple[Any, Any, Any]) -> Any:
     schema, channel, message = item
     assert channel.message_encoding == "json"
     assert schema is not None and schema.encoding == "jsonschema"
-    data = json.loads(message.data)
-    conforms(data, json.loads(schema.data))
-    return data
+    return viewer_checked(schema.name, json.loads(schema.data), json.loads(message.data),
+                          channel.topic)
+
+
+def frame_of(item: tuple[Any, Any, Any]) -> bytes:
+    """The frame one raw channel's message carries (its base64 ``data``), the message
+    checked as :func:`decoded` checks it."""
+    return base64.b64decode(decoded(item)["data"], validate=True)

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("foxglove")
 pytest.importorskip("websockets")
 
 from cli.helpers import one_line_error, run, running  # noqa: E402
@@ -218,9 +217,9 @@ def _holds(log: list[str], prefix: str) -> bool:
     return any(line.startswith(prefix) for line in now)
 
 
-def test_without_foxglove_sdk_one_line_says_how_to_install() -> None:
+def test_without_websockets_one_line_says_how_to_install() -> None:
     argv = ["connect", "pioneer", "sim", "--once", "--foxglove", "0"]
-    code = f"import sys; sys.modules['foxglove'] = None; from robocli.cli import main; " \
+    code = f"import sys; sys.modules['websockets'] = None; from robocli.cli import main; " \
         f"sys.exit(main({argv!r}))"  # fmt: skip
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, stdin=subprocess.DEVNULL)  # fmt: skip

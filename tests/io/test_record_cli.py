@@ -19,7 +19,7 @@ from robocli.io.capture import CaptureWriter
 from robocli.io.record import Recorder, info
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
-from tests.io.readback import by_topic, decoded, messages, stream_messages, wait_for
+from tests.io.readback import by_topic, decoded, frame_of, messages, stream_messages, wait_for
 
 
 def _json_dump(*args: str) -> list[dict[str, Any]]:
@@ -44,7 +44,7 @@ def test_record_all_three_for_a_duration(tmp_path: Path) -> None:
         "/arm/joint_feedback": "robocli.JointState", "/arm/tf": "foxglove.FrameTransforms",
         "/hub/imu": "robocli.Imu", "/hub/adc": "robocli.Adc",
         "/hub/camera": "foxglove.RawImage", "/hub/gps": "foxglove.LocationFix",
-        "/hub/laser": "foxglove.LaserScan", "/pioneer/raw/rx": "",
+        "/hub/laser": "foxglove.LaserScan", "/pioneer/raw/rx": "robocli.RawFrame",
     }.items():  # fmt: skip
         assert schemas.get(topic) == schema, (topic, sorted(schemas))
     assert 1.0 < summary["duration_s"] < 30
@@ -131,7 +131,7 @@ def test_ctrl_c_and_sigterm_finish_the_file(tmp_path: Path, sig: signal.Signals)
     items = messages(path)
     assert len(items) == summary.messages
     # the robot's stop and CLOSE went out before the file closed, and were recorded
-    tx = [bytes(m.data) for _, c, m in items if c.topic == "/pioneer/raw/tx"]
+    tx = [frame_of(i) for i in items if i[1].topic == "/pioneer/raw/tx"]
     assert tx[-1] == arcos.encode_command(arcos.Command.CLOSE, 1)
     for item in by_topic(path)["/pioneer/pose"]:
         decoded(item)

@@ -18,7 +18,7 @@ from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
 from robocli.io.capture import CaptureStats, read_capture
-from robocli.io.record import RAW_ENCODING, Recorder, info
+from robocli.io.record import RAW_SCHEMA, Recorder, info
 from robocli.kinematics import load_model
 from robocli.kinematics.fk import fk
 from robocli.protocols import arcos
@@ -100,10 +100,17 @@ def test_pioneer_raw_channels_are_the_live_dumps_packets(pioneer_url: str,
                                                           tmp_path: Path) -> None:  # fmt: skip
     path = tmp_path / "raw.mcap"
     seen, _, _, _ = _record_pioneer(pioneer_url, path, sips=5)
-    raws = {c.topic: c for c in info(path).channels if c.encoding == RAW_ENCODING}
+    raws = {c.topic: c for c in info(path).channels if c.schema == RAW_SCHEMA}
     assert set(raws) == {"/pioneer/raw/tx", "/pioneer/raw/rx"}
+    assert {c.encoding for c in raws.values()} == {"json"}  # an encoding every viewer reads
     assert raws["/pioneer/raw/rx"].metadata == {
         "protocol": "arcos", "link": "pioneer", "url": pioneer_url, "direction": "rx"}  # fmt: skip
+    # each message: the frame's bytes in base64, with its link, protocol and direction
+    for way in ("tx", "rx"):
+        sent = [decoded(i) for i in by_topic(path)[f"/pioneer/raw/{way}"]]
+        assert {(m["link"], m["protocol"], m["direction"], m["port"]) for m in sent} == {
+            ("pioneer", "arcos", way, "")}  # fmt: skip
+        assert [base64.b64decode(m["data"]) for m in sent] == [f for d, f in seen if d == way]
     stats = CaptureStats()
     frames = list(read_capture(path, "arcos", stats))
     assert stats.dropped_bytes == 0
@@ -113,6 +120,22 @@ def test_pioneer_raw_channels_are_the_live_dumps_packets(pioneer_url: str,
     assert frames[0].frame == arcos.frame(b"\x00")  # SYNC0 first
     times = [f.t for f in frames]
     assert times == sorted(times) and times[0] == 0.0
+
+
+#: Made by robocli before raw channels had a schema (message encoding ``robocli.raw``, the
+#: frame's bytes as the message): a Pioneer simulator's session, five SIPs.
+OLD_RAW = Path(__file__).parents[1] / "data" / "recordings" / "pioneer-robocli-raw.mcap"
+
+
+def test_raw_channels_of_older_recordings_still_read() -> None:
+    raws = {c.topic: c for c in info(OLD_RAW).channels if "/raw/" in c.topic}
+    assert {c.encoding for c in raws.values()} == {"robocli.raw"}
+    recorded = {way: [i[2].data for i in by_topic(OLD_RAW)[f"/pioneer/raw/{way}"]]
+                for way in ("tx", "rx")}  # fmt: skip
+    frames = list(read_capture(OLD_RAW, "arcos"))
+    for way in ("tx", "rx"):  # the bytes recorded, given back as they are
+        assert [f.frame for f in frames if f.direction == way] == recorded[way]
+    assert frames[0].frame == arcos.frame(b"\x00") and len(recorded["rx"]) > 5
 
 
 @pytest.mark.parametrize("compression", ["lz4", "none"])

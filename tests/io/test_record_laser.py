@@ -14,7 +14,7 @@ import pytest
 from cli.helpers import run, running
 
 from robocli.devices.laser import Laser, Scan
-from robocli.io.record import RAW_ENCODING, Recorder, info, raw_frames
+from robocli.io.record import RAW_SCHEMA, Recorder, info, raw_frames
 from robocli.sim.hokuyo import HokuyoSim
 from tests.io.readback import by_topic, decoded, wait_for
 
@@ -66,8 +66,9 @@ def test_scans_are_foxglove_laser_scans_on_the_sensor_clock(laser_url: str,
         assert abs(message.log_time / 1e9 - scan.received) < 0.05  # when it arrived
     raws = {k: v[0][1] for k, v in topics.items() if "/raw/" in k}
     assert set(raws) == {"/laser/raw/tx", "/laser/raw/rx"}
-    assert all(c.message_encoding == RAW_ENCODING and c.metadata["protocol"] == "scip2"
+    assert all(c.message_encoding == "json" and c.metadata["protocol"] == "scip2"
                for c in raws.values())  # fmt: skip
+    assert all(i[0].name == RAW_SCHEMA for k, v in topics.items() if "/raw/" in k for i in v)
 
 
 def test_raw_channels_give_back_every_line_both_ways(laser_url: str, tmp_path: Path) -> None:

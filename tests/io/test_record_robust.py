@@ -15,7 +15,7 @@ from robocli.devices.pioneer import Pioneer
 from robocli.errors import InvalidArgument
 from robocli.io.record import Recorder, RecordingError, info
 from robocli.protocols import arcos
-from tests.io.readback import by_topic, wait_for
+from tests.io.readback import by_topic, frame_of, wait_for
 
 
 class StalledDisk(io.RawIOBase):
@@ -105,7 +105,7 @@ def test_frames_that_do_not_decode_are_counted_and_kept_raw(tmp_path: Path) -> N
         link("rx", b"\x32\x01", 1.1)
     assert rec.stats.decode_errors == 2
     raw = by_topic(path)["/pioneer/raw/rx"]
-    assert [bytes(m.data) for _, _, m in raw] == [arcos.frame(b"\x32\x01")] * 2
+    assert [frame_of(i) for i in raw] == [arcos.frame(b"\x32\x01")] * 2
 
 
 def test_bad_arguments() -> None:

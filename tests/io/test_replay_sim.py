@@ -19,7 +19,7 @@ from robocli.io.record import Recorder
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
 from robocli.sim.replay import FrameSchedule
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded, frame_of, wait_for
 
 Frames = list[tuple[str, bytes]]
 
@@ -52,7 +52,7 @@ def test_pioneer_client_gets_the_recorded_stream(pioneer_recording: Path) -> Non
     topics = by_topic(pioneer_recording)
     recorded = [decoded(i) for i in topics["/pioneer/state"]]
     last = (recorded[-1]["x"], recorded[-1]["y"], recorded[-1]["th"])
-    raw = [i[2].data for i in topics["/pioneer/raw/rx"]]
+    raw = [frame_of(i) for i in topics["/pioneer/raw/rx"]]
     recorded_sips = [f[3:-2] for f in raw if f[3] & 0xF0 == 0x30]
     recorded_laser = [f[3:-2] for f in raw if f[3] in (0x60, 0x61)]
     seen: Frames = []
@@ -80,6 +80,29 @@ def test_pioneer_client_gets_the_recorded_stream(pioneer_recording: Path) -> Non
             k += 1
         assert k < len(xyth), f"{pose} is not a recorded pose after the previous one"
     assert last[0] > 0.01, "the recorded robot drove"
+
+
+def test_pioneer_replay_sends_the_laser_only_from_the_clients_request(
+        pioneer_recording: Path) -> None:  # fmt: skip
+    """As the live simulator: a client that did not ask for the laser gets none of the
+    recorded laser packets (ARIA logs each one no handler wanted); after its request, whole
+    recorded scans, from the first packet of a scan on."""
+    raw = [frame_of(i)[3:-2] for i in by_topic(pioneer_recording)["/pioneer/raw/rx"]]
+    recorded_laser = [f for f in raw if f[0] == 0x61]
+    assert recorded_laser, "the recording has its laser"
+    seen: Frames = []
+    with PioneerReplay(pioneer_recording, speed=4.0, loop=True) as replay:
+        url = replay.serve_tcp("127.0.0.1", 0)
+        with Pioneer.connect(url, listeners=[lambda d, p, t: seen.append((d, p))]) as robot:
+            wait_for(lambda: replay.schedule.laps >= 1, what="a whole lap of the recording")
+            assert _sips(seen) and not _laser(seen)
+            assert replay.withheld >= len(recorded_laser)
+            robot.start_laser()
+            scan = robot.wait_for_laser(30.0)
+            assert len(scan.ranges) == 181
+    got = _laser(seen)
+    assert got[0][3:5] == b"\0\0", "the first packet sent begins a scan"
+    assert all(p in recorded_laser for p in got)
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -142,7 +165,7 @@ def test_arm_client_gets_the_recorded_joint_states(arm_recording: Path) -> None:
     wanted = [(tuple(d["position"]), d["robot_time"])
               for d in (decoded(i) for i in topics["/arm/joint_feedback"])]  # fmt: skip
     positions = [tuple(decoded(i)["position"]) for i in topics["/arm/joint_states"]]
-    recorded_frames = [i[2].data for i in topics["/arm/raw/state/rx"]]
+    recorded_frames = [frame_of(i) for i in topics["/arm/raw/state/rx"]]
     frames: list[bytes] = []
     samples: list[Any] = []
     with AbbReplay(arm_recording) as replay:

@@ -15,6 +15,7 @@ from robocli.io.record.reader import ChannelInfo, RecordingInfo, info, raw_frame
 from robocli.io.record.recorder import (
     COMPRESSIONS,
     RAW_ENCODING,
+    RAW_SCHEMA,
     Recorder,
     RecorderStats,
     RecordingError,
@@ -23,6 +24,7 @@ from robocli.io.record.recorder import (
 __all__ = [
     "COMPRESSIONS",
     "RAW_ENCODING",
+    "RAW_SCHEMA",
     "ChannelInfo",
     "Recorder",
     "RecorderStats",

@@ -96,6 +96,7 @@ class ArmDecoder:
             from robocli.devices.arm.state import ArmStatus
 
             status = ArmStatus.from_body(body, 0.0).as_dict()
+            status = {k: v for k, v in status.items() if v is not None}  # unknown: left out
             status["timestamp"] = S.stamp(ns)
             cid = self._cid("status", "robocli.arm.Status")
             self.rec.write(cid, json_text(status).encode(), ns)
@@ -105,8 +106,10 @@ class ArmDecoder:
         rec = self.rec
         stamp = S.stamp(publish)
         source = "joint_feedback" if topic == "joint_feedback" else "joint_position"
-        state = {"timestamp": stamp, "name": self.names, "position": q, "velocity": vel,
-                 "effort": [], "source": source, "robot_time": robot_time}  # fmt: skip
+        state: dict[str, Any] = {"timestamp": stamp, "name": self.names, "position": q,
+                                 "velocity": vel, "effort": [], "source": source}  # fmt: skip
+        if robot_time is not None:  # not sent: left out (a viewer's schemas have no null)
+            state["robot_time"] = robot_time
         rec.write(self._cid(topic, "robocli.JointState"), json_text(state).encode(), ns, publish)
         if self._feedback and topic != "joint_feedback":
             return  # the frames follow the feedback, on the controller's clock

@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
+import base64
 import json
 import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
-__all__ = ["RAW_ENCODING", "RawLink", "Sink", "json_text", "new_link", "raw_link"]
+__all__ = ["RAW_ENCODING", "RAW_SCHEMA", "RawLink", "Sink", "is_raw", "json_text", "new_link",
+           "raw_link"]
 
-#: Message encoding of the raw-bytes channels: each message is one whole frame as it went
-#: over the link (framing and checksum included), in the protocol named by the channel's
-#: ``protocol`` metadata.
+#: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
+#: as every channel: a viewer shows them): each message is one whole frame as it went over
+#: the link (framing and checksum included), base64 in its ``data``, with its ``link``,
+#: ``protocol`` (also the channel's metadata, as ``direction`` and ``port``).
+RAW_SCHEMA = "robocli.RawFrame"
+#: Message encoding of the raw channels of recordings made before :data:`RAW_SCHEMA`: each
+#: message the frame's bytes themselves, without a schema (no viewer knows the encoding).
+#: Read, never written.
 RAW_ENCODING = "robocli.raw"
+
+
+def is_raw(encoding: str, schema: str) -> bool:
+    """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel."""
+    return schema == RAW_SCHEMA or encoding == RAW_ENCODING
 
 
 
@@ -52,20 +64,30 @@ _ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode
 
 
 def json_text(message: Any) -> str:
-    """Compact JSON of ``message``; NaN and infinities (no reading) become null."""
+    """Compact JSON of ``message`` (a dict). A number without a value (NaN, an infinity:
+    no reading) is left out, never written as null, which Foxglove's schemas cannot say
+    (:mod:`robocli.io.schemas`): a field holding one is omitted, and so is a list holding
+    one (a list with a hole would shift the indexes after it)."""
     try:
         return _ENCODE(message)
     except ValueError:
         return _ENCODE(_finite(message))
 
 
+_MISSING = object()
+
+
 def _finite(value: Any) -> Any:
+    """``value`` without its non-finite numbers (see :func:`json_text`); ``_MISSING`` for
+    a number or a list that has none left to say."""
     if isinstance(value, float):
-        return value if math.isfinite(value) else None
+        return value if math.isfinite(value) else _MISSING
     if isinstance(value, dict):
-        return {k: _finite(v) for k, v in value.items()}
+        out = {k: _finite(v) for k, v in value.items()}
+        return {k: v for k, v in out.items() if v is not _MISSING}
     if isinstance(value, (list, tuple)):
-        return [_finite(v) for v in value]
+        items = [_finite(v) for v in value]
+        return _MISSING if any(v is _MISSING for v in items) else items
     return value
 
 
@@ -86,6 +108,7 @@ class RawLink:
         if port is not None:
             self._metadata["port"] = port
         self._cids: dict[str, int] = {}
+        self._heads: dict[str, bytes] = {}  # the JSON between the stamp and the bytes
         #: called as ``decoder(direction, payload, log_ns)`` after the raw message is written
         self.decoder: Callable[[str, bytes, int], None] | None = None
         self._put = rec.put
@@ -98,11 +121,17 @@ class RawLink:
         cid = self._cids.get(direction)
         if cid is None:
             part = f"{self.port}/{direction}" if self.port else direction
-            cid = self.rec.channel(f"/{self.name}/raw/{part}", None, encoding=RAW_ENCODING,
+            cid = self.rec.channel(f"/{self.name}/raw/{part}", RAW_SCHEMA,
                                    metadata={**self._metadata, "direction": direction})  # fmt: skip
             self._cids[direction] = cid
+            fields = {"link": self.name, "protocol": self.protocol, "direction": direction,
+                      "port": self.port or ""}  # fmt: skip
+            self._heads[direction] = f',{json_text(fields)[1:-1]},"data":"'.encode()
         ns = self.rec.log_ns(t)
-        self.rec.write(cid, self._reframe(payload) if self._reframe else payload, ns)
+        frame = self._reframe(payload) if self._reframe else payload
+        sec, nsec = divmod(ns, 1_000_000_000)
+        self.rec.write(cid, b'{"timestamp":{"sec":%d,"nsec":%d}%s%s"}' % (
+            sec, nsec, self._heads[direction], base64.b64encode(frame)), ns)  # fmt: skip
         if self.decoder is not None:
             self.decoder(direction, payload, ns)
 

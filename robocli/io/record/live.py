@@ -1,5 +1,6 @@
 """The live view: the recordings' channels served as they come over the Foxglove WebSocket
-protocol (``foxglove-sdk``, needs ``pip install 'robocli[foxglove]'``).
+protocol (:mod:`robocli.io.record.wsserver`, on ``websockets``: ``pip install
+'robocli[foxglove]'``).
 
 >>> from robocli.io.record.live import LiveView             # doctest: +SKIP
 >>> with LiveView(port=8765) as view:                       # ws://127.0.0.1:8765 in Foxglove
@@ -8,17 +9,18 @@ protocol (``foxglove-sdk``, needs ``pip install 'robocli[foxglove]'``).
 A :class:`LiveView` is a :class:`~robocli.io.record.links.Sink`: the device recorders that
 map frames to Foxglove's schemas for an MCAP file (:mod:`robocli.io.record.sources`) feed it
 the same way, so the live channels are the recording's channels, with the same topics,
-schemas (``jsonschema``) and JSON messages. Raw-bytes channels are not served (no panel
-shows them). It has its own bounded queue and decoding thread, like the
+schemas (``jsonschema``) and JSON messages. Raw-bytes channels are not served (a file keeps
+them). It has its own bounded queue and decoding thread, like the
 :class:`~robocli.io.record.Recorder`: a device's listener only appends.
 
 While recording, :meth:`Recorder.mirror(view) <robocli.io.record.Recorder.mirror>` has the
 recorder's thread hand every decoded message to the view too, so the devices are decoded
 once for both.
 
-The server binds 127.0.0.1 unless given another host. The SDK names the subprotocol
-``foxglove.sdk.v1`` (the ``foxglove.websocket.v1`` protocol under its new name, which
-Foxglove's app speaks); the messages are JSON, each with its channel's JSON schema.
+The server binds 127.0.0.1 unless given another host, serves ``max_clients`` clients at most
+and holds at most ``max_client_bytes`` for them all: a client that does not read loses
+messages (counted) and, silent for ``stall_s``, its connection; the others' data and the
+memory are never its to take (see :mod:`~robocli.io.record.wsserver`).
 """
 
 from __future__ import annotations
@@ -32,10 +34,12 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError, TransportError
+from robocli.io.record.links import RAW_SCHEMA
 from robocli.io.schemas import SCHEMAS, schema_bytes
 
 if TYPE_CHECKING:
     from robocli.devices.hub.client import Hub
+    from robocli.io.record.wsserver import FoxgloveServer
 
 log = logging.getLogger("robocli.io.record")
 
@@ -48,44 +52,50 @@ _IDLE_S = 0.02
 
 
 class LiveViewError(RobocliError):
-    """The live view could not start (no ``foxglove-sdk``)."""
+    """The live view could not start (no ``websockets``)."""
 
 
-def _foxglove() -> Any:
+def _server_class() -> type[FoxgloveServer]:
     try:
-        import foxglove
+        import websockets.asyncio.server  # noqa: F401 - the optional extra
     except ImportError:
         raise LiveViewError(
-            "the live view needs the foxglove-sdk package: pip install 'robocli[foxglove]'"
+            "the live view needs the websockets package: pip install 'robocli[foxglove]'"
         ) from None
-    return foxglove
+    from robocli.io.record.wsserver import FoxgloveServer
+
+    return FoxgloveServer
 
 
 class LiveView:
     """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
     serving the channels of the devices :meth:`add` ed to it, or of a recorder that
     mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
-    thread before new items are dropped (counted in :attr:`dropped`). Each client's backlog
-    is the SDK's (1024 messages; a slow client loses the oldest). Raises
-    :class:`LiveViewError` without ``foxglove-sdk``, :class:`TransportError` when the port
-    cannot be had (in use), :class:`InvalidArgument` for a bad port."""
+    thread before new items are dropped (counted in :attr:`dropped`). ``max_clients``,
+    ``max_client_bytes``, ``stall_s``: the server's bounds (its accounting:
+    :attr:`server`). Raises :class:`LiveViewError` without ``websockets``,
+    :class:`TransportError` when the port cannot be had (in use), :class:`InvalidArgument`
+    for a bad port or bound."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = DEFAULT_PORT, *,
                  name: str = "robocli", max_queue: int = 100_000,
-                 max_queue_bytes: int = 64 << 20) -> None:  # fmt: skip
+                 max_queue_bytes: int = 64 << 20, max_clients: int = 16,
+                 max_client_bytes: int = 128 << 20, stall_s: float = 10.0) -> None:  # fmt: skip
         if not 0 <= port <= 65535:
             raise InvalidArgument(f"the live view's port is 0..65535, not {port}")
-        foxglove = _foxglove()
+        if max_clients < 1 or max_client_bytes < max_clients or not stall_s > 0:
+            raise InvalidArgument("max_clients, max_client_bytes and stall_s must be positive")
+        server = _server_class()
         self.host = host
-        self._fg = foxglove
-        self._context = foxglove.Context()
         try:
-            self._server = foxglove.start_server(name=name, host=host, port=port,
-                                                 context=self._context)  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - the SDK's own error type: a bind failure
-            raise TransportError(f"cannot serve the live view on {host}:{port}: {exc}") from None
+            #: the WebSocket server, with its accounting (clients, queued bytes, drops)
+            self.server = server(host, port, name=name, max_clients=max_clients,
+                                 max_queued_bytes=max_client_bytes, stall_s=stall_s)  # fmt: skip
+        except OSError as exc:
+            why = exc.strerror or exc
+            raise TransportError(f"cannot serve the live view on {host}:{port}: {why}") from None
         #: the port the server listens on
-        self.port: int = self._server.port
+        self.port: int = self.server.port
         self.max_queue, self.max_queue_bytes = max_queue, max_queue_bytes
         self._queued_bytes = 0
         #: items dropped for a full queue, messages the server refused
@@ -94,7 +104,6 @@ class LiveView:
         #: messages handed to the server
         self.messages = 0
         self.links: dict[str, Any] = {}
-        self._channels: list[Any] = []
         self._by_topic: dict[str, int] = {}
         self._names: set[str] = set()
         self._detach: list[Callable[[], None]] = []
@@ -159,21 +168,11 @@ class LiveView:
         cid = self._by_topic.get(topic)
         if cid is not None:
             return cid
-        if schema is None or schema not in SCHEMAS or encoding != "json":
+        if schema is None or schema not in SCHEMAS or encoding != "json" or schema == RAW_SCHEMA:
             self._by_topic[topic] = -1
             return -1
-        fg = self._fg
-        try:
-            channel = fg.Channel(topic, schema=fg.Schema(name=schema, encoding="jsonschema",
-                                                         data=schema_bytes(schema)),
-                                 message_encoding="json", context=self._context,
-                                 metadata=dict(metadata or {}))  # fmt: skip
-        except Exception:  # noqa: BLE001 - the view must not stop a recording
-            log.warning("live view: channel %s could not be made", topic, exc_info=True)
-            self._by_topic[topic] = -1
-            return -1
-        self._channels.append(channel)
-        cid = self._by_topic[topic] = len(self._channels) - 1
+        cid = self._by_topic[topic] = len(self._by_topic) + 1
+        self.server.advertise(cid, topic, "json", schema, schema_bytes(schema).decode())
         return cid
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
@@ -184,7 +183,7 @@ class LiveView:
         if cid < 0 or self._closed:
             return
         try:
-            self._channels[cid].base.log(data, log_ns if publish_ns is None else publish_ns)
+            self.server.publish(cid, data, log_ns if publish_ns is None else publish_ns)
             self.messages += 1
         except Exception:  # noqa: BLE001 - the view must not stop a recording
             self.errors += 1
@@ -230,12 +229,7 @@ class LiveView:
             self._closing = True
         if self._thread is not None:
             self._thread.join(timeout)
-        for channel in self._channels:
-            try:
-                channel.close()
-            except Exception:  # noqa: BLE001 - closing anyway
-                log.debug("live view: closing a channel failed", exc_info=True)
-        self._server.stop()
+        self.server.stop()
 
     def __enter__(self) -> LiveView:
         return self

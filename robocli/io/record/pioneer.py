@@ -120,19 +120,25 @@ class PioneerDecoder:
 
     def _state(self, st: Any, stamp: str, sonar: list[float]) -> bytes:
         """The state message, written as text (this runs for every SIP): the same JSON as
-        ``json_text`` of its dict, which it falls back to for a NaN or an infinity."""
+        ``json_text`` of its dict, which it falls back to for a NaN or an infinity (left
+        out). A sonar without a reading yet is 0, and false in ``sonar_known``."""
         if not math.isfinite(st.x + st.y + st.th + st.v + st.w + st.left_velocity
                              + st.right_velocity + st.battery + st.analog):  # fmt: skip
             return self._state_dict(st, stamp, sonar)  # null for what is not a number
         texts = self._texts
         if len(texts) > _ECHO_CACHE:
             texts.clear()
-        ranges = []
+        ranges, known = [], []
         for r in sonar[: self._n_sonar]:
-            text = texts.get(r)
-            if text is None:
-                text = texts[r] = repr(r) if math.isfinite(r) else "null"
-            ranges.append(text)
+            if math.isfinite(r):
+                text = texts.get(r)
+                if text is None:
+                    text = texts[r] = repr(r)
+                ranges.append(text)
+                known.append("true")
+            else:  # (NaN is no key: it equals nothing)
+                ranges.append("0.0")
+                known.append("false")
         b = ("false", "true")
         text = (f'{{"timestamp":{stamp},"x":{st.x!r},"y":{st.y!r},"th":{st.th!r},"v":{st.v!r},'
                 f'"w":{st.w!r},"left_velocity":{st.left_velocity!r},"right_velocity":'
@@ -140,7 +146,8 @@ class PioneerDecoder:
                 f'{b[st.motors_enabled]},"estop":{b[st.estop]},"stall_left":'
                 f'{b[st.stall_left]},"stall_right":{b[st.stall_right]},"bumpers_front":'
                 f'{st.bumpers_front:d},"bumpers_rear":{st.bumpers_rear:d},"sonar":'
-                f'[{",".join(ranges)}],"digin":{st.digin:d},"digout":{st.digout:d},'
+                f'[{",".join(ranges)}],"sonar_known":[{",".join(known)}],"digin":{st.digin:d},'
+                f'"digout":{st.digout:d},'
                 f'"analog":{st.analog!r},"sip_count":{self.sips:d}}}')  # fmt: skip
         return text.encode()
 
@@ -152,7 +159,8 @@ class PioneerDecoder:
             "motors_enabled": st.motors_enabled, "estop": st.estop,
             "stall_left": st.stall_left, "stall_right": st.stall_right,
             "bumpers_front": st.bumpers_front, "bumpers_rear": st.bumpers_rear,
-            "sonar": [r if r == r else None for r in sonar[: self._n_sonar]],
+            "sonar": [r if math.isfinite(r) else 0.0 for r in sonar[: self._n_sonar]],
+            "sonar_known": [math.isfinite(r) for r in sonar[: self._n_sonar]],
             "digin": st.digin, "digout": st.digout, "analog": st.analog, "sip_count": self.sips,
         }  # fmt: skip
         return json_text(state).encode()

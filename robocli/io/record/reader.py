@@ -11,7 +11,10 @@ complete chunk), saying so.
 
 from __future__ import annotations
 
+import base64
+import binascii
 import heapq
+import json
 import logging
 import os
 import struct
@@ -22,7 +25,8 @@ from pathlib import Path
 from typing import IO, Any
 
 from robocli.errors import RobocliError
-from robocli.io.record.recorder import RAW_ENCODING, RecordingError
+from robocli.io.record.links import RAW_ENCODING, is_raw
+from robocli.io.record.recorder import RecordingError
 
 log = logging.getLogger("robocli.io.record")
 
@@ -323,12 +327,12 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
     :class:`~robocli.io.capture.CaptureStats`, optional) is updated as it goes. ``scip2``
     (a Hokuyo): reply blocks on ``rx``, request lines (without their terminator) on ``tx``."""
     summary_info = info(path)
-    raws = [c for c in summary_info.channels if c.encoding == RAW_ENCODING
+    raws = [c for c in summary_info.channels if is_raw(c.encoding, c.schema)
             and _family(c.metadata.get("protocol", "")) == _family(protocol)]  # fmt: skip
     links = list(dict.fromkeys(c.metadata.get("link", "") for c in raws))
     if not links:
         found = sorted({c.metadata.get("protocol", "?") for c in summary_info.channels
-                        if c.encoding == RAW_ENCODING})  # fmt: skip
+                        if is_raw(c.encoding, c.schema)})  # fmt: skip
         raise RobocliError(f"{path}: no raw {protocol} channel (raw channels: "
                            f"{', '.join(found) or 'none'})")  # fmt: skip
     if len(links) > 1:
@@ -342,6 +346,7 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
     try:
         for channel_id, log_ns, data in _ordered(path, summary_info, set(chosen)):
             channel = chosen[channel_id]
+            data = raw_frame(channel.encoding, data)
             meta = channel.metadata
             framer = framers.get(channel_id)
             if framer is None:
@@ -360,6 +365,19 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
         if stats is not None:
             for framer in framers.values():
                 stats.dropped_bytes += framer.stats.dropped_bytes + framer.pending
+
+
+def raw_frame(encoding: str, data: bytes) -> bytes:
+    """The frame a raw channel's message holds: ``data`` itself for :data:`RAW_ENCODING`,
+    else the base64 ``data`` of the JSON. Raises
+    :class:`RecordingError` for a message that has none."""
+    if encoding == RAW_ENCODING:
+        return data
+    try:
+        text = json.loads(data)["data"]
+        return base64.b64decode(text, validate=True)
+    except (ValueError, KeyError, TypeError, binascii.Error) as exc:
+        raise RecordingError(f"a raw frame's message is malformed ({exc})") from None
 
 
 def _framer(protocol: str, direction: str) -> Any:

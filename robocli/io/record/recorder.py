@@ -41,12 +41,13 @@ from typing import IO, Any
 
 from robocli._version import __version__
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.io.record.links import RAW_ENCODING
+from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
 from robocli.io.schemas import schema_bytes
 
 log = logging.getLogger("robocli.io.record")
 
-__all__ = ["COMPRESSIONS", "RAW_ENCODING", "Recorder", "RecorderStats", "RecordingError"]
+__all__ = ["COMPRESSIONS", "RAW_ENCODING", "RAW_SCHEMA", "Recorder", "RecorderStats",
+           "RecordingError"]
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 

@@ -3,9 +3,10 @@
 Each device is recorded through its public listener hooks, as python-can's writers are:
 
 - every frame each way on each link goes, whole and unchanged, into a raw channel
-  ``/NAME/raw/[PORT/]tx|rx`` (message encoding :data:`~robocli.io.record.recorder.
-  RAW_ENCODING`; metadata ``protocol``, ``direction``, ``link``, ``port``), which
-  ``robocli dump ... --file`` decodes again to the same packets as the live dump;
+  ``/NAME/raw/[PORT/]tx|rx`` (schema :data:`~robocli.io.record.links.RAW_SCHEMA`: JSON
+  with the frame's bytes in base64; metadata ``protocol``, ``direction``, ``link``,
+  ``port``), which ``robocli dump ... --file`` decodes again to the same packets as the
+  live dump (and those of older recordings, encoded ``robocli.raw``, too);
 - the same frames are decoded in the writer thread (never in the device's) into channels
   with Foxglove's schemas or robocli's (:mod:`robocli.io.schemas`).
 

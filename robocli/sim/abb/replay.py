@@ -26,11 +26,12 @@ TICK_S = 0.002  #: how often the stream is checked for frames due (wall s)
 
 def _wire(path: str | Path) -> tuple[Any, Any]:
     """(byte order, real size) of the recording's arm link."""
-    from robocli.io.record import RAW_ENCODING, info
+    from robocli.io.record import info
+    from robocli.io.record.links import is_raw
 
     for channel in info(path).channels:
         meta = channel.metadata
-        if channel.encoding == RAW_ENCODING and meta.get("protocol", "").startswith("sm"):
+        if is_raw(channel.encoding, channel.schema) and meta.get("protocol", "")[:2] == "sm":
             order = ">" if meta.get("byte_order") == "big" or meta["protocol"] == "sm-be" else "<"
             real = 8 if meta.get("real_size") == "8" else 4
             return order, real

@@ -6,8 +6,13 @@ SYNC2 reply, when it was recorded from the handshake on), and CONFIG requests ge
 recorded CONFIG packet (else the simulator's for that subtype). Once the client has OPENed
 the session, the robot's recorded stream (every packet it sent after the handshake: SIPs,
 laser, SIMSTAT, IO, encoder... but CONFIG and the handshake replies) is sent again, byte for
-byte, on its recorded spacing (the recording's receive times; ``speed`` times as fast). A
-client therefore decodes the recorded poses, sonar and laser scans. Commands are taken
+byte, on its recorded spacing (the recording's receive times; ``speed`` times as fast), as
+far as the client asked for it, as the live simulator sends it: the SIPs always; the laser
+packets of the format the client enabled (0x61 after an enable of 2, 0x60 after 1) from the
+first whole scan after its request to its "off"; SIMSTAT (0x62) after SIM_STAT 1 (once) or
+2; encoder, IO and battery packets after their requests (1: once, 2: every cycle). A client
+that asked for nothing gets SIPs only (ARIA logs every packet no handler wanted). A client
+therefore decodes the recorded poses, sonar and laser scans. Commands are taken
 (the watchdog is fed, CLOSE ends the session) but do not move anything; each new session
 starts the recording over. With ``loop`` it starts over at its end as well.
 """
@@ -21,6 +26,7 @@ from robocli.protocols.arcos import Command, PacketType
 from robocli.sim.laser import LMS200
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.pioneer.session import ArcosController, ArcosSession
+from robocli.sim.pioneer.simext import LASER_EXTENDED, LASER_OFF, LASER_PLAIN
 from robocli.sim.replay import FrameSchedule, recorded_frames
 from robocli.sim.ticker import Ticker
 
@@ -30,6 +36,12 @@ TICK_S = 0.005  #: how often the stream is checked for frames due (wall s)
 #: Replies to requests and handshake packets: answered, never replayed.
 _NOT_STREAMED = frozenset({PacketType.SYNC0, PacketType.SYNC1, PacketType.SYNC2,
                            PacketType.CONFIG, PacketType.SIM_INFO})  # fmt: skip
+#: Packets sent only on a request of the link's (``ArcosSession.requests``), by type.
+_REQUESTED: dict[int, str] = {PacketType.ENCODER: "encoder", PacketType.IO: "io",
+                              PacketType.BATTERY: "battery"}  # fmt: skip
+#: The laser format each packet type belongs to.
+_LASER: dict[int, int] = {PacketType.SIM_LASER_A: LASER_PLAIN,
+                          PacketType.SIM_LASER: LASER_EXTENDED}  # fmt: skip
 
 
 class ReplayController(ArcosController):
@@ -40,6 +52,9 @@ class ReplayController(ArcosController):
         super().__init__(model, **options)
         self.schedule, self.config_frame = schedule, config_frame
         self._playing: ArcosSession | None = None
+        self._laser_scan = False  # the laser's packets go out: a whole scan began since enabled
+        #: recorded packets not sent, the client not having asked for them
+        self.withheld = 0
 
     def tick(self, now: float) -> tuple[ArcosSession | None, bytes]:
         with self.lock:
@@ -50,12 +65,45 @@ class ReplayController(ArcosController):
                 self._playing = holder
                 self.schedule.restart(now)
             self._housekeeping(now)
-            frames = self.schedule.due(now)
-            self.sips += sum(1 for f in frames if f[3] & 0xF0 == 0x30)
+            frames = [f for f in self.schedule.due(now) if self._asked(holder, f, now)]
         return holder, b"".join(frames)
+
+    def _asked(self, link: ArcosSession, f: bytes, now: float) -> bool:
+        """Whether the client asked for the recorded packet ``f`` (a whole frame) now; a
+        SIP also applies what the client's commands deferred to it (SIM_STAT 2)."""
+        ptype, ext = f[3], self.ext
+        if ptype & 0xF0 == 0x30:
+            ext.before_sip(self.sips, now)
+            self.sips += 1
+            return True
+        mode = _LASER.get(ptype)
+        if mode is not None:
+            if ext.laser_mode != mode:
+                self._laser_scan = False
+            elif not self._laser_scan:  # from the first packet of a scan on
+                first = f[6:8] if ptype == PacketType.SIM_LASER else f[12:14]
+                self._laser_scan = first == b"\0\0"
+            return self._count(self._laser_scan)
+        if ptype == PacketType.SIM_STAT:
+            once, ext.simstat_once = ext.simstat_once, False
+            return self._count(once or ext.simstat_mode == 2)
+        kind = _REQUESTED.get(ptype)
+        if kind is not None:
+            asked = link.requests[kind]
+            if asked == 1:
+                link.requests[kind] = 0
+            return self._count(asked != 0)
+        return True
+
+    def _count(self, asked: bool) -> bool:
+        if not asked:
+            self.withheld += 1
+        return asked
 
     def handle(self, link: ArcosSession, payload: bytes, now: float) -> bytes | None:
         reply = super().handle(link, payload, now)
+        if self.ext.laser_mode == LASER_OFF:
+            self._laser_scan = False
         if self.holder is None and self._playing is not None:
             self._playing = None  # the session ended: the next one starts over
             self.schedule.stop()
@@ -81,7 +129,7 @@ class PioneerReplay(PioneerSim):
         model_subtype = subtype if subtype in ROBOT_PARAMS else given
         super().__init__(model_subtype, name=name or "robocli-replay", **options)
         old = self._ctl
-        self._ctl = ReplayController(
+        self._ctl = self._replay = ReplayController(
             old.model, schedule=schedule,
             config_frame=next((f for _, f in frames if f[3] == PacketType.CONFIG), None),
             name=old.name, subtype=subtype or model_subtype, sip_ms=old.sip_ms,
@@ -92,6 +140,11 @@ class PioneerReplay(PioneerSim):
         )  # fmt: skip
         self._ticker = Ticker(TICK_S, self._tick, "pioneer-replay-ticker")
         self.path, self.schedule = str(path), schedule
+
+    @property
+    def withheld(self) -> int:
+        """Recorded packets not sent, the client not having asked for them."""
+        return self._replay.withheld
 
     def _tick(self, now: float) -> None:
         session, data = self._ctl.tick(now)
