@@ -71,9 +71,11 @@ class HubServer:
     in all and from one address; one more closes the oldest of them that sent nothing (else
     the oldest). They never take the places of clients: ``max_clients`` counts connections
     that completed CONNECT; one more gets a ros4mat error reply "hub full".
-    ``output_budget``: bytes of replies that may wait for their clients over all
-    connections (default: two full rings); a connection whose reply would take it over is
-    dropped. ``sources``: extra or replacement sources by sensor name.
+    ``output_budget``: bytes of memory the replies waiting for their clients may hold over
+    all connections (default: two full rings and 1 MiB); room is made by dropping the
+    connections whose output waited longest, those without the token first, never a client
+    with the token for one without (:class:`~robocli.sim.links.OutputBudget`).
+    ``sources``: extra or replacement sources by sensor name.
 
     A connection whose stream loses its framing (garbage, a request body over ``max_body``,
     a request left half-sent for 1 s) is closed; a connected client's oversize request gets
@@ -242,8 +244,8 @@ class HubServer:
 
     @property
     def output_peak(self) -> int:
-        """The most bytes of replies that ever waited for their clients at once, over all
-        connections (bounded by ``output_budget``)."""
+        """The most bytes of memory the replies waiting for their clients ever held at once,
+        over all connections (bounded by ``output_budget``)."""
         return self._server.budget.peak
 
     @property

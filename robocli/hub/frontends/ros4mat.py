@@ -325,6 +325,7 @@ class Ros4matSession:
             self._reap()  # its connection may be closed, its end not handled yet
         self.state = self.hub.connect(cid, self.peer, body[1] == 1, resume=resume)
         self.state.authorized = authorized
+        self.link.privileged = authorized  # the output budget cuts the others first
         return self._packet(MsgType.CONNECT_ACK, b"", 0)
 
     def _subscribe(self, body: bytes) -> bytes:
