@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import logging
 import sys
-import threading
 from typing import Any
 
 from robocli.errors import InvalidArgument
 from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub.places import BUSY_REASON, Places
 from robocli.hub.registry import ClientInfo, Hub
 from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.sources import SerialPorts, Source, hub_sources
@@ -36,7 +36,8 @@ REFUSE_HEADROOM = 8
 """Connections beyond the clients and pending ones: the serving layer's plain-text refusal
 line comes only beyond these (a full hub answers CONNECT with a ros4mat error reply)."""
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
-BUSY_REASON = "hub full: too many clients"
+IDLE_TIMEOUT_S = 60.0
+"""With a token: a client without it that sends no request this long is closed."""
 HUB_SWITCH_INTERVAL_S = 1e-4
 """The interpreter's thread switch interval for a process that is mainly a hub."""
 
@@ -71,6 +72,11 @@ class HubServer:
     in all and from one address; one more closes the oldest of them that sent nothing (else
     the oldest). They never take the places of clients: ``max_clients`` counts connections
     that completed CONNECT; one more gets a ros4mat error reply "hub full".
+    ``reserved``: with a token, places only clients that presented it may take (default: a
+    quarter of ``max_clients``, at least 1); clients without it hold the others, at most
+    ``max_per_address`` from one address, and lose their place when idle ``idle_timeout`` s
+    or when a client with the token finds the hub full (the one idle longest goes;
+    :mod:`robocli.hub.places`).
     ``output_budget``: bytes of memory the replies waiting for their clients may hold over
     all connections (default: two full rings and 1 MiB); room is made by dropping the
     connections whose output waited longest, those without the token first, never a client
@@ -100,6 +106,8 @@ class HubServer:
         connect_timeout: float = CONNECT_TIMEOUT_S,
         max_pending: int = MAX_PENDING,
         max_per_address: int = MAX_PENDING_PER_ADDRESS,
+        reserved: int | None = None,
+        idle_timeout: float = IDLE_TIMEOUT_S,
         output_budget: int | None = None,
         sources: dict[str, Source] | None = None,
     ) -> None:
@@ -111,14 +119,16 @@ class HubServer:
             raise InvalidArgument("connect_timeout must be > 0 s")
         if max_pending < 1 or max_per_address < 1:
             raise InvalidArgument("max_pending and max_per_address must be >= 1")
+        if reserved is None:
+            reserved = max(1, max_clients // 4)
+        if not 0 <= reserved <= max_clients or not idle_timeout > 0:
+            raise InvalidArgument("reserved must be within 0..max_clients, idle_timeout > 0 s")
         if output_budget is None:
             output_budget = 2 * ring_budget + MAX_BACKLOG
         if output_budget < 1:
             raise InvalidArgument("output_budget must be >= 1 byte")
         self.connect_timeout = connect_timeout
         self.max_clients = max_clients
-        self._sessions = 0  # connections admitted as clients (at most max_clients)
-        self._sessions_lock = threading.Lock()
         self.bind, self._port = bind, port
         self.serial_ports = tuple(serial_ports)
         self.gpsd, self.pioneer = gpsd, pioneer
@@ -127,12 +137,18 @@ class HubServer:
         if token is not None and not token:
             raise InvalidArgument("token must not be empty")
         self._token = token
+        self.places = Places(
+            max_clients, token=token is not None, reserved=reserved,
+            max_per_address=max_per_address, idle_timeout=idle_timeout,
+        )  # fmt: skip
+        """Who holds the client places (connections that completed CONNECT)."""
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
                        random_ids=token is not None)  # fmt: skip
-        self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
+        period = min(5.0, detached_ttl / 2, idle_timeout / 2)
+        self._expiry = Ticker(period, self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
@@ -159,6 +175,7 @@ class HubServer:
 
     def _expire(self, _now: float) -> None:
         self.hub.expire()
+        self.places.expire()
 
     def _session(self, link: Link) -> Ros4matSession:
         return Ros4matSession(
@@ -167,29 +184,21 @@ class HubServer:
             max_body=self._max_body,
         )  # fmt: skip
 
-    def _take_place(self) -> bool:
-        with self._sessions_lock:
-            if self._sessions >= self.max_clients:
-                return False
-            self._sessions += 1
-            return True
-
-    def _admit_client(self) -> str | None:
+    def _admit_client(self, session: Ros4matSession) -> str | None:
         """A client place for a connection completing CONNECT: None, or why not. When the
         hub is full, the connections whose client has already closed are waited for first
         (at most :data:`~robocli.sim.serving.REAP_WAIT_S`): the original client's ``close``
         then ``connect`` must not find its own old connection holding the last place."""
-        if self._take_place():
+        if self.places.take(session) is None:
             return None
         self._server.reap(REAP_WAIT_S)
-        if self._take_place():
-            return None
-        log.warning("client refused: %s", BUSY_REASON)
-        return BUSY_REASON
+        refused = self.places.take(session)
+        if refused is not None:
+            log.warning("%s: client refused: %s", session.peer, refused)
+        return refused
 
-    def _session_ended(self) -> None:
-        with self._sessions_lock:
-            self._sessions -= 1
+    def _session_ended(self, session: Ros4matSession) -> None:
+        self.places.give_back(session)
 
     # ------------------------------------------------------------------ lifecycle
 
