@@ -363,6 +363,15 @@ class Hub:
         state.samples += len(t)
         return Pulled(t, records, ch.source)
 
+    def pull_size(self, state: ClientState, name: str) -> int:
+        """Bytes a :meth:`pull` of ``name`` for ``state`` would copy now (records and
+        times; more may come before the pull)."""
+        ch, cursor = self.channels.get(name), state.cursors.get(name)
+        ring = ch.ring if ch is not None else None
+        if ring is None or cursor is None:
+            return 0
+        return ring.available(cursor) * (ring.dtype.itemsize + 8)
+
     def dropped(self, state: ClientState, name: str) -> int:
         """Samples of ``name`` dropped for ``state`` (it fell more than its buffer behind)."""
         ch, cursor = self.channels.get(name), state.cursors.get(name)

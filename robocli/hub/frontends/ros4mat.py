@@ -283,7 +283,13 @@ class Ros4matSession:
             if name not in state.cursors:  # as the original: nothing queued, size 0
                 return self._packet(kind, b"", 0)
             start, since = time.perf_counter(), self.hub.clock()
-            parts = self._data(kind, self.hub.pull(state, name), since)
+            # the copy a pull makes is charged to the output budget before it is made
+            if not self.link.reserve(self.hub.pull_size(state, name)):
+                return None  # no room, even after the clients that do not read: dropped
+            try:
+                parts = self._data(kind, self.hub.pull(state, name), since)
+            finally:
+                self.link.unreserve()  # the reply's queue is charged for what waits
             self._times.add(time.perf_counter() - start)
             self.link.send_parts(parts)  # after the replies to earlier frames
             return None

@@ -98,6 +98,7 @@ class Link:
         self._out_bytes = 0
         self._out_since = 0.0
         self._charged = 0  # bytes of memory the waiting output holds, charged to the budget
+        self._reserved = 0  # bytes charged for a reply being built (reserve)
         self.privileged = False
         """Set by the session for a client that proved its rights (a hub's token): the
         server's output budget drops the others first and never this one for them."""
@@ -140,8 +141,9 @@ class Link:
 
     @property
     def waiting_since(self) -> float:
-        """Since when (monotonic s) the peer has taken none of the output waiting for it."""
-        return self._out_since
+        """Since when (monotonic s) the peer has taken none of the output waiting for it
+        (now when nothing waits: a link building a reply is not one that stopped reading)."""
+        return self._out_since if self._out else time.monotonic()
 
     def evict(self, why: str) -> bool:
         """Drop the link for another one's sake, unless its output lock is taken now (it is
@@ -156,6 +158,30 @@ class Link:
             return True
         finally:
             self._tx_lock.release()
+
+    def reserve(self, n: int) -> bool:
+        """Charge the server's output budget ``n`` bytes the session is about to allocate
+        for a reply (a pull's copy), before it does: room is made as for waiting output.
+        False when there is none: the link is then dropped. Give them back with
+        :meth:`unreserve` once the reply is built (its queue is charged for what waits)."""
+        budget = self._limits.budget
+        if budget is None or n <= 0:
+            return not self._closed
+        with self._tx_lock:
+            if self._closed:
+                return False
+            self._reserved += n
+            if budget.charge(self, n):
+                return True
+            log.warning("%s: the server's output budget (%s bytes) cannot take a reply of %d "
+                        "bytes; dropping this client", self.name, budget.cap, n)  # fmt: skip
+            self._mark_closed("output budget full")
+            return False
+
+    def unreserve(self) -> None:
+        """Give back what :meth:`reserve` charged."""
+        with self._tx_lock:
+            self._release_reserved()
 
     @property
     def pending_output(self) -> int:
@@ -302,15 +328,21 @@ class Link:
         self._closed = True
         self._stats.tx_dropped += self._out_bytes
         self._release_charge()
+        self._release_reserved()
         self._out.clear()
         self._out_bytes = 0
         log.debug("%s: link closing (%s)", self.name, why)
         self._interrupt()
 
+    def _release_reserved(self) -> None:
+        if self._reserved and self._limits.budget is not None:
+            self._limits.budget.release(self, self._reserved, keep=bool(self._charged))
+        self._reserved = 0
+
     def _release_charge(self) -> None:
         """The output no longer waits: the memory it held leaves the budget (tx lock held)."""
         if self._charged and self._limits.budget is not None:
-            self._limits.budget.release(self, self._charged)
+            self._limits.budget.release(self, self._charged, keep=bool(self._reserved))
         self._charged = 0
 
     def _write_now(self, data: bytes | bytearray | memoryview) -> int:  # pragma: no cover

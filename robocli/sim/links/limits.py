@@ -52,11 +52,13 @@ class OutputBudget:
             self.peak = max(self.peak, self.total)
             return True
 
-    def release(self, link: Any, n: int) -> None:
-        """``link``'s output stopped waiting (written or discarded): its ``n`` bytes go."""
+    def release(self, link: Any, n: int, *, keep: bool = False) -> None:
+        """``link``'s output stopped waiting (written or discarded): its ``n`` bytes go
+        (``keep``: it still holds other bytes)."""
         with self._lock:
             self.total -= n
-            self._holders.pop(link, None)
+            if not keep:
+                self._holders.pop(link, None)
 
     def _make_room(self, link: Any, n: int) -> None:
         assert self.cap is not None
