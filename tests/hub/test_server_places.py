@@ -4,9 +4,10 @@ connected clients had no idle limit and the per-address limit counted only pendi
 
 from __future__ import annotations
 
-import socket
 import time
 from typing import Any
+
+from peers import closed_by_peer
 
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
@@ -18,21 +19,6 @@ def plain_connect(raw: Any, port: int) -> tuple[Any, r4m.Message]:
     """A CONNECT without the token, and its reply (the socket kept open, idle)."""
     c = raw(port)
     return c, c.request(r4m.MsgType.CONNECT, bytes([r4m.PROTOCOL_VERSION, 0]))
-
-
-def closed_by_hub(sock: socket.socket, deadline: float = 30.0) -> bool:
-    """Whether the hub closes ``sock`` within ``deadline`` s (what it sends first is read)."""
-    end = time.monotonic() + deadline
-    while (left := end - time.monotonic()) > 0:
-        sock.settimeout(left)
-        try:
-            if not sock.recv(65536):
-                return True
-        except TimeoutError:
-            return False
-        except OSError:
-            return True
-    return False
 
 
 def test_plain_connects_cannot_take_the_places_of_token_holders(raw: Any) -> None:
@@ -50,7 +36,7 @@ def test_plain_connects_cannot_take_the_places_of_token_holders(raw: Any) -> Non
             c = raw(srv.port)
             c.connect(token=TOKEN)  # asserts a CONNECT_ACK without error
             holders.append(c)
-        assert all(closed_by_hub(c.sock) for c in admitted)
+        assert all(closed_by_peer(c.sock) for c in admitted)
         assert srv.places.evicted == 4
         for c in holders:
             assert c.subscribe("imu", {"freq_acquisition": 50, "freq_send": 10}).error == 0
@@ -65,7 +51,7 @@ def test_an_idle_client_without_the_token_loses_its_place(raw: Any, wait: Any) -
         stranger, ack = plain_connect(raw, srv.port)
         assert ack.error == 0
         opened = time.monotonic()
-        assert closed_by_hub(stranger.sock)
+        assert closed_by_peer(stranger.sock)
         assert srv.places.expired == 1
         wait(lambda: time.monotonic() > opened + 4 * srv.places.idle_timeout, what="idle")
         imu = {"freq_acquisition": 50, "freq_send": 10}

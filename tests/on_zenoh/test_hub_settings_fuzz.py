@@ -13,10 +13,11 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from on_zenoh.conftest import free_endpoint
+from on_zenoh.test_hub_zenoh import Lab, wait_for
 from robocli.zenoh import open_session
 from robocli.zenoh.keys import settings_key
 from robocli.zenoh.session import close_session
-from tests.on_zenoh.test_hub_zenoh import Lab, wait_for
 
 SENSORS = ("adc", "imu", "battery", "gps", "camera", "sysinfo", "laser", "depth", "stereo")
 QUIET = {"freq_acquisition": 5, "fps": 2, "fps_rgb": 2, "width": 32, "height": 24,
@@ -79,8 +80,6 @@ class Asker:
 
 @pytest.fixture(scope="module")
 def lab_and_asker() -> Iterator[tuple[Lab, Asker]]:
-    from tests.on_zenoh.conftest import free_endpoint
-
     lab = Lab(free_endpoint(), **{s: QUIET for s in SENSORS})
     asker = Asker(lab)
     try:

@@ -10,6 +10,7 @@ from collections.abc import Callable
 from typing import Any
 
 import pytest
+from peers import closed_by_peer
 
 from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
@@ -24,22 +25,6 @@ DEADLINE_S = 30.0
 def dial(url: str) -> socket.socket:
     host, port = url.removeprefix("tcp://").rsplit(":", 1)
     return socket.create_connection((host, int(port)), timeout=5.0)
-
-
-def closed_by_server(sock: socket.socket, deadline: float = DEADLINE_S) -> bool:
-    """Whether the server closes ``sock`` (end of stream or reset) within ``deadline`` s,
-    reading and discarding whatever it sends first."""
-    end = time.monotonic() + deadline
-    while (left := end - time.monotonic()) > 0:
-        sock.settimeout(left)
-        try:
-            if not sock.recv(65536):
-                return True
-        except TimeoutError:
-            return False
-        except OSError:
-            return True
-    return False
 
 
 def wait_for(what: str, condition: Callable[[], Any], deadline: float = DEADLINE_S) -> None:
@@ -58,7 +43,7 @@ def test_an_idle_connection_loses_the_place_and_a_client_gets_it(kind: str) -> N
         url = sim.serve_tcp("127.0.0.1", 0)
         idle = dial(url)
         try:
-            assert closed_by_server(idle), "the idle connection still holds the place"
+            assert closed_by_peer(idle), "the idle connection still holds the place"
         finally:
             idle.close()
         client: Any = Pioneer.connect(url) if kind == "pioneer" else Laser.connect(url)
