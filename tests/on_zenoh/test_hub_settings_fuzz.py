@@ -20,7 +20,7 @@ from robocli.zenoh.keys import settings_key
 from robocli.zenoh.session import close_session
 
 SENSORS = ("adc", "imu", "battery", "gps", "camera", "sysinfo", "laser", "depth", "stereo")
-QUIET = {"freq_acquisition": 5, "fps": 2, "fps_rgb": 2, "width": 32, "height": 24,
+QUIET = {"freq_acquisition": 20, "fps": 10, "fps_rgb": 10, "width": 32, "height": 24,
          "width_rgb": 32, "height_rgb": 24}  # fmt: skip
 """Settings every sensor takes, light enough to keep all nine running in a test."""
 
@@ -32,7 +32,7 @@ VALUES = st.one_of(
     st.text(max_size=4), st.lists(st.integers(0, 9), max_size=2),
     st.dictionaries(st.text(max_size=2), st.integers(), max_size=1),
 )  # fmt: skip
-RATES = st.fixed_dictionaries({k: st.sampled_from([2, 3, 5]) for k in QUIET if "fps" in k
+RATES = st.fixed_dictionaries({k: st.sampled_from([10, 15, 20]) for k in QUIET if "fps" in k
                                or k == "freq_acquisition"})  # fmt: skip
 """Valid rates, drawn: a request that sets one then fails on another key must change none."""
 _IMAGE = ("fps", "width", "height", "compression")
@@ -55,7 +55,7 @@ def known_faults(sensor: str) -> list[dict[str, Any]]:
     """What issue 21's fuzzer and users sent: each of the sensor's keys with a value JSON
     allows and the sensor cannot take, and ``params`` that is no object."""
     odd: list[Any] = [10**400, 1e400, [], "x", {"a": 1}]
-    return [{"params": {k: v}, "rates": {"freq_acquisition": 3, "fps": 3, "fps_rgb": 3}}
+    return [{"params": {k: v}, "rates": {"freq_acquisition": 15, "fps": 15, "fps_rgb": 15}}
             for k in KEYS_OF[sensor] for v in odd] + [
         {"params": p, "rates": {}} for p in ([], 1e400, "x", None)]  # fmt: skip
 
