@@ -87,7 +87,7 @@ REAP_WAIT_S = 2.0
 """A new client at a full server waits at most this long for links whose peer has already
 closed to end (their threads handle what the peer sent last, then free the place)."""
 LISTEN_BACKLOG = 64  #: connections the kernel holds before they are accepted
-SIM_HANDSHAKE_S = 3.0
+SIM_HANDSHAKE_S = 5.0
 """A simulator's single place: a TCP connection that has not completed its protocol's
 handshake this long after it opened is closed, so one idle connection cannot hold it (an
 ABB motion or state client may rightly stay silent: those ports have no such deadline)."""
