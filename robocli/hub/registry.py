@@ -13,6 +13,7 @@ ros4mat's, or random (``random_ids``: a hub with a token, where an id must not b
 
 from __future__ import annotations
 
+import copy
 import itertools
 import logging
 import secrets
@@ -81,6 +82,24 @@ class ClientState:
     detached_at: float = 0.0
 
 
+def _validated(source: Source, params: Mapping[str, Any]) -> Source:
+    """A shallow copy of ``source`` configured with ``params`` (its record layout checked
+    too), ``source`` itself untouched; :class:`InvalidArgument` for whatever the source
+    cannot take. A source's ``configure`` sets its rates before it reads its other keys,
+    and a value JSON allows (a list, ``1e400``) can fail in ``int()`` with any exception:
+    trying on a copy is what keeps a refused request from changing anything."""
+    trial = copy.copy(source)
+    trial.params = dict(source.params)
+    try:
+        trial.configure(params)
+        trial.dtype()
+    except InvalidArgument:
+        raise
+    except (TypeError, ValueError, ArithmeticError, KeyError) as exc:
+        raise InvalidArgument(f"bad settings: {type(exc).__name__}: {exc}") from None
+    return trial
+
+
 class Channel:
     """One sensor: its source, its ring (while subscribed) and its driver thread."""
 
@@ -107,11 +126,8 @@ class Channel:
         old_dtype = src.dtype()
         old = (dict(src.params), src.rate, src.batch_rate)
         if params is not None:
-            try:
-                src.configure(params)
-            except InvalidArgument:
-                src.params, src.rate, src.batch_rate = old  # refused: nothing changes
-                raise
+            trial = _validated(src, params)  # refused: nothing has changed
+            src.params, src.rate, src.batch_rate = trial.params, trial.rate, trial.batch_rate
         changed = old != (dict(src.params), src.rate, src.batch_rate)
         dtype = src.dtype()
         wanted = max(buffer, int(src.rate * RING_SECONDS))
@@ -346,6 +362,15 @@ class Hub:
         state.pulls += 1
         state.samples += len(t)
         return Pulled(t, records, ch.source)
+
+    def pull_size(self, state: ClientState, name: str) -> int:
+        """Bytes a :meth:`pull` of ``name`` for ``state`` would copy now (records and
+        times; more may come before the pull)."""
+        ch, cursor = self.channels.get(name), state.cursors.get(name)
+        ring = ch.ring if ch is not None else None
+        if ring is None or cursor is None:
+            return 0
+        return ring.available(cursor) * (ring.dtype.itemsize + 8)
 
     def dropped(self, state: ClientState, name: str) -> int:
         """Samples of ``name`` dropped for ``state`` (it fell more than its buffer behind)."""

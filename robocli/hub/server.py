@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import ctypes
 import logging
 import sys
-import threading
 from typing import Any
 
 from robocli.errors import InvalidArgument
 from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub.places import BUSY_REASON, Places
 from robocli.hub.registry import ClientInfo, Hub
 from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.sources import SerialPorts, Source, hub_sources
@@ -36,9 +37,13 @@ REFUSE_HEADROOM = 8
 """Connections beyond the clients and pending ones: the serving layer's plain-text refusal
 line comes only beyond these (a full hub answers CONNECT with a ros4mat error reply)."""
 EXPOSED_BINDS = ("0.0.0.0", "::", "")
-BUSY_REASON = "hub full: too many clients"
+IDLE_TIMEOUT_S = 60.0
+"""With a token: a client without it that sends no request this long is closed."""
 HUB_SWITCH_INTERVAL_S = 1e-4
 """The interpreter's thread switch interval for a process that is mainly a hub."""
+MMAP_THRESHOLD = 256 << 10
+"""Allocations from this size get their own pages, given back when freed (glibc)."""
+_M_MMAP_THRESHOLD = -3  # glibc's mallopt parameter
 
 
 def tune_hub_process() -> None:
@@ -47,8 +52,21 @@ def tune_hub_process() -> None:
     over several times per pull (socket, C ring, copies); with 40 multi-threaded clients at
     the throughput target, p99 pull was 40-90 ms at 5 ms and 24-27 ms at 0.1 ms (measured
     before the self-locking ring, with 2 client processes).
+
+    With glibc, a reply's buffers from :data:`MMAP_THRESHOLD` up are mapped on their own
+    and unmapped when freed: glibc raises that threshold to the largest block freed (up to
+    32 MiB), after which camera replies came from heaps that kept their peak. 50 clients
+    pulling a 640x480 raw camera and never reading, for 20 s: peak RSS 534 MB without it,
+    333 MB with it (60 reconnecting: 428 and 272 MB; the output budget is 129 MiB).
     Process-wide: ``robocli serve`` calls it; a library user decides."""
     sys.setswitchinterval(HUB_SWITCH_INTERVAL_S)
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # not glibc (macOS, Windows): nothing to set
+        return
+    mallopt.argtypes, mallopt.restype = [ctypes.c_int, ctypes.c_int], ctypes.c_int
+    if not mallopt(_M_MMAP_THRESHOLD, MMAP_THRESHOLD):
+        log.debug("mallopt(M_MMAP_THRESHOLD) refused")
 
 
 class HubServer:
@@ -71,9 +89,16 @@ class HubServer:
     in all and from one address; one more closes the oldest of them that sent nothing (else
     the oldest). They never take the places of clients: ``max_clients`` counts connections
     that completed CONNECT; one more gets a ros4mat error reply "hub full".
-    ``output_budget``: bytes of replies that may wait for their clients over all
-    connections (default: two full rings); a connection whose reply would take it over is
-    dropped. ``sources``: extra or replacement sources by sensor name.
+    ``reserved``: with a token, places only clients that presented it may take (default: a
+    quarter of ``max_clients``, at least 1); clients without it hold the others, at most
+    ``max_per_address`` from one address, and lose their place when idle ``idle_timeout`` s
+    or when a client with the token finds the hub full (the one idle longest goes;
+    :mod:`robocli.hub.places`).
+    ``output_budget``: bytes of memory the replies waiting for their clients may hold over
+    all connections (default: two full rings and 1 MiB); room is made by dropping the
+    connections whose output waited longest, those without the token first, never a client
+    with the token for one without (:class:`~robocli.sim.links.OutputBudget`).
+    ``sources``: extra or replacement sources by sensor name.
 
     A connection whose stream loses its framing (garbage, a request body over ``max_body``,
     a request left half-sent for 1 s) is closed; a connected client's oversize request gets
@@ -98,6 +123,8 @@ class HubServer:
         connect_timeout: float = CONNECT_TIMEOUT_S,
         max_pending: int = MAX_PENDING,
         max_per_address: int = MAX_PENDING_PER_ADDRESS,
+        reserved: int | None = None,
+        idle_timeout: float = IDLE_TIMEOUT_S,
         output_budget: int | None = None,
         sources: dict[str, Source] | None = None,
     ) -> None:
@@ -109,14 +136,16 @@ class HubServer:
             raise InvalidArgument("connect_timeout must be > 0 s")
         if max_pending < 1 or max_per_address < 1:
             raise InvalidArgument("max_pending and max_per_address must be >= 1")
+        if reserved is None:
+            reserved = max(1, max_clients // 4)
+        if not 0 <= reserved <= max_clients or not idle_timeout > 0:
+            raise InvalidArgument("reserved must be within 0..max_clients, idle_timeout > 0 s")
         if output_budget is None:
             output_budget = 2 * ring_budget + MAX_BACKLOG
         if output_budget < 1:
             raise InvalidArgument("output_budget must be >= 1 byte")
         self.connect_timeout = connect_timeout
         self.max_clients = max_clients
-        self._sessions = 0  # connections admitted as clients (at most max_clients)
-        self._sessions_lock = threading.Lock()
         self.bind, self._port = bind, port
         self.serial_ports = tuple(serial_ports)
         self.gpsd, self.pioneer = gpsd, pioneer
@@ -125,12 +154,18 @@ class HubServer:
         if token is not None and not token:
             raise InvalidArgument("token must not be empty")
         self._token = token
+        self.places = Places(
+            max_clients, token=token is not None, reserved=reserved,
+            max_per_address=max_per_address, idle_timeout=idle_timeout,
+        )  # fmt: skip
+        """Who holds the client places (connections that completed CONNECT)."""
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
         self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
                        random_ids=token is not None)  # fmt: skip
-        self._expiry = Ticker(min(5.0, detached_ttl / 2), self._expire, "hub-expiry")
+        period = min(5.0, detached_ttl / 2, idle_timeout / 2)
+        self._expiry = Ticker(period, self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
         """The serial ports SERIAL_CMD may use (None: no ``serial_ports``)."""
         self._server = Server(
@@ -157,6 +192,7 @@ class HubServer:
 
     def _expire(self, _now: float) -> None:
         self.hub.expire()
+        self.places.expire()
 
     def _session(self, link: Link) -> Ros4matSession:
         return Ros4matSession(
@@ -165,29 +201,21 @@ class HubServer:
             max_body=self._max_body,
         )  # fmt: skip
 
-    def _take_place(self) -> bool:
-        with self._sessions_lock:
-            if self._sessions >= self.max_clients:
-                return False
-            self._sessions += 1
-            return True
-
-    def _admit_client(self) -> str | None:
+    def _admit_client(self, session: Ros4matSession) -> str | None:
         """A client place for a connection completing CONNECT: None, or why not. When the
         hub is full, the connections whose client has already closed are waited for first
         (at most :data:`~robocli.sim.serving.REAP_WAIT_S`): the original client's ``close``
         then ``connect`` must not find its own old connection holding the last place."""
-        if self._take_place():
+        if self.places.take(session) is None:
             return None
         self._server.reap(REAP_WAIT_S)
-        if self._take_place():
-            return None
-        log.warning("client refused: %s", BUSY_REASON)
-        return BUSY_REASON
+        refused = self.places.take(session)
+        if refused is not None:
+            log.warning("%s: client refused: %s", session.peer, refused)
+        return refused
 
-    def _session_ended(self) -> None:
-        with self._sessions_lock:
-            self._sessions -= 1
+    def _session_ended(self, session: Ros4matSession) -> None:
+        self.places.give_back(session)
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -242,8 +270,8 @@ class HubServer:
 
     @property
     def output_peak(self) -> int:
-        """The most bytes of replies that ever waited for their clients at once, over all
-        connections (bounded by ``output_budget``)."""
+        """The most bytes of memory the replies waiting for their clients ever held at once,
+        over all connections (bounded by ``output_budget``)."""
         return self._server.budget.peak
 
     @property

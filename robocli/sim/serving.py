@@ -26,8 +26,9 @@ socket:
   the kernel cannot take now waits in a bounded queue, flushed by the next send or by the
   link's thread. A client whose output waits longer than ``send_timeout`` (or more than
   ``max_backlog`` bytes of it) is not reading: it is dropped. ``pace``: a link handles no
-  request while one of its replies waits. ``output_budget`` bounds the output waiting over
-  all links. On a pty, output the line cannot take is dropped as on a serial line with nobody
+  request while one of its replies waits. ``output_budget`` bounds the memory held by the
+  output waiting over all links (the links whose output waited longest are dropped first).
+  On a pty, output the line cannot take is dropped as on a serial line with nobody
   listening.
 * Periodic work (physics, SIPs, a state stream) runs on a
   :class:`~robocli.sim.ticker.Ticker` and pushes through :meth:`Link.send`.
@@ -67,6 +68,7 @@ from robocli.sim.ticker import JOIN_TIMEOUT_S
 
 __all__ = [
     "BUSY_REASON",
+    "SIM_HANDSHAKE_S",
     "Link",
     "LinkStats",
     "OutputBudget",
@@ -85,6 +87,10 @@ REAP_WAIT_S = 2.0
 """A new client at a full server waits at most this long for links whose peer has already
 closed to end (their threads handle what the peer sent last, then free the place)."""
 LISTEN_BACKLOG = 64  #: connections the kernel holds before they are accepted
+SIM_HANDSHAKE_S = 5.0
+"""A simulator's single place: a TCP connection that has not completed its protocol's
+handshake this long after it opened is closed, so one idle connection cannot hold it (an
+ABB motion or state client may rightly stay silent: those ports have no such deadline)."""
 
 
 SessionFactory = Callable[[Link], Session]
@@ -106,12 +112,13 @@ class Server:
     ``name`` prefixes the threads' names.
 
     ``pace``: a link handles no request while one of its replies waits for the peer.
-    ``output_budget``: bytes of output that may wait over all links at once (None: no
-    bound); a link whose output would take it over is dropped. ``strict_framing``: a link
-    whose stream loses its framing is closed (after the session's optional
-    :meth:`UnframedHook.on_unframed` reply) rather than rescanned. ``handshake_timeout``:
-    seconds a TCP link may stay pending (not :meth:`Link.establish`-ed); ``max_pending`` and
-    ``max_pending_per_address``: pending links at once, in all and from one address.
+    ``output_budget``: bytes of memory the output waiting over all links may hold at once
+    (None: no bound; :class:`OutputBudget` says who is dropped to stay within it).
+    ``strict_framing``: a link whose stream loses its framing is closed (after the
+    session's optional :meth:`UnframedHook.on_unframed` reply) rather than rescanned.
+    ``handshake_timeout``: seconds a TCP link may stay pending (not
+    :meth:`Link.establish`-ed); ``max_pending`` and ``max_pending_per_address``: pending
+    links at once, in all and from one address.
     ``framer``: makes each link's framer instead of the C one of ``protocol`` (a line
     protocol the C core does not frame).
     """

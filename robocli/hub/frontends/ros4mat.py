@@ -149,12 +149,15 @@ class Ros4matSession:
         serial: Any,
         times: PullTimes | None = None,
         *,
-        admit: Callable[[], str | None] | None = None,
-        on_end: Callable[[], None] | None = None,
+        admit: Callable[[Ros4matSession], str | None] | None = None,
+        on_end: Callable[[Ros4matSession], None] | None = None,
         reap: Callable[[], object] | None = None,
         max_body: int | None = None,
     ) -> None:
         self.link, self.hub, self.peer = link, hub, peer
+        self.address = link.address
+        self.authorized = False  #: presented the hub's token (in its last CONNECT)
+        self.last_request = time.monotonic()  #: when it last sent a request (monotonic s)
         self._admit = admit
         """Takes a client place for this connection: None, or why there is none."""
         self._admitted = False
@@ -208,7 +211,13 @@ class Ros4matSession:
 
     # ---------------------------------------------------------------- session protocol
 
+    def drop(self, why: str) -> None:
+        """Close this connection (the hub takes its place back)."""
+        log.info("%s: closed: %s", self.peer, why)
+        self.link.close()
+
     def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        self.last_request = now
         try:
             return self._handle(frame)
         except (ProtocolError, DeviceError, InvalidArgument) as exc:
@@ -234,12 +243,12 @@ class Ros4matSession:
             log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)
         if self._admitted and self._on_end is not None:
             self._admitted = False
-            self._on_end()
+            self._on_end(self)
 
     def _enter(self) -> str | None:
         """Take a client place for this connection (once): None, or why there is none."""
         if not self._admitted:
-            refused = self._admit() if self._admit is not None else None
+            refused = self._admit(self) if self._admit is not None else None
             if refused is not None:
                 return refused
             self._admitted = True
@@ -274,7 +283,13 @@ class Ros4matSession:
             if name not in state.cursors:  # as the original: nothing queued, size 0
                 return self._packet(kind, b"", 0)
             start, since = time.perf_counter(), self.hub.clock()
-            parts = self._data(kind, self.hub.pull(state, name), since)
+            # the copy a pull makes is charged to the output budget before it is made
+            if not self.link.reserve(self.hub.pull_size(state, name)):
+                return None  # no room, even after the clients that do not read: dropped
+            try:
+                parts = self._data(kind, self.hub.pull(state, name), since)
+            finally:
+                self.link.unreserve()  # the reply's queue is charged for what waits
             self._times.add(time.perf_counter() - start)
             self.link.send_parts(parts)  # after the replies to earlier frames
             return None
@@ -309,13 +324,14 @@ class Ros4matSession:
     def _connect(self, cid: int, body: bytes) -> bytes:
         if len(body) < 2:
             return self._error(MsgType.CONNECT_ACK, "CONNECT body is 2 bytes")
-        refused = self._enter()
-        if refused is not None:
-            return self._error(MsgType.CONNECT_ACK, refused)
         given = body[2:]
         authorized = (
             self._token is not None and bool(given) and hmac.compare_digest(given, self._token)
         )
+        self.authorized = authorized  # which places it may take
+        refused = self._enter()
+        if refused is not None:
+            return self._error(MsgType.CONNECT_ACK, refused)
         # with a token, only its holder may take a detached client's buffers (and rights)
         resume = self._token is None or authorized
         if self.state is not None:
@@ -325,6 +341,7 @@ class Ros4matSession:
             self._reap()  # its connection may be closed, its end not handled yet
         self.state = self.hub.connect(cid, self.peer, body[1] == 1, resume=resume)
         self.state.authorized = authorized
+        self.link.privileged = authorized  # the output budget cuts the others first
         return self._packet(MsgType.CONNECT_ACK, b"", 0)
 
     def _subscribe(self, body: bytes) -> bytes:

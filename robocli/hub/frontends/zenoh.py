@@ -255,18 +255,25 @@ class ZenohFrontend:
             log.warning("zenoh @info: %s", exc)
 
     def _on_settings(self, query: Any) -> None:
+        """Every query gets a reply: the settings, or an error (a refusal, or what went
+        wrong, logged whole: never raised into Zenoh's thread, never left unanswered)."""
         try:
             sensor = str(query.key_expr).rsplit("/", 1)[-1]
             try:
-                answer = self.configure(sensor, _query_json(query))
+                answer = json.dumps(self.configure(sensor, _query_json(query)), default=_plain)
             except RobocliError as exc:
                 self.refused += 1
                 query.reply_err(json.dumps({"error": str(exc)}))
                 return
-            query.reply(query.key_expr, json.dumps(answer, default=_plain),
+            except Exception as exc:  # noqa: BLE001 - a fault of ours: said, not swallowed
+                log.exception("zenoh @settings: %s failed", sensor)
+                self.refused += 1
+                query.reply_err(json.dumps({"error": f"{sensor}: internal error: {exc!r}"}))
+                return
+            query.reply(query.key_expr, answer,
                         encoding=import_zenoh().Encoding.APPLICATION_JSON)  # fmt: skip
         except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
-            log.warning("zenoh @settings: %s", exc)
+            log.warning("zenoh @settings: no reply could be sent: %s", exc)
 
     def configure(self, sensor: str, request: Mapping[str, Any]) -> dict[str, Any]:
         """Apply a settings request (``{"params": {...}, "token": "..."}``) to ``sensor``

@@ -32,7 +32,7 @@ from robocli.errors import InvalidArgument
 from robocli.sim.hokuyo.framing import RequestFramer
 from robocli.sim.hokuyo.model import MODELS, HokuyoModel, measure
 from robocli.sim.hokuyo.session import ScipSession
-from robocli.sim.serving import Link, Server
+from robocli.sim.serving import SIM_HANDSHAKE_S, Link, Server
 from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
@@ -56,6 +56,7 @@ class HokuyoSim:
         scip11: bool | None = None,
         timer_start_ms: int = 0,
         drift_ppm: float = 0.0,
+        handshake_s: float = SIM_HANDSHAKE_S,
     ) -> None:
         if isinstance(model, str):
             if model not in MODELS:
@@ -63,6 +64,9 @@ class HokuyoSim:
             model = MODELS[model]
         if not time_scale > 0:
             raise InvalidArgument("time_scale must be > 0")
+        if not handshake_s > 0:
+            raise InvalidArgument("handshake_s must be > 0")
+        self.handshake_s = handshake_s
         self.model = model
         self.world = world if world is not None else World.default()
         self.time_scale = time_scale
@@ -187,6 +191,7 @@ class HokuyoSim:
             byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S, max_backlog=1 << 20,
             name=f"hokuyo-{self.model.name}",
             busy_reason="laser busy: another client holds it",
+            handshake_timeout=self.handshake_s,
         )  # fmt: skip
         self._t0 = time.monotonic()
         self._ticker.start()

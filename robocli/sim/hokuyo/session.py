@@ -126,6 +126,7 @@ class ScipSession:
     # ---------------------------------------------------------------- link thread
 
     def on_frame(self, frame: bytes, now: float) -> bytes | None:
+        self.link.establish()  # a complete command line: the client keeps the laser
         if self.sim.mute:
             return None
         with self.lock:

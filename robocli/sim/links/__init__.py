@@ -13,7 +13,8 @@ flushed by the next push or by the link's own thread.
 With ``pace`` (request/reply protocols) a link reads and handles no request while one of its
 replies waits for the peer: a client that asks without reading holds at most one reply in the
 server, and its next requests wait in the kernel's buffers. An :class:`OutputBudget` bounds the
-output waiting over every link of a server: a link whose output would take it over is dropped.
+memory the output waiting over every link of a server holds: the links that cause it pay for
+it (dropped, those waiting longest first; a :attr:`Link.privileged` one never for another).
 
 Used through :class:`robocli.sim.serving.Server`; nothing here is global.
 

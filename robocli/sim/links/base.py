@@ -14,7 +14,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import fields
 from itertools import islice
-from typing import Protocol
+from typing import Any, Protocol
 
 from robocli.core import Framer
 from robocli.sim.links.limits import LinkLimits, LinkStats
@@ -54,6 +54,22 @@ MAX_PARTS = 512  #: buffers one gathered write takes (below every platform's IOV
 UNFRAMED_HEAD = 256  #: bytes of a stream that lost its framing shown to the session
 
 
+def held_memory(views: Sequence[memoryview]) -> int:
+    """Bytes of memory ``views`` keep alive: each buffer they are views of counted once and
+    whole (a view of a few bytes of a pulled array holds all of the array)."""
+    roots: dict[int, int] = {}
+    for v in views:
+        root: Any = v.obj
+        while getattr(root, "base", None) is not None and hasattr(root.base, "nbytes"):
+            root = root.base
+        try:
+            size = memoryview(root).nbytes
+        except TypeError:  # not a buffer itself: count what the view shows
+            size = v.nbytes
+        roots[id(root)] = max(roots.get(id(root), 0), size)
+    return sum(roots.values())
+
+
 class Link:
     """One byte stream to one client: a TCP connection or a pty. Created by :class:`Server`.
 
@@ -81,6 +97,11 @@ class Link:
         self._out: deque[memoryview] = deque()  # output the peer has not taken yet
         self._out_bytes = 0
         self._out_since = 0.0
+        self._charged = 0  # bytes of memory the waiting output holds, charged to the budget
+        self._reserved = 0  # bytes charged for a reply being built (reserve)
+        self.privileged = False
+        """Set by the session for a client that proved its rights (a hub's token): the
+        server's output budget drops the others first and never this one for them."""
         self._replies: list[bytes] = []  # replies of the frames being dispatched (link thread)
         self._held: list[bytes] = []  # frames waiting for a reply to go out (pace)
         self._unframed: bytes | None = None  # where the stream lost its framing (strict)
@@ -117,6 +138,50 @@ class Link:
     def idle(self) -> bool:
         """Whether the peer has sent nothing at all yet."""
         return self._stats.bytes_in == 0
+
+    @property
+    def waiting_since(self) -> float:
+        """Since when (monotonic s) the peer has taken none of the output waiting for it
+        (now when nothing waits: a link building a reply is not one that stopped reading)."""
+        return self._out_since if self._out else time.monotonic()
+
+    def evict(self, why: str) -> bool:
+        """Drop the link for another one's sake, unless its output lock is taken now (it is
+        being written: not a peer that stopped reading). Whether it was dropped."""
+        if not self._tx_lock.acquire(blocking=False):
+            return False
+        try:
+            if self._closed:
+                return False
+            log.warning("%s: dropped, %d bytes unread: %s", self.name, self._out_bytes, why)
+            self._mark_closed("evicted")
+            return True
+        finally:
+            self._tx_lock.release()
+
+    def reserve(self, n: int) -> bool:
+        """Charge the server's output budget ``n`` bytes the session is about to allocate
+        for a reply (a pull's copy), before it does: room is made as for waiting output.
+        False when there is none: the link is then dropped. Give them back with
+        :meth:`unreserve` once the reply is built (its queue is charged for what waits)."""
+        budget = self._limits.budget
+        if budget is None or n <= 0:
+            return not self._closed
+        with self._tx_lock:
+            if self._closed:
+                return False
+            self._reserved += n
+            if budget.charge(self, n):
+                return True
+            log.warning("%s: the server's output budget (%s bytes) cannot take a reply of %d "
+                        "bytes; dropping this client", self.name, budget.cap, n)  # fmt: skip
+            self._mark_closed("output budget full")
+            return False
+
+    def unreserve(self) -> None:
+        """Give back what :meth:`reserve` charged."""
+        with self._tx_lock:
+            self._release_reserved()
 
     @property
     def pending_output(self) -> int:
@@ -191,7 +256,7 @@ class Link:
         """Queue ``views`` but their first ``skip`` bytes (taken by the peer); enforce the
         link's bound and the server's budget."""
         exempt = self._limits.pace and not self._out  # one reply waits, whatever its size
-        added = 0
+        added, kept = 0, []
         for v in views:
             if skip >= v.nbytes:
                 skip -= v.nbytes
@@ -200,13 +265,18 @@ class Link:
             skip = 0
             self._out.append(part)
             added += part.nbytes
+            kept.append(v)
         if not added:
             return True
         if not self._out_bytes:
             self._out_since = now
         self._out_bytes += added
         budget = self._limits.budget
-        within = budget.add(added) if budget is not None else True
+        within = True
+        if budget is not None:
+            charge = held_memory(kept)
+            within = budget.charge(self, charge)
+            self._charged += charge
         if not exempt and self._out_bytes > self._limits.max_backlog:
             log.warning("%s: %d bytes unread by the client; dropping it", self.name,
                         self._out_bytes)  # fmt: skip
@@ -233,8 +303,6 @@ class Link:
             return False
         if n:
             self._out_bytes -= n
-            if self._limits.budget is not None:
-                self._limits.budget.sub(n)
             while n:
                 v = out[0]
                 if n >= v.nbytes:
@@ -245,6 +313,7 @@ class Link:
                     n = 0
             self._out_since = now  # the client read something: its deadline restarts
         if not out:
+            self._release_charge()
             return True
         if now - self._out_since > self._limits.send_timeout:
             log.warning("%s: client has not read for %.1f s; dropping it", self.name,
@@ -258,12 +327,23 @@ class Link:
             return
         self._closed = True
         self._stats.tx_dropped += self._out_bytes
-        if self._limits.budget is not None and self._out_bytes:
-            self._limits.budget.sub(self._out_bytes)
+        self._release_charge()
+        self._release_reserved()
         self._out.clear()
         self._out_bytes = 0
         log.debug("%s: link closing (%s)", self.name, why)
         self._interrupt()
+
+    def _release_reserved(self) -> None:
+        if self._reserved and self._limits.budget is not None:
+            self._limits.budget.release(self, self._reserved, keep=bool(self._charged))
+        self._reserved = 0
+
+    def _release_charge(self) -> None:
+        """The output no longer waits: the memory it held leaves the budget (tx lock held)."""
+        if self._charged and self._limits.budget is not None:
+            self._limits.budget.release(self, self._charged, keep=bool(self._reserved))
+        self._charged = 0
 
     def _write_now(self, data: bytes | bytearray | memoryview) -> int:  # pragma: no cover
         """Write what can go without blocking; the bytes consumed from ``data``."""

@@ -14,11 +14,17 @@ from typing import Any
 
 
 class OutputBudget:
-    """Bytes of output waiting for their peers, summed over the links of one server.
+    """Memory held by output waiting for its peers, summed over the links of one server.
 
-    ``cap``: the most that may wait at once (None: no bound). A link whose queued output
-    takes the total over it is dropped at once, which frees that output. :attr:`peak` is the
-    most that ever waited at once (within the cap). Thread-safe.
+    A link is charged the whole of the buffers its waiting output keeps alive (a reply of
+    which the kernel took all but a byte still holds all of its memory) until its queue is
+    empty. ``cap``: the most that may be held at once (None: no bound). A charge that would
+    take the total over the cap is paid by the links that cause it: other links holding
+    output are dropped first, those not :attr:`~Link.privileged` before those that are, the
+    one waiting longest first (a peer that does not read), and never a privileged link for an
+    unprivileged one; if that is not enough, the link charged is dropped. :attr:`peak` is the
+    most ever held at once (within the cap), :attr:`evicted` the links dropped to make room.
+    Thread-safe.
     """
 
     def __init__(self, cap: int | None = None) -> None:
@@ -27,23 +33,48 @@ class OutputBudget:
         self.cap = cap
         self.total = 0
         self.peak = 0
-        self.overflows = 0  #: links dropped because the budget was full
+        self.overflows = 0  #: links dropped because the budget was full when they were charged
+        self.evicted = 0  #: links dropped to make room for another link's output
+        self._holders: dict[Any, None] = {}  # links charged now
         self._lock = threading.Lock()
 
-    def add(self, n: int) -> bool:
-        """Count ``n`` more bytes waiting; False when that takes the total over the cap."""
+    def charge(self, link: Any, n: int) -> bool:
+        """Charge ``link`` ``n`` more bytes (called with ``link``'s output lock held); False
+        when the total would go over the cap even after dropping the links that may be."""
+        if self.cap is not None:
+            self._make_room(link, n)
         with self._lock:
             self.total += n
+            self._holders[link] = None
             if self.cap is not None and self.total > self.cap:
                 self.overflows += 1
                 return False
             self.peak = max(self.peak, self.total)
             return True
 
-    def sub(self, n: int) -> None:
-        """``n`` bytes stopped waiting (written or discarded)."""
+    def release(self, link: Any, n: int, *, keep: bool = False) -> None:
+        """``link``'s output stopped waiting (written or discarded): its ``n`` bytes go
+        (``keep``: it still holds other bytes)."""
         with self._lock:
             self.total -= n
+            if not keep:
+                self._holders.pop(link, None)
+
+    def _make_room(self, link: Any, n: int) -> None:
+        assert self.cap is not None
+        mine = bool(getattr(link, "privileged", False))
+        while True:
+            with self._lock:
+                if self.total + n <= self.cap:
+                    return
+                others = [h for h in self._holders if h is not link
+                          and (mine or not h.privileged)]  # fmt: skip
+            others.sort(key=lambda h: (h.privileged, h.waiting_since))
+            if not any(h.evict("its output waited while the server's output budget was full")
+                       for h in others):  # fmt: skip
+                return  # nobody else may pay: the link charged is dropped
+            with self._lock:
+                self.evicted += 1
 
 
 @dataclass(frozen=True)

@@ -50,7 +50,7 @@ from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.packets import sonar_batch
 from robocli.sim.pioneer.session import PRE_SYNC, ArcosController
 from robocli.sim.pioneer.simext import Georef
-from robocli.sim.serving import Server
+from robocli.sim.serving import SIM_HANDSHAKE_S, Server
 from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
@@ -133,6 +133,8 @@ class PioneerSim:
     laser reports reflectance 32 on them, as MobileSim for a map's ``Reflector`` lines.
     ``state_of_charge``: report the battery's state of charge (percent) in the SIP; False
     (the default) sends 0 as MobileSim/AMRISim do, and clients show the voltage.
+    ``handshake_s``: wall seconds a TCP connection has to complete SYNC0..SYNC2 before it is
+    closed (the robot has one place: an idle connection must not hold it).
     """
 
     def __init__(
@@ -151,6 +153,7 @@ class PioneerSim:
         georef: Georef | None = None,
         reflectors: Sequence[Sequence[float]] = (),
         state_of_charge: bool = False,
+        handshake_s: float = SIM_HANDSHAKE_S,
     ) -> None:
         if subtype not in ROBOT_PARAMS:
             known = ", ".join(sorted(ROBOT_PARAMS))
@@ -163,6 +166,9 @@ class PioneerSim:
         self.params = ROBOT_PARAMS[subtype]
         self.world = world if world is not None else World.default()
         self.sip_ms, self.time_scale, self.watchdog_s = sip_ms, time_scale, watchdog_s
+        if not handshake_s > 0:
+            raise ValueError("handshake_s must be > 0")
+        self.handshake_s = handshake_s
         period = sip_ms / 1000.0 / time_scale
         start = start_pose if start_pose is not None else self.world.start
         self._model = PioneerModel(self.params, self.world, start, odom_noise, seed)
@@ -278,6 +284,7 @@ class PioneerSim:
         return Server(
             self._ctl.attach, protocol="arcos", max_clients=1, max_frame=MAX_FRAME,
             byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S, name=name,
+            handshake_timeout=self.handshake_s,
         )  # fmt: skip
 
     def _tick(self, now: float) -> None:

@@ -217,6 +217,7 @@ class ArcosController(ServerPackets):
         if c == 2 and state == AFTER_SYNC1:
             self.commands["SYNC2"] += 1
             link.sync_state = AFTER_SYNC2
+            link.link.establish()  # the handshake is done: the connection keeps its place
             return encode_server(
                 PacketType.SYNC2, {"name": self.name, "type": "Pioneer", "subtype": self.subtype}
             )
