@@ -46,12 +46,12 @@ def arm_host(
     real_size: int = 4,
     robot: str = "irb120",
     profile: str = "abb",
-    motion: bool = True,
+    motion_option: bool = True,
 ) -> Iterator[tuple[str, int, int]]:
     """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
     ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
     ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
-    needs: an ABB never executes streamed points). ``motion``: the command has a
+    needs: an ABB never executes streamed points). ``motion_option``: the command has a
     --motion-port (a bad HOST's error names the port options the command has)."""
     if host != SIM:
         from robocli.transports import InvalidURL, parse_host
@@ -59,7 +59,7 @@ def arm_host(
         try:
             host = parse_host(host, what="HOST")
         except InvalidURL as exc:  # the ports have their own options
-            ports = "ports: --motion-port, --state-port" if motion else "port: --state-port"
+            ports = "ports: --motion-port, --state-port" if motion_option else "port: --state-port"
             raise InvalidURL(f"HOST {host!r}: {exc.reason} ({ports})", exc.reason) from None
         yield host, motion_port, state_port
         return

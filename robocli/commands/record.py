@@ -215,7 +215,7 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
     for host in arms:
         address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
                                                link.byte_order, link.real_size, link.robot,
-                                               motion=False))  # fmt: skip
+                                               motion_option=False))  # fmt: skip
         name, links = arm_links(rec, "arm", byte_order=link.byte_order,
                                 real_size=link.real_size, ports="state")  # fmt: skip
         device = stack.enter_context(connect_at(address, link, stop_on_failure=False,
@@ -227,12 +227,12 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
                                        "mount": devices[first].params.laser_mount}  # fmt: skip
         devices.update(_connect_laser(stack, rec, hokuyo, link.timeout, on))
     if hub is not None:
-        address = stack.enter_context(_hub_address(hub))
+        hub_at = stack.enter_context(_hub_address(hub))
         from robocli.commands.hub import open_hub
 
         names = [n for n, _ in sensors]
-        listener = rec.listener("hub", "ros4mat", url=address, sensors=",".join(names))
-        client = stack.enter_context(open_hub(address, timeout=link.timeout,
+        listener = rec.listener("hub", "ros4mat", url=hub_at, sensors=",".join(names))
+        client = stack.enter_context(open_hub(hub_at, timeout=link.timeout,
                                               listeners=[listener]))  # fmt: skip
         rec.add(client, listener.name, sensors=names)
         for name, args in sensors:

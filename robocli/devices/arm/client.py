@@ -113,9 +113,9 @@ class Arm(Motion):
                       history=history)  # fmt: skip
             arm.motion_address = (host, motion_port) if motion else None
             by_port = listeners if isinstance(listeners, Mapping) else {"both": listeners}
-            for ports, some in by_port.items():
+            for which, some in by_port.items():
                 for listener in some:
-                    arm.add_listener(listener, ports=ports)
+                    arm.add_listener(listener, ports=which)
             if arm._state is not None:
                 first_state(arm._state, timeout)
             if arm._motion is not None:  # (after the state's first message: no extra wait)

@@ -20,7 +20,7 @@ __all__ = ["ArmDecoder", "attach_arm"]
 
 
 def arm_links(rec: Sink, name: str = "arm", *, byte_order: str = "little", real_size: int = 4,
-              ports: str = "both", **metadata: str) -> tuple[str, dict[str, RawLink]]:  # fmt: skip
+              ports: str = "both") -> tuple[str, dict[str, RawLink]]:  # fmt: skip
     """Raw links for an arm not connected yet: ``(name, {port: link})``, to hand to
     ``Arm.connect(listeners=...)`` (a mapping by port, as it takes) so that every frame of
     each port is recorded from its first byte; a later ``add(arm, name)`` decodes on top of
@@ -33,7 +33,7 @@ def arm_links(rec: Sink, name: str = "arm", *, byte_order: str = "little", real_
     for port in ("motion", "state"):
         if ports in ("both", port):
             link = RawLink(rec, name, protocol, port=port, byte_order=byte_order,
-                           real_size=str(real_size), **metadata)  # fmt: skip
+                           real_size=str(real_size))  # fmt: skip
             rec.links[f"{name}/{port}"] = links[port] = link
     return name, links
 

@@ -179,8 +179,9 @@ class Recorder:
 
         target = self._target
         if isinstance(target, (str, Path)):
-            self._file: IO[bytes] = WrittenBytes(create_output(target, self._overwrite,
-                                                               buffered=False))  # fmt: skip
+            raw = create_output(target, self._overwrite, buffered=False)
+            assert isinstance(raw, io.FileIO)
+            self._file: Any = WrittenBytes(raw)
         else:
             self._file = io.BufferedWriter(target) if isinstance(target, io.RawIOBase) else target
         kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
