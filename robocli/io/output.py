@@ -17,8 +17,7 @@ The rules (the design's "a user's files are never destroyed"):
   there. Streams that must be readable while they grow (a recording, a capture) are opened
   with :func:`create_output` at their final name, after every source is connected.
 
-Errors are :class:`OutputError` (an :class:`~robocli.errors.InvalidArgument`: one line,
-exit 2).
+Errors are :class:`OutputError` (one line, exit 2).
 """
 
 from __future__ import annotations
@@ -33,7 +32,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
-from robocli.errors import InvalidArgument
+from robocli.errors import EXIT_USAGE, RobocliError
 
 __all__ = ["OutputError", "check_output", "create_output", "replace_output"]
 
@@ -41,9 +40,12 @@ _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _NEW = os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | getattr(os, "O_BINARY", 0)
 
 
-class OutputError(InvalidArgument):
+class OutputError(RobocliError, ValueError):
     """An output that robocli refuses to write, or cannot: exists (without ``overwrite``),
-    is a symbolic link or a directory, or its folder is missing or not writable."""
+    is a symbolic link or a directory, or its folder is missing or not writable. A file the
+    user named is unusable: exit 2, one line (as a log or capture that cannot be read)."""
+
+    exit_code = EXIT_USAGE
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> Path:

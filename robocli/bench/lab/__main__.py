@@ -21,7 +21,7 @@ from robocli.bench.lab.bench import (
     run_lab,
 )
 from robocli.bench.lab.netns import LabError, unavailable_reason
-from robocli.errors import InvalidArgument
+from robocli.errors import RobocliError
 
 MODES = ("tcp", "zenoh")
 
@@ -122,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
 
         try:
             check_output(a.json, a.overwrite)  # before the lab runs, not after
-        except InvalidArgument as exc:
+        except RobocliError as exc:
             ap.error(str(exc))
     sizes = [parse_size(t) for t in a.sizes.split(",") if t]
     modes = [m for m in a.modes.split(",") if m]

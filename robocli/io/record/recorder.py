@@ -102,8 +102,10 @@ class Recorder:
     ``chunk_size``: bytes of messages after which a chunk is closed sooner.
     ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
     dropped (counted). ``path`` may also be an open binary stream with ``tell``: it is
-    written and flushed, and left open. Raises :class:`InvalidArgument` when the file cannot
-    be created, :class:`RecordingError` without the ``mcap`` package.
+    written and flushed, and left open. ``overwrite``: replace an existing file (else
+    refused); ``deferred``: make the file at :meth:`begin`, not now. Raises
+    :class:`~robocli.io.output.OutputError` when the file may not or cannot be created,
+    :class:`RecordingError` without the ``mcap`` package.
     """
 
     def __init__(
@@ -165,9 +167,9 @@ class Recorder:
         ``Recorder(path)`` begins at once; ``Recorder(path, deferred=True)`` waits for this
         call, so that a program connects its sources (listening from their first byte) before
         the file is made: a source that fails leaves no file, and an existing one untouched.
-        Raises :class:`InvalidArgument` when the file cannot be created (it exists, without
-        ``overwrite``; a symbolic link; no such folder), :class:`RecordingError` when its
-        header cannot be written. Idempotent."""
+        Raises :class:`~robocli.io.output.OutputError` when the file cannot be created (it
+        exists, without ``overwrite``; a symbolic link; no such folder),
+        :class:`RecordingError` when its header cannot be written. Idempotent."""
         if self._thread is not None:
             return
         if self._closed:
