@@ -19,6 +19,17 @@ recording killed with SIGKILL loses at most about a second, and every complete c
 it reads back. :meth:`Recorder.close` writes the rest and the summary (statistics, chunk
 and message indexes), so that readers seek instead of scanning.
 
+**What it says it wrote.** :attr:`RecorderStats.messages` counts the messages of chunks
+whose every byte reached the file (written with system calls, no buffer between: see
+:class:`~robocli.io.record.fastwrite.WrittenBytes`), so that the count a program reports is
+what a reader finds, after a crash or on a full disk too; ``added`` counts what was handed
+to the writer, ``lost`` what a failed write kept out of the file.
+
+**The file** is made only by :meth:`Recorder.begin` (at once, unless ``deferred``), never
+through a symbolic link, and an existing one only with ``overwrite`` (see
+:mod:`robocli.io.output`): a program connects its sources first, listening from their first
+byte, so that a source that fails leaves every file as it was.
+
 **Time.** Every message's log time is the host receive time in Unix-epoch nanoseconds: the
 devices' monotonic receive times mapped with one offset taken when the recorder started (so
 log times never jump with the wall clock). Its publish time is the source's own acquisition
