@@ -38,6 +38,7 @@ __all__ = ["OutputError", "check_output", "create_output", "replace_output"]
 
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _NEW = os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | getattr(os, "O_BINARY", 0)
+_NEW_RW = (_NEW & ~os.O_WRONLY) | os.O_RDWR
 
 
 class OutputError(RobocliError, ValueError):
@@ -82,10 +83,12 @@ def create_output(path: str | Path, overwrite: bool = False, *, text: bool = Fal
     a new file, or with ``overwrite`` a fresh file renamed over the old one. Raises
     :class:`OutputError` as :func:`check_output` does (checked again here: a file or link
     made since is refused). Binary unless ``text`` (UTF-8); ``buffered=False``: the raw
-    :class:`io.FileIO`, each write a system call."""
+    :class:`io.FileIO`, each write a system call, its descriptor also readable (``pread``:
+    a writer may check what reached the file)."""
+    flags = _NEW if buffered else _NEW_RW
     out = check_output(path, overwrite)
     if overwrite and os.path.lexists(out):
-        fd, tmp = _beside(out)
+        fd, tmp = _beside(out, flags)
         try:
             os.replace(tmp, out)
         except OSError as exc:
@@ -94,7 +97,7 @@ def create_output(path: str | Path, overwrite: bool = False, *, text: bool = Fal
             raise OutputError(f"cannot write {out}: {exc.strerror or exc}") from None
     else:
         try:
-            fd = os.open(out, _NEW, 0o666)
+            fd = os.open(out, flags, 0o666)
         except FileExistsError:
             raise OutputError(f"{out} exists: give --overwrite to replace it") from None
         except OSError as exc:
@@ -123,12 +126,12 @@ def replace_output(path: str | Path, overwrite: bool = False, *,
         _remove(tmp)
 
 
-def _beside(out: Path) -> tuple[int, str]:
+def _beside(out: Path, flags: int = _NEW) -> tuple[int, str]:
     """A new hidden temporary file in ``out``'s folder: (descriptor, path)."""
     for _ in range(16):
         tmp = str(out.parent / f".{out.name}.{secrets.token_hex(4)}.part")
         try:
-            return os.open(tmp, _NEW, 0o666), tmp
+            return os.open(tmp, flags, 0o666), tmp
         except FileExistsError:
             continue
         except OSError as exc:

@@ -223,6 +223,48 @@ def test_a_full_disk_is_one_line_and_counts_what_the_file_holds(tmp_path: Path,
         assert int(said.group(2)) > 0  # the chunk that did not fit
 
 
+_CUT_AFTER_CHUNK = """
+import resource, signal, sys
+from robocli.io.record import Recorder, RecordingError
+path, limit = sys.argv[1], int(sys.argv[2])
+if limit:
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+rec = Recorder(path, compression="none", chunk_seconds=3600)  # one chunk, written at close
+def one(i):
+    rec.write(rec.channel("/t", None, encoding="x"), bytes([i]) * 100, 1000 + i)
+for i in range(50):
+    rec.put(one, (i,))
+try:
+    rec.close()
+except RecordingError:
+    pass
+print(rec.stats.messages, rec.stats.lost)
+"""
+
+
+def test_a_chunk_whose_indexes_did_not_fit_is_counted(tmp_path: Path) -> None:
+    """The disk fills after a chunk's own record, in the message indexes behind it: the
+    chunk reads back whole, and the count says so."""
+    from mcap.reader import make_reader
+
+    whole = tmp_path / "whole.mcap"
+    done = subprocess.run([*ROBOCLI[:1], "-c", _CUT_AFTER_CHUNK, str(whole), "0"],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.stdout.split() == ["50", "0"], done.stderr
+    with whole.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) == 1
+    index = summary.chunk_indexes[0]
+    end = index.chunk_start_offset + index.chunk_length  # the chunk's record ends here
+    cut = tmp_path / "cut.mcap"
+    proc = subprocess.run([*ROBOCLI[:1], "-c", _CUT_AFTER_CHUNK, str(cut), str(end + 5)],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    records, was_cut = stream_messages(cut)
+    assert was_cut and len(records) == 50
+    assert proc.stdout.split() == ["50", "0"], proc.stderr
+
+
 def test_usage_errors(tmp_path: Path) -> None:
     assert run("record", "-o", str(tmp_path / "x.mcap")).returncode == 2
     assert run("record", "--pioneer", "sim", "-o", str(tmp_path / "x.txt")).returncode == 2

@@ -22,6 +22,7 @@ a failed write the chunks within them are exactly those a reader finds.
 from __future__ import annotations
 
 import io
+import os
 import struct
 from collections import deque
 from collections.abc import Callable
@@ -40,10 +41,15 @@ class MessageAdder:
     """``add(channel_id, log_time, data, publish_time, sequence)`` for ``writer``, as its
     ``add_message`` (see the module docstring). ``fast``: whether the one-step path is used."""
 
-    def __init__(self, writer: Any) -> None:
+    def __init__(self, writer: Any, tell: Callable[[], int] | None = None) -> None:
         self._writer = writer
+        self._tell = tell
         #: messages in the chunk being built
         self.in_chunk = 0
+        #: where the file ended when the chunk being built was handed to it (``tell``'s
+        #: value), or -1: a write that failed after the chunk's own record was whole
+        #: (in its message indexes) leaves that chunk readable (see :func:`chunk_is_whole`)
+        self.chunk_start = -1
         #: (end offset in the file or -1 when unknown, messages) of the chunks handed to the
         #: stream and not yet counted by the recorder
         self.chunks: deque[tuple[int, int]] = deque()
@@ -64,8 +70,12 @@ class MessageAdder:
 
     def flush(self) -> None:
         """Close the chunk in progress and write out what the writer holds (its ``flush``)."""
+        self._mark()
         self._writer.flush()
         self._chunk_closed()
+
+    def _mark(self) -> None:
+        self.chunk_start = self._tell() if self._tell is not None else -1
 
     def _chunk_closed(self) -> None:
         """Enter the chunk just written (if one was) in :attr:`chunks`."""
@@ -82,6 +92,7 @@ class MessageAdder:
             self.in_chunk = 0
 
     def _add_slowly(self, *args: Any) -> None:
+        self._mark()
         self._writer.add_message(*args)
         self.in_chunk += 1
         self._chunk_closed()
@@ -112,8 +123,26 @@ class MessageAdder:
         buffer.write(data)
         self.in_chunk += 1
         if buffer.tell() > self._chunk_size:
+            self._mark()
             self._finalize()
             self._chunk_closed()
+
+
+_CHUNK = 0x06
+_RECORD = struct.Struct("<BQ")
+
+
+def chunk_is_whole(fd: int, start: int, size: int) -> bool:
+    """Whether the first Chunk record at or after ``start`` in the file ``fd`` (records
+    before it skipped) ends within its first ``size`` bytes."""
+    pos = start
+    while 0 <= pos and pos + _RECORD.size <= size:
+        opcode, length = _RECORD.unpack(os.pread(fd, _RECORD.size, pos))
+        end = pos + _RECORD.size + length
+        if opcode == _CHUNK:
+            return bool(end <= size)
+        pos = end
+    return False
 
 
 class WrittenBytes:

@@ -209,7 +209,7 @@ class Recorder:
                 with contextlib.suppress(OSError):
                     self._file.close()
             raise RecordingError(f"cannot write {self.path}: {exc}") from None
-        self._adder = MessageAdder(self._writer)
+        self._adder = MessageAdder(self._writer, getattr(self._file, "tell", None))
         self._add_message = self._adder.add
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
@@ -363,9 +363,7 @@ class Recorder:
             self._file.flush()
         except BaseException as exc:  # noqa: BLE001 - a full disk, a closed file: say so at close
             self.error = exc
-            # what the file holds: the chunks whose last byte reached it
-            self._confirm(getattr(self._file, "written", -1))
-            self.stats.lost = self.stats.added - self.stats.messages
+            self._count_written()
             with self._lock:
                 self._closing = True  # listeners now drop, counted
                 self._queue.clear()
@@ -377,6 +375,25 @@ class Recorder:
         self._adder.flush()
         self._file.flush()
         self._confirm(None)
+
+    def _count_written(self) -> None:
+        """After a failed write: count what the file holds, the chunks whose last byte
+        reached it (the one being written too when its own record is whole and only what
+        follows it failed)."""
+        from robocli.io.record.fastwrite import chunk_is_whole
+
+        size = getattr(self._file, "written", -1)
+        self._confirm(size)
+        adder = self._adder
+        if not adder.chunks and adder.in_chunk and size >= 0 and adder.chunk_start >= 0:
+            try:
+                whole = chunk_is_whole(self._file.fileno(), adder.chunk_start, size)
+            except (OSError, ValueError):
+                whole = False
+            if whole:
+                self.stats.messages += adder.in_chunk
+                adder.in_chunk = 0
+        self.stats.lost = self.stats.added - self.stats.messages
 
     def _confirm(self, size: int | None) -> None:
         """Count the messages of the chunks handed to the file whose end is within its first
