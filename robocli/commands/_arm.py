@@ -46,19 +46,21 @@ def arm_host(
     real_size: int = 4,
     robot: str = "irb120",
     profile: str = "abb",
+    motion_option: bool = True,
 ) -> Iterator[tuple[str, int, int]]:
     """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
     ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
     ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
-    needs: an ABB never executes streamed points)."""
+    needs: an ABB never executes streamed points). ``motion_option``: the command has a
+    --motion-port (a bad HOST's error names the port options the command has)."""
     if host != SIM:
         from robocli.transports import InvalidURL, parse_host
 
         try:
             host = parse_host(host, what="HOST")
         except InvalidURL as exc:  # the ports have their own options
-            raise InvalidURL(f"HOST {host!r}: {exc.reason} (ports: --motion-port, "
-                             "--state-port)", exc.reason) from None  # fmt: skip
+            ports = "ports: --motion-port, --state-port" if motion_option else "port: --state-port"
+            raise InvalidURL(f"HOST {host!r}: {exc.reason} ({ports})", exc.reason) from None
         yield host, motion_port, state_port
         return
     from robocli.sim.abb.server import AbbSim
@@ -128,15 +130,23 @@ def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
 
 
 @contextlib.contextmanager
-def connected(host: str, link: ArmLink, stream: bool = False) -> Iterator[Arm]:
+def connected(host: str, link: ArmLink, stream: bool = False, **options: Any) -> Iterator[Arm]:
     """The arm at ``host`` (``sim``: an embedded simulator, the streaming one with
-    ``stream``), SIGTERM stopping it as Ctrl-C does."""
-    from robocli.devices.arm import Arm
-
+    ``stream``), SIGTERM stopping it as Ctrl-C does. ``options``: more of
+    :meth:`Arm.connect`'s (``listeners``: a recorder's, from each port's first byte)."""
     with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
                                           link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream)) as (h, mp, sp):  # fmt: skip
-        with Arm.connect(h, mp, sp, motion=link.motion, byte_order=link.byte_order,
-                         real_size=link.real_size, robot=link.robot,
-                         timeout=link.timeout) as arm:  # fmt: skip
+                                          sim_profile(stream), link.motion) as address:  # fmt: skip
+        with connect_at(address, link, **options) as arm:
             yield arm
+
+
+def connect_at(address: tuple[str, int, int], link: ArmLink, **options: Any) -> Arm:
+    """:meth:`Arm.connect` to ``(host, motion_port, state_port)`` (from :func:`arm_host`)
+    with ``link``'s options."""
+    from robocli.devices.arm import Arm
+
+    h, mp, sp = address
+    return Arm.connect(h, mp, sp, motion=link.motion, byte_order=link.byte_order,
+                       real_size=link.real_size, robot=link.robot, timeout=link.timeout,
+                       **options)  # fmt: skip

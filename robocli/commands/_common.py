@@ -103,6 +103,10 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
                 raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
 
 
+#: Every command that writes a user's file takes it (see :mod:`robocli.io.output`).
+OverwriteOpt = typer.Option(False, "--overwrite", help="Replace an existing output file.")
+
+
 def bundled(
     name: str, options: Sequence[inspect.Parameter], bundle: Callable[..., Any]
 ) -> Callable[[Callable[..., None]], Callable[..., None]]:

@@ -35,6 +35,7 @@ from robocli.commands._arm import (
     connected,
 )
 from robocli.commands._common import (
+    OverwriteOpt,
     bind_address,
     listening,
     print_json,
@@ -231,6 +232,11 @@ def upload(
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
     center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),  # noqa: UP007
     monitor: Path | None = typer.Option(None, "--monitor", help="Record the run to this log."),  # noqa: UP007
+    record_to: Path | None = typer.Option(  # noqa: UP007
+        None, "--record", metavar="FILE.mcap", dir_okay=False,
+        help="Record this upload's connection (both ports, every frame) to an MCAP file.",
+    ),  # fmt: skip
+    overwrite: bool = OverwriteOpt,
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
     link: ArmLink = LINK,
@@ -246,9 +252,14 @@ def upload(
     if monitor is not None and wait == 0:
         raise typer.BadParameter("--monitor records until the end: give --wait > 0")
     if monitor is not None:
-        check_writable(monitor)  # before the arm moves: not after the whole run
+        check_writable(monitor, overwrite)  # before the arm moves: not after the whole run
     traj = _trajectory(link.robot, shape, points, file, duration, radius, center)
-    with connected(host, link, stream) as arm:
+    with _recorded(record_to, link, overwrite) as (rec, listeners), \
+            connected(host, link, stream, listeners=listeners) as arm:  # fmt: skip
+        if rec is not None:
+            rec.add(arm, "arm")
+            rec.begin()  # connected: now the file is made
+            typer.echo(f"recording to {rec.path}", err=True)
         arm.check_trajectory(traj, split=split or stream)  # before the arm moves at all
         here = arm.wait_for_state().joints
         gap = max(abs(a - float(b)) for a, b in zip(here, traj.positions[0], strict=False))
@@ -256,7 +267,8 @@ def upload(
             typer.echo("moving to the first point")
             arm.move_to(traj.positions[0])
             arm.wait_until_idle(max(wait, 600.0))
-        kept = recording(arm, monitor) if monitor is not None else contextlib.nullcontext()
+        kept = recording(arm, monitor, overwrite=overwrite) if monitor is not None \
+            else contextlib.nullcontext()  # fmt: skip
         with kept:  # the log is written however the run ends
             with _Progress() as progress:
                 send = arm.stream if stream else arm.download
@@ -275,11 +287,39 @@ def upload(
     typer.echo(f"uploaded {sent} points; arm idle")
 
 
+@contextlib.contextmanager
+def _recorded(path: Path | None, link: ArmLink,
+              overwrite: bool) -> Iterator[tuple[Any, dict[str, Any]]]:  # fmt: skip
+    """``upload --record``: a recorder (not begun: the file is made once connected) and the
+    listeners to connect the arm with, so that both ports are recorded from their first
+    byte; ``(None, {})`` without a path. The recording is closed after the arm (its stop
+    is recorded) and says what it holds, however the upload ends."""
+    if path is None:
+        yield None, {}
+        return
+    from robocli.commands.record import close_recording
+    from robocli.io.record import Recorder
+    from robocli.io.record.arm import arm_links
+
+    if path.suffix != ".mcap":
+        raise typer.BadParameter(f"--record {path}: a recording needs a .mcap name")
+    rec = Recorder(path, overwrite=overwrite, deferred=True)  # refused now: before connecting
+    name, links = arm_links(rec, "arm", byte_order=link.byte_order, real_size=link.real_size)
+    assert name == "arm"
+    start = time.monotonic()
+    try:
+        yield rec, {port: [raw] for port, raw in links.items()}
+    finally:
+        with shielded():
+            close_recording(rec, time.monotonic() - start)
+
+
 # ------------------------------------------------------------------------------ monitor, connect
 
 
 @contextlib.contextmanager
-def recording(arm: Arm, out: Path, max_samples: int | None = None) -> Iterator[Recorder]:
+def recording(arm: Arm, out: Path, max_samples: int | None = None, *,
+              overwrite: bool = False) -> Iterator[Recorder]:  # fmt: skip
     """Record ``arm``'s joint samples (:meth:`Arm.record`) and write them to ``out`` however
     the block ends: its end, Ctrl-C or SIGTERM, a ``--wait`` that ran out, a lost link.
     Says on stderr how many samples went where; the block's own error (its exit code) goes
@@ -293,20 +333,20 @@ def recording(arm: Arm, out: Path, max_samples: int | None = None) -> Iterator[R
         with shielded():
             rec.stop()
             try:
-                _write_recording(rec, out)
+                _write_recording(rec, out, overwrite)
             except RobocliError as exc:  # the block's error is the one to exit with
                 typer.echo(f"{out} not written: {exc}", err=True)
         raise
     with shielded():
         rec.stop()
-        _write_recording(rec, out)
+        _write_recording(rec, out, overwrite)
 
 
-def _write_recording(rec: Recorder, out: Path) -> None:
+def _write_recording(rec: Recorder, out: Path, overwrite: bool) -> None:
     from robocli.io.trajlog import write_log
 
     log = rec.log()
-    write_log(log, out)
+    write_log(log, out, overwrite)
     typer.echo(f"recorded {len(log)} samples over {log.time[-1] - log.time[0]:.3f} s -> {out}",
                err=True)  # fmt: skip
 
@@ -315,6 +355,7 @@ def _write_recording(rec: Recorder, out: Path) -> None:
 def monitor(
     host: str = HostArg,
     out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
+    overwrite: bool = OverwriteOpt,
     samples: int | None = typer.Option(  # noqa: UP007
         None, "--samples", min=2, max=1_000_000, help="States to record (default: until Ctrl-C)."
     ),
@@ -329,8 +370,9 @@ def monitor(
 
     if samples is not None and duration is not None:
         raise typer.BadParameter("give --samples or --duration, not both")
-    check_writable(out)  # before recording: not after the whole --duration
-    with connected(host, link) as arm, recording(arm, out, samples and 2 * samples) as rec:
+    check_writable(out, overwrite)  # before recording: not after the whole --duration
+    with connected(host, link) as arm, \
+            recording(arm, out, samples and 2 * samples, overwrite=overwrite) as rec:  # fmt: skip
         if samples is None and duration is None:
             typer.echo(f"recording to {out} until Ctrl-C", err=True)
         end = time.monotonic() + (duration if duration is not None else math.inf)

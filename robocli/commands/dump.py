@@ -27,6 +27,7 @@ import typer
 from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands._common import (
     PORT_HELP,
+    OverwriteOpt,
     from_env,
     listening,
     reader_may_leave,
@@ -63,6 +64,7 @@ def pioneer(
         dir_okay=False,
         help="Also record the packets to a .jsonl capture (what --file reads).",
     ),  # fmt: skip
+    overwrite: bool = OverwriteOpt,
     laser: bool = typer.Option(
         False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
     ),
@@ -82,7 +84,6 @@ def pioneer(
     """Print every packet in both directions, in time order, with its name and decoded
     fields (raw units; lines cut at 160 characters unless -v)."""
     from robocli.commands._packets import PacketView
-    from robocli.io.capture import CaptureWriter
 
     if file is not None and from_env(ctx, "port"):
         port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
@@ -90,15 +91,14 @@ def pioneer(
         raise typer.BadParameter("give PORT or --file")
     if port is not None and file is not None:
         raise typer.BadParameter("give PORT or --file, not both")
-    if output is not None and output.suffix != ".jsonl":
-        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
     if output is not None and file is not None and _same_file(output, file):
         raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
     full = bool(ctx.find_root().params.get("verbose"))
-    writer = CaptureWriter(output) if output is not None else None
+    writer = _capture(output, overwrite)
     try:
         view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
         if file is not None:
+            _begin(view)
             _pioneer_file(view, file)
         else:
             assert port is not None
@@ -162,6 +162,7 @@ def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
     feed = _Feed(view)
     try:
         with connected(port, listeners=[feed.listener()], **options) as robot:
+            _begin(view)  # connected: now the capture is made
             if laser:
                 start_laser(robot, wait=False)
             while not view.done:
@@ -231,6 +232,7 @@ def arm(
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
     ),
+    overwrite: bool = OverwriteOpt,
     file: Path | None = typer.Option(  # noqa: UP007
         None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
     ),
@@ -247,7 +249,6 @@ def arm(
     """Print every Simple Message on the motion and state ports, in time order, named and
     decoded (joints in rad)."""
     from robocli.commands._packets import ArmPacketView
-    from robocli.io.capture import CaptureWriter
     from robocli.kinematics import load_model
 
     if file is not None and from_env(ctx, "host"):
@@ -259,16 +260,15 @@ def arm(
     if listen is not None and host is None:
         raise typer.BadParameter("--listen relays to a HOST; not with --file")
     bind_to = _listen_address(listen) if listen is not None else None
-    if output is not None and output.suffix != ".jsonl":
-        raise typer.BadParameter(f"--output {output}: the capture format needs a .jsonl name")
     order = ">" if link.byte_order == "big" else "<"
     n = load_model(link.robot).n_joints
-    writer = CaptureWriter(output) if output is not None else None
+    writer = _capture(output, overwrite)
     view = ArmPacketView(order, link.real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
                          count=count, writer=writer)  # fmt: skip
     try:
         with reader_may_leave(), sigterm_as_interrupt():
             if file is not None:
+                _begin(view)
                 _arm_file(view, file, "sm-be" if order == ">" else "sm-le")
             else:
                 assert host is not None
@@ -325,6 +325,7 @@ def _arm_live(view: Any, host: str, ports: str, link: ArmLink,
                     timeout=link.timeout))  # fmt: skip
                 opened.append(arm)
                 state = arm if name == "state" else state
+            _begin(view)  # connected (or listening): now the capture is made
             while not view.done:
                 feed.show()
                 for arm in opened:  # raises when a link was lost (the motion port is quiet)
@@ -392,6 +393,7 @@ def hub(
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", help="Also record the session (.jsonl capture)."
     ),
+    overwrite: bool = OverwriteOpt,
     file: Path | None = typer.Option(  # noqa: UP007
         None, "--file", "-f", metavar="CAPTURE", exists=True, dir_okay=False,
         help="Decode a capture (dump hub -o, or a record .mcap) instead.",
@@ -407,10 +409,11 @@ def hub(
         raise typer.BadParameter("give HOST or --file (one of them)")
     if output is not None and file is not None and _same_file(output, file):
         raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
-    writer = _hub_capture(output) if output is not None else None  # before connecting
+    writer = _capture(output, overwrite)  # checked before connecting
     view = HubPacketView(json_out=json_out, hex_out=hex_out, count=count, writer=writer)
     try:
         if file is not None:
+            _begin(view)
             with reader_may_leave(), sigterm_as_interrupt():
                 stats = _show_capture(view, file, "ros4mat", "messages")
             if stats is not None and stats.frames == 0:
@@ -462,6 +465,7 @@ def _hub_live(view: Any, host: str, listen: str) -> None:
             with listening(bind):
                 proxy = DumpProxy(upstream, show, bind=bind, port=port)
             with proxy.start():
+                _begin(view)  # listening: now the capture is made
                 typer.echo(
                     f"dump: clients connect to {bind}:{proxy.port}, relayed to "
                     f"{upstream[0]}:{upstream[1]}",
@@ -475,12 +479,21 @@ def _hub_live(view: Any, host: str, listen: str) -> None:
             raise typer.Exit(EXIT_INTERRUPTED) from None
 
 
-def _hub_capture(path: Path) -> Any:
-    """A capture writer on ``path`` (JSON Lines); a name or place it cannot have is a usage
-    error (exit 2), before anything connects."""
+def _capture(path: Path | None, overwrite: bool) -> Any:
+    """A capture writer on ``path`` (JSON Lines), or None: checked now (a name or place it
+    cannot have, an existing file without --overwrite, a symbolic link: exit 2, before
+    anything connects), made by :func:`_begin` once the session is connected."""
+    if path is None:
+        return None
     from robocli.io.capture import CaptureWriter
 
     if path.suffix != ".jsonl":
         raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
                                  param_hint="'--output'")  # fmt: skip
-    return CaptureWriter(path)  # a missing folder: CaptureFileError, exit 2
+    return CaptureWriter(path, overwrite, deferred=True)
+
+
+def _begin(view: Any) -> None:
+    """Make the capture file of ``view`` (if any): its session is connected."""
+    if view.writer is not None:
+        view.writer.open()

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import typer
 
+from robocli.commands._common import OverwriteOpt
 from robocli.io.export import FORMATS
 
 
@@ -26,6 +27,7 @@ def export(
         metavar="DIR",
         help="Folder to write into (default: the recording's).",
     ),
+    overwrite: bool = OverwriteOpt,
 ) -> None:
     """Export a recording: one file per channel, or an arm's IRB120 JSON log."""
     from robocli.io.export import export as run
@@ -33,5 +35,5 @@ def export(
     if fmt not in FORMATS:
         raise typer.BadParameter(f"choose from {', '.join(FORMATS)}, not {fmt!r}",
                                  param_hint="'--format'")  # fmt: skip
-    for path in run(recording, fmt, out):
+    for path in run(recording, fmt, out, overwrite):
         typer.echo(str(path))

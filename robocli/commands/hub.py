@@ -11,7 +11,7 @@ import os
 import sys
 import time
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -66,9 +66,11 @@ def open_hub(
     timeout: float = 5.0,
     token_file: Path | None = None,
     hub_option: bool = True,
+    listeners: Iterable[Any] = (),
 ) -> Hub:
     """Connect (with the token in ``token_file``, if any); "nobody listens" is one line with
-    a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB."""
+    a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB.
+    ``listeners``: see every frame from CONNECT on (a recorder's raw link)."""
     from robocli.commands.serve import token_from_file
     from robocli.devices.hub.client import Hub, parse_hub
     from robocli.errors import TransportError
@@ -77,7 +79,8 @@ def open_hub(
     token = token_from_file(token_file)
     host, port = parse_hub(address)
     try:
-        return Hub.connect(host, port, compress=compress, timeout=timeout, token=token)
+        return Hub.connect(host, port, compress=compress, timeout=timeout, token=token,
+                           listeners=listeners)  # fmt: skip
     except InvalidURL:
         raise
     except TransportError as exc:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import print_json
+from robocli.commands._common import OverwriteOpt, print_json
 
 if TYPE_CHECKING:
     from robocli.io.trajlog import TrajectoryLog
@@ -61,9 +61,18 @@ def _start(model: RobotModel, start: str | None) -> Any:
     return None if values is None else [math.radians(v) for v in values]
 
 
-def _finish(
-    model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: Path | None, json_out: bool
-) -> None:
+def _outputs(out: Path, plot: Path | None, overwrite: bool) -> None:
+    """Refuse the log and the plot before computing anything (see :mod:`robocli.io.output`)."""
+    from robocli.io.output import check_output
+    from robocli.io.trajlog import check_writable
+
+    check_writable(out, overwrite)
+    if plot is not None:
+        check_output(plot, overwrite)
+
+
+def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: Path | None,
+            json_out: bool, overwrite: bool = False) -> None:  # fmt: skip
     import numpy as np
 
     from robocli.io.trajlog import write_log
@@ -71,8 +80,8 @@ def _finish(
     if plot is not None:
         from robocli.kinematics.plot import plot_trajectory
 
-        plot_trajectory(log, plot, title=f"{model.name} {shape}")
-    write_log(log, out)
+        plot_trajectory(log, plot, title=f"{model.name} {shape}", overwrite=overwrite)
+    write_log(log, out, overwrite)
     speeds = np.max(np.abs(log.velocities), axis=0)
     fastest = int(np.argmax(speeds / model.max_speed))
     fraction = float(speeds[fastest] / model.max_speed[fastest])
@@ -121,6 +130,7 @@ _SHARED = [
         ("start", str | None, StartOpt),
         ("out", Path, OutOpt),
         ("plot", Path | None, PlotOpt),
+        ("overwrite", bool, OverwriteOpt),
         ("json_out", bool, JsonOpt),
     )
 ]
@@ -146,10 +156,12 @@ def trajectory_command(shape: str, points: bool = True) -> Callable[[Any], Calla
         def command(**options: Any) -> None:
             model = _model(options.pop("robot"))
             out, plot, json_out = options.pop("out"), options.pop("plot"), options.pop("json_out")
+            overwrite = options.pop("overwrite")
+            _outputs(out, plot, overwrite)
             timing = Timing(model, _start(model, options.pop("start")),
                             options.pop("points", 0), options.pop("speed"),
                             options.pop("duration"))  # fmt: skip
-            _finish(model, build(timing, **options), shape, out, plot, json_out)
+            _finish(model, build(timing, **options), shape, out, plot, json_out, overwrite)
 
         command.__name__, command.__doc__ = build.__name__, build.__doc__
         command.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
@@ -236,11 +248,16 @@ def validate(
         "irb120", "--robot", "-r", help="Model for the TCP error when a log has no TCP column."
     ),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),  # noqa: UP007
+    overwrite: bool = OverwriteOpt,
     json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.export import read_any_log
+    from robocli.io.output import check_output
     from robocli.kinematics.validate import validate as compare
+
+    if plot is not None:
+        check_output(plot, overwrite)  # before reading the logs
 
     sim_log, real_log = read_any_log(sim), read_any_log(real)
     model = _model(robot) if robot else None
@@ -250,7 +267,7 @@ def validate(
     if plot is not None:
         from robocli.kinematics.plot import plot_validation
 
-        plot_validation(sim_log, real_log, result, plot, model)
+        plot_validation(sim_log, real_log, result, plot, model, overwrite)
     if json_out:
         print_json(result.to_dict())
         return

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from robocli.commands._common import print_json
+from robocli.commands._common import OverwriteOpt, print_json
 
 
 def plot(
@@ -33,13 +33,14 @@ def plot(
         ..., "--output", "-o", dir_okay=False, metavar="OUT.png", help="The figure (PNG)."
     ),  # fmt: skip
     title: str | None = typer.Option(None, "--title", help="A title over the figure."),  # noqa: UP007
+    overwrite: bool = OverwriteOpt,
     json_out: bool = typer.Option(False, "--json", help="Say what was drawn, as JSON."),
 ) -> None:
     """Draw a recording's channels into a PNG: a Pioneer's path with its sonar or laser
     returns, an arm's joints against time, or any numeric field against time."""
     from robocli.io.record.plot import plot as draw
 
-    result = draw(file, output, channel, field, title=title)
+    result = draw(file, output, channel, field, title=title, overwrite=overwrite)
     if json_out:
         print_json(result.as_dict())
         return

@@ -20,7 +20,14 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import SIM, print_json, shielded, sigterm_as_interrupt
+from robocli.commands._arm import LINK, ArmLink, arm_link
+from robocli.commands._common import (
+    SIM,
+    OverwriteOpt,
+    print_json,
+    shielded,
+    sigterm_as_interrupt,
+)
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
 
 if TYPE_CHECKING:
@@ -61,6 +68,7 @@ def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
     return out
 
 
+@arm_link(motion=False)
 def record(
     output: Path = typer.Option(..., "--output", "-o", dir_okay=False, metavar="FILE.mcap",
                                 help="The recording (MCAP)."),  # fmt: skip
@@ -91,16 +99,17 @@ def record(
     no_laser: bool = typer.Option(
         False, "--no-laser", help="Do not start a Pioneer simulator's own (ARCOS) laser."
     ),
-    byte_order: str = typer.Option("little", "--byte-order", help="Arms: little or big."),
-    real_size: int = typer.Option(4, "--real-size", help="Arms: bytes per real, 4 or 8."),
-    robot: str = typer.Option("irb120", "--robot", "-r", help="Arms: robot model."),
-    timeout: float = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait."),
+    overwrite: bool = OverwriteOpt,
+    link: ArmLink = LINK,
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
-    """Record Pioneers, arms, a hub and a Hokuyo laser into one MCAP file (Foxglove's
-    schemas, raw frames for dump --file) until --duration, --count or Ctrl-C."""
+    """Record Pioneers, arms (their state port), a hub and a Hokuyo laser into one MCAP
+    file (Foxglove's schemas, raw frames for dump --file) until --duration, --count or
+    Ctrl-C. The file is made once every source is connected; an existing one is refused
+    unless --overwrite. To record an arm while uploading to it: upload --record."""
     from robocli.errors import EXIT_INTERRUPTED
+    from robocli.io.output import check_output
     from robocli.io.record import COMPRESSIONS, Recorder
 
     if not (pioneer or arm or hub or laser):
@@ -110,21 +119,20 @@ def record(
     if compression not in COMPRESSIONS:
         raise typer.BadParameter(f"--compression is one of {', '.join(COMPRESSIONS)}, "
                                  f"not {compression!r}")  # fmt: skip
-    if byte_order not in ("little", "big") or real_size not in (4, 8):
-        raise typer.BadParameter("--byte-order is little or big, --real-size 4 or 8")
     hub_sensors = _sensors(sensors) if hub else []
+    check_output(output, overwrite)  # refused now, before anything connects
     start = time.monotonic()
     interrupted = False
     with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
         view = stack.enter_context(live_view(foxglove, foxglove_host))
-        rec = Recorder(output, compression=compression)  # the path is checked before connecting
+        rec = Recorder(output, compression=compression, overwrite=overwrite, deferred=True)
         if view is not None:
             rec.mirror(view)
         try:
             try:
                 devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, not no_laser,
-                                   dict(byte_order=byte_order, real_size=real_size,
-                                        robot=robot, timeout=timeout), laser)  # fmt: skip
+                                   link, laser)  # fmt: skip
+                rec.begin()  # every source connected: now the file is made
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
                 start = time.monotonic()  # --duration counts from here, not from connecting
                 done = _until(rec, start, duration, count, devices)
@@ -142,20 +150,24 @@ def record(
                     stack.close()  # devices stop first: their stop sequences are recorded
         finally:
             with shielded():
-                _close(rec, output, time.monotonic() - start)
+                close_recording(rec, time.monotonic() - start)
     if interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
 
-def _close(rec: Recorder, output: Path, seconds: float) -> None:
-    """Close the recording and say what it holds (on stderr); a write failure raises."""
+def close_recording(rec: Recorder, seconds: float) -> None:
+    """Close the recording and say what its file holds (on stderr; nothing when it was never
+    made); a write failure raises."""
     try:
         rec.close()
     finally:
-        why = "not written" if rec.error is not None else "the disk was too slow"
-        dropped = f", {rec.stats.dropped} dropped ({why})" if rec.stats.dropped else ""
-        typer.echo(f"recorded {rec.stats.messages} messages in {seconds:.1f} s to "
-                   f"{output}{dropped}", err=True)  # fmt: skip
+        if rec.begun:
+            st = rec.stats
+            lost = f", {st.lost} not written (writing failed)" if st.lost else ""
+            why = "not written" if rec.error is not None else "the disk was too slow"
+            dropped = f", {st.dropped} dropped ({why})" if st.dropped else ""
+            typer.echo(f"recorded {st.messages} messages in {seconds:.1f} s to "
+                       f"{rec.path}{lost}{dropped}", err=True)  # fmt: skip
 
 
 def _until(rec: Recorder, start: float, duration: float | None, count: int | None,
@@ -173,20 +185,20 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
                 device.check()
             elif name.startswith("laser"):
                 device.session.check()
-        return time.monotonic() >= end or (count is not None and rec.stats.messages >= count)
+        return time.monotonic() >= end or (count is not None and rec.stats.added >= count)
 
     return done
 
 
 def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], arms: list[str],
              hub: str | None, sensors: list[tuple[str, dict[str, Any]]], laser: bool,
-             arm_options: dict[str, Any], hokuyo: str | None = None) -> dict[str, Any]:  # fmt: skip
-    """Connect every source (simulators started on ``stack``) and add it to ``rec``;
-    ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
-    from robocli.commands._arm import arm_host
+             link: ArmLink, hokuyo: str | None = None) -> dict[str, Any]:  # fmt: skip
+    """Connect every source (simulators started on ``stack``) and add it to ``rec``, each
+    recorded from its first byte; ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
+    from robocli.commands._arm import arm_host, connect_at
     from robocli.commands._common import explain_refusal, pioneer_url
-    from robocli.devices.arm import Arm
     from robocli.devices.pioneer import Pioneer
+    from robocli.io.record.arm import arm_links
 
     devices: dict[str, Any] = {}
     for port in pioneers:
@@ -194,30 +206,35 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
         listener = rec.listener("pioneer", "arcos", url=url)
         with explain_refusal(url):
             robot = stack.enter_context(
-                Pioneer.connect(url, listeners=[listener], timeout=arm_options["timeout"])
+                Pioneer.connect(url, listeners=[listener], timeout=link.timeout)
             )
         name = rec.add(robot, listener.name)
         devices[name] = robot
         if laser and robot.is_simulator:
             robot.start_laser()
     for host in arms:
-        wire = (arm_options["byte_order"], arm_options["real_size"], arm_options["robot"])
-        h, mp, sp = stack.enter_context(arm_host(host, 11000, 11002, *wire))
-        device = stack.enter_context(
-            Arm.connect(h, mp, sp, motion=False, stop_on_failure=False, **arm_options)
-        )
-        devices[rec.add(device)] = device
+        address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
+                                               link.byte_order, link.real_size, link.robot,
+                                               motion_option=False))  # fmt: skip
+        name, links = arm_links(rec, "arm", byte_order=link.byte_order,
+                                real_size=link.real_size, ports="state")  # fmt: skip
+        device = stack.enter_context(connect_at(address, link, stop_on_failure=False,
+                                                listeners={"state": [links["state"]]}))  # fmt: skip
+        devices[rec.add(device, name)] = device
     if hokuyo is not None:  # on the first Pioneer, as its robot model says
         first = next((n for n in devices if n.startswith("pioneer")), None)
         on = {} if first is None else {"parent": f"{first}/base_link",
                                        "mount": devices[first].params.laser_mount}  # fmt: skip
-        devices.update(_connect_laser(stack, rec, hokuyo, arm_options["timeout"], on))
+        devices.update(_connect_laser(stack, rec, hokuyo, link.timeout, on))
     if hub is not None:
-        address = stack.enter_context(_hub_address(hub))
+        hub_at = stack.enter_context(_hub_address(hub))
         from robocli.commands.hub import open_hub
 
-        client = stack.enter_context(open_hub(address, timeout=arm_options["timeout"]))
-        rec.add(client, sensors=[n for n, _ in sensors])
+        names = [n for n, _ in sensors]
+        listener = rec.listener("hub", "ros4mat", url=hub_at, sensors=",".join(names))
+        client = stack.enter_context(open_hub(hub_at, timeout=link.timeout,
+                                              listeners=[listener]))  # fmt: skip
+        rec.add(client, listener.name, sensors=names)
         for name, args in sensors:
             client.subscribe(name, **args)
         devices["hub"] = client

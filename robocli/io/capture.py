@@ -64,6 +64,10 @@ _FRAME_NAMES = {
 }  # fmt: skip
 
 
+#: Lines a deferred :class:`CaptureWriter` holds before its file is made.
+MAX_HELD = 10_000
+
+
 class CaptureFileError(RobocliError):
     """A capture file that cannot be opened (no such folder, no permission): the file the
     caller named is unusable, a usage error (exit 2)."""
@@ -281,30 +285,63 @@ def _skip_line(stream: IO[bytes], stats: CaptureStats, gap: _Gap) -> None:
 class CaptureWriter:
     """Record a session in the ``.jsonl`` capture format (see the module docstring), one
     line per packet, flushed as it goes so that an interrupted session keeps what it saw.
-    Thread-safe: packets sent and received in different threads never interleave."""
+    Thread-safe: packets sent and received in different threads never interleave.
 
-    def __init__(self, path: str | Path) -> None:
-        self.path = Path(path)
-        try:
-            self._file = self.path.open("w", encoding="utf-8")
-        except OSError as exc:
-            parent = self.path.parent
-            why = f"no directory {parent}" if not parent.is_dir() else exc.strerror or exc
-            raise CaptureFileError(f"{path}: cannot write ({why})") from None
+    The path is checked at once (:func:`~robocli.io.output.check_output`: an existing file
+    is refused unless ``overwrite``, a symbolic link always). With ``deferred``, the file is
+    made by :meth:`open` (a command calls it once its session is connected), and the lines
+    before it (a handshake's, at most :data:`MAX_HELD`) wait in memory: a session that
+    fails to connect writes nothing."""
+
+    def __init__(self, path: str | Path, overwrite: bool = False, *,
+                 deferred: bool = False) -> None:  # fmt: skip
+        from robocli.io.output import check_output
+
+        self.path = check_output(path, overwrite)
+        self._overwrite = overwrite
+        self._file: IO[str] | None = None
+        self._held: list[str] = []
+        self._closed = False
         self._lock = threading.Lock()
         self.records = 0
         self.start_unix: float | None = None
+        if not deferred:
+            self.open()
+
+    def open(self) -> None:
+        """Make the file and write the lines held so far. Idempotent."""
+        from robocli.io.output import create_output
+
+        with self._lock:
+            if self._file is not None or self._closed:
+                return
+            self._file = create_output(self.path, self._overwrite, text=True)
+            held, self._held = self._held, []
+            for line in held:
+                self._file.write(line)
+            self._file.flush()
+
+    def _emit(self, line: str) -> bool:
+        """Write one line (lock held); False once closed or when none more can be held."""
+        if self._closed:
+            return False
+        if self._file is None:
+            if len(self._held) >= MAX_HELD:
+                return False
+            self._held.append(line)
+            return True
+        self._file.write(line)
+        self._file.flush()
+        return True
 
     def begin(self, start_unix: float) -> None:
         """Say when ``t`` 0 was (Unix time, s): a ``start`` event line, once, before the
         records (a capture without it stays readable, without a time base)."""
         with self._lock:
-            if self.start_unix is not None or self._file.closed:
+            if self.start_unix is not None or self._closed:
                 return
             self.start_unix = start_unix
-            self._file.write(json.dumps({"event": "start", "unix_time": round(start_unix, 6)})
-                             + "\n")  # fmt: skip
-            self._file.flush()
+            self._emit(json.dumps({"event": "start", "unix_time": round(start_unix, 6)}) + "\n")
 
     def write(self, t: float, direction: str, data: bytes, port: str | None = None) -> None:
         """Append ``data`` sent ("tx") or received ("rx") at ``t`` s since the start, on
@@ -315,15 +352,15 @@ class CaptureWriter:
         record["hex"] = data.hex()
         line = json.dumps(record)
         with self._lock:
-            if not self._file.closed:
-                self._file.write(line + "\n")
-                self._file.flush()
+            if self._emit(line + "\n"):
                 self.records += 1
 
     def close(self) -> None:
-        """Close the file; idempotent."""
+        """Close the file (never made: nothing is written); idempotent."""
         with self._lock:
-            self._file.close()
+            self._closed = True
+            if self._file is not None:
+                self._file.close()
 
     def __enter__(self) -> CaptureWriter:
         return self

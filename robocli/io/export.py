@@ -30,6 +30,7 @@ A recording killed before its end exports up to its last complete record.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -38,6 +39,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.output import replace_output
 
 if TYPE_CHECKING:
     from robocli.io.trajlog import TrajectoryLog
@@ -78,9 +80,13 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
                 yield topic, schema, record.publish_time, record.log_time, message
 
 
-def export(path: str | Path, fmt: str, out_dir: str | Path | None = None) -> list[Path]:
+def export(path: str | Path, fmt: str, out_dir: str | Path | None = None,
+           overwrite: bool = False) -> list[Path]:  # fmt: skip
     """Export the recording at ``path`` as ``fmt`` (one of :data:`FORMATS`) into ``out_dir``
-    (default: the recording's folder); returns the files written, in topic order."""
+    (default: the recording's folder); returns the files written, in topic order. Each file
+    is written beside its name and put in place once every one is written (a failure leaves
+    the folder as it was); an existing one is refused unless ``overwrite``, a symbolic link
+    always (:class:`~robocli.io.output.OutputError`, before any file is put in place)."""
     if fmt not in FORMATS:
         raise InvalidArgument(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     src = Path(path)
@@ -90,19 +96,20 @@ def export(path: str | Path, fmt: str, out_dir: str | Path | None = None) -> lis
     except OSError as exc:
         raise RobocliError(f"cannot create {out}: {exc.strerror or exc}") from None
     if fmt == "irb120-json":
-        return _export_arm(src, out)
+        return _export_arm(src, out, overwrite)
     writers: dict[str, _Writer] = {}
-    try:
+    with contextlib.ExitStack() as files:  # each file put in place as the stack closes
         for topic, _schema, publish, log, message in channel_messages(src):
             writer = writers.get(topic)
             if writer is None:
-                writer = writers[topic] = _Writer(out / f"{_file_stem(topic)}.{fmt}", fmt)
+                path = out / f"{_file_stem(topic)}.{fmt}"
+                stream = files.enter_context(replace_output(path, overwrite, text=fmt != "npz"))
+                writer = writers[topic] = _Writer(path, fmt, stream)
             writer.add(publish, log, message)
-    finally:
+        if not writers:
+            raise RobocliError(f"{src}: no decoded channel to export")
         for writer in writers.values():
             writer.close()
-    if not writers:
-        raise RobocliError(f"{src}: no decoded channel to export")
     return [writers[topic].path for topic in sorted(writers)]
 
 
@@ -112,19 +119,15 @@ def _file_stem(topic: str) -> str:
 
 
 class _Writer:
-    """One channel's file: streamed for csv/jsonl, gathered then written for npz."""
+    """One channel's file: streamed for csv/jsonl, gathered then written for npz (into
+    ``stream``, a :func:`~robocli.io.output.replace_output`'s)."""
 
-    def __init__(self, path: Path, fmt: str) -> None:
+    def __init__(self, path: Path, fmt: str, stream: IO[Any]) -> None:
         self.path, self.fmt = path, fmt
-        self._fh: IO[str] | None = None
+        self._fh: IO[Any] = stream
         self._csv: Any = None
         self._columns: dict[str, list[Any]] = {}  # npz: each field's values so far
         self._rows = 0
-        if fmt != "npz":
-            try:
-                self._fh = path.open("w", newline="" if fmt == "csv" else None)
-            except OSError as exc:
-                raise RobocliError(f"cannot write {path}: {exc.strerror or exc}") from None
 
     def add(self, publish_ns: int, log_ns: int, message: dict[str, Any]) -> None:
         times = {"t": publish_ns / 1e9, "log_time": log_ns / 1e9}
@@ -139,7 +142,7 @@ class _Writer:
                 self._column_add(row)
                 return
             if self._csv is None:
-                self._csv = csv.DictWriter(self._fh, fieldnames=list(row), extrasaction="ignore")  # type: ignore[arg-type]
+                self._csv = csv.DictWriter(self._fh, fieldnames=list(row), extrasaction="ignore")
                 self._csv.writeheader()
             self._csv.writerow(row)
         except OSError as exc:
@@ -159,15 +162,14 @@ class _Writer:
                     column.append(None)
 
     def close(self) -> None:
-        if self._fh is not None:
-            self._fh.close()
+        """Write what is gathered (npz); the stream itself is closed by its owner."""
+        if self.fmt != "npz":
             return
         import numpy as np
 
         arrays = {key: _column(values) for key, values in self._columns.items()}
         try:
-            with self.path.open("wb") as fh:
-                np.savez_compressed(fh, **arrays)
+            np.savez_compressed(self._fh, **arrays)
         except OSError as exc:
             raise RobocliError(f"cannot write {self.path}: {exc.strerror or exc}") from None
 
@@ -274,7 +276,9 @@ def read_any_log(path: str | Path) -> TrajectoryLog:
     return arm_log(path) if Path(path).suffix.lower() == ".mcap" else read_log(path)
 
 
-def _export_arm(src: Path, out: Path) -> list[Path]:
+def _export_arm(src: Path, out: Path, overwrite: bool) -> list[Path]:
+    from robocli.io.output import check_output
     from robocli.io.trajlog import write_log
 
-    return [write_log(arm_log(src), out / f"{src.stem}.json")]
+    path = check_output(out / f"{src.stem}.json", overwrite)  # before reading the recording
+    return [write_log(arm_log(src), path, overwrite)]

@@ -13,7 +13,6 @@ import csv
 import io
 import json
 import math
-import os
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -109,27 +108,28 @@ def finite_difference(time: FloatArray, positions: FloatArray) -> FloatArray:
         return np.asarray(np.gradient(positions, time, axis=0, edge_order=1), dtype=float)
 
 
-def check_writable(path: str | Path) -> Path:
-    """Raise :class:`LogFormatError` unless a log could be written to ``path``: a known
-    suffix, an existing writable directory, not a directory itself. For commands that
-    record for a while (or move a robot) before they write: check first."""
+def check_writable(path: str | Path, overwrite: bool = False) -> Path:
+    """Raise :class:`LogFormatError` for an unknown suffix, and
+    :class:`~robocli.io.output.OutputError` unless a log could be written to ``path`` (see
+    :func:`~robocli.io.output.check_output`: an existing file only with ``overwrite``, never
+    a symbolic link). For commands that record for a while (or move a robot) before they
+    write: check first."""
+    from robocli.io.output import check_output
+
     out = Path(path)
     _suffix(out)
-    parent = out.parent if str(out.parent) else Path(".")
-    if out.is_dir():
-        raise LogFormatError(f"{out}: cannot write (a directory)")
-    if not parent.is_dir():
-        raise LogFormatError(f"{out}: cannot write (no directory {parent})")
-    if not os.access(parent, os.W_OK | os.X_OK) or (out.exists() and not os.access(out, os.W_OK)):
-        raise LogFormatError(f"{out}: cannot write (permission denied)")
-    return out
+    return check_output(out, overwrite)
 
 
-def write_log(log: TrajectoryLog, path: str | Path) -> Path:
-    """Write ``log`` to ``path`` in the format of its suffix; returns the path."""
+def write_log(log: TrajectoryLog, path: str | Path, overwrite: bool = False) -> Path:
+    """Write ``log`` to ``path`` in the format of its suffix; returns the path. The file
+    appears whole or not at all; an existing one is replaced only with ``overwrite``
+    (:class:`~robocli.io.output.OutputError` otherwise, as for a symbolic link)."""
+    from robocli.io.output import replace_output
+
     out = Path(path)
     suffix = _suffix(out)
-    try:
+    with replace_output(out, overwrite, text=suffix != ".npz") as fh:
         if suffix == ".npz":
             arrays = {"time": log.time, "joints_positions": log.positions,
                       "joints_velocities": log.velocities}
@@ -137,16 +137,11 @@ def write_log(log: TrajectoryLog, path: str | Path) -> Path:
                 arrays["tcp"] = log.tcp
             if log.origin is not None:
                 arrays["time_origin"] = np.float64(log.origin)
-            with out.open("wb") as fh:
-                np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
+            np.savez_compressed(fh, **arrays)  # type: ignore[arg-type]
         elif suffix == ".csv":
-            with out.open("w", newline="") as fh:
-                _write_csv(log, fh)
+            _write_csv(log, fh)
         else:
-            with out.open("w") as fh:
-                _write_json(log, fh)
-    except OSError as exc:
-        raise LogFormatError(f"{out}: cannot write ({exc.strerror})") from exc
+            _write_json(log, fh)
     return out
 
 

@@ -31,16 +31,19 @@ def _pyplot() -> Any:
     return plt
 
 
-def _save(fig: Any, path: str | Path) -> Path:
+def save_png(fig: Any, path: str | Path, overwrite: bool = False) -> Path:
+    """Write ``fig`` as a PNG (whole or not at all; see :func:`~robocli.io.output.
+    replace_output`)."""
+    from robocli.io.output import replace_output
+
     out = Path(path)
-    try:
-        fig.savefig(out, dpi=110)
-    except OSError as exc:
-        raise RobocliError(f"{out}: cannot write the plot ({exc.strerror})") from exc
+    with replace_output(out, overwrite) as fh:
+        fig.savefig(fh, dpi=110, format="png")
     return out
 
 
-def plot_trajectory(log: TrajectoryLog, path: str | Path, title: str = "") -> Path:
+def plot_trajectory(log: TrajectoryLog, path: str | Path, title: str = "",
+                    overwrite: bool = False) -> Path:  # fmt: skip
     """Joint angles over time and the TCP path (x-y and x-z views) as a PNG."""
     plt = _pyplot()
     fig, axes = plt.subplots(1, 3 if log.tcp is not None else 1, figsize=(14, 4), squeeze=False)
@@ -55,13 +58,15 @@ def plot_trajectory(log: TrajectoryLog, path: str | Path, title: str = "") -> Pa
             ax.set(xlabel=f"{name[0]} (mm)", ylabel=f"{name[2]} (mm)", title=f"TCP {name}")
             ax.set_aspect("equal", adjustable="datalim")
     fig.tight_layout()
-    out = _save(fig, path)
-    plt.close(fig)
-    return out
+    try:
+        return save_png(fig, path, overwrite)
+    finally:
+        plt.close(fig)
 
 
 def plot_validation(sim: TrajectoryLog, meas: TrajectoryLog, result: Validation,
-                    path: str | Path, model: RobotModel | None = None) -> Path:
+                    path: str | Path, model: RobotModel | None = None,
+                    overwrite: bool = False) -> Path:  # fmt: skip
     """Each joint simulated vs measured (measured shifted onto the simulated clock), and the
     TCP paths, as a PNG. A log without a TCP column gets one from ``model``'s FK."""
     plt = _pyplot()
@@ -95,6 +100,7 @@ def plot_validation(sim: TrajectoryLog, meas: TrajectoryLog, result: Validation,
     last[2].axis("off")
     fig.suptitle(f"delay {result.delay_s * 1e3:.1f} ms, max RMSE {np.max(result.rmse):.2e} rad")
     fig.tight_layout()
-    out = _save(fig, path)
-    plt.close(fig)
-    return out
+    try:
+        return save_png(fig, path, overwrite)
+    finally:
+        plt.close(fig)

@@ -49,7 +49,8 @@ def hub6() -> Iterator[int]:
         (("dump", "hub", "127.0.0.1", "--listen", "[::1"), "'[::1'"),
         (("connect", "pioneer", "127.0.0.1:8101:1"), "'127.0.0.1:8101:1'"),
         (("connect", "pioneer", "bad url"), "'bad url'"),
-        (("connect", "arm", "127.0.0.1:11000"), "--motion-port"),  # ports have options
+        (("connect", "arm", "127.0.0.1:11000"), "--state-port"),  # ports have options
+        (("record", "--arm", "127.0.0.1:11000", "-o", "x.mcap"), "--state-port"),
         (("serve", "--port", "0", "--bind", "0.0.0.0:1500"), "'0.0.0.0:1500'"),
         (("serve", "--port", "0", "--gpsd", "localhost:2947:1"), "'localhost:2947:1'"),
         (("sim", "pioneer", "--port", "0", "--bind", "local host"), "'local host'"),

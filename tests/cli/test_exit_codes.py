@@ -66,7 +66,7 @@ def run(*args: str, **kw: Any) -> Run:
 CASES: dict[tuple[int, str], list[Run]] = {
     (0, "a command that finishes"): [
         run("dump", "pioneer", "--file", str(ROOT / "examples" / "pioneer_drive.jsonl")),
-        run("traj", "circle", "-o", "{tmp}/sim.json"),
+        run("traj", "circle", "-o", "{tmp}/sim.json", "--overwrite"),
     ],
     (0, "`--count`, `--once` or `--duration` reached"): [
         run("connect", "pioneer", "sim", "--once", "--json"),
@@ -116,6 +116,14 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("upload", "arm", "127.0.0.1", "--motion-port", "{free}", "--state-port", "{free}",
             "--shape", "circle", "--monitor", "{tmp}/missing/x.json", hint=False),  # fmt: skip
         run("traj", "circle", "-o", "{tmp}/missing/x.json", hint=False),
+    ],
+    (2, "an output file that exists (without `--overwrite`) or is a symbolic link (said before "
+        "connecting, and nothing is written through a link)"): [
+        run("record", "--pioneer", "sim", "-o", "{tmp}/old.mcap", hint=False),
+        run("dump", "hub", "127.0.0.1:{free}", "-o", "{tmp}/old.jsonl", hint=False),
+        run("traj", "circle", "-o", "{tmp}/sim.json", hint=False),
+        run("upload", "arm", "sim", "--shape", "circle", "--record", "{tmp}/link.mcap",
+            "--overwrite", hint=False),  # fmt: skip
     ],
     (2, "a file that cannot be read, or malformed (map, log, waypoints)"): [
         run("validate", "{tmp}/nan.json", "{tmp}/nan.json", hint=False),
@@ -175,6 +183,9 @@ def places(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Any]]
     (tmp / "nan.json").write_text('{"time": [0, 1], "joints_positions": [[0, 0, 0, 0, 0, NaN], '
                                   '[0, 0, 0, 0, 0, 0]]}')  # fmt: skip
     (tmp / "map.json").write_text('{"walls": [[0, 0, 1]]}')
+    for old in ("old.mcap", "old.jsonl"):
+        (tmp / old).write_text("a user's file")
+    (tmp / "link.mcap").symlink_to(tmp / "old.mcap")
     assert main(["traj", "circle", "-o", str(tmp / "sim.json")]) == 0
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -159,24 +159,26 @@ def test_the_command(tmp_path: Path) -> None:
     assert shown.stdout.startswith(f"plot written: {out} (path: /pioneer/pose (")
     _png(out)
     as_json = run("plot", str(path), "-c", "/pioneer/state", "-f", "battery", "-o", str(out),
-                  "--json")  # fmt: skip
+                  "--json", "--overwrite")  # fmt: skip
     assert as_json.returncode == 0, as_json.stderr
     report = json.loads(as_json.stdout)
     assert report["kind"] == "time" and report["points"] > 0
     assert list(report["series"]) == ["/pioneer/state battery"]
     assert "numeric fields: x, y, th" in one_line_error(
-        run("plot", str(path), "-c", "/pioneer/state", "-o", str(out)), 2
+        run("plot", str(path), "-c", "/pioneer/state", "-o", str(out), "--overwrite"), 2
     )
-    assert "no channel" in one_line_error(run("plot", str(path), "-c", "/x", "-o", str(out)), 2)
+    again = run("plot", str(path), "-c", "/x", "-o", str(out), "--overwrite")
+    assert "no channel" in one_line_error(again, 2)
 
     # cut short (as by a kill) inside its last chunk: drawn up to the chunk before, as many
     # poses as the mcap stream reader finds in the complete chunks (how many chunks a
     # recording has follows the machine's speed: no fixed count is assumed)
-    whole = plot(path, out, ["/pioneer/pose"]).series["/pioneer/pose"]
+    whole = plot(path, out, ["/pioneer/pose"], overwrite=True).series["/pioneer/pose"]
     cut = tmp_path / "cut.mcap"
     cut.write_bytes(path.read_bytes()[: _last_chunk_start(path) + 16])
     complete = _complete(cut, "/pioneer/pose")
-    assert plot(cut, out, ["/pioneer/pose"]).series["/pioneer/pose"] == complete <= whole
+    drawn = plot(cut, out, ["/pioneer/pose"], overwrite=True).series["/pioneer/pose"]
+    assert drawn == complete <= whole
 
 
 def _last_chunk_start(path: Path) -> int:

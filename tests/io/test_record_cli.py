@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import re
 import signal
 import subprocess
 from collections.abc import Iterator
@@ -169,29 +170,99 @@ def test_a_lost_link_ends_with_its_error_and_a_whole_file(tmp_path: Path) -> Non
     assert info(path).summary
 
 
-def test_a_full_disk_is_one_line_and_keeps_what_was_written(tmp_path: Path) -> None:
-    path = tmp_path / "full.mcap"
-    limit = 250_000  # a few one-second chunks of uncompressed 500 Hz ADC samples
-
+@contextlib.contextmanager
+def _small_disk(tmp_path: Path, how: str) -> Iterator[tuple[Path, Any, int]]:
+    """A place where files end after a few hundred KB, as on a full disk: (folder, the
+    child's preexec_fn, the size). ``rlimit``: RLIMIT_FSIZE in the child (a write past it
+    fails with EFBIG); ``tmpfs``: a 300 KiB tmpfs mounted for the test (root only; ENOSPC,
+    after a short write)."""
     import resource  # (POSIX)
 
-    def small_disk() -> None:  # in the child: files end at `limit` bytes, as a full disk
-        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
-        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+    if how == "rlimit":
+        limit = 250_000  # a few one-second chunks of uncompressed 500 Hz ADC samples
 
-    proc = subprocess.run(
-        [*ROBOCLI, "record", "--hub", "sim", "--sensors", "adc:500", "--compression", "none",
-         "-d", "120", "-o", str(path)],
-        capture_output=True, text=True, timeout=90, stdin=subprocess.DEVNULL,
-        preexec_fn=small_disk,
-    )  # fmt: skip
-    assert proc.returncode == 1, proc.stderr
-    lines = proc.stderr.strip().splitlines()  # what it recorded, then the one error line
-    assert [line for line in lines if line.startswith("robocli: ")] == lines[-1:]
-    assert "failed" in lines[-1] and "last complete chunk" in lines[-1]
-    assert "Traceback" not in proc.stderr
-    records, _ = stream_messages(path)
-    assert records and path.stat().st_size <= limit
+        def small() -> None:  # in the child
+            signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+            resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+        yield tmp_path, small, limit
+        return
+    where = tmp_path / "small"
+    where.mkdir()
+    mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=300k", "tmpfs", str(where)],
+                             capture_output=True, text=True)  # fmt: skip
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {mounted.stderr.strip() or 'not root'}")
+    try:
+        yield where, None, 300 << 10
+    finally:
+        subprocess.run(["umount", "-l", str(where)], capture_output=True)
+
+
+@pytest.mark.parametrize("how", ["rlimit", "tmpfs"])
+def test_a_full_disk_is_one_line_and_counts_what_the_file_holds(tmp_path: Path,
+                                                                how: str) -> None:  # fmt: skip
+    with _small_disk(tmp_path, how) as (where, preexec, limit):
+        path = where / "full.mcap"
+        proc = subprocess.run(
+            [*ROBOCLI, "record", "--hub", "sim", "--sensors", "adc:500", "--compression", "none",
+             "-d", "120", "-o", str(path)],
+            capture_output=True, text=True, timeout=90, stdin=subprocess.DEVNULL,
+            preexec_fn=preexec,
+        )  # fmt: skip
+        assert proc.returncode == 1, proc.stderr
+        lines = proc.stderr.strip().splitlines()  # what it recorded, then the one error line
+        assert [line for line in lines if line.startswith("robocli: ")] == lines[-1:]
+        assert "failed" in lines[-1] and "last complete chunk" in lines[-1]
+        assert "Traceback" not in proc.stderr
+        records, cut = stream_messages(path)
+        assert records and path.stat().st_size <= limit
+        said = re.search(r"recorded (\d+) messages .*, (\d+) not written", proc.stderr)
+        assert said is not None, proc.stderr
+        assert int(said.group(1)) == len(records)  # what it says is what the file holds
+        assert int(said.group(2)) > 0  # the chunk that did not fit
+
+
+_CUT_AFTER_CHUNK = """
+import resource, signal, sys
+from robocli.io.record import Recorder, RecordingError
+path, limit = sys.argv[1], int(sys.argv[2])
+if limit:
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+    resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+rec = Recorder(path, compression="none", chunk_seconds=3600)  # one chunk, written at close
+def one(i):
+    rec.write(rec.channel("/t", None, encoding="x"), bytes([i]) * 100, 1000 + i)
+for i in range(50):
+    rec.put(one, (i,))
+try:
+    rec.close()
+except RecordingError:
+    pass
+print(rec.stats.messages, rec.stats.lost)
+"""
+
+
+def test_a_chunk_whose_indexes_did_not_fit_is_counted(tmp_path: Path) -> None:
+    """The disk fills after a chunk's own record, in the message indexes behind it: the
+    chunk reads back whole, and the count says so."""
+    from mcap.reader import make_reader
+
+    whole = tmp_path / "whole.mcap"
+    done = subprocess.run([*ROBOCLI[:1], "-c", _CUT_AFTER_CHUNK, str(whole), "0"],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    assert done.stdout.split() == ["50", "0"], done.stderr
+    with whole.open("rb") as f:
+        summary = make_reader(f).get_summary()
+    assert summary is not None and len(summary.chunk_indexes) == 1
+    index = summary.chunk_indexes[0]
+    end = index.chunk_start_offset + index.chunk_length  # the chunk's record ends here
+    cut = tmp_path / "cut.mcap"
+    proc = subprocess.run([*ROBOCLI[:1], "-c", _CUT_AFTER_CHUNK, str(cut), str(end + 5)],
+                          capture_output=True, text=True, timeout=60)  # fmt: skip
+    records, was_cut = stream_messages(cut)
+    assert was_cut and len(records) == 50
+    assert proc.stdout.split() == ["50", "0"], proc.stderr
 
 
 def test_usage_errors(tmp_path: Path) -> None:

@@ -21,6 +21,7 @@ from robocli.bench.lab.bench import (
     run_lab,
 )
 from robocli.bench.lab.netns import LabError, unavailable_reason
+from robocli.errors import RobocliError
 
 MODES = ("tcp", "zenoh")
 
@@ -113,8 +114,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--faults", action="store_true",
                     help="also: kill the Zenoh router mid-run, then a hub")  # fmt: skip
     ap.add_argument("--json", metavar="FILE", help="write every run's figures here")
+    ap.add_argument("--overwrite", action="store_true", help="replace an existing --json FILE")
     ap.add_argument("--skip-ok", action="store_true", help="exit 0 where no lab can be made")
     a = ap.parse_args(argv)
+    if a.json:
+        from robocli.io.output import check_output
+
+        try:
+            check_output(a.json, a.overwrite)  # before the lab runs, not after
+        except RobocliError as exc:
+            ap.error(str(exc))
     sizes = [parse_size(t) for t in a.sizes.split(",") if t]
     modes = [m for m in a.modes.split(",") if m]
     if not modes:
@@ -150,7 +159,9 @@ def main(argv: list[str] | None = None) -> int:
         if runs:
             print(markdown(runs))
             if a.json:
-                with open(a.json, "w") as f:
+                from robocli.io.output import replace_output
+
+                with replace_output(a.json, a.overwrite, text=True) as f:
                     json.dump([r.as_dict() for r in runs], f, indent=1)
     if a.pioneer:
         from robocli.bench.lab.pioneer import class_drives_pioneer

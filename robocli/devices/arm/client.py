@@ -33,7 +33,7 @@ in :mod:`robocli.devices.arm.link`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
@@ -75,14 +75,16 @@ class Arm(Motion):
                 state_port: int = sm.PORT_STATE, *, byte_order: str = "little",
                 real_size: int = 4, robot: str | RobotModel = "irb120", motion: bool = True,
                 state: bool = True, timeout: float = 5.0, history: int = 10_000,
-                listeners: Iterable[FrameListener] = (),
+                listeners: Iterable[FrameListener] | Mapping[str, Iterable[FrameListener]] = (),
                 stop_on_failure: bool = True) -> Arm:  # fmt: skip
         """Open the motion and/or state port of the controller at ``host``.
 
         ``byte_order``: ``"little"`` (ABB) or ``"big"`` (Fanuc, FS100); ``real_size`` 4 or 8.
         With ``state``, waits up to ``timeout`` s for the first state message. A motion link
         that fails sends STOP (-4) on its way down unless ``stop_on_failure=False`` (an
-        observer such as ``dump arm``, which never sends anything). Raises
+        observer such as ``dump arm``, which never sends anything). ``listeners`` see every
+        frame from each port's first byte on (a mapping from ``"motion"``, ``"state"`` or
+        ``"both"`` to listeners: on those ports only; else on both). Raises
         :class:`TransportError` (unreachable, or a port answering another protocol),
         :class:`DeviceError` (the controller refused: another client holds the port),
         :class:`InvalidArgument` (bad option), an unknown-model error (exit 2).
@@ -110,8 +112,10 @@ class Arm(Motion):
             arm = cls(links[0], links[1], robot=model, byteorder=wire, real=real, timeout=timeout,
                       history=history)  # fmt: skip
             arm.motion_address = (host, motion_port) if motion else None
-            for listener in listeners:
-                arm.add_listener(listener)
+            by_port = listeners if isinstance(listeners, Mapping) else {"both": listeners}
+            for which, some in by_port.items():
+                for listener in some:
+                    arm.add_listener(listener, ports=which)
             if arm._state is not None:
                 first_state(arm._state, timeout)
             if arm._motion is not None:  # (after the state's first message: no extra wait)

@@ -21,7 +21,7 @@ sample times never step back between reads.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,7 @@ from robocli.devices.hub.subscription import (
     subscribe_body,
     subscribe_request,
 )
+from robocli.devices.listeners import FrameListener
 from robocli.devices.session import LinkStats, Session
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols.ros4mat import MsgType, SerialStatus, encode_request, sensor_type
@@ -97,6 +98,7 @@ class Hub:
         clock: Callable[[], float] = time.time,
         hub_clock: bool = False,
         token: bytes | str | None = None,
+        listeners: Iterable[FrameListener] = (),
     ) -> Hub:
         """Connect to the hub at ``host`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
         default 1500) and send CONNECT. ``compress``: the hub zlib-compresses every reply.
@@ -105,7 +107,8 @@ class Hub:
         with one (``robocli serve --token-file``), sent after CONNECT's 2-byte body; a
         ``str`` is sent UTF-8 encoded. Without it (or with a wrong one) a hub with a token
         refuses settings changes and serial commands ("unauthorized"); pulls and silent
-        subscribes work. Raises :class:`TransportError` when nobody listens,
+        subscribes work. ``listeners`` see every frame from the first (CONNECT) on.
+        Raises :class:`TransportError` when nobody listens,
         :class:`TimeoutError` when the hub does not answer."""
         secret = token_bytes(token)
         h, p = parse_hub(host)
@@ -114,7 +117,7 @@ class Hub:
         transport = open_hub(h, p, timeout)
         return cls.from_transport(
             transport, compress=compress, timeout=timeout, client_id=client_id,
-            clock=clock, hub_clock=hub_clock, token=secret or None,
+            clock=clock, hub_clock=hub_clock, token=secret or None, listeners=listeners,
         )  # fmt: skip
 
     @classmethod
@@ -128,6 +131,7 @@ class Hub:
         clock: Callable[[], float] = time.time,
         hub_clock: bool = False,
         token: bytes | str | None = None,
+        listeners: Iterable[FrameListener] = (),
     ) -> Hub:
         """Like :meth:`connect` over an open transport (the hub owns it from now on)."""
         try:
@@ -136,6 +140,8 @@ class Hub:
             transport.close()
             raise
         session = open_session(transport)
+        for listener in listeners:
+            session.listeners.add(listener)
         header, t0, t1 = handshake(
             session, client_id=client_id, compress=compress, token=secret, clock=clock,
             timeout=timeout,

@@ -19,22 +19,51 @@ if TYPE_CHECKING:
 __all__ = ["ArmDecoder", "attach_arm"]
 
 
-def attach_arm(rec: Sink, arm: Arm, name: str, ports: str = "both") -> str:
-    name = rec.unique_name(name)
-    order = "big" if arm.byteorder == ">" else "little"
+def arm_links(rec: Sink, name: str = "arm", *, byte_order: str = "little", real_size: int = 4,
+              ports: str = "both") -> tuple[str, dict[str, RawLink]]:  # fmt: skip
+    """Raw links for an arm not connected yet: ``(name, {port: link})``, to hand to
+    ``Arm.connect(listeners=...)`` (a mapping by port, as it takes) so that every frame of
+    each port is recorded from its first byte; a later ``add(arm, name)`` decodes on top of
+    them. ``name``: ``arm`` (numbered when taken)."""
     if ports not in ("both", "motion", "state"):
         raise InvalidArgument(f"ports must be 'motion', 'state' or 'both', not {ports!r}")
+    name = rec.unique_name(name)
+    protocol = "sm-be" if byte_order == "big" else "sm-le"
+    links = {}
+    for port in ("motion", "state"):
+        if ports in ("both", port):
+            link = RawLink(rec, name, protocol, port=port, byte_order=byte_order,
+                           real_size=str(real_size))  # fmt: skip
+            rec.links[f"{name}/{port}"] = links[port] = link
+    return name, links
+
+
+def attach_arm(rec: Sink, arm: Arm, name: str, ports: str = "both") -> str:
+    """``name``: the default ``arm`` (numbered), or the name :func:`arm_links` gave the links
+    handed to ``Arm.connect``; ``ports``: which ports to record (from now on)."""
+    if ports not in ("both", "motion", "state"):
+        raise InvalidArgument(f"ports must be 'motion', 'state' or 'both', not {ports!r}")
+    made = {port: rec.links[f"{name}/{port}"] for port in ("motion", "state")
+            if f"{name}/{port}" in rec.links}  # fmt: skip
+    if any(link.decoder is not None for link in made.values()):
+        raise InvalidArgument(f"{name!r} is recorded already")
+    if not made:
+        name, made = arm_links(rec, name, byte_order="big" if arm.byteorder == ">" else "little",
+                               real_size=arm.real, ports=ports)  # fmt: skip
+        for port, link in list(made.items()):
+            if port not in arm.stats:  # a port this Arm did not open
+                del made[port]
+                continue
+            arm.add_listener(link, ports=port)
+            rec.on_close(_detach_arm(arm, link, port))
     decoder = ArmDecoder(rec, name, arm)
-    protocol = "sm-be" if arm.byteorder == ">" else "sm-le"
-    for port in arm.stats:  # the ports this Arm opened
-        if ports not in ("both", port):
-            continue
-        link = RawLink(rec, name, protocol, port=port, byte_order=order, real_size=str(arm.real))
-        if port == "state":
-            link.decoder = decoder
-        arm.add_listener(link, ports=port)
-        rec.on_close(_detach_arm(arm, link, port))
+    for port, link in made.items():
+        link.decoder = decoder if port == "state" else _no_decoding
     return name
+
+
+def _no_decoding(direction: str, payload: bytes, ns: int) -> None:
+    """The motion port's frames: in its raw channels, nothing more to decode."""
 
 
 def _detach_arm(arm: Arm, link: RawLink, port: str) -> Callable[[], None]:

@@ -11,15 +11,24 @@ bytes are the same, which a test checks against the package's own writer.
 
 It reaches into the writer's private state; a writer without that state (another version
 of the package) is served by its public ``add_message`` instead.
+
+It also keeps the ledger of chunks a recorder needs to say what its file holds:
+:attr:`MessageAdder.chunks` lists, for each chunk handed to the stream and not yet counted,
+where it ends in the file and how many messages it holds; :class:`WrittenBytes` counts the
+bytes that reached the file (each write a system call, no buffer in between), so that after
+a failed write the chunks within them are exactly those a reader finds.
 """
 
 from __future__ import annotations
 
+import io
+import os
 import struct
+from collections import deque
 from collections.abc import Callable
 from typing import Any
 
-__all__ = ["MessageAdder"]
+__all__ = ["MessageAdder", "WrittenBytes"]
 
 #: opcode, record length, channel id, sequence, log time, publish time
 _HEAD = struct.Struct("<BQHIQQ")
@@ -32,8 +41,20 @@ class MessageAdder:
     """``add(channel_id, log_time, data, publish_time, sequence)`` for ``writer``, as its
     ``add_message`` (see the module docstring). ``fast``: whether the one-step path is used."""
 
-    def __init__(self, writer: Any) -> None:
+    def __init__(self, writer: Any, tell: Callable[[], int] | None = None) -> None:
         self._writer = writer
+        self._tell = tell
+        #: messages in the chunk being built
+        self.in_chunk = 0
+        #: where the file ended when the chunk being built was handed to it (``tell``'s
+        #: value), or -1: a write that failed after the chunk's own record was whole
+        #: (in its message indexes) leaves that chunk readable (see :func:`chunk_is_whole`)
+        self.chunk_start = -1
+        #: (end offset in the file or -1 when unknown, messages) of the chunks handed to the
+        #: stream and not yet counted by the recorder
+        self.chunks: deque[tuple[int, int]] = deque()
+        self._indexes: list[Any] | None = getattr(writer, "_Writer__chunk_indices", None)
+        self._known = len(self._indexes) if self._indexes is not None else 0
         try:
             self._stats = writer._Writer__statistics
             self._builder = writer._Writer__chunk_builder
@@ -45,7 +66,36 @@ class MessageAdder:
                          and hasattr(self._stats, "channel_message_counts"))  # fmt: skip
         except (AttributeError, ImportError):
             self.fast = False
-        self.add = self._add if self.fast else writer.add_message
+        self.add = self._add if self.fast else self._add_slowly
+
+    def flush(self) -> None:
+        """Close the chunk in progress and write out what the writer holds (its ``flush``)."""
+        self._mark()
+        self._writer.flush()
+        self._chunk_closed()
+
+    def _mark(self) -> None:
+        self.chunk_start = self._tell() if self._tell is not None else -1
+
+    def _chunk_closed(self) -> None:
+        """Enter the chunk just written (if one was) in :attr:`chunks`."""
+        indexes = self._indexes
+        if indexes is None:
+            if self.in_chunk:  # where it ends is unknown: counted once flushed
+                self.chunks.append((-1, self.in_chunk))
+                self.in_chunk = 0
+            return
+        if len(indexes) != self._known:
+            self._known = len(indexes)
+            last = indexes[-1]
+            self.chunks.append((last.chunk_start_offset + last.chunk_length, self.in_chunk))
+            self.in_chunk = 0
+
+    def _add_slowly(self, *args: Any) -> None:
+        self._mark()
+        self._writer.add_message(*args)
+        self.in_chunk += 1
+        self._chunk_closed()
 
     def _add(self, channel_id: int, log_time: int, data: bytes, publish_time: int,
              sequence: int = 0) -> None:  # fmt: skip
@@ -71,8 +121,66 @@ class MessageAdder:
         buffer.write(_HEAD.pack(_MESSAGE, _FIXED + len(data), channel_id, sequence, log_time,
                                 publish_time))  # fmt: skip
         buffer.write(data)
+        self.in_chunk += 1
         if buffer.tell() > self._chunk_size:
+            self._mark()
             self._finalize()
+            self._chunk_closed()
+
+
+_CHUNK = 0x06
+_RECORD = struct.Struct("<BQ")
+
+
+def chunk_is_whole(fd: int, start: int, size: int) -> bool:
+    """Whether the first Chunk record at or after ``start`` in the file ``fd`` (records
+    before it skipped) ends within its first ``size`` bytes."""
+    pos = start
+    while 0 <= pos and pos + _RECORD.size <= size:
+        opcode, length = _RECORD.unpack(os.pread(fd, _RECORD.size, pos))
+        end = pos + _RECORD.size + length
+        if opcode == _CHUNK:
+            return bool(end <= size)
+        pos = end
+    return False
+
+
+class WrittenBytes:
+    """A file the mcap writer writes straight into: each ``write`` is written whole with
+    system calls (no buffer that a later flush might or might not empty), and
+    :attr:`written` is how many bytes the file holds. Not a :class:`io.RawIOBase`, so that
+    the writer does not buffer it again."""
+
+    def __init__(self, raw: io.FileIO) -> None:
+        self._raw = raw
+        self.name = raw.name
+        self.written = 0
+
+    def write(self, data: bytes | bytearray | memoryview) -> int:
+        view = memoryview(data).cast("B")
+        while view:
+            n = self._raw.write(view)
+            if not n:  # pragma: no cover - a regular file does not refuse without an error
+                raise OSError(f"{self.name}: nothing written")
+            self.written += n
+            view = view[n:]
+        return len(data)
+
+    def tell(self) -> int:
+        return self.written
+
+    def flush(self) -> None:
+        """Nothing is buffered here."""
+
+    def fileno(self) -> int:
+        return self._raw.fileno()
+
+    def close(self) -> None:
+        self._raw.close()
+
+    @property
+    def closed(self) -> bool:
+        return self._raw.closed
 
 
 def _index_class() -> type:

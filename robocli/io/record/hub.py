@@ -24,11 +24,19 @@ _CPU = ("user", "sys", "nice", "idle", "iowait", "hirq", "sirq")
 
 
 def attach_hub(rec: Sink, hub: Hub, name: str, sensors: Iterable[str] = ()) -> str:
-    name = rec.unique_name(name)
-    link = RawLink(rec, name, "ros4mat", url=hub.url, sensors=",".join(sensors))
+    """``name``: the default ``hub`` (numbered), or the name of a link made with
+    :meth:`Recorder.listener` (protocol ``ros4mat``) and given to ``Hub.connect(listeners=)``,
+    so that CONNECT and CONNECT_ACK are recorded too."""
+    link: RawLink | None = rec.links.get(name)
+    if link is not None and link.decoder is not None:
+        raise InvalidArgument(f"{name!r} is recorded already")
+    if link is None:  # not listening since the handshake: from now on
+        name = rec.unique_name(name)
+        link = RawLink(rec, name, "ros4mat", url=hub.url, sensors=",".join(sensors))
+        rec.links[name] = link
+        hub.session.listeners.add(link)
+        rec.on_close(lambda: hub.session.listeners.remove(link))
     link.decoder = HubDecoder(rec, name, hub)
-    hub.session.listeners.add(link)
-    rec.on_close(lambda: hub.session.listeners.remove(link))
     return name
 
 

@@ -156,16 +156,21 @@ def _get(message: Any, path: str) -> Any:
 
 
 def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
-         fields: Iterable[str] = (), *, title: str | None = None) -> PlotResult:  # fmt: skip
+         fields: Iterable[str] = (), *, title: str | None = None,
+         overwrite: bool = False) -> PlotResult:  # fmt: skip
     """Draw ``channels`` of ``recording`` into the PNG ``output`` (see the module docstring).
     Raises :class:`InvalidArgument` for a channel the file does not have, a channel that
     cannot be drawn without ``fields``, a field that is not numeric, or pose channels mixed
     with time series; :class:`~robocli.kinematics.plot.PlotUnavailableError` without
-    matplotlib."""
+    matplotlib; :class:`~robocli.io.output.OutputError` for an ``output`` that exists
+    (without ``overwrite``) or is a symbolic link, before reading."""
+    from robocli.io.output import check_output
+
     topics = list(dict.fromkeys(channels))
     fields = list(fields)
     if not topics:
         raise InvalidArgument("name at least one channel to plot")
+    check_output(output, overwrite)
     plt = _pyplot()
     schemas, records = _read(recording, topics)
     missing = [t for t in topics if t not in schemas]
@@ -195,12 +200,10 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
         fig = _plot_series(plt, result, data, schemas, series, fields, t0)
     if title:
         fig.suptitle(title)
+    from robocli.kinematics.plot import save_png
+
     try:
-        fig.savefig(result.path, dpi=110)
-    except OSError as exc:
-        raise RobocliError(
-            f"{result.path}: cannot write the plot ({exc.strerror or exc})"
-        ) from None
+        save_png(fig, result.path, overwrite)
     finally:
         plt.close(fig)
     return result

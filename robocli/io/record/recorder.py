@@ -19,6 +19,17 @@ recording killed with SIGKILL loses at most about a second, and every complete c
 it reads back. :meth:`Recorder.close` writes the rest and the summary (statistics, chunk
 and message indexes), so that readers seek instead of scanning.
 
+**What it says it wrote.** :attr:`RecorderStats.messages` counts the messages of chunks
+whose every byte reached the file (written with system calls, no buffer between: see
+:class:`~robocli.io.record.fastwrite.WrittenBytes`), so that the count a program reports is
+what a reader finds, after a crash or on a full disk too; ``added`` counts what was handed
+to the writer, ``lost`` what a failed write kept out of the file.
+
+**The file** is made only by :meth:`Recorder.begin` (at once, unless ``deferred``), never
+through a symbolic link, and an existing one only with ``overwrite`` (see
+:mod:`robocli.io.output`): a program connects its sources first, listening from their first
+byte, so that a source that fails leaves every file as it was.
+
 **Time.** Every message's log time is the host receive time in Unix-epoch nanoseconds: the
 devices' monotonic receive times mapped with one offset taken when the recorder started (so
 log times never jump with the wall clock). Its publish time is the source's own acquisition
@@ -29,6 +40,7 @@ receive-minus-robot-time), else the receive time.
 
 from __future__ import annotations
 
+import contextlib
 import io
 import logging
 import threading
@@ -41,6 +53,7 @@ from typing import IO, Any
 
 from robocli._version import __version__
 from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.output import check_output, create_output
 from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
 from robocli.io.schemas import schema_bytes
 
@@ -66,11 +79,16 @@ class RecordingError(RobocliError):
 
 @dataclass
 class RecorderStats:
-    """What a recorder did: messages and bytes written, items dropped for a full queue,
-    items whose decoding failed (their raw bytes are still recorded), and the longest queue
-    seen (items)."""
+    """What a recorder did. ``messages``: messages in the file, in chunks that reached it
+    whole (the operating system has them: a reader finds them after a crash of the
+    program); ``added``: messages handed to the writer, the last chunk's included (what
+    ``--count`` counts); ``lost``: added but not in the file, because writing failed (a full
+    disk). Items dropped for a full queue, items whose decoding failed (their raw bytes are
+    still recorded), and the longest queue seen (items)."""
 
     messages: int = 0
+    added: int = 0
+    lost: int = 0
     dropped: int = 0
     decode_errors: int = 0
     queue_peak: int = 0
@@ -96,8 +114,10 @@ class Recorder:
     ``chunk_size``: bytes of messages after which a chunk is closed sooner.
     ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
     dropped (counted). ``path`` may also be an open binary stream with ``tell``: it is
-    written and flushed, and left open. Raises :class:`InvalidArgument` when the file cannot
-    be created, :class:`RecordingError` without the ``mcap`` package.
+    written and flushed, and left open. ``overwrite``: replace an existing file (else
+    refused); ``deferred``: make the file at :meth:`begin`, not now. Raises
+    :class:`~robocli.io.output.OutputError` when the file may not or cannot be created,
+    :class:`RecordingError` without the ``mcap`` package.
     """
 
     def __init__(
@@ -109,6 +129,8 @@ class Recorder:
         chunk_size: int = 4 << 20,
         max_queue: int = 200_000,
         max_queue_bytes: int = 256 << 20,
+        overwrite: bool = False,
+        deferred: bool = False,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise InvalidArgument(f"compression is one of {', '.join(COMPRESSIONS)}, "
@@ -117,11 +139,13 @@ class Recorder:
             raise InvalidArgument("chunk_seconds must be in (0, 3600] and chunk_size >= 1024")
         if max_queue < 1 or max_queue_bytes < 1:
             raise InvalidArgument("max_queue and max_queue_bytes must be >= 1")
-        mcap = _mcap()
-        from mcap.writer import CompressionType, Writer
-
-        named = path if isinstance(path, (str, Path)) else getattr(path, "name", "<stream>")
-        self.path = Path(named)
+        _mcap()
+        self._owned = isinstance(path, (str, Path))
+        if isinstance(path, (str, Path)):  # refused now (exists, a link...), before connecting
+            self.path = check_output(path, overwrite)
+        else:
+            self.path = Path(getattr(path, "name", "<stream>"))
+        self._target, self._overwrite, self._chunk_size = path, overwrite, chunk_size
         self.compression = compression
         self.chunk_seconds = chunk_seconds
         self.max_queue = max_queue
@@ -131,27 +155,6 @@ class Recorder:
         self.error: BaseException | None = None
         # monotonic -> Unix epoch, fixed at the start: log times never jump with the clock
         self._epoch_ns = time.time_ns() - time.monotonic_ns()
-        self._owned = isinstance(path, (str, Path))
-        if isinstance(path, io.RawIOBase):  # buffered here, so that flushing reaches it
-            path = io.BufferedWriter(path)
-        try:
-            self._file: IO[bytes] = self.path.open("wb") if isinstance(path, (str, Path)) else path
-        except OSError as exc:  # a path the user gave: a usage error (exit 2)
-            raise InvalidArgument(f"cannot write {path}: {exc.strerror or exc}") from None
-        kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
-                "none": CompressionType.NONE}[compression]  # fmt: skip
-        try:
-            self._writer = Writer(self._file, chunk_size=chunk_size, compression=kind)
-            self._writer.start(profile="", library=f"robocli {__version__} (mcap "
-                               f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
-            self._file.flush()
-        except Exception as exc:
-            if self._owned:
-                self._file.close()
-            raise RecordingError(f"cannot write {path}: {exc}") from None
-        from robocli.io.record.fastwrite import MessageAdder
-
-        self._add_message = MessageAdder(self._writer).add
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
@@ -167,6 +170,48 @@ class Recorder:
         self._names: set[str] = set()
         #: raw links by name (see :meth:`listener`)
         self.links: dict[str, Any] = {}
+        self._thread: threading.Thread | None = None
+        if not deferred:
+            self.begin()
+
+    def begin(self) -> None:
+        """Create the file and start writing (what listeners queued meanwhile included).
+        ``Recorder(path)`` begins at once; ``Recorder(path, deferred=True)`` waits for this
+        call, so that a program connects its sources (listening from their first byte) before
+        the file is made: a source that fails leaves no file, and an existing one untouched.
+        Raises :class:`~robocli.io.output.OutputError` when the file cannot be created (it
+        exists, without ``overwrite``; a symbolic link; no such folder),
+        :class:`RecordingError` when its header cannot be written. Idempotent."""
+        if self._thread is not None:
+            return
+        if self._closed:
+            raise RecordingError(f"{self.path}: the recorder is closed")
+        mcap = _mcap()
+        from mcap.writer import CompressionType, Writer
+
+        from robocli.io.record.fastwrite import MessageAdder, WrittenBytes
+
+        target = self._target
+        if isinstance(target, (str, Path)):
+            raw = create_output(target, self._overwrite, buffered=False)
+            assert isinstance(raw, io.FileIO)
+            self._file: Any = WrittenBytes(raw)
+        else:
+            self._file = io.BufferedWriter(target) if isinstance(target, io.RawIOBase) else target
+        kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4,
+                "none": CompressionType.NONE}[self.compression]  # fmt: skip
+        try:
+            self._writer = Writer(self._file, chunk_size=self._chunk_size, compression=kind)
+            self._writer.start(profile="", library=f"robocli {__version__} (mcap "
+                               f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
+            self._file.flush()
+        except Exception as exc:
+            if self._owned:
+                with contextlib.suppress(OSError):
+                    self._file.close()
+            raise RecordingError(f"cannot write {self.path}: {exc}") from None
+        self._adder = MessageAdder(self._writer, getattr(self._file, "tell", None))
+        self._add_message = self._adder.add
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
 
@@ -273,7 +318,7 @@ class Recorder:
         seq = self._sequence.get(cid, 0)
         self._sequence[cid] = seq + 1
         self._add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns, seq)
-        self.stats.messages += 1
+        self.stats.added += 1
         mirrored = self._mirrored.get(cid)
         if mirrored:
             for sink, mid in mirrored:
@@ -314,18 +359,49 @@ class Recorder:
                 if now - last_chunk >= self.chunk_seconds:
                     last_chunk = now
                     self._flush()
+            self._flush()  # the last chunk, counted as the others
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.flush()
         except BaseException as exc:  # noqa: BLE001 - a full disk, a closed file: say so at close
             self.error = exc
+            self._count_written()
             with self._lock:
                 self._closing = True  # listeners now drop, counted
                 self._queue.clear()
             log.error("recorder: writing %s failed: %s", self.path, exc)
 
     def _flush(self) -> None:
-        """Close the chunk in progress and hand everything to the operating system."""
-        self._writer.flush()  # type: ignore[no-untyped-call]
+        """Close the chunk in progress and hand everything to the operating system; its
+        messages then count as written."""
+        self._adder.flush()
+        self._file.flush()
+        self._confirm(None)
+
+    def _count_written(self) -> None:
+        """After a failed write: count what the file holds, the chunks whose last byte
+        reached it (the one being written too when its own record is whole and only what
+        follows it failed)."""
+        from robocli.io.record.fastwrite import chunk_is_whole
+
+        size = getattr(self._file, "written", -1)
+        self._confirm(size)
+        adder = self._adder
+        if not adder.chunks and adder.in_chunk and size >= 0 and adder.chunk_start >= 0:
+            try:
+                whole = chunk_is_whole(self._file.fileno(), adder.chunk_start, size)
+            except (OSError, ValueError):
+                whole = False
+            if whole:
+                self.stats.messages += adder.in_chunk
+                adder.in_chunk = 0
+        self.stats.lost = self.stats.added - self.stats.messages
+
+    def _confirm(self, size: int | None) -> None:
+        """Count the messages of the chunks handed to the file whose end is within its first
+        ``size`` bytes (None: all of them, flushed)."""
+        chunks = self._adder.chunks
+        while chunks and (size is None or 0 <= chunks[0][0] <= size):
+            self.stats.messages += chunks.popleft()[1]
 
     def check(self) -> None:
         """Raise :class:`RecordingError` once writing failed (a full disk): recording goes
@@ -344,7 +420,8 @@ class Recorder:
     def close(self, timeout: float = 30.0) -> None:
         """Stop listening, write what is queued and the summary, close the file. Idempotent.
         Raises :class:`RecordingError` when writing failed (what was written before stays
-        readable up to its last complete chunk)."""
+        readable up to its last complete chunk). A recorder that never began (see
+        :meth:`begin`) writes nothing: no file is made."""
         if self._closed:
             return
         self._closed = True
@@ -355,6 +432,9 @@ class Recorder:
                 log.debug("recorder: detaching a listener failed", exc_info=True)
         with self._lock:
             self._closing = True
+            if self._thread is None:
+                self._queue.clear()
+                return
         self._thread.join(timeout)
         stuck = self._thread.is_alive()
         if not stuck and self._owned:
@@ -376,6 +456,11 @@ class Recorder:
 
     def __repr__(self) -> str:
         return f"<Recorder {self.path} messages={self.stats.messages}>"
+
+    @property
+    def begun(self) -> bool:
+        """True once the file was made (:meth:`begin`)."""
+        return self._thread is not None
 
 
 def _trim() -> None:
