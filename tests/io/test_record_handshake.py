@@ -13,6 +13,7 @@ from cli.helpers import run
 from mcap.reader import make_reader
 
 from robocli.hub import HubServer
+from robocli.io.record.reader import raw_frame
 from robocli.protocols import ros4mat
 from robocli.sim.abb.server import AbbSim
 
@@ -76,7 +77,7 @@ def _raw(path: Path, topic: str) -> list[bytes]:
     """The raw channel's messages in the order written."""
     with path.open("rb") as f:
         items = make_reader(f).iter_messages(topics=[topic], log_time_order=False)
-        return [bytes(m.data) for _, _, m in items]
+        return [raw_frame(c.message_encoding, bytes(m.data)) for _, c, m in items]
 
 
 def _starts_the_stream(frames: list[bytes], wire: bytes) -> None:
