@@ -184,11 +184,12 @@ class KeepAlive:
         return self.keepalive
 
     def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
-        """Every write, right before it goes out: after ``silence`` s without a packet,
-        longer than the watchdog, while the robot was commanded to move, the program
-        stalled and the robot's watchdog has stopped it. Clear the set-points, note the trip
-        for the next motion command and the listeners, and write a stop in place of any
-        motion command (the keep-alive's stale set-points)."""
+        """Every write, right before it goes out (and right after it, with no packets:
+        see :meth:`Session._send`): after ``silence`` s without a packet, longer than the
+        watchdog, while the robot was commanded to move, the program stalled and the
+        robot's watchdog has stopped it. Clear the set-points, note the trip for the next
+        motion command and the listeners, and write a stop in place of any motion command
+        (the keep-alive's stale set-points)."""
         if silence <= self.watchdog or not self._motion_commanded:
             return packets
         with self._setpoint_lock:
