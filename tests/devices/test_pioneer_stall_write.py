@@ -8,15 +8,16 @@ SIGSTOP timing."""
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
+from stalling import WAIT, MotionProbe, StallingTransport
 
 from robocli.devices.pioneer import Pioneer, WatchdogTrip, WatchdogTripped
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import open_transport
-from stalling import WAIT, MotionProbe, StallingTransport
 
 
 @pytest.fixture
@@ -79,3 +80,39 @@ def test_close_never_waits_for_a_write_stalled_forever(sim: PioneerSim) -> None:
     assert not closer.is_alive(), "close() hung on the stalled writer"
     assert robot._session.stuck_threads == []
     sim.wait_until(lambda s: not s.session_open or s.clients == 0, WAIT)
+
+
+def test_a_re_send_waiting_behind_a_stalled_write_is_dropped_after_the_trip(
+    sim: PioneerSim,
+) -> None:
+    """The program's own write stalls after its bytes left; meanwhile the keep-alive has
+    read the set-points and waits for the link. Once the stall is found (the trip), what the
+    keep-alive decided before it is stale: it never reaches the robot."""
+    assert sim.url is not None
+    link = StallingTransport(open_transport(sim.url), "after")
+    link.write_timeout = WAIT  # writers wait behind the stall, not fail the session
+    trips: list[WatchdogTrip] = []
+    with Pioneer.from_transport(link, keepalive=0.2, sip_timeout=120) as robot:
+        robot.on_watchdog_trip(trips.append)
+        robot.enable_motors()
+        robot.set_velocity(0.0, 0.5)
+        sim.wait_until(lambda s: s.rot_vel > 0.2, WAIT)
+        probe = MotionProbe(sim)
+        link.arm()
+        program = threading.Thread(target=robot.set_velocity, args=(0.0, 0.5), daemon=True)
+        program.start()  # its write stalls after the bytes left
+        assert link.stalled.wait(WAIT)
+        keepalives = robot.stats.keepalives
+        # the keep-alive has read the set-points and waits for the link
+        deadline = time.monotonic() + WAIT
+        while robot.stats.keepalives == keepalives:
+            assert time.monotonic() < deadline, "the keep-alive never tried again"
+            time.sleep(0.005)
+        sim.wait_until(lambda s: s.watchdog_trips >= 1 and s.rot_vel == 0.0, WAIT)
+        pulses = sim.snapshot().commands["PULSE"]
+        link.release.set()
+        program.join(WAIT)
+        sim.wait_until(lambda s: s.commands["PULSE"] >= pulses + 3, WAIT)
+        assert probe.moving_after_trip() == [], "a stale set-point reached the robot"
+        assert sim.snapshot().rot_vel_set == 0.0
+        assert len(trips) == 1
