@@ -35,8 +35,8 @@ def _joints(events: Events) -> list[float]:
 
 
 def _take(session: Any, holder: str) -> Any:
-    assert query(session, "robocli/a1/@control", {"op": "acquire", "holder": holder}) == {
-        "granted": True, "holder": holder}  # fmt: skip
+    reply = query(session, "robocli/a1/@control", {"op": "acquire", "holder": holder})
+    assert reply["granted"] is True and reply["holder"] == holder
     return session.liveliness().declare_token(f"robocli/a1/@control/holder/{holder}")
 
 

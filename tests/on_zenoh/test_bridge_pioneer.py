@@ -91,7 +91,7 @@ def test_a_second_controller_is_refused_with_the_holders_name(sim, endpoint) -> 
             assert refused.value.exit_code == 4
             assert not bob.held
             # bob's commands put by hand are ignored: the robot keeps alice's set-point
-            bob._send((-0.5, 0.0))
+            bob._send((-0.5, 0.0, None))
             wait_for(lambda: _moving(simulator), "alice's set-point holds")
         # alice gone (closed): bob may take it now
         with RemotePioneer.connect("r1", endpoint, holder="bob") as bob:
@@ -108,7 +108,7 @@ def test_the_robot_stops_when_the_controllers_commands_stop(sim, endpoint) -> No
         try:
             events = Events(session, "robocli/r1/@control/event")
             reply = query(session, "robocli/r1/@control", {"op": "acquire", "holder": "carol"})
-            assert reply == {"granted": True, "holder": "carol"}
+            assert reply == {"granted": True, "holder": "carol", "epoch": reply["epoch"]}
             token = session.liveliness().declare_token("robocli/r1/@control/holder/carol")
             sent = time.time()  # before the put: the bridge receives it later
             session.put("robocli/r1/@control/velocity", b'{"holder":"carol","v":0.3,"w":0.2}')
