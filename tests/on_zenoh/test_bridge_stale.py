@@ -13,8 +13,9 @@ from typing import Any
 import pytest
 from stalling import WAIT, MotionProbe, StallingTransport
 
-from on_zenoh.bridge_helpers import Events, wait_for
+from on_zenoh.bridge_helpers import Events, query, wait_for
 from robocli.bridge import RemotePioneer
+from robocli.bridge.control import ControlGate
 from robocli.bridge.pioneer import PioneerBridge
 from robocli.devices.pioneer import Pioneer
 from robocli.sim.pioneer.server import PioneerSim
@@ -150,4 +151,32 @@ def test_a_bridge_whose_write_stalls_past_the_watchdog_never_resends_the_set_poi
     finally:
         bridge.close()
         robot.close()
+        server.close()
+
+
+def test_the_gate_refuses_moving_commands_older_than_its_last_stop(endpoint: str) -> None:
+    """With an epoch: only the current one moves the robot (a stop always goes). Without
+    one (a third-party controller): only after its holder's own stop since the gate's."""
+    server = open_session(endpoint, "server")
+    client = open_session(endpoint, "client")
+    gate = ControlGate(server, "g2", stop=lambda reason: None, silence=None, token_wait=600)
+    try:
+        reply = query(client, "robocli/g2/@control", {"op": "acquire", "holder": "max"})
+        epoch = reply["epoch"]
+
+        def takes(moving: bool, epoch: int | None = None) -> bool:
+            with gate.command("max", moving, epoch) as ok:
+                return ok
+
+        assert takes(True) and takes(True, epoch)  # a grant starts from a stop
+        gate.fault("a stall")
+        assert gate.epoch == epoch + 1
+        assert not takes(True) and not takes(True, epoch)  # from before the fault
+        assert takes(False, epoch)  # a stop is never stale
+        assert takes(True, epoch + 1)
+        assert takes(True)  # its stop came after the fault
+        assert gate.counts["stale_commands"] == 2
+    finally:
+        gate.close()
+        client.close()
         server.close()
