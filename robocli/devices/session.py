@@ -48,13 +48,7 @@ from robocli.core import Framer
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.stats import LinkStats
 from robocli.devices.tasks import PeriodicTask
-from robocli.errors import (
-    ConnectionLost,
-    ProtocolError,
-    RobocliError,
-    StaleWrite,
-    TimeoutError,
-)
+from robocli.errors import ConnectionLost, ProtocolError, RobocliError, StaleWrite, TimeoutError
 from robocli.transports import Transport
 
 log = logging.getLogger("robocli.devices.session")
@@ -112,14 +106,13 @@ class Session:
         #: called with the monotonic time of every packet sent (a device's own statistics,
         #: cheaper than a listener that sees every frame); must not raise
         self.on_sent: Callable[[float], None] | None = None
-        #: called before every write of :meth:`send`, :meth:`send_many` and :meth:`request`
-        #: with the packets and the seconds since the last write began; returns the packets
-        #: to write instead (a device that finds it stalled past the robot's watchdog puts a
-        #: stop in place of stale set-points). Called under the write lock right before the
-        #: write, and again after it with no packets (see :meth:`_send`). Must not raise
+        #: ``before_send(packets, seconds since the last write began)`` -> the packets to
+        #: write instead (a stop in place of stale set-points after a stall past the robot's
+        #: watchdog); under the write lock right before each write of :meth:`send`,
+        #: :meth:`send_many`, :meth:`request`, and after it with no packets. Must not raise
         self.before_send: Callable[[Sequence[bytes], float], Sequence[bytes]] | None = None
-        #: the robot's watchdog (s), when a device has one: bytes judged by ``before_send``
-        #: may not begin to go out later than this after the previous write began
+        #: the robot's watchdog (s): bytes ``before_send`` judged never begin to leave later
+        #: than this after the last write began
         self.silence_limit: float | None = None
         self._payload_of = payload_of
         self._name_of = name_of
@@ -203,19 +196,14 @@ class Session:
         self._send(packets, timeout)
 
     def _send(self, packets: Sequence[bytes], timeout: float | None) -> None:
-        """Write ``packets`` and stamp :attr:`last_tx`, race-free against a stall anywhere.
-
-        The time is taken before the write, and the silence check, the write and the stamp
-        are one step under ``_tx_lock``, so :attr:`last_tx` is when the bytes could first
-        have left: a stall after they left (between the write and the stamp) counts as
-        silence. With :attr:`silence_limit` set, the transport is told the latest time the
-        bytes may begin to go out (the previous write's start plus the limit) and checks it
-        right before the system call: after a stall between the check and the write it sends
-        nothing (:class:`StaleWrite`) and ``before_send`` judges the packets again, now.
-        After each write ``before_send`` is asked once more, with no packets and the longest
-        silence the robot may have seen before these bytes (a stall inside the write): what
-        it returns (a stop) goes out at once. Listeners and ``on_sent`` run after the lock is
-        released, and so does :meth:`fail`, which writes the emergency stop."""
+        """Write ``packets``, race-free against a stall anywhere: the silence check, the write
+        and the stamp of :attr:`last_tx` (the time taken *before* the write: a stall after
+        the bytes left counts as silence) are one step under ``_tx_lock``. The transport
+        gets the latest time the bytes may begin to leave (previous start + ``silence_limit``)
+        and sends nothing past it (:class:`StaleWrite`: ``before_send`` judges again, now).
+        After each write ``before_send`` is asked again with no packets and the longest
+        silence the robot may have seen (a stall inside the write): its stop goes at once.
+        Listeners, ``on_sent`` and :meth:`fail` (the emergency stop) run after the lock."""
         limit = self.transport.write_timeout if timeout is None else timeout
         if not self._tx_lock.acquire(timeout=max(0.0, limit)):
             self._write_failed(TimeoutError(
@@ -436,9 +424,9 @@ class Session:
         self._try_send(self._emergency_stop(), time.monotonic() + 0.5)
 
     def _try_send(self, packets: Sequence[bytes], deadline: float) -> bool:
-        """Write ``packets`` in order until one fails or ``deadline`` passes. Waits for
-        ``_tx_lock`` until ``deadline`` only: a writer stalled in the transport never holds
-        a stop (or :meth:`close`, which then shuts the transport and so wakes it) longer."""
+        """Write ``packets`` in order until one fails or ``deadline`` passes; ``_tx_lock`` is
+        awaited until ``deadline`` only (a stalled writer never holds a stop or :meth:`close`
+        longer: close then shuts the transport, which wakes it)."""
         url = self.transport.url
         if not packets:
             return True
