@@ -179,7 +179,7 @@ class RemotePioneer:
         if not reply.get("granted"):
             raise DeviceError(f"{self.url}: refused: {reply.get('reason') or 'held'} "
                               f"(holder: {reply.get('holder')})")  # fmt: skip
-        self._new_epoch(reply.get("epoch"))
+        self._new_epoch(reply.get("epoch"), grant=True)
         self._token = self._session.liveliness().declare_token(holder_key(self.robot, self.holder))
         self.fault = None
 
@@ -278,11 +278,12 @@ class RemotePioneer:
             except Exception:  # noqa: BLE001 - a closed session ends with close()
                 log.debug("%s: re-send failed", self.url, exc_info=True)
 
-    def _new_epoch(self, epoch: object) -> None:
-        """The bridge's stop epoch from a reply or an event (a later one only)."""
+    def _new_epoch(self, epoch: object, grant: bool = False) -> None:
+        """The bridge's stop epoch from an event (a later one only) or a grant (as it is: a
+        bridge that started again counts from 1)."""
         if isinstance(epoch, int) and not isinstance(epoch, bool):
             with self._cond:
-                if self._epoch is None or epoch > self._epoch:
+                if grant or self._epoch is None or epoch > self._epoch:
                     self._epoch = epoch
 
     def _ask(self, request: dict[str, Any]) -> dict[str, Any]:
