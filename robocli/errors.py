@@ -34,6 +34,13 @@ class ConnectionLost(TransportError):
     exit_code = EXIT_FAILURE
 
 
+class StaleWrite(TransportError):
+    """A write that had not begun by its latest start time (the writing program stalled):
+    nothing of it was sent. The session asks the device what to send instead (a stop)."""
+
+    exit_code = EXIT_FAILURE
+
+
 class FramingError(RobocliError):
     """Bytes that do not form a frame of the protocol."""
 
@@ -84,6 +91,7 @@ __all__ = [
     "InvalidArgument",
     "ProtocolError",
     "RobocliError",
+    "StaleWrite",
     "TimeoutError",
     "TransportError",
     "UnknownRobotError",

@@ -41,7 +41,7 @@ from robocli.addresses import (
     parse_address,
     parse_host,
 )
-from robocli.errors import ConnectionLost, DeviceError, TransportError
+from robocli.errors import ConnectionLost, DeviceError, StaleWrite, TransportError
 
 __all__ = [
     "WRITE_TIMEOUT",
@@ -99,10 +99,15 @@ class Transport:
         has none (pyserial URL handlers, wrapped transports): use :meth:`wait_readable`."""
         return None
 
-    def write(self, data: bytes, timeout: float | None = None) -> None:
+    def write(
+        self, data: bytes, timeout: float | None = None, *, not_after: float | None = None
+    ) -> None:
         """Send all of ``data`` within ``timeout`` seconds (default :attr:`write_timeout`),
         else raise :class:`TransportError`. Thread-safe: writes from several threads never
-        interleave; waiting for another thread's write counts against the deadline."""
+        interleave; waiting for another thread's write counts against the deadline.
+        ``not_after``: the monotonic time after which ``data`` must not begin to go out
+        (it would be stale: the writer stalled); checked right before the first byte is
+        handed to the system, :class:`StaleWrite` then, and nothing is sent."""
         if self._closed:
             raise ConnectionLost(f"{self.url}: transport is closed")
         limit = self.write_timeout if timeout is None else timeout
@@ -115,6 +120,7 @@ class Transport:
         try:
             if self._closed:
                 raise ConnectionLost(f"{self.url}: transport is closed")
+            _check_fresh(self.url, not_after)
             self._write(bytes(data), deadline)
         finally:
             self._write_lock.release()
@@ -161,6 +167,15 @@ class Transport:
 
     def _pending_bytes(self) -> int:
         raise NotImplementedError
+
+
+def _check_fresh(url: str, not_after: float | None) -> None:
+    """Raise :class:`StaleWrite` when it is past ``not_after`` (a write's latest start)."""
+    if not_after is not None:
+        late = time.monotonic() - not_after
+        if late > 0:
+            raise StaleWrite(f"{url}: write not sent: it was due {late:.3f} s earlier "
+                             "(the writer stalled)")  # fmt: skip
 
 
 def _write_timed_out(url: str, sent: int, total: int) -> TransportError:
@@ -244,15 +259,18 @@ class SocketTransport(Transport):
     def fileno(self) -> int | None:
         return self._fd
 
-    def write(self, data: bytes, timeout: float | None = None) -> None:
+    def write(
+        self, data: bytes, timeout: float | None = None, *, not_after: float | None = None
+    ) -> None:
         """:meth:`Transport.write`, with a fast path: when no other write holds the socket
         and the kernel takes all of ``data`` at once (a request on an idle link), it goes in
         one non-blocking ``send`` that cannot miss any deadline; otherwise the general path."""
         lock = self._write_lock
         if self._closed or not lock.acquire(False):
-            super().write(data, timeout)
+            super().write(data, timeout, not_after=not_after)
             return
         try:
+            _check_fresh(self.url, not_after)
             try:
                 sent = self.sock.send(data)
             except BlockingIOError:

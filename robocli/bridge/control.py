@@ -22,6 +22,16 @@ The robot is **stopped** (:class:`ControlGate` calls ``stop(reason)``):
 Every grant, refusal, stop and release is put on ``robocli/<robot>/@control/event``. The
 stops run in the gate's own thread; a stop that raises is logged and counted
 (``stop_errors``), and never ends that thread.
+
+**Set-points older than a stop.** Every stop the gate makes (and every fault a bridge reports
+with :meth:`ControlGate.fault`) begins a new *epoch*, a number the bridge counts: the grant
+reply and each ``stopped``, ``released`` and ``fault`` event carry it, and a controller puts
+the epoch it knew when its program gave the command in each command (``"epoch": N``). A
+command that moves and carries an older epoch is ignored (``stale_commands``; the first per
+epoch announced with the current epoch): a set-point a stalled controller re-sends after the
+stop cannot move the robot, whatever order the stop event and the re-send reach either side,
+and no clock is compared. A command without an epoch moves the robot only when its holder
+sent a stop since the last stop the gate made (``v`` = ``w`` = 0 is always taken).
 """
 
 from __future__ import annotations
@@ -88,7 +98,12 @@ class ControlGate:
         self._robot_lock = threading.RLock()  # commands and stops reach the robot in turn
         self.holder: str | None = None  #: the controller holding the robot, None when free
         self.counts = {"grants": 0, "refusals": 0, "stops": 0, "stop_errors": 0,
-                       "ignored_commands": 0, "commands": 0}  # fmt: skip
+                       "ignored_commands": 0, "commands": 0, "stale_commands": 0}  # fmt: skip
+        #: counts the stops the gate made and the faults reported: a moving command from an
+        #: earlier epoch is stale (see the module docstring)
+        self.epoch = 1
+        self._stopped_at = 0  # the epoch of the holder's last stop command (no-epoch rule)
+        self._stale_told = 0  # the last epoch whose first stale command was announced
         self._alive: set[str] = set()  # holder names whose tokens are up
         self._token_seen = False
         self._granted_at = 0.0
@@ -112,15 +127,24 @@ class ControlGate:
     # ------------------------------------------------------------------ commands
 
     @contextmanager
-    def command(self, holder: object, moving: bool) -> Iterator[bool]:
-        """Around one command of ``holder``: yields True when it holds the robot (run the
-        command then; ``moving``: it asks the robot to move), False otherwise (ignore it).
-        Stops wait for the command to finish, so a command never lands after a stop that
-        released its holder."""
+    def command(self, holder: object, moving: bool, epoch: object = None) -> Iterator[bool]:
+        """Around one command of ``holder``: yields True when it holds the robot and the
+        command is not older than the last stop (run the command then; ``moving``: it asks
+        the robot to move; ``epoch``: the one the command carries, or None), False otherwise
+        (ignore it). Stops wait for the command to finish, so a command never lands after a
+        stop that released its holder."""
         with self._robot_lock:
             with self._cond:
                 ok = not self._closed and holder is not None and holder == self.holder
-                if ok:
+                stale = ok and moving and self._stale(epoch)
+                if stale:
+                    ok = False
+                    self.counts["stale_commands"] += 1
+                    told, current = self._stale_told, self.epoch
+                    self._stale_told = current
+                elif ok:
+                    if not moving:
+                        self._stopped_at = self.epoch
                     self._last_command = time.monotonic()
                     self._moving = moving
                     self.counts["commands"] += 1
@@ -130,10 +154,29 @@ class ControlGate:
                     who = str(holder)[:64]
                     first = who not in self._warned and len(self._warned) < 64
                     self._warned.add(who)
-            if not ok and first:
+            if stale:
+                if told != current:
+                    self.event("ignored", holder=holder, epoch=current,
+                               reason=f"a set-point older than the stop at epoch {current} "
+                               "(send a fresh command)")  # fmt: skip
+            elif not ok and first:
                 self.event("ignored", holder=who, reason=f"{who} does not hold {self.robot}"
                            + (f" ({self.holder} does)" if self.holder else ""))  # fmt: skip
             yield ok
+
+    def _stale(self, epoch: object) -> bool:
+        """A moving command with ``epoch`` is older than the last stop (condition held)."""
+        if epoch is None:
+            return self._stopped_at != self.epoch
+        return epoch != self.epoch
+
+    def fault(self, reason: str) -> None:
+        """A fault the bridge found (the robot was stopped without the gate: a stall past
+        its watchdog): a new epoch, so set-points from before it are stale; an event."""
+        with self._cond:
+            self.epoch += 1
+            holder, epoch = self.holder, self.epoch
+        self.event("fault", holder=holder, reason=reason, epoch=epoch)
 
     def event(self, kind: str, **fields: Any) -> None:
         """Put ``{"t": epoch s, "event": kind, **fields}`` on the event key (never raises)."""
@@ -229,7 +272,9 @@ class ControlGate:
                     self._token_seen = holder in self._alive
                     self._granted_at = time.monotonic()
                     self._last_command = self._granted_at
+                    self._stopped_at = self.epoch  # a new holder starts from a stop
                     self.counts["grants"] += 1
+                    epoch = self.epoch
             if refused is not None:
                 self.event("refused", holder=current, refused=holder, reason=refused["reason"])
                 return refused
@@ -243,8 +288,8 @@ class ControlGate:
                     self.event("refused", holder=None, refused=holder, reason=reason)
                     return {"granted": False, "holder": None, "reason": reason}
         log.info("%s: %s holds the robot", self.robot, holder)
-        self.event("granted", holder=holder)
-        return {"granted": True, "holder": holder}
+        self.event("granted", holder=holder, epoch=epoch)
+        return {"granted": True, "holder": holder, "epoch": epoch}
 
     # ------------------------------------------------------------------ the gate's thread
 
@@ -291,6 +336,8 @@ class ControlGate:
                     self.holder = None
                     self._token_seen = False
                 self._moving = False
+                self.epoch += 1  # what was commanded before this stop is stale now
+                epoch = self.epoch
             if holder is None and not always:
                 return
             try:
@@ -303,7 +350,7 @@ class ControlGate:
                 self.counts["stops"] += 1
                 log.info("%s: stopped: %s", self.robot, reason)
         self.event("released" if release and holder else "stopped", holder=holder,
-                   reason=reason)  # fmt: skip
+                   reason=reason, epoch=epoch)  # fmt: skip
 
 
 __all__ = ["DEFAULT_SILENCE_S", "DEFAULT_TOKEN_WAIT_S", "ControlGate"]

@@ -13,8 +13,10 @@ Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
 * ``robocli/<robot>/laser``, one put per scan: ``t``, ``pose`` (``x``, ``y`` m, ``th`` rad,
   odometry at the scan), ``angles`` (rad), ``ranges`` (m, null: no return);
 * ``robocli/<robot>/@control/<holder>/velocity``, put by the holder: ``{"v": m/s, "w":
-  rad/s}``, re-sent at least every 0.5 s while the robot should move; values beyond the
-  robot's limits are clamped to them. Who sends is the key's ``<holder>`` chunk.
+  rad/s, "epoch": N}``, re-sent at least every 0.5 s while the robot should move; values
+  beyond the robot's limits are clamped to them. Who sends is the key's ``<holder>`` chunk; a
+  moving command older than the last stop the bridge made is ignored (``epoch``: see
+  :mod:`robocli.bridge.control`).
 
 The Pioneer client keeps its own keep-alive and watchdog logic: if the bridge stalls past
 the robot's watchdog, the robot is stopped and the trip is a fault put on the event key; the
@@ -169,6 +171,9 @@ class PioneerBridge:
             data = decode(sample.payload.to_bytes(), what)
             v = number(data, "v", what)
             w = number(data, "w", what) if "w" in data else 0.0
+            epoch = data.get("epoch")
+            if epoch is not None and (isinstance(epoch, bool) or not isinstance(epoch, int)):
+                raise ProtocolError(f"{what}: 'epoch' must be an integer, not {epoch!r}")
         except ProtocolError as exc:
             self._bad_commands += 1
             if self._bad_commands == 1:
@@ -176,7 +181,7 @@ class PioneerBridge:
                 self.gate.event("ignored", holder=self.gate.holder, reason=str(exc))
             return
         moving = v != 0.0 or w != 0.0
-        with self.gate.command(holder, moving) as ok:
+        with self.gate.command(holder, moving, epoch) as ok:
             if not ok:
                 return
             if self._latched is not None:
@@ -201,12 +206,10 @@ class PioneerBridge:
         """A stall: the robot was stopped by its watchdog. Motion is refused until a stop."""
         if self._latched is None and trip != self._acknowledged:
             self._latched = trip
-            self.gate.event(
-                "fault",
-                holder=self.gate.holder,
-                reason=f"the bridge sent nothing for {trip.silence:.1f} s, past the robot's "
+            self.gate.fault(  # a new epoch: set-points from before the stall are stale
+                f"the bridge sent nothing for {trip.silence:.1f} s, past the robot's "
                 f"{trip.watchdog:g} s watchdog: the robot was stopped; send a stop (v=w=0) "
-                "before moving again",
+                "before moving again"
             )
 
     def _grant(self, holder: str) -> None:

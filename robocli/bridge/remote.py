@@ -12,6 +12,12 @@ keys under ``@control/<user>/`` are that user's), else ``user-host-pid``. The se
 re-sent every ``resend`` seconds until changed, as the Pioneer client's keep-alive does,
 so the bridge's 0.5 s silence rule stops the robot only when this program stops or stalls.
 :meth:`close` (and leaving the ``with`` block) stops the robot and gives it back.
+
+After a stop it did not ask for (the silence rule, a fault), nothing that moves is sent
+again until the program gives a fresh command, which goes out after a stop. Each command
+carries the bridge's stop epoch known when the program gave it (see
+:mod:`robocli.bridge.control`): a re-send already under way when the stop came, from a
+program that stalled, is older than the stop and the bridge ignores it.
 """
 
 from __future__ import annotations
@@ -80,7 +86,10 @@ class RemotePioneer:
         self._states = 0
         #: epoch - monotonic seconds: a state's ``t`` plus this is Unix time
         self.offset = time.time() - time.monotonic()
-        self._setpoint: tuple[float, float] | None = None
+        #: (v, w, epoch): the program's set-point and the bridge's stop epoch it was given in
+        self._setpoint: tuple[float, float, int | None] | None = None
+        self._epoch: int | None = None  # the bridge's latest stop epoch known here
+        self._interrupted = False  # a stop we did not ask for: a stop before the next motion
         self._token: Any = None  # our liveliness token while we hold the robot
         self.fault: str | None = None  #: the bridge's last fault or stop reason for us
         self._closed = False
@@ -185,6 +194,7 @@ class RemotePioneer:
         if not reply.get("granted"):
             raise DeviceError(f"{self.url}: refused: {reply.get('reason') or 'held'} "
                               f"(holder: {reply.get('holder')})")  # fmt: skip
+        self._new_epoch(reply.get("epoch"), grant=True)
         self._token = self._session.liveliness().declare_token(
             holder_key(self.robot, self.holder, "alive")
         )
@@ -193,19 +203,24 @@ class RemotePioneer:
     def set_velocity(self, v: float, w: float = 0.0) -> None:
         """Drive at ``v`` m/s and ``w`` rad/s (CCW +), re-sent until changed; takes the robot
         first (see :meth:`acquire`)."""
-        point = (_finite("v", v), _finite("w", w))
+        v, w = _finite("v", v), _finite("w", w)
         self.acquire()
         with self._cond:
-            self._setpoint = point
+            epoch, stop_first = self._epoch, self._interrupted and (v, w) != (0.0, 0.0)
+            self._interrupted = False
+            self._setpoint = (v, w, epoch)
             self._cond.notify_all()
-        self._send(point)
+        if stop_first:  # a fresh command after a stop we did not ask for: the stop first
+            self._send((0.0, 0.0, epoch))
+        self._send((v, w, epoch))
 
     def stop(self) -> None:
         """Stop the robot (when this program holds it)."""
         if self._token is not None:
             with self._cond:
-                self._setpoint = (0.0, 0.0)
-            self._send((0.0, 0.0))
+                self._setpoint = point = (0.0, 0.0, self._epoch)
+                self._interrupted = False
+            self._send(point)
 
     def release(self) -> None:
         """Stop the robot and give it back (the bridge stops it as the token goes, too)."""
@@ -214,8 +229,9 @@ class RemotePioneer:
             return
         with self._cond:
             self._setpoint = None
+            epoch = self._epoch
         try:
-            self._send((0.0, 0.0))
+            self._send((0.0, 0.0, epoch))
             if self._gone is None:  # (a bridge that left answers nothing: no wait for it)
                 self._ask({"op": "release"})
         finally:
@@ -249,26 +265,43 @@ class RemotePioneer:
 
     # ------------------------------------------------------------------ internals
 
-    def _send(self, point: tuple[float, float]) -> None:
-        """Put a set-point, ahead of bulk data (camera frames) on a shared link: interactive
-        priority, sent at once rather than batched."""
-        self._session.put(holder_key(self.robot, self.holder, "velocity"),
-                          encode({"v": point[0], "w": point[1]}),
+    def _send(self, point: tuple[float, float, int | None]) -> None:
+        """Put a set-point (v, w, epoch), ahead of bulk data (camera frames) on a shared
+        link: interactive priority, sent at once rather than batched."""
+        v, w, epoch = point
+        body: dict[str, Any] = {"v": v, "w": w}
+        if epoch is not None:  # (a bridge that gave none does not know epochs)
+            body["epoch"] = epoch
+        self._session.put(holder_key(self.robot, self.holder, "velocity"), encode(body),
                           encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
                           express=True)  # fmt: skip
 
     def _resend(self) -> None:
-        """Re-send a moving set-point every ``resend`` s while held (the silence rule)."""
-        with self._cond:
-            while not self._closed:
-                self._cond.wait(self.resend)
+        """Re-send a moving set-point every ``resend`` s while held (the silence rule); the
+        put goes out of the lock, so a stop event is never held up behind it."""
+        due = time.monotonic() + self.resend
+        while True:
+            with self._cond:  # (woken by every state: wait out the period)
+                while not self._closed and (left := due - time.monotonic()) > 0:
+                    self._cond.wait(left)
+                if self._closed:
+                    return
+                due = time.monotonic() + self.resend
                 point = self._setpoint
-                if point is None or point == (0.0, 0.0) or self._token is None:
+                if point is None or point[:2] == (0.0, 0.0) or self._token is None:
                     continue
-                try:
-                    self._send(point)
-                except Exception:  # noqa: BLE001 - a closed session ends with close()
-                    log.debug("%s: re-send failed", self.url, exc_info=True)
+            try:
+                self._send(point)
+            except Exception:  # noqa: BLE001 - a closed session ends with close()
+                log.debug("%s: re-send failed", self.url, exc_info=True)
+
+    def _new_epoch(self, epoch: object, grant: bool = False) -> None:
+        """The bridge's stop epoch from an event (a later one only) or a grant (as it is: a
+        bridge that started again counts from 1)."""
+        if isinstance(epoch, int) and not isinstance(epoch, bool):
+            with self._cond:
+                if grant or self._epoch is None or epoch > self._epoch:
+                    self._epoch = epoch
 
     def _ask(self, request: dict[str, Any]) -> dict[str, Any]:
         return self._get(holder_key(self.robot, self.holder, "request"), encode(request),
@@ -321,15 +354,16 @@ class RemotePioneer:
             data = decode(sample.payload.to_bytes(), f"{self.url} event")
         except ProtocolError:
             return
-        if data.get("holder") != self.holder or data.get("event") not in (
-            "fault",
-            "released",
-            "stopped",
+        kind = data.get("event")
+        if data.get("holder") != self.holder or not (
+            kind in ("fault", "released", "stopped") or (kind == "ignored" and "epoch" in data)
         ):
             return
         self.fault = str(data.get("reason"))
+        self._new_epoch(data.get("epoch"))
         with self._cond:
-            self._setpoint = None  # never re-send a stale set-point after a fault
+            self._setpoint = None  # never re-send a stale set-point after a stop
+            self._interrupted = True
         if data.get("event") == "released" and self._token is not None:
             token, self._token = self._token, None
             token.undeclare()

@@ -42,12 +42,13 @@ import select
 import threading
 import time
 from collections.abc import Callable, Sequence
+from typing import NoReturn
 
 from robocli.core import Framer
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.stats import LinkStats
 from robocli.devices.tasks import PeriodicTask
-from robocli.errors import ConnectionLost, ProtocolError, RobocliError, TimeoutError
+from robocli.errors import ConnectionLost, ProtocolError, RobocliError, StaleWrite, TimeoutError
 from robocli.transports import Transport
 
 log = logging.getLogger("robocli.devices.session")
@@ -95,7 +96,8 @@ class Session:
         self.name = name
         #: notified whenever a frame was handled or the session failed; devices wait on it
         self.cond = threading.Condition()
-        #: monotonic time of the last packet written (what a robot's watchdog sees)
+        #: monotonic time the last write began (its bytes left then or later): the silence a
+        #: robot's watchdog may have seen is at most the time since
         self.last_tx = time.monotonic()
         self.error: BaseException | None = None
         self.stuck_threads: list[str] = []
@@ -104,16 +106,20 @@ class Session:
         #: called with the monotonic time of every packet sent (a device's own statistics,
         #: cheaper than a listener that sees every frame); must not raise
         self.on_sent: Callable[[float], None] | None = None
-        #: called before every write of :meth:`send`, :meth:`send_many` and :meth:`request`
-        #: with the packets and the seconds since the last packet went out; returns the
-        #: packets to write instead (a device that finds it stalled past the robot's watchdog
-        #: puts a stop in place of stale set-points). Decided right before the write, so that
-        #: no stall between a device's own check and its write can slip through. Must not raise
+        #: ``before_send(packets, seconds since the last write began)`` -> the packets to
+        #: write instead (a stop in place of stale set-points after a stall past the robot's
+        #: watchdog); under the write lock right before each write of :meth:`send`,
+        #: :meth:`send_many`, :meth:`request`, and after it with no packets. Must not raise
         self.before_send: Callable[[Sequence[bytes], float], Sequence[bytes]] | None = None
+        #: the robot's watchdog (s): bytes ``before_send`` judged never begin to leave later
+        #: than this after the last write began
+        self.silence_limit: float | None = None
         self._payload_of = payload_of
         self._name_of = name_of
         self._emergency_stop = emergency_stop
         self._read_lock = threading.Lock()
+        #: held from the silence check through the write to the stamp of :attr:`last_tx`
+        self._tx_lock = threading.Lock()
         self._leaders = 0  # callers reading their replies right now
         self._leader_lock = threading.Lock()
         self._leader_end = 0.0  # monotonic time the last one finished
@@ -190,22 +196,68 @@ class Session:
         self._send(packets, timeout)
 
     def _send(self, packets: Sequence[bytes], timeout: float | None) -> None:
-        before = self.before_send
-        if before is not None:
-            packets = before(packets, time.monotonic() - self.last_tx)
-            if not packets:
-                return
+        """Write ``packets``, race-free against a stall anywhere: the silence check, the write
+        and the stamp of :attr:`last_tx` (the time taken *before* the write: a stall after
+        the bytes left counts as silence) are one step under ``_tx_lock``. The transport
+        gets the latest time the bytes may begin to leave (previous start + ``silence_limit``)
+        and sends nothing past it (:class:`StaleWrite`: ``before_send`` judges again, now).
+        After each write ``before_send`` is asked again with no packets and the longest
+        silence the robot may have seen (a stall inside the write): its stop goes at once.
+        Listeners, ``on_sent`` and :meth:`fail` (the emergency stop) run after the lock."""
+        limit = self.transport.write_timeout if timeout is None else timeout
+        if not self._tx_lock.acquire(timeout=max(0.0, limit)):
+            self._write_failed(TimeoutError(
+                f"{self.transport.url}: write blocked for {limit:g} s by another write"
+            ))  # fmt: skip
+        sent: list[tuple[Sequence[bytes], float]] = []
         try:
-            self.transport.write(packets[0] if len(packets) == 1 else b"".join(packets), timeout)
-        except ConnectionLost as exc:
-            self.fail(exc)
-            raise
-        except RobocliError as exc:  # the deadline: the peer does not read
+            failure = self._send_locked(packets, limit, sent)
+        finally:
+            self._tx_lock.release()
+        for done, start in sent:
+            self._notify_sent(done, start)
+        if failure is not None:
+            self._write_failed(failure)
+
+    def _send_locked(
+        self, packets: Sequence[bytes], limit: float, sent: list[tuple[Sequence[bytes], float]]
+    ) -> RobocliError | None:
+        """The writes of :meth:`_send` (``_tx_lock`` held); appends what went out to
+        ``sent`` with its start time, returns the error of a write that failed."""
+        before, stale = self.before_send, self.silence_limit
+        start = time.monotonic()
+        previous = self.last_tx
+        if before is not None:
+            packets = before(packets, start - previous)
+        not_after = previous + stale if stale is not None and before is not None else None
+        while packets:
+            data = packets[0] if len(packets) == 1 else b"".join(packets)
+            try:
+                self.transport.write(data, limit, not_after=not_after)
+            except StaleWrite:  # stalled between the check and the write: judge again
+                assert before is not None
+                start, not_after = time.monotonic(), None
+                packets = before(packets, start - previous)
+                continue
+            except RobocliError as exc:
+                return exc
+            self.last_tx = start
+            sent.append((packets, start))
+            if before is None:
+                break
+            packets = before((), time.monotonic() - previous)  # stalled inside the write?
+            previous, start, not_after = start, time.monotonic(), None
+        return None
+
+    def _write_failed(self, exc: RobocliError) -> NoReturn:
+        """A write failed or missed its deadline: count it, fail the session, raise."""
+        if not isinstance(exc, ConnectionLost):  # the deadline: the peer does not read
             self.stats.add("write_timeouts")
-            self.fail(exc)
-            raise
-        now = time.monotonic()
-        self.last_tx = now
+        self.fail(exc)
+        raise exc
+
+    def _notify_sent(self, packets: Sequence[bytes], now: float) -> None:
+        """Statistics, ``on_sent`` and listeners of packets written at ``now``."""
         payload_of, name_of, count = self._payload_of, self._name_of, self.stats.count_sent
         listeners, on_sent = self.listeners, self.on_sent
         for packet in packets:
@@ -372,24 +424,34 @@ class Session:
         self._try_send(self._emergency_stop(), time.monotonic() + 0.5)
 
     def _try_send(self, packets: Sequence[bytes], deadline: float) -> bool:
-        """Write ``packets`` in order until one fails or ``deadline`` passes."""
-        for packet in packets:
-            left = deadline - time.monotonic()
-            if left <= 0:
-                log.warning("%s: stop sequence cut short by its deadline", self.transport.url)
-                return False
-            try:
-                self.transport.write(packet, timeout=left)
-            except RobocliError as exc:
-                log.warning("%s: could not send the stop sequence: %s", self.transport.url, exc)
-                return False
-            self.last_tx = time.monotonic()
-            payload = self._payload_of(packet)
-            self.stats.count_sent(self._name_of(payload, "tx"))
-            if self.on_sent is not None:
-                self.on_sent(self.last_tx)
-            if len(self.listeners):
-                self.listeners.notify("tx", payload, self.last_tx)
+        """Write ``packets`` in order until one fails or ``deadline`` passes; ``_tx_lock`` is
+        awaited until ``deadline`` only (a stalled writer never holds a stop or :meth:`close`
+        longer: close then shuts the transport, which wakes it)."""
+        url = self.transport.url
+        if not packets:
+            return True
+        if not self._tx_lock.acquire(timeout=max(0.0, deadline - time.monotonic())):
+            log.warning("%s: stop sequence not sent: another write is stuck", url)
+            return False
+        sent: list[tuple[Sequence[bytes], float]] = []
+        try:
+            for packet in packets:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    log.warning("%s: stop sequence cut short by its deadline", url)
+                    return False
+                start = time.monotonic()
+                try:
+                    self.transport.write(packet, timeout=left)
+                except RobocliError as exc:
+                    log.warning("%s: could not send the stop sequence: %s", url, exc)
+                    return False
+                self.last_tx = start
+                sent.append(((packet,), start))
+        finally:
+            self._tx_lock.release()
+            for done, start in sent:
+                self._notify_sent(done, start)
         return True
 
     def close(self, stop_sequence: Sequence[bytes] = ()) -> bool:

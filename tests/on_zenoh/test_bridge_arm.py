@@ -42,7 +42,8 @@ def _joints(events: Events) -> list[float]:
 
 
 def _take(session: Any, holder: str) -> Any:
-    assert acquire(session, "a1", holder) == {"granted": True, "holder": holder}
+    reply = acquire(session, "a1", holder)
+    assert reply["granted"] is True and reply["holder"] == holder
     return holder_token(session, "a1", holder)
 
 

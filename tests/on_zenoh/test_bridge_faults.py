@@ -42,7 +42,7 @@ def test_a_stop_that_raises_never_ends_the_gates_thread(server, endpoint) -> Non
         wait_for(lambda: _acquire(client, "ivan"), "the grant")
         token = client.liveliness().declare_token("robocli/g1/@control/ivan/alive")
         for expected in (1, 2):  # the first stop raises; the thread still applies the second
-            with gate.command("ivan", moving=True) as ok:
+            with gate.command("ivan", moving=True, epoch=gate.epoch) as ok:
                 assert ok
             wait_for(lambda n=expected: len(calls) >= n, f"stop {expected}")
         assert gate.counts["stop_errors"] == 1 and gate.counts["stops"] == 1
@@ -91,7 +91,7 @@ def test_a_bridge_stalled_past_the_watchdog_reports_a_fault_and_never_resumes(en
                 assert fault["holder"] == "judy" and "watchdog" in fault["reason"]
                 wait_for(lambda: driver.fault is not None, "the controller hears of it")
                 # the holder's stale set-point, sent again by hand, is ignored
-                driver._send((0.3, 0.0))
+                driver._send((0.3, 0.0, driver._epoch))
                 seen = driver.wait_for_state().sip_count
                 wait_for(lambda: driver.wait_for_state().sip_count >= seen + 5, "5 more SIPs")
                 assert simulator.snapshot().trans_vel_set == 0

@@ -93,7 +93,7 @@ def test_a_second_controller_is_refused_with_the_holders_name(sim, endpoint) -> 
             assert refused.value.exit_code == 4
             assert not bob.held
             # bob's commands put by hand are ignored: the robot keeps alice's set-point
-            bob._send((-0.5, 0.0))
+            bob._send((-0.5, 0.0, None))
             wait_for(lambda: _moving(simulator), "alice's set-point holds")
         # alice gone (closed): bob may take it now
         with RemotePioneer.connect("r1", endpoint, holder="bob") as bob:
@@ -110,7 +110,7 @@ def test_the_robot_stops_when_the_controllers_commands_stop(sim, endpoint) -> No
         try:
             events = Events(session, "robocli/r1/@control/event")
             reply = query(session, "robocli/r1/@control/carol/request", {"op": "acquire"})
-            assert reply == {"granted": True, "holder": "carol"}
+            assert reply == {"granted": True, "holder": "carol", "epoch": reply["epoch"]}
             token = session.liveliness().declare_token("robocli/r1/@control/carol/alive")
             sent = time.time()  # before the put: the bridge receives it later
             session.put("robocli/r1/@control/carol/velocity", b'{"v":0.3,"w":0.2}')
@@ -212,7 +212,8 @@ def test_every_control_request_gets_a_reply_even_one_that_does_not_decode(sim, e
                     replies = list(session.get(key, payload=bad, timeout=DEADLINE))
                     assert len(replies) == 1 and replies[0].err is not None, (key, bad[:20])
                     assert "error" in json.loads(replies[0].err.payload.to_bytes())
-            assert acquire(session, "r1", "erin") == {"granted": True, "holder": "erin"}
+            reply = acquire(session, "r1", "erin")
+            assert reply == {"granted": True, "holder": "erin", "epoch": reply["epoch"]}
         finally:
             session.close()
 

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from robocli.devices.keys import QUIT_KEYS, fresh_keys
 from robocli.errors import RobocliError, TimeoutError
 from robocli.kinematics import LimitError, UnreachableError, fk, ik
 
@@ -51,7 +52,6 @@ CARTESIAN_KEYS = {
     "r": (2, 1), "f": (2, -1),
 }  # fmt: skip
 STOP_KEYS = frozenset({"space", " "})
-QUIT_KEYS = frozenset({"q", "esc", "ctrl-c"})
 SPEED_STEP = 1.5  #: ``+`` / ``-`` multiply / divide the speeds by this
 AXES = "xyz"
 
@@ -270,7 +270,9 @@ def run_arm_teleop(teleop: ArmTeleop, read_key: Callable[[float], str | None],
                    on_update: Callable[[ArmTeleop], None] | None = None,
                    period: float = 0.05) -> None:  # fmt: skip
     """Jog until a quit key; ``read_key(timeout)`` gives a key name or None. STOP is sent on
-    every way out (quit, an error, Ctrl-C, a lost link)."""
+    every way out (quit, an error, Ctrl-C, a lost link), and after a stall of this loop (keys
+    typed meanwhile are discarded: :func:`~robocli.devices.keys.fresh_keys`)."""
+    read_key = fresh_keys(read_key, teleop.keys.release_timeout, teleop.clock)
     try:
         while not teleop.quit:
             key = read_key(period)

@@ -127,6 +127,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         session.on_frame = self._on_frame
         session.on_sent = self._on_sent  # the time of every packet sent
         session.before_send = self._before_send
+        session.silence_limit = self.watchdog  # a set-point held up past it is not sent
         session.add_task("keepalive", self._keepalive_step)
         self._supervisor = session.add_task("supervisor", self._supervise_step)
         session.start()

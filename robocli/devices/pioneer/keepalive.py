@@ -36,6 +36,12 @@ _MOTION_COMMANDS = frozenset(
     int(c) for c in (Command.VEL, Command.RVEL, Command.VEL2, Command.ROTATE, Command.MOVE,
                      Command.HEAD, Command.DHEAD, Command.DCHEAD)
 )  # fmt: skip
+#: The motion commands that stop the robot (always let through).
+_STOPS = frozenset(arcos.encode_command(c, 0) for c in (Command.VEL, Command.RVEL, Command.VEL2))
+
+
+def _moves(packet: bytes) -> bool:
+    return packet[3] in _MOTION_COMMANDS and packet not in _STOPS
 
 
 @dataclass(frozen=True)
@@ -184,12 +190,19 @@ class KeepAlive:
         return self.keepalive
 
     def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
-        """Every write, right before it goes out: after ``silence`` s without a packet,
-        longer than the watchdog, while the robot was commanded to move, the program
-        stalled and the robot's watchdog has stopped it. Clear the set-points, note the trip
-        for the next motion command and the listeners, and write a stop in place of any
-        motion command (the keep-alive's stale set-points)."""
-        if silence <= self.watchdog or not self._motion_commanded:
+        """Every write, right before it goes out (and right after it, with no packets:
+        see :meth:`Session._send`): after ``silence`` s without a packet, longer than the
+        watchdog, while the robot was commanded to move, the program stalled and the
+        robot's watchdog has stopped it. Clear the set-points, note the trip for the next
+        motion command and the listeners, and write a stop in place of any motion command
+        (the keep-alive's stale set-points). Once the set-points were cleared (a trip, a
+        stop), a packet that would move the robot was decided before that and waited for
+        the write (behind a stalled writer): it is dropped."""
+        if not self._motion_commanded:
+            if any(_moves(p) for p in packets):
+                return [p for p in packets if not _moves(p)]
+            return packets
+        if silence <= self.watchdog:
             return packets
         with self._setpoint_lock:
             if not self._motion_commanded:  # another thread found it first
@@ -204,7 +217,7 @@ class KeepAlive:
             "stalled): the robot was stopped; set-points cleared, it moves again only on a "
             "new command", self.transport.url, silence, self.watchdog,
         )  # fmt: skip
-        kept = [p for p in packets if p[3] not in _MOTION_COMMANDS]
+        kept = [p for p in packets if not _moves(p)]
         return [*link.EMERGENCY_STOP, *kept]
 
     def _on_sent(self, now: float) -> None:

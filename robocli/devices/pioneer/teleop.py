@@ -12,6 +12,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
+from robocli.devices.keys import QUIT_KEYS, fresh_keys
+
 #: key name -> (forward, turn) direction; arrows and WASD
 KEYMAP: dict[str, tuple[int, int]] = {
     "up": (1, 0), "w": (1, 0),
@@ -20,7 +22,6 @@ KEYMAP: dict[str, tuple[int, int]] = {
     "right": (0, -1), "d": (0, -1),
 }  # fmt: skip
 STOP_KEYS = frozenset({"space", " "})
-QUIT_KEYS = frozenset({"q", "esc", "ctrl-c"})
 
 
 @dataclass
@@ -72,8 +73,10 @@ def run_teleop(
     clock: Callable[[], float] = time.monotonic,
 ) -> None:
     """Drive ``robot`` until a quit key; ``read_key(timeout)`` returns a key name or None.
-    The robot is stopped on every way out (quit, exception, Ctrl-C)."""
+    The robot is stopped on every way out (quit, exception, Ctrl-C), and after a stall of
+    this loop (keys typed meanwhile are discarded: :func:`~robocli.devices.keys.fresh_keys`)."""
     last: tuple[float, float] | None = None
+    read_key = fresh_keys(read_key, controller.release_timeout, clock)
     try:
         while not controller.quit:
             key = read_key(period)
