@@ -53,27 +53,25 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
     recording at ``path``, in file order (a channel's messages in the order written)."""
     from mcap.records import Channel, Message, Schema
 
-    from robocli.io.record.reader import _check_magic, _open, iter_messages
+    from robocli.io.record.reader import iter_messages
 
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
-    with _open(path) as stream:
-        _check_magic(stream, path)
-        for record in iter_messages(stream):
-            if isinstance(record, Schema):
-                schemas[record.id] = record.name
-            elif isinstance(record, Channel):
-                if record.message_encoding == "json":
-                    channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
-            elif isinstance(record, Message) and record.channel_id in channels:
-                topic, schema = channels[record.channel_id]
-                try:
-                    message = json.loads(record.data)
-                except (ValueError, UnicodeDecodeError):
-                    raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
-                if not isinstance(message, dict):
-                    message = {"value": message}
-                yield topic, schema, record.publish_time, record.log_time, message
+    for record in iter_messages(path):
+        if isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            if record.message_encoding == "json":
+                channels[record.id] = (record.topic, schemas.get(record.schema_id, ""))
+        elif isinstance(record, Message) and record.channel_id in channels:
+            topic, schema = channels[record.channel_id]
+            try:
+                message = json.loads(record.data)
+            except (ValueError, UnicodeDecodeError):
+                raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
+            if not isinstance(message, dict):
+                message = {"value": message}
+            yield topic, schema, record.publish_time, record.log_time, message
 
 
 def export(path: str | Path, fmt: str, out_dir: str | Path | None = None) -> list[Path]:

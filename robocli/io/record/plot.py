@@ -99,29 +99,27 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
     wanted topic)."""
     from mcap.records import Channel, Message, Schema
 
-    from robocli.io.record.reader import _check_magic, _open, iter_messages
+    from robocli.io.record.reader import iter_messages
 
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     names: dict[str, str] = {}
     out: Records = {t: [] for t in topics}
-    with _open(recording) as stream:
-        _check_magic(stream, recording)
-        for record in iter_messages(stream):
-            if isinstance(record, Message):
-                topic, encoding = channels.get(record.channel_id, ("", ""))
-                wanted = out.get(topic)
-                if wanted is not None and encoding == "json":
-                    try:
-                        wanted.append((record.log_time, record.publish_time,
-                                       json.loads(record.data)))  # fmt: skip
-                    except ValueError:
-                        raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
-            elif isinstance(record, Schema):
-                schemas[record.id] = record.name
-            elif isinstance(record, Channel):
-                channels[record.id] = (record.topic, record.message_encoding)
-                names[record.topic] = schemas.get(record.schema_id, "")
+    for record in iter_messages(recording):
+        if isinstance(record, Message):
+            topic, encoding = channels.get(record.channel_id, ("", ""))
+            wanted = out.get(topic)
+            if wanted is not None and encoding == "json":
+                try:
+                    wanted.append((record.log_time, record.publish_time,
+                                   json.loads(record.data)))  # fmt: skip
+                except ValueError:
+                    raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
+        elif isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            channels[record.id] = (record.topic, record.message_encoding)
+            names[record.topic] = schemas.get(record.schema_id, "")
     return names, out
 
 
