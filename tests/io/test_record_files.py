@@ -195,3 +195,38 @@ def test_channel_records_parse_with_the_package_s_own_classes(tmp_path: Path) ->
     assert [(c.topic, c.schema, c.metadata, c.count) for c in summary.channels] == [
         ("/x", "n", {"k": "v"}, 1)]
     assert list(channel_messages(path)) == [("/x", "n", 1, 1, {"v": 1})]
+
+
+#: Messages a damaged file may hold where a schema promises something else.
+HOSTILE = [b"[" * 100_000, b'"str"', b'{"pose": 5}', b'{"pose": {"position": 1}}',
+           b'{"robot_time": 1' + b"0" * 400 + b', "position": [1, 2, 3, 4, 5, 6]}',
+           b'{"position": [1e400, 1, 2, 3, 4, 5], "name": ["a"]}', b'{"position": 3}',
+           b'{"ranges": [1e308, -1e308], "start_angle": 0, "end_angle": 1, '
+           b'"pose": {"position": {"x": 1e308, "y": 0}}}',
+           b'{"ranges": [1e308, 2], "start_angle": 0, "end_angle": 1}',
+           b'{"pose": {"position": {"x": 0, "y": 0}, "orientation": {"w": "x"}}}']  # fmt: skip
+
+
+@pytest.mark.parametrize("schema, topic", [
+    ("foxglove.PoseInFrame", "/arm/tcp"), ("foxglove.LaserScan", "/p/laser"),
+    ("robocli.JointState", "/arm/joint_feedback")])  # fmt: skip
+def test_messages_that_do_not_fit_their_schema_are_one_line(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], schema: str, topic: str) -> None:  # fmt: skip
+    """export, validate's arm log and plot read JSON that is not what the schema says
+    (nested past the recursion limit, numbers past a float, objects where numbers go):
+    the command ends with one line or draws, never a traceback."""
+    from robocli.cli import main
+
+    for i, data in enumerate(HOSTILE):
+        path = tmp_path / f"m{i}.mcap"
+        path.write_bytes(b.mcap(Schema(id=1, name=schema, encoding="jsonschema", data=b"{}"),
+                                Channel(id=1, schema_id=1, topic=topic, message_encoding="json",
+                                        metadata={}),
+                                b.plain_chunk(b.message(data, t=1), b.message(data, t=2))))
+        for args in (["export", str(path), "-f", "csv", "-o", str(tmp_path / f"o{i}")],
+                     ["export", str(path), "-f", "irb120-json", "-o", str(tmp_path / f"o{i}")],
+                     ["plot", str(path), "-c", topic, "-o", str(tmp_path / f"p{i}.png")]):
+            code = main(args)
+            err = capsys.readouterr().err
+            assert code in (0, 1, 2), (data[:40], args, err)
+            assert len(err.strip().splitlines()) <= 1, (data[:40], args, err)

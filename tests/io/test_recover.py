@@ -91,6 +91,7 @@ def test_a_killed_recording_recovers_whole(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(1800)
 def test_a_batch_of_killed_recordings_all_recover(tmp_path: Path) -> None:
     """The issue's Done-when: every ``kill -9`` file of a 20-run batch recovers whole."""
     results = [_kill_and_recover(tmp_path, n) for n in range(20)]
