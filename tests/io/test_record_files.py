@@ -211,7 +211,8 @@ HOSTILE = [b"[" * 100_000, b'"str"', b'{"pose": 5}', b'{"pose": {"position": 1}}
     ("foxglove.PoseInFrame", "/arm/tcp"), ("foxglove.LaserScan", "/p/laser"),
     ("robocli.JointState", "/arm/joint_feedback")])  # fmt: skip
 def test_messages_that_do_not_fit_their_schema_are_one_line(
-        tmp_path: Path, capsys: pytest.CaptureFixture[str], schema: str, topic: str) -> None:  # fmt: skip
+        tmp_path: Path, capsys: pytest.CaptureFixture[str], schema: str,
+        topic: str) -> None:  # fmt: skip
     """export, validate's arm log and plot read JSON that is not what the schema says
     (nested past the recursion limit, numbers past a float, objects where numbers go):
     the command ends with one line or draws, never a traceback."""
