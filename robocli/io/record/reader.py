@@ -6,7 +6,10 @@ each chunk its message indexes): :func:`info` reads those and never decompresses
 so a large file is summarised in the time of a few thousand small reads. A recording that
 was killed has no summary: :func:`info` then scans it from the start, record by record,
 and stops at the first incomplete record (what a SIGKILL leaves is readable up to its last
-complete chunk), saying so.
+complete chunk), saying so; the other readers log :func:`~.mcapfile.warn_truncated`, which
+the CLI prints as a note naming ``robocli recover``. Every length the file declares is
+checked before it is read (:mod:`.mcapfile`): a malformed file raises
+:class:`~.mcapfile.BadRecording`.
 """
 
 from __future__ import annotations
