@@ -231,3 +231,15 @@ def test_messages_that_do_not_fit_their_schema_are_one_line(
             err = capsys.readouterr().err
             assert code in (0, 1, 2), (data[:40], args, err)
             assert len(err.strip().splitlines()) <= 1, (data[:40], args, err)
+
+
+def test_times_past_any_calendar_are_shown_as_numbers(tmp_path: Path) -> None:
+    """Log times of 2^64 - 1 ns (year 2554) and 2^63: info counts and shows them."""
+    path = tmp_path / "far.mcap"
+    path.write_bytes(b.mcap(*b.schema_and_channel(), b.plain_chunk(
+        b.message(t=(1 << 64) - 1), b.message(t=1 << 63))))
+    for args in (["info", str(path)], ["info", str(path), "--json"]):
+        proc = run(*args)
+        assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    summary = info(path)
+    assert summary.messages == 2 and summary.end_ns == (1 << 64) - 1
