@@ -26,6 +26,8 @@ def recover(
     stats = run(file, out, overwrite=overwrite)
     cut = f", {stats.lost_bytes} bytes of a cut record dropped" if stats.truncated else ""
     skipped = f", {stats.skipped} malformed records left out" if stats.skipped else ""
+    if stats.orphans:
+        skipped += f", {stats.orphans} messages of undeclared channels left out"
     typer.echo(f"recovered {stats.messages} messages on {stats.channels} channels from "
                f"{stats.chunks} chunks{cut}{skipped} into {stats.path}", err=True)  # fmt: skip
 

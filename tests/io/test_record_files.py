@@ -44,7 +44,8 @@ def _readers(path: Path, out: Path) -> list[list[str]]:
     return [["info", p], ["export", p, "-f", "jsonl", "-o", str(out)],
             ["plot", p, "-c", "/t", "-f", "v", "-o", str(out / "t.png")],
             ["dump", "pioneer", "--file", p], ["validate", p, p],
-            ["sim", "pioneer", "--replay", p]]
+            ["sim", "pioneer", "--replay", p], ["sim", "abb", "--replay", p],
+            ["serve", "--replay", p]]
 
 
 def _bomb(declared: int, zeros: int, content_size: int | None = None) -> bytes:
