@@ -300,7 +300,7 @@ def _print_info(r: RecordingInfo) -> None:
         cut = " (cut short: everything up to the last complete record was read)" \
             if r.truncated else ""  # fmt: skip
         out(f"Summary:     none, the file was scanned{cut}\n")
-        if r.truncated:
+        if r.truncated and r.readable_bytes > 8:  # its header at least is whole
             out(f"Recover:     robocli recover {r.path}\n")
     out(f"Duration:    {r.duration_s:.3f} s\n")
     if r.messages:
