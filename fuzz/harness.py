@@ -37,8 +37,10 @@ def seeds(kinds: Iterable[str]) -> list[bytes]:
     return frames
 
 
-def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes]) -> None:
-    """Fuzz ``test_one_input`` with atheris (libFuzzer options from ``sys.argv[1:]``).
+def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes],
+        options: dict[str, str] | None = None) -> None:
+    """Fuzz ``test_one_input`` with atheris (libFuzzer options from ``sys.argv[1:]``, then
+    the target's ``options``, then :data:`DEFAULTS`).
 
     Only robocli's protocol code and the harness's reference models are instrumented for
     coverage (the C core is not: the framer harnesses compare it with the instrumented
@@ -55,7 +57,8 @@ def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes])
         artifacts.mkdir(parents=True, exist_ok=True)
         opts = [a for a in sys.argv[1:] if a.startswith("-")]
         given = {a.split("=", 1)[0] for a in opts}
-        extra = [f"{k}={v}" for k, v in DEFAULTS.items() if k not in given]
+        extra = [f"{k}={v}" for k, v in {**DEFAULTS, **(options or {})}.items()
+                 if k not in given]
         if "-artifact_prefix" not in given:
             extra.append(f"-artifact_prefix={artifacts}/{name}-")
         dirs = [a for a in sys.argv[1:] if not a.startswith("-")] or [str(seed_dir)]
@@ -65,9 +68,10 @@ def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes])
         atheris.Fuzz()
 
 
-def instrumented() -> Any:
-    """Context manager: robocli, construct and the reference models imported inside it are
-    instrumented for coverage (atheris instruments whole top-level packages)."""
+def instrumented(extra: Iterable[str] = ()) -> Any:
+    """Context manager: robocli's protocols, construct, the reference models and the
+    packages named in ``extra`` imported inside it are instrumented for coverage."""
     import atheris
 
-    return atheris.instrument_imports(include=["robocli.protocols", "reference", "construct"])
+    return atheris.instrument_imports(include=["robocli.protocols", "reference", "construct",
+                                               *extra])

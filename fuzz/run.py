@@ -8,8 +8,9 @@ Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat`
 ``decode-hub-reply`` (the hub client's whole receive path: framing, inflation, records, JPEG
 frames, clock mapping),
 ``hub-server-requests`` (a hub server session fed one client's bytes, in-process),
-``capture-readers`` (``.jsonl`` and raw capture files) and ``file-readers`` (trajectory logs,
-waypoints, robot models). ``list`` prints them. Example::
+``capture-readers`` (``.jsonl`` and raw capture files), ``file-readers`` (trajectory logs,
+waypoints, robot models) and ``recording-readers`` (every command that opens an MCAP
+recording, and ``recover``). ``list`` prints them. Example::
 
     python fuzz/run.py decode-ros4mat -max_total_time=600
 
@@ -41,7 +42,14 @@ NAMES = (
     "hub-server-requests",
     "capture-readers",
     "file-readers",
+    "recording-readers",
 )
+
+#: Packages instrumented for coverage besides the protocols, by target.
+INSTRUMENTED = {"recording-readers": ("robocli.io", "robocli.sim", "robocli.hub", "mcap")}
+#: libFuzzer options of a target besides :data:`harness.DEFAULTS` (recordings are larger
+#: than protocol frames).
+OPTIONS = {"recording-readers": {"-max_len": "65536"}}
 
 
 def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
@@ -52,6 +60,7 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     import fuzz_files
     import fuzz_framers
     import fuzz_hub
+    import fuzz_recordings
 
     if name.startswith("framer-"):
         one_input, kinds = fuzz_framers.target(name)
@@ -61,6 +70,8 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     if name in fuzz_hub.TARGETS:
         one_input, kinds = fuzz_hub.TARGETS[name]
         return one_input, fuzz_hub.seed_inputs(name, harness.seeds(kinds))
+    if name in fuzz_recordings.TARGETS:
+        return fuzz_recordings.fuzz_recordings, fuzz_recordings.seed_inputs()
     if name in fuzz_files.TARGETS:
         return fuzz_files.fuzz_files, fuzz_files.seed_inputs()
     if name in fuzz_capture.TARGETS:
@@ -77,11 +88,11 @@ def main() -> None:
     if name == "list":
         print("\n".join(NAMES))
         return
-    with harness.instrumented():
+    with harness.instrumented(INSTRUMENTED.get(name, ())):
         one_input, corpus = load(name)
     for seed in corpus:  # the seeds themselves must pass before fuzzing starts
         one_input(seed)
-    harness.run(name, one_input, corpus)
+    harness.run(name, one_input, corpus, OPTIONS.get(name))
 
 
 if __name__ == "__main__":

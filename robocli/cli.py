@@ -20,6 +20,7 @@ from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import laser as laser_commands
+from robocli.commands import recover as recover_command
 from robocli.commands import router as router_commands
 from robocli.commands import serial as serial_command
 from robocli.commands import serve as serve_command
@@ -128,6 +129,7 @@ bridge.command("arm", cls=ZenohCommand)(bridge_commands.arm)
 app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
 app.command("export", cls=PlainCommand)(export_command.export)
+app.command("recover", cls=PlainCommand)(recover_command.recover)
 app.command("router", cls=ZenohCommand)(router_commands.router)
 app.command("list", cls=ZenohCommand)(router_commands.list_)
 
@@ -152,7 +154,8 @@ def main(argv: list[str] | None = None) -> int:
     args = _hoist_verbose(sys.argv[1:] if argv is None else list(argv))
     try:
         # Typer returns (rather than raises) the code of an Exit, including 130 for Ctrl-C
-        code = app(args=args, prog_name="robocli", standalone_mode=False)
+        with recover_command.truncation_notes():  # a recording cut short: one note line
+            code = app(args=args, prog_name="robocli", standalone_mode=False)
         if code == EXIT_INTERRUPTED:
             typer.echo("robocli: interrupted", err=True)
         return code if isinstance(code, int) else 0

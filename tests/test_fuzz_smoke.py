@@ -19,6 +19,7 @@ import fuzz_decoders  # noqa: E402
 import fuzz_files  # noqa: E402
 import fuzz_framers  # noqa: E402
 import fuzz_hub  # noqa: E402
+import fuzz_recordings  # noqa: E402
 import run  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -29,7 +30,7 @@ def _harness(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
 
 
 def test_every_target_is_runnable() -> None:
-    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture, fuzz_files)
+    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture, fuzz_files, fuzz_recordings)
     assert set(run.NAMES) == set().union(*(m.TARGETS for m in modules))
 
 

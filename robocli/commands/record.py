@@ -292,7 +292,10 @@ def info(
 
 
 def _when(ns: int) -> str:
-    stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(ns // 1_000_000_000))
+    try:  # a file's times may be anything: a year past 9999 is shown as its number
+        stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(ns // 1_000_000_000))
+    except (OverflowError, OSError, ValueError):
+        return f"{ns / 1e9:.6f}"
     return f"{stamp}.{ns % 1_000_000_000 // 1000:06d} ({ns / 1e9:.6f})"
 
 
@@ -314,6 +317,8 @@ def _print_info(r: RecordingInfo) -> None:
         cut = " (cut short: everything up to the last complete record was read)" \
             if r.truncated else ""  # fmt: skip
         out(f"Summary:     none, the file was scanned{cut}\n")
+        if r.truncated and r.readable_bytes > 8:  # its header at least is whole
+            out(f"Recover:     robocli recover {r.path}\n")
     out(f"Duration:    {r.duration_s:.3f} s\n")
     if r.messages:
         out(f"Start:       {_when(r.start_ns)}\n")

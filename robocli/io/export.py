@@ -56,28 +56,26 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
     from mcap.records import Channel, Message, Schema
 
     from robocli.io.record.links import RAW_SCHEMA
-    from robocli.io.record.reader import _check_magic, _open, iter_messages
+    from robocli.io.record.reader import iter_messages
 
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
-    with _open(path) as stream:
-        _check_magic(stream, path)
-        for record in iter_messages(stream):
-            if isinstance(record, Schema):
-                schemas[record.id] = record.name
-            elif isinstance(record, Channel):
-                schema = schemas.get(record.schema_id, "")
-                if record.message_encoding == "json" and schema != RAW_SCHEMA:
-                    channels[record.id] = (record.topic, schema)
-            elif isinstance(record, Message) and record.channel_id in channels:
-                topic, schema = channels[record.channel_id]
-                try:
-                    message = json.loads(record.data)
-                except (ValueError, UnicodeDecodeError):
-                    raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
-                if not isinstance(message, dict):
-                    message = {"value": message}
-                yield topic, schema, record.publish_time, record.log_time, message
+    for record in iter_messages(path):
+        if isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            schema = schemas.get(record.schema_id, "")
+            if record.message_encoding == "json" and schema != RAW_SCHEMA:
+                channels[record.id] = (record.topic, schema)
+        elif isinstance(record, Message) and record.channel_id in channels:
+            topic, schema = channels[record.channel_id]
+            try:
+                message = json.loads(record.data)
+            except (ValueError, UnicodeDecodeError, RecursionError):
+                raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
+            if not isinstance(message, dict):
+                message = {"value": message}
+            yield topic, schema, record.publish_time, record.log_time, message
 
 
 def export(path: str | Path, fmt: str, out_dir: str | Path | None = None,
@@ -223,7 +221,7 @@ def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     from robocli.io.trajlog import TrajectoryLog, finite_difference
 
     joints: dict[str, list[tuple[int, dict[str, Any]]]] = {}
-    tcp: dict[str, dict[int, list[float]]] = {}
+    tcp: dict[str, dict[int, list[float | None]]] = {}
     for topic, schema, publish, _log, message in channel_messages(path):
         name, _, kind = topic.strip("/").rpartition("/")
         if link is not None and name != link:
@@ -232,7 +230,8 @@ def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
             joints.setdefault(f"{name}/{kind}", []).append((publish, message))
         elif kind == "tcp" and isinstance(message.get("pose"), dict):
             p = message["pose"].get("position", {})
-            tcp.setdefault(name, {})[publish] = [p.get("x"), p.get("y"), p.get("z")]
+            xyz: list[Any] = [p.get(k) for k in "xyz"] if isinstance(p, dict) else [None]
+            tcp.setdefault(name, {})[publish] = xyz if all(map(_finite, xyz)) else [None]
     arms = list(dict.fromkeys(key.rpartition("/")[0] for key in joints))
     if not arms:
         where = f" of link {link!r}" if link else ""
@@ -241,7 +240,7 @@ def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     feedback = joints.get(f"{arm}/joint_feedback", [])
     samples = feedback if len(feedback) >= 2 else joints.get(f"{arm}/joint_states", feedback)
     clock = [s[1].get("robot_time") for s in samples]
-    robot = all(isinstance(c, (int, float)) for c in clock)
+    robot = all(_finite(c) for c in clock)
     # the controller's clock when it sent one (JOINT_FEEDBACK), else the publish time;
     # a sample that does not advance the clock (sent twice) is kept once
     keyed = sorted(((float(c) if robot and c is not None else p / 1e9, p, m) for c, (p, m) in
@@ -253,10 +252,12 @@ def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     try:
         q = np.array([k[2]["position"] for k in kept], dtype=np.float64)
         velocity = [k[2].get("velocity") or [] for k in kept]
-    except (KeyError, TypeError, ValueError):
+        if q.ndim != 2 or not all(isinstance(v, list) for v in velocity):
+            raise ValueError("not one list of positions per sample")
+    except (KeyError, TypeError, ValueError, OverflowError):
         raise RobocliError(f"{path}: malformed joint states of {arm}") from None
     t = np.array([k[0] - kept[0][0] for k in kept], dtype=np.float64)
-    if all(len(v) == q.shape[1] for v in velocity):
+    if all(len(v) == q.shape[1] and all(map(_finite, v)) for v in velocity):
         qd = np.array(velocity, dtype=np.float64)
     else:
         qd = finite_difference(t, q)
@@ -266,6 +267,16 @@ def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     if all(p is not None and None not in p for p in xyz):
         tcp_arr = np.array(xyz, dtype=np.float64)
     return TrajectoryLog(t, q, qd, tcp_arr, origin=stamps[0] / 1e9)
+
+
+def _finite(value: Any) -> bool:
+    """Whether a JSON value is a finite number (an integer past a float's range is not)."""
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
 
 
 def read_any_log(path: str | Path) -> TrajectoryLog:

@@ -278,4 +278,4 @@ def test_usage_errors(tmp_path: Path) -> None:
     assert "cannot write" in one_line_error(nodir, 2)
     notmcap = tmp_path / "notes.mcap"
     notmcap.write_text("hello")
-    assert "not an MCAP file" in one_line_error(run("info", str(notmcap)), 1)
+    assert "not an MCAP file" in one_line_error(run("info", str(notmcap)), 2)

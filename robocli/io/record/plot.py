@@ -37,6 +37,7 @@ from pathlib import Path
 from typing import Any
 
 from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.record.mcapfile import BadRecording
 
 __all__ = ["PlotResult", "numeric_fields", "plot"]
 
@@ -99,29 +100,27 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
     wanted topic)."""
     from mcap.records import Channel, Message, Schema
 
-    from robocli.io.record.reader import _check_magic, _open, iter_messages
+    from robocli.io.record.reader import iter_messages
 
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     names: dict[str, str] = {}
     out: Records = {t: [] for t in topics}
-    with _open(recording) as stream:
-        _check_magic(stream, recording)
-        for record in iter_messages(stream):
-            if isinstance(record, Message):
-                topic, encoding = channels.get(record.channel_id, ("", ""))
-                wanted = out.get(topic)
-                if wanted is not None and encoding == "json":
-                    try:
-                        wanted.append((record.log_time, record.publish_time,
-                                       json.loads(record.data)))  # fmt: skip
-                    except ValueError:
-                        raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
-            elif isinstance(record, Schema):
-                schemas[record.id] = record.name
-            elif isinstance(record, Channel):
-                channels[record.id] = (record.topic, record.message_encoding)
-                names[record.topic] = schemas.get(record.schema_id, "")
+    for record in iter_messages(recording):
+        if isinstance(record, Message):
+            topic, encoding = channels.get(record.channel_id, ("", ""))
+            wanted = out.get(topic)
+            if wanted is not None and encoding == "json":
+                try:
+                    wanted.append((record.log_time, record.publish_time,
+                                   json.loads(record.data)))  # fmt: skip
+                except (ValueError, RecursionError):
+                    raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
+        elif isinstance(record, Schema):
+            schemas[record.id] = record.name
+        elif isinstance(record, Channel):
+            channels[record.id] = (record.topic, record.message_encoding)
+            names[record.topic] = schemas.get(record.schema_id, "")
     return names, out
 
 
@@ -140,7 +139,43 @@ def numeric_fields(message: Any, prefix: str = "") -> list[str]:
 
 
 def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    """A JSON number a float can hold (an integer past its range is not)."""
+    if not isinstance(v, (int, float)) or isinstance(v, bool):
+        return False
+    return isinstance(v, float) or -(2**1023) < v < 2**1023
+
+
+#: The largest coordinate drawn (m): past it, matplotlib's axis limits overflow.
+_FAR = 1e15
+
+
+def _finite(v: Any) -> bool:
+    return _is_number(v) and math.isfinite(v) and abs(v) < _FAR
+
+
+def _fits(schema: str, msg: Any) -> bool:
+    """Whether a message has the fields, of the types, that the figure of ``schema`` reads:
+    a pose's position and orientation, a scan's angles and ranges, joint names and
+    positions."""
+    if not isinstance(msg, dict):
+        return False
+    if schema in PATH_SCHEMAS or schema in SCAN_SCHEMAS:
+        pose = msg.get("pose") or {}
+        p, q = (pose.get("position") or {}, pose.get("orientation")) \
+            if isinstance(pose, dict) else (None, None)  # fmt: skip
+        if not isinstance(p, dict) or not all(_finite(p.get(k, 0.0)) for k in "xy"):
+            return False
+        if q and not (isinstance(q, dict) and all(_finite(q.get(k)) for k in "xyzw")):
+            return False
+    if schema in SCAN_SCHEMAS:
+        ranges = msg.get("ranges") or []
+        return (isinstance(ranges, list) and all(r is None or _is_number(r) for r in ranges)
+                and _finite(msg.get("start_angle")) and _finite(msg.get("end_angle")))
+    if schema in JOINT_SCHEMAS:
+        names, position = msg.get("name", []), msg.get("position") or []
+        return (isinstance(names, list) and isinstance(position, list)
+                and all(v is None or _finite(v) for v in position))
+    return True
 
 
 def _get(message: Any, path: str) -> Any:
@@ -178,6 +213,10 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
         known = ", ".join(t for t, s in schemas.items() if s) or "none"
         raise InvalidArgument(f"{recording} has no channel {', '.join(missing)} (channels: "
                               f"{known})")  # fmt: skip
+    for topic in topics:
+        if not all(_fits(schemas[topic], m) for _, _, m in records[topic]):
+            raise BadRecording(f"{recording}: a {topic} message does not fit its schema "
+                               f"{schemas[topic]}")  # fmt: skip
     paths = [t for t in topics if schemas[t] in PATH_SCHEMAS]
     scans = [t for t in topics if schemas[t] in SCAN_SCHEMAS]
     series = [t for t in topics if t not in paths and (t not in scans or not paths)]
@@ -258,8 +297,10 @@ def _plot_path(plt: Any, result: PlotResult, data: dict[str, list[tuple[int, Any
                     continue  # no return
                 a = sth + start + j * step
                 px, py = sx + r * math.cos(a), sy + r * math.sin(a)
-                xs.append(rx + c * px - s * py)
-                ys.append(ry + s * px + c * py)
+                x, y = rx + c * px - s * py, ry + s * px + c * py
+                if abs(x) < _FAR and abs(y) < _FAR:  # a range of 1e308 is none
+                    xs.append(x)
+                    ys.append(y)
         ax.plot(xs, ys, ".", ms=1.5, alpha=0.5, label=f"{topic} ({len(xs)} returns)")
         result.scan_points += len(xs)
         if xs:

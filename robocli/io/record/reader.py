@@ -6,7 +6,10 @@ each chunk its message indexes): :func:`info` reads those and never decompresses
 so a large file is summarised in the time of a few thousand small reads. A recording that
 was killed has no summary: :func:`info` then scans it from the start, record by record,
 and stops at the first incomplete record (what a SIGKILL leaves is readable up to its last
-complete chunk), saying so.
+complete chunk), saying so; the other readers log :func:`~.mcapfile.warn_truncated`, which
+the CLI prints as a note naming ``robocli recover``. Every length the file declares is
+checked before it is read (:mod:`.mcapfile`): a malformed file raises
+:class:`~.mcapfile.BadRecording`.
 """
 
 from __future__ import annotations
@@ -16,39 +19,20 @@ import binascii
 import heapq
 import json
 import logging
-import os
 import struct
-import zlib
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from robocli.errors import RobocliError
 from robocli.io.record.links import RAW_ENCODING, is_raw
+from robocli.io.record.mcapfile import BadRecording, McapFile, warn_truncated
 from robocli.io.record.recorder import RecordingError
 
 log = logging.getLogger("robocli.io.record")
 
 __all__ = ["ChannelInfo", "RecordingInfo", "info", "iter_messages", "raw_frames"]
-
-#: What a truncated record or chunk raises inside the mcap reader (an EndOfFile, a short
-#: struct read, a chunk that does not decompress or whose CRC fails).
-_TRUNCATED: tuple[type[BaseException], ...] = (EOFError, struct.error, ValueError, zlib.error,
-                                               RuntimeError, KeyError, IndexError)  # fmt: skip
-
-
-def _mcap_errors() -> tuple[type[BaseException], ...]:
-    from mcap.exceptions import McapError
-
-    try:
-        import zstandard
-
-        extra: tuple[type[BaseException], ...] = (zstandard.ZstdError,)
-    except ImportError:  # pragma: no cover - zstandard is in the record extra
-        extra = ()
-    return (McapError, *_TRUNCATED, *extra)
-
 
 @dataclass
 class ChannelInfo:
@@ -112,48 +96,27 @@ class RecordingInfo:
         }  # fmt: skip
 
 
-def _open(path: str | Path) -> IO[bytes]:
-    try:
-        import mcap  # noqa: F401 - the optional extra
-    except ImportError:
-        raise RecordingError("reading MCAP needs the mcap package: pip install "
-                             "'robocli[record]'") from None  # fmt: skip
-    try:
-        return Path(path).open("rb")
-    except OSError as exc:
-        raise RobocliError(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-def _check_magic(stream: IO[bytes], path: str | Path) -> None:
-    head = stream.read(8)
-    stream.seek(0)
-    if head != b"\x89MCAP0\r\n":
-        raise RobocliError(f"{path} is not an MCAP file (no MCAP magic at its start)")
-
-
 def info(path: str | Path) -> RecordingInfo:
     """Summarise the recording at ``path`` (see the module docstring). Raises
-    :class:`RobocliError` for a file that is not MCAP or cannot be read."""
-    with _open(path) as stream:
-        _check_magic(stream, path)
-        size = os.fstat(stream.fileno()).st_size
-        result = RecordingInfo(str(path), size)
-        summary = _summary(stream)
-        if summary is not None and summary.chunk_indexes and _from_summary(stream, summary,
-                                                                             result):  # fmt: skip
+    :class:`~robocli.io.record.mcapfile.BadRecording` for a file that is not MCAP or is
+    malformed, :class:`RobocliError` for one that cannot be read."""
+    with McapFile(path) as f:
+        result = RecordingInfo(str(path), f.size)
+        try:
+            summary = f.summary()
+        except BadRecording as exc:  # the data may still read: scan it
+            log.info("%s; scanning the file instead", exc)
+            summary = None
+        if summary is not None and _indexed(summary) and _from_summary(f, summary, result):
             return result
-        stream.seek(0)
-        _scan(stream, result)
+        _scan(f, result)
         return result
 
 
-def _summary(stream: IO[bytes]) -> Any:
-    from mcap.reader import SeekingReader
-
-    try:
-        return SeekingReader(stream).get_summary()
-    except _mcap_errors():
-        return None
+def _indexed(summary: Any) -> bool:
+    """Whether the summary says where every message is: chunk indexes, or no message."""
+    stats = summary.statistics
+    return bool(summary.chunk_indexes) or (stats is not None and stats.message_count == 0)
 
 
 #: MCAP record opcodes read here without the mcap package's record classes.
@@ -164,13 +127,14 @@ _INDEX_HEAD = struct.Struct("<HI")
 
 def _message_indexes(block: bytes) -> Iterator[tuple[int, Any]]:
     """(channel id, uint64 array of log time, offset pairs flattened) of each Message Index
-    record in ``block`` (the records that follow a chunk)."""
+    record in ``block`` (the records that follow a chunk), each bounded by the block."""
     import numpy as np
 
     pos = 0
     while pos + _RECORD_HEAD.size <= len(block):
         opcode, length = _RECORD_HEAD.unpack_from(block, pos)
         pos += _RECORD_HEAD.size
+        length = min(length, len(block) - pos)
         if opcode == _OP_MESSAGE_INDEX and length >= _INDEX_HEAD.size:
             channel_id, size = _INDEX_HEAD.unpack_from(block, pos)
             count = min(size, length - _INDEX_HEAD.size) // 16
@@ -182,12 +146,12 @@ def _message_indexes(block: bytes) -> Iterator[tuple[int, Any]]:
 
 def _times(channel: ChannelInfo, times: list[Any]) -> None:
     """Fill ``channel``'s count, first, last and largest gap from its log times (ints or
-    arrays of them)."""
+    arrays of them, uint64 nanoseconds)."""
     import numpy as np
 
     if not times:
         return
-    parts = [np.asarray(t, dtype=np.int64).ravel() for t in times]
+    parts = [np.asarray(t, dtype=np.uint64).ravel() for t in times]
     arr = np.sort(np.concatenate(parts)) if len(parts) > 1 else np.sort(parts[0])
     if not arr.size:
         return
@@ -196,19 +160,18 @@ def _times(channel: ChannelInfo, times: list[Any]) -> None:
     channel.largest_gap_s = float(np.max(np.diff(arr))) / 1e9 if arr.size > 1 else 0.0
 
 
-def _from_summary(stream: IO[bytes], summary: Any, result: RecordingInfo) -> bool:
+def _from_summary(f: McapFile, summary: Any, result: RecordingInfo) -> bool:
     """Fill ``result`` from the summary and the message indexes; False when the file has no
-    message indexes (then it is scanned)."""
+    message indexes, or they are not where the summary says (then it is scanned)."""
 
     times: dict[int, list[Any]] = {cid: [] for cid in summary.channels}
     for chunk in summary.chunk_indexes:
         if not chunk.message_index_offsets:
             return False
         start = min(chunk.message_index_offsets.values())
-        stream.seek(start)
-        block = stream.read(chunk.message_index_length)
-        if len(block) != chunk.message_index_length:
+        if start + chunk.message_index_length > f.size:
             return False  # the summary points past the end: scan instead
+        block = f.read_at(start, chunk.message_index_length)
         for channel_id, records in _message_indexes(block):
             times.setdefault(channel_id, []).append(records[0::2].copy())
         if chunk.compression and chunk.compression not in result.compression:
@@ -231,71 +194,45 @@ def _from_summary(stream: IO[bytes], summary: Any, result: RecordingInfo) -> boo
         firsts = [c.first_ns for c in result.channels if c.count]
         result.start_ns = min(firsts, default=0)
         result.end_ns = max((c.last_ns for c in result.channels if c.count), default=0)
-    try:
-        from mcap.reader import SeekingReader
-
-        stream.seek(0)
-        result.library = SeekingReader(stream).get_header().library
-    except _mcap_errors():
-        pass
+    header = f.header()
+    result.library = header.library if header is not None else ""
     return True
 
 
-def iter_messages(stream: IO[bytes], result: RecordingInfo | None = None) -> Iterator[Any]:
-    """Every record of an MCAP stream in file order, chunks decompressed, stopping quietly
-    at the first incomplete record (``result.truncated`` is then set)."""
-    from mcap.stream_reader import StreamReader
-
-    records = StreamReader(stream).records
-    while True:
-        try:
-            record = next(records)
-        except StopIteration:
-            return
-        except _mcap_errors():
-            if result is not None:
-                result.truncated = True
-            return
-        yield record
+def iter_messages(path: str | Path) -> Iterator[Any]:
+    """Every Schema, Channel and Message record of the recording at ``path`` in file order,
+    chunks opened; a file cut short is read up to its last complete record, and a warning
+    says so (:func:`~robocli.io.record.mcapfile.truncated_hint`)."""
+    with McapFile(path) as f:
+        yield from f.records(skip=_NOT_DATA)
+        if f.truncated:
+            warn_truncated(path)
 
 
-def _scan(stream: IO[bytes], result: RecordingInfo) -> None:
-    from mcap.records import Channel, Chunk, Footer, Header, Message, Schema
-    from mcap.stream_reader import StreamReader, breakup_chunk
+#: What readers of messages step over unparsed: indexes, attachments, metadata.
+_NOT_DATA = frozenset((0x07, 0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x0E))
+
+
+def _scan(f: McapFile, result: RecordingInfo) -> None:
+    from mcap.records import Channel, Header, Message, Schema
 
     schemas: dict[int, str] = {}
     channels: dict[int, ChannelInfo] = {}
     times: dict[int, list[Any]] = {}
-    readable = 0
-    records = StreamReader(stream, emit_chunks=True).records  # reads exactly each record
-    while True:
-        try:
-            record = next(records)
-            inner = breakup_chunk(record) if isinstance(record, Chunk) else [record]
-        except StopIteration:
-            break
-        except _mcap_errors():
-            result.truncated = True
-            break
-        if isinstance(record, Chunk):
-            result.chunks += 1
-            if record.compression and record.compression not in result.compression:
-                result.compression.append(record.compression)
-        if isinstance(record, Header):
-            result.library = record.library
-        for rec in inner:
-            if isinstance(rec, Schema):
-                schemas[rec.id] = rec.name
-            elif isinstance(rec, Channel) and rec.id not in channels:
-                schema = schemas.get(rec.schema_id, "")
-                channels[rec.id] = ChannelInfo(rec.id, rec.topic, schema, rec.message_encoding,
-                                               dict(rec.metadata))  # fmt: skip
-            elif isinstance(rec, Message):
-                times.setdefault(rec.channel_id, []).append(rec.log_time)
-        readable = stream.tell()
-        if isinstance(record, Footer):
-            break
-    result.readable_bytes = min(readable, result.size)
+    for rec in f.records(skip=_NOT_DATA):
+        if isinstance(rec, Header):
+            result.library = rec.library
+        elif isinstance(rec, Schema):
+            schemas[rec.id] = rec.name
+        elif isinstance(rec, Channel) and rec.id not in channels:
+            schema = schemas.get(rec.schema_id, "")
+            channels[rec.id] = ChannelInfo(rec.id, rec.topic, schema, rec.message_encoding,
+                                           dict(rec.metadata))  # fmt: skip
+        elif isinstance(rec, Message):
+            times.setdefault(rec.channel_id, []).append(rec.log_time)
+    result.truncated = f.truncated
+    result.chunks, result.compression = f.chunks, list(f.compressions)
+    result.readable_bytes = min(f.readable_bytes, result.size)
     for cid, channel in sorted(channels.items()):
         _times(channel, times.get(cid, []))
         result.channels.append(channel)
@@ -394,26 +331,36 @@ def _framer(protocol: str, direction: str) -> Any:
 
 def _ordered(path: str | Path, summary_info: RecordingInfo,
              channels: set[int]) -> Iterator[tuple[int, int, bytes]]:  # fmt: skip
-    """(channel id, log time, data) of ``channels``' messages in log-time order."""
+    """(channel id, log time, data) of ``channels``' messages in log-time order: merged by
+    the chunk indexes of a finished file, within :data:`_REORDER_NS` in one cut short."""
     from mcap.records import Message
 
-    with _open(path) as stream:
-        if summary_info.summary:
-            from mcap.reader import SeekingReader
-
-            topics = [c.topic for c in summary_info.channels if c.id in channels]
-            for _, _, message in SeekingReader(stream).iter_messages(topics=topics):
-                yield message.channel_id, message.log_time, message.data
-            return
-        heap: list[tuple[int, int, int, bytes]] = []
-        seq = 0
-        for record in iter_messages(stream):
-            if isinstance(record, Message) and record.channel_id in channels:
-                heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
-                seq += 1
-                while heap and heap[0][0] < record.log_time - _REORDER_NS:
+    heap: list[tuple[int, int, int, bytes]] = []
+    seq = 0
+    with McapFile(path) as f:
+        summary = f.summary() if summary_info.summary else None
+        if summary is not None and summary.chunk_indexes:
+            # a message of a later chunk is no older than its chunk's start
+            for chunk in sorted(summary.chunk_indexes,
+                                key=lambda c: (c.message_start_time, c.chunk_start_offset)):
+                while heap and heap[0][0] < chunk.message_start_time:
                     t, _, cid, data = heapq.heappop(heap)
                     yield cid, t, data
-        while heap:
-            t, _, cid, data = heapq.heappop(heap)
-            yield cid, t, data
+                for record in f.chunk_at(chunk.chunk_start_offset, chunk.chunk_length):
+                    if isinstance(record, Message) and record.channel_id in channels:
+                        heapq.heappush(heap, (record.log_time, seq, record.channel_id,
+                                              record.data))  # fmt: skip
+                        seq += 1
+        else:
+            for record in f.records(skip=_NOT_DATA):
+                if isinstance(record, Message) and record.channel_id in channels:
+                    heapq.heappush(heap, (record.log_time, seq, record.channel_id, record.data))
+                    seq += 1
+                    while heap and heap[0][0] < record.log_time - _REORDER_NS:
+                        t, _, cid, data = heapq.heappop(heap)
+                        yield cid, t, data
+            if f.truncated:
+                warn_truncated(path)
+    while heap:
+        t, _, cid, data = heapq.heappop(heap)
+        yield cid, t, data

@@ -1,0 +1,64 @@
+"""``robocli recover``: a recording cut short (killed, a full disk) rewritten whole, with
+its summary, indexes and footer, so that every MCAP reader opens it; a thin layer over
+:func:`robocli.io.record.recover`. It says on stderr what it kept."""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+from collections.abc import Iterator
+from pathlib import Path
+
+import typer
+
+
+def recover(
+    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
+                                help="The recording to recover (.mcap); never written to."),
+    out: Path | None = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: UP007
+                                    help="File to write (default: FILE's name + .recovered)."),
+    overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT if it exists."),
+) -> None:
+    """Rewrite every complete chunk and record of a recording that was killed or whose disk
+    filled up into a new file with its summary, indexes and footer (as mcap recover does)."""
+    from robocli.io.record import recover as run
+
+    stats = run(file, out, overwrite=overwrite)
+    cut = f", {stats.lost_bytes} bytes of a cut record dropped" if stats.truncated else ""
+    skipped = f", {stats.skipped} malformed records left out" if stats.skipped else ""
+    if stats.orphans:
+        skipped += f", {stats.orphans} messages of undeclared channels left out"
+    typer.echo(f"recovered {stats.messages} messages on {stats.channels} channels from "
+               f"{stats.chunks} chunks{cut}{skipped} into {stats.path}", err=True)  # fmt: skip
+
+
+class _TruncationNotes(logging.Handler):
+    """Prints the readers' warning that a file is cut short (see
+    :func:`~robocli.io.record.mcapfile.warn_truncated`) as one note line on stderr, once
+    per file; other log records are left to the logging set up (none by default)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.seen: set[str] = set()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        from robocli.io.record.mcapfile import TRUNCATED_ATTR, truncated_hint
+
+        path = getattr(record, TRUNCATED_ATTR, None)
+        if path is None or path in self.seen:
+            return
+        self.seen.add(path)
+        typer.echo(f"robocli: note: {truncated_hint(path)}", err=True)
+
+
+@contextlib.contextmanager
+def truncation_notes() -> Iterator[None]:
+    """While the block runs, a reader that meets a recording cut short says so on stderr
+    (one line naming ``robocli recover``) and goes on with what the file holds."""
+    handler = _TruncationNotes()
+    logger = logging.getLogger("robocli.io.record")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
