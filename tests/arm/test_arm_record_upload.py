@@ -14,6 +14,7 @@ from cli.helpers import one_line_error, run
 from mcap.reader import make_reader
 
 from robocli.io.record import info
+from robocli.io.record.reader import raw_frame
 from robocli.protocols import simple_message as sm
 from robocli.sim.abb.server import AbbSim
 from tests.arm.conftest import port_of
@@ -24,7 +25,10 @@ def _topics(path: Path) -> dict[str, list[bytes]]:
     out: dict[str, list[bytes]] = {}
     with path.open("rb") as f:
         for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
-            out.setdefault(channel.topic, []).append(bytes(message.data))
+            data = bytes(message.data)
+            if "/raw/" in channel.topic:  # a raw channel's frame, as its schema holds it
+                data = raw_frame(channel.message_encoding, data)
+            out.setdefault(channel.topic, []).append(data)
     return out
 
 
