@@ -235,6 +235,15 @@ class _Link:
     def __init__(self) -> None:
         self.sent: list[bytes] = []
         self.closed = False
+        self.address = "127.0.0.1"  # the client's address (the places policy counts by it)
+        self.privileged = False  # set by the session for a token holder
+
+    def reserve(self, n: int) -> bool:
+        """The server's output budget: a fuzzed input is one client, always within it."""
+        return not self.closed
+
+    def unreserve(self) -> None:
+        """Give back what :meth:`reserve` charged."""
 
     def send(self, data: bytes) -> bool:
         self.sent.append(bytes(data))
@@ -299,7 +308,7 @@ def fuzz_hub_server(data: bytes) -> None:
         TOKEN if opt & _OPT_TOKEN else None,
         rig.serial if opt & _OPT_SERIAL else None,
         rig.times,
-        admit=(lambda: "hub full: too many clients") if opt & _OPT_FULL else None,
+        admit=(lambda _session: "hub full: too many clients") if opt & _OPT_FULL else None,
     )
     framer = Framer("ros4mat", max_frame=HEADER_SIZE + MAX_REQUEST_BODY)
     try:
