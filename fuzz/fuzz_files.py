@@ -71,7 +71,7 @@ def seed_inputs() -> list[bytes]:
     for index, (reader, suffix) in enumerate(READERS):
         if reader == "log":
             path = _path(suffix)
-            write_log(log, path)
+            write_log(log, path, overwrite=True)  # one scratch file, written again per input
             out.append(bytes((index,)) + path.read_bytes())
     waypoints = [
         {"joints": q.tolist(), "time": t.tolist()},

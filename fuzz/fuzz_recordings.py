@@ -128,7 +128,7 @@ def fuzz_recordings(data: bytes) -> None:
 def _record(name: str, make: Callable[[Any], None], **options: Any) -> bytes:
     """The bytes of a recording made by ``make(recorder)``."""
     path = _folder() / f"seed-{name}.mcap"
-    with Recorder(path, chunk_size=1024, chunk_seconds=0.05, **options) as rec:
+    with Recorder(path, chunk_size=1024, chunk_seconds=0.05, overwrite=True, **options) as rec:
         make(rec)
     return path.read_bytes()
 
