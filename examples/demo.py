@@ -43,9 +43,9 @@ def arm_circle(out: Path) -> int:
     sim_log, real_log = str(out / "sim.json"), str(out / "real.json")
     figure = out / "arm_circle.png"
     steps = [
-        ["traj", "circle", "--points", "100", "--out", sim_log],
-        ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log],
-        ["validate", sim_log, real_log, *(["--plot", str(figure)] if PLOT else [])],
+        ["traj", "circle", "--points", "100", "--out", sim_log, "--overwrite"],
+        ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log, "--overwrite"],
+        ["validate", sim_log, real_log, *(["--plot", str(figure), "--overwrite"] if PLOT else [])],
     ]
     for argv in steps:
         step("robocli " + " ".join(argv))
@@ -118,7 +118,7 @@ def recording(path: Path, robot: Pioneer) -> Any:
         return contextlib.nullcontext()
     from robocli.io.record import Recorder
 
-    rec = Recorder(path)
+    rec = Recorder(path, overwrite=True)  # the demo replaces what it made last time
     rec.add(robot)
     return rec
 
@@ -131,14 +131,14 @@ def look(out: Path) -> int:
     wander_rec, hub_rec = str(out / "wander.mcap"), str(out / "hub.mcap")
     steps = [
         ["info", wander_rec],
-        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec],
+        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec, "--overwrite"],
     ]
     if PLOT:
         steps += [
             ["plot", wander_rec, "-c", "/pioneer/pose", "-c", "/pioneer/laser", "-o",
-             str(out / "wander_path.png")],
+             str(out / "wander_path.png"), "--overwrite"],
             ["plot", hub_rec, "-c", "/hub/imu", "-c", "/hub/adc", "-f",
-             "linear_acceleration.z", "-f", "channels.0", "-o", str(out / "hub.png")],
+             "linear_acceleration.z", "-f", "channels.0", "-o", str(out / "hub.png"), "--overwrite"],
         ]  # fmt: skip
     for argv in steps:
         step("robocli " + " ".join(argv))
