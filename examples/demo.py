@@ -131,14 +131,16 @@ def look(out: Path) -> int:
     wander_rec, hub_rec = str(out / "wander.mcap"), str(out / "hub.mcap")
     steps = [
         ["info", wander_rec],
-        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec, "--overwrite"],
+        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec,
+         "--overwrite"],
     ]
     if PLOT:
         steps += [
             ["plot", wander_rec, "-c", "/pioneer/pose", "-c", "/pioneer/laser", "-o",
              str(out / "wander_path.png"), "--overwrite"],
             ["plot", hub_rec, "-c", "/hub/imu", "-c", "/hub/adc", "-f",
-             "linear_acceleration.z", "-f", "channels.0", "-o", str(out / "hub.png"), "--overwrite"],
+             "linear_acceleration.z", "-f", "channels.0", "-o", str(out / "hub.png"),
+             "--overwrite"],
         ]  # fmt: skip
     for argv in steps:
         step("robocli " + " ".join(argv))

@@ -27,14 +27,12 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import os
-import secrets
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from robocli._version import __version__
-from robocli.errors import InvalidArgument, RobocliError
+from robocli.io.output import OutputError, check_output, replace_output
 from robocli.io.record.mcapfile import BadRecording, McapFile
 
 log = logging.getLogger("robocli.io.record")
@@ -69,28 +67,21 @@ def default_output(path: str | Path) -> Path:
 
 
 def _check_output(src: Path, out: Path, overwrite: bool) -> None:
-    """Refuse an output that is the input, a symbolic link, an existing file without
-    ``overwrite``, or a folder."""
-    if out.is_symlink():
-        raise InvalidArgument(f"{out} is a symbolic link: recover writes no file through one "
-                              "(give the real path)")  # fmt: skip
-    if out.exists():
-        if out.is_dir():
-            raise InvalidArgument(f"{out} is a folder: give the file to write")
-        with contextlib.suppress(OSError):
-            if out.samefile(src):
-                raise InvalidArgument(f"{out} is the recording being recovered: give another "
-                                      "output")  # fmt: skip
-        if not overwrite:
-            raise InvalidArgument(f"{out} exists: give another output, or --overwrite")
+    """Refuse an output that is the input (under any name), then as every output is refused
+    (:func:`~robocli.io.output.check_output`: a symbolic link, a folder, an existing file
+    without ``overwrite``)."""
+    with contextlib.suppress(OSError):
+        if out.samefile(src):
+            raise OutputError(f"{out} is the recording being recovered: give another output")
+    check_output(out, overwrite)
 
 
 def recover(path: str | Path, out: str | Path | None = None, *,
             overwrite: bool = False) -> RecoverStats:  # fmt: skip
     """Rewrite the recording at ``path`` whole into ``out`` (default
-    :func:`default_output`); see the module docstring. Raises :class:`InvalidArgument` for
-    an output it may not write, :class:`BadRecording` for an input that is not MCAP or holds
-    no complete record, :class:`RobocliError` when the output cannot be written."""
+    :func:`default_output`); see the module docstring. Raises :class:`BadRecording` for an
+    input that is not MCAP or holds no complete record, and
+    :class:`~robocli.io.output.OutputError` for an output it may not or cannot write."""
     from mcap.records import Header
 
     src, dst = Path(path), Path(out) if out is not None else default_output(path)
@@ -100,43 +91,10 @@ def recover(path: str | Path, out: str | Path | None = None, *,
         if not isinstance(first, Header):
             raise BadRecording(f"{src} has no complete header record: nothing to recover")
         stats = RecoverStats(str(dst))
-        part = dst.with_name(f".{dst.name}.{os.getpid()}.{secrets.token_hex(4)}.part")
-        try:
-            fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW, 0o666)
-        except OSError as exc:  # a path the user gave: a usage error (exit 2)
-            raise InvalidArgument(f"cannot write {dst}: {exc.strerror or exc}") from None
-        try:
-            with os.fdopen(fd, "wb") as stream:
-                _copy(f, first, stream, stats)
-            _place(part, dst, overwrite)
-        except FileExistsError:
-            raise InvalidArgument(f"{dst} exists: give another output, or --overwrite") from None
-        except OSError as exc:
-            raise RobocliError(f"cannot write {dst}: {exc.strerror or exc}") from None
-        finally:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(part)
+        with replace_output(dst, overwrite) as stream:  # beside it, in place once whole
+            _copy(f, first, stream, stats)
     log.info("recovered %s into %s: %s", src, dst, stats)
     return stats
-
-
-_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
-
-
-def _place(part: Path, dst: Path, overwrite: bool) -> None:
-    """Give the complete file ``part`` its name ``dst``: replacing what is there only with
-    ``overwrite``, else failing with FileExistsError, atomically where hard links exist."""
-    if overwrite:
-        os.replace(part, dst)
-        return
-    try:
-        os.link(part, dst)
-    except FileExistsError:
-        raise
-    except OSError:  # no hard links here (FAT, some network file systems)
-        if os.path.lexists(dst):
-            raise FileExistsError(dst) from None
-        os.replace(part, dst)
 
 
 def _copy(f: McapFile, header: Any, stream: Any, stats: RecoverStats) -> None:
