@@ -61,11 +61,12 @@ class HubProcess:
     def address(self) -> str:
         return self.url.removeprefix("tcp://")
 
-    def dropped(self, timeout: float = 5.0) -> int | None:
-        """Samples the hub dropped for its clients so far because their buffers overflowed,
-        before samples they pulled (what their gaps show: a cursor that overflowed after
-        its client's last pull is not counted; clients that sent QUIT are forgotten), or
-        None when it does not answer."""
+    def stats(self, timeout: float = 5.0) -> dict[str, Any] | None:
+        """The hub's counters (None when it does not answer): ``dropped_seen``, the samples
+        it dropped for its clients so far because their buffers overflowed, before samples
+        they pulled (what their gaps show: a cursor that overflowed after its client's last
+        pull is not counted; clients that sent QUIT are forgotten); ``pull``, percentiles
+        (s) of its own time per pull, request framed to reply built (its last 65,536)."""
         assert self.proc.stdin is not None
         try:
             self.proc.stdin.write("stats\n")
@@ -73,7 +74,12 @@ class HubProcess:
         except OSError:
             return None
         line = read_line(self.proc, timeout)
-        return int(json.loads(line)["dropped_seen"]) if line.startswith("{") else None
+        return dict(json.loads(line)) if line.startswith("{") else None
+
+    def dropped(self, timeout: float = 5.0) -> int | None:
+        """``dropped_seen`` of :meth:`stats`."""
+        stats = self.stats(timeout)
+        return None if stats is None else int(stats["dropped_seen"])
 
 
 @contextlib.contextmanager
@@ -100,7 +106,8 @@ def _hub_child() -> None:
         for line in sys.stdin:  # until the parent closes the pipe (or dies)
             if line.strip() == "stats":
                 print(json.dumps({"dropped": sum(c.dropped for c in srv.clients),
-                                  "dropped_seen": srv.hub.dropped_seen()}), flush=True)  # fmt: skip
+                                  "dropped_seen": srv.hub.dropped_seen(),
+                                  "pull": srv.pull_times.percentiles()}), flush=True)  # fmt: skip
 
 
 def cpu_seconds(pid: int) -> float:
@@ -275,7 +282,8 @@ def throughput(
             out, _ = proc.communicate(timeout=seconds + 60)
             results.append(json.loads(out.strip().splitlines()[-1]))
         # after the clients' last pulls: what the hub dropped before samples they pulled
-        dropped1 = hub.dropped() if hub is not None else None
+        end_stats = hub.stats() if hub is not None else None
+        dropped1 = None if end_stats is None else int(end_stats["dropped_seen"])
     finally:  # interrupted (or failed): no worker outlives the bench
         _stop_workers(procs)
     client_cores = (_children_cpu() - before) / max(time.time() - spawned, 1e-9)
@@ -303,6 +311,9 @@ def throughput(
         report["hub_peak_rss_mb"] = rss / 2**20
         if dropped0 is not None and dropped1 is not None:
             report["hub_dropped"] = dropped1 - dropped0
+        if end_stats is not None:  # the hub's own part of a pull, whole session
+            report["hub_pull_p50_ms"] = end_stats["pull"]["p50"] * 1e3
+            report["hub_pull_p99_ms"] = end_stats["pull"]["p99"] * 1e3
     report["targets_met"] = bool(
         not report["errors"] and total["lost"] == 0 and not report.get("hub_dropped")
         and report.get("pull_p99_ms", 1e9) <= TARGET_P99_S * 1e3
