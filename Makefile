@@ -43,12 +43,35 @@ TEST_WORKERS ?= 4
 test: $(STAMP) test-c
 	$(PYTEST) -n $(TEST_WORKERS) $(PYTEST_ARGS)
 
-# The same suite with the CPU oversubscribed: LOAD_PER_CORE busy loops per core run beside it.
-# The loops are killed when pytest ends, fails or is interrupted, and each one is bounded by
-# `timeout` (LOAD_TIMEOUT s) in case make itself is killed. Tests assert behaviour, not speed:
-# this must pass.
+# The same suite on a busy machine: LOAD_PER_CORE busy loops per core and LOAD_WRITERS disk
+# writers (each rewrites a file of LOAD_WRITE_MB MiB in $(LOAD_DIR) a MiB at a time, with an
+# fsync after each MiB, at up to LOAD_WRITE_MBPS MiB/s) run beside it. Every one is killed when pytest ends, fails or is
+# interrupted, and bounded by `timeout` (LOAD_TIMEOUT s) in case make itself is killed; a
+# writer unlinks its file as soon as it has opened it, so the space comes back however it
+# ends. Tests assert behaviour, not speed: this must pass.
 LOAD_PER_CORE ?= 2
+LOAD_WRITERS  ?= 1
+LOAD_WRITE_MB ?= 64
+LOAD_WRITE_MBPS ?= 100
+LOAD_DIR      ?= $(or $(TMPDIR),/tmp)
 LOAD_TIMEOUT  ?= 3600
+define LOAD_WRITER
+import os, sys, tempfile, time
+fd, path = tempfile.mkstemp(prefix="robocli-test-load-", dir=sys.argv[1])
+os.unlink(path)
+block, cap, size = os.urandom(1 << 20), int(sys.argv[2]) << 20, 0
+start, period, n = time.monotonic(), 1.0 / float(sys.argv[3]), 0
+while True:
+    if size >= cap:
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)
+        size = 0
+    size += os.write(fd, block)
+    os.fsync(fd)
+    n += 1
+    time.sleep(max(0.0, start + n * period - time.monotonic()))
+endef
+export LOAD_WRITER
 test-load: $(STAMP) test-c
 	@n=$$(( $$(nproc) * $(LOAD_PER_CORE) )); pids=; \
 	stop() { for p in $$pids; do kill $$p 2>/dev/null; done; wait $$pids 2>/dev/null; pids=; }; \
@@ -56,7 +79,12 @@ test-load: $(STAMP) test-c
 	for i in $$(seq $$n); do \
 	  timeout $(LOAD_TIMEOUT) $(PY) -c 'while True: pass' & pids="$$pids $$!"; \
 	done; \
-	echo "test-load: $$n busy loops ($(LOAD_PER_CORE) per core) beside pytest"; \
+	for i in $$(seq $(LOAD_WRITERS)); do \
+	  timeout $(LOAD_TIMEOUT) $(PY) -c "$$LOAD_WRITER" "$(LOAD_DIR)" $(LOAD_WRITE_MB) $(LOAD_WRITE_MBPS) & \
+	  pids="$$pids $$!"; \
+	done; \
+	echo "test-load: $$n busy loops ($(LOAD_PER_CORE) per core) and $(LOAD_WRITERS) disk" \
+	  "writer(s) ($(LOAD_WRITE_MBPS) MiB/s, fsync per MiB, in $(LOAD_DIR)) beside $(TEST_WORKERS) pytest workers"; \
 	start=$$(date +%s); rc=0; $(PYTEST) -n $(TEST_WORKERS) $(PYTEST_ARGS) || rc=$$?; \
 	stop; echo "test-load: pytest exit $$rc after $$(( $$(date +%s) - start )) s under load"; \
 	exit $$rc

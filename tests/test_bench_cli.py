@@ -7,30 +7,25 @@ import json
 import os
 import signal
 import subprocess
-import sys
-import time
 
 import pytest
+from cli.helpers import ROBOCLI
+from cli.test_screens import terminal
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 
 
-def _robocli(*args: str) -> subprocess.Popen[str]:
-    return subprocess.Popen(
-        [sys.executable, "-m", "robocli", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
-def _interrupt(proc: subprocess.Popen[str], after: float, sig: int) -> tuple[str, str]:
-    time.sleep(after)  # let it get into the long stage (not an assert on speed)
-    assert proc.poll() is None, proc.communicate()
-    proc.send_signal(sig)
-    # "within a second" is the aim; this bound only keeps a broken build from hanging CI
-    out, err = proc.communicate(timeout=60)
-    return out, err
+def _interrupt(args: tuple[str, ...], stage: str, sig: int = signal.SIGINT) -> tuple[int, str, str]:
+    """Run ``robocli ARGS`` with stderr on a terminal; once its progress bar names ``stage``
+    (a stage shows one after about 2 s, with samples collected), send ``sig``. Returns the
+    exit code, stdout and what the terminal showed."""
+    with terminal(*args, stderr_on_pty=True) as term:
+        term.read_until(stage.encode(), timeout=120)
+        assert term.proc.poll() is None, term.text
+        term.proc.send_signal(sig)
+        # "within a second" is the aim; this bound only keeps a broken build from hanging CI
+        code, out = term.finish(60)
+    return code, out, term.text
 
 
 def _counts(out: str) -> dict[str, int]:
@@ -45,18 +40,17 @@ def _counts(out: str) -> dict[str, int]:
 
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_ctrl_c_stops_the_c_floor_and_prints_what_it_collected(sig: int) -> None:
-    proc = _robocli("bench", "rtt", "-n", "1000000")
-    out, err = _interrupt(proc, 2.5, sig)
-    assert proc.returncode == 130, err
+    code, out, err = _interrupt(("bench", "rtt", "-n", "1000000"), "C floor, same CPU", sig)
+    assert code == 130, err
     rows = _counts(out)
     assert 0 < rows["C floor, same CPU"] < 1_000_000
     assert "interrupted" in err
 
 
 def test_ctrl_c_stops_the_client_stage_and_prints_what_it_collected() -> None:
-    proc = _robocli("bench", "rtt", "-n", "1000000", "--floor-n", "200")
-    out, err = _interrupt(proc, 4.0, signal.SIGINT)
-    assert proc.returncode == 130, err
+    args = ("bench", "rtt", "-n", "1000000", "--floor-n", "200")
+    code, out, err = _interrupt(args, "C responder")
+    assert code == 130, err
     rows = _counts(out)
     assert rows["C floor, same CPU"] == 200
     # the stage running at the signal (a bare socket, then the client, against the
@@ -67,14 +61,14 @@ def test_ctrl_c_stops_the_client_stage_and_prints_what_it_collected() -> None:
 
 
 def test_ctrl_c_stops_jitter_with_partial_periods() -> None:
-    proc = _robocli("bench", "jitter", "-n", "1000")
-    out, err = _interrupt(proc, 3.0, signal.SIGINT)
-    assert proc.returncode == 130, err
+    code, out, err = _interrupt(("bench", "jitter", "-n", "1000"), "SIPs")
+    assert code == 130, err
     assert 0 < _counts(out)["SIP period"] < 1000
 
 
 def test_rtt_json_names_every_stage_with_floor_multiples() -> None:
-    proc = _robocli("bench", "rtt", "-n", "50", "--json")
+    proc = subprocess.Popen([*ROBOCLI, "bench", "rtt", "-n", "50", "--json"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     try:
         out, err = proc.communicate(timeout=60)
     except subprocess.TimeoutExpired:

@@ -44,6 +44,7 @@ BENCH_SENSORS: dict[str, tuple[str, dict[str, Any]]] = {
     "sysinfo": ("computer", {"rate": 10}),
 }
 TARGET_P99_S = 5e-3
+FIRST_SAMPLE_S = 10.0  #: a client waits this long for each sensor's first sample
 CLIENTS_PER_WORKER = 5  #: default client threads per worker process
 TARGET_CORES = 1.0
 
@@ -60,9 +61,12 @@ class HubProcess:
     def address(self) -> str:
         return self.url.removeprefix("tcp://")
 
-    def dropped(self, timeout: float = 5.0) -> int | None:
-        """Samples the hub dropped for its clients so far because their buffers overflowed
-        (clients that sent QUIT are forgotten), or None when it does not answer."""
+    def stats(self, timeout: float = 5.0) -> dict[str, Any] | None:
+        """The hub's counters (None when it does not answer): ``dropped_seen``, the samples
+        it dropped for its clients so far because their buffers overflowed, before samples
+        they pulled (what their gaps show: a cursor that overflowed after its client's last
+        pull is not counted; clients that sent QUIT are forgotten); ``pull``, percentiles
+        (s) of its own time per pull, request framed to reply built (its last 65,536)."""
         assert self.proc.stdin is not None
         try:
             self.proc.stdin.write("stats\n")
@@ -70,7 +74,12 @@ class HubProcess:
         except OSError:
             return None
         line = read_line(self.proc, timeout)
-        return int(json.loads(line)["dropped"]) if line.startswith("{") else None
+        return dict(json.loads(line)) if line.startswith("{") else None
+
+    def dropped(self, timeout: float = 5.0) -> int | None:
+        """``dropped_seen`` of :meth:`stats`."""
+        stats = self.stats(timeout)
+        return None if stats is None else int(stats["dropped_seen"])
 
 
 @contextlib.contextmanager
@@ -96,7 +105,9 @@ def _hub_child() -> None:
         print(srv.url, flush=True)
         for line in sys.stdin:  # until the parent closes the pipe (or dies)
             if line.strip() == "stats":
-                print(json.dumps({"dropped": sum(c.dropped for c in srv.clients)}), flush=True)
+                print(json.dumps({"dropped": sum(c.dropped for c in srv.clients),
+                                  "dropped_seen": srv.hub.dropped_seen(),
+                                  "pull": srv.pull_times.percentiles()}), flush=True)  # fmt: skip
 
 
 def cpu_seconds(pid: int) -> float:
@@ -144,11 +155,14 @@ def _client(
     address: str, sensors: list[str], pull_hz: float, start: float, end: float,
     out: dict[str, Any], lock: threading.Lock, quit_at_end: bool,
 ) -> None:  # fmt: skip
+    """One client: subscribes, then pulls every sensor at ``pull_hz`` until ``end``; pulls,
+    samples, bytes and latency are counted from ``start`` (while all the clients pull), the
+    gaps in the sample times (``lost``) from its first pull on, as the hub counts what it
+    dropped for it (:meth:`HubProcess.dropped`)."""
     from robocli.devices.hub.client import Hub
 
     lat: list[float] = []
     tally = {s: _Tally() for s in sensors}
-    last: dict[str, float] = {}
     try:
         hub = Hub.connect(address, timeout=10.0)
         try:
@@ -156,35 +170,30 @@ def _client(
                 name, args = BENCH_SENSORS[s]
                 hub.subscribe(name, **args)
             period = 1.0 / pull_hz
-            due = start + random.random() * period  # spread the clients over a period
-            # what piled up while everybody subscribed, read before the measured window (a
-            # hub counts what it dropped for a client when that client next pulls)
-            time.sleep(max(0.0, start - 0.5 - time.time()))
+            # the first samples of each sensor, pulled as soon as they come: the gaps are
+            # counted from them (the Hub's own count, Reading.lost), before any buffer can
+            # overflow; then the pulls, spread over a period
             for s in sensors:
-                hub.read(BENCH_SENSORS[s][0])
-            time.sleep(max(0.0, start - time.time()))
-            for s in sensors:
-                r = hub.read(BENCH_SENSORS[s][0])
-                if len(r):
-                    last[s] = float(r.hub_t[-1])
+                name = BENCH_SENSORS[s][0]
+                deadline = time.monotonic() + FIRST_SAMPLE_S
+                while not len(r := hub.read(name)) and time.monotonic() < deadline:
+                    time.sleep(0.002)
+                tally[s].lost += r.lost
+            due = time.time() + random.random() * period
             while due < end:
                 time.sleep(max(0.0, due - time.time()))
+                counted = due >= start
                 for s in sensors:
                     name, args = BENCH_SENSORS[s]
                     t0 = time.perf_counter()
                     r = hub.read(name)
-                    lat.append(time.perf_counter() - t0)
                     tk = tally[s]
-                    tk.pulls += 1
-                    tk.samples += len(r)
-                    tk.nbytes += r.nbytes
-                    if len(r):
-                        ts = np.asarray(r.hub_t, dtype=np.float64)
-                        if s in last:
-                            ts = np.concatenate([[last[s]], ts])
-                        gaps = np.diff(ts) * args["rate"]
-                        tk.lost += int(np.sum(np.maximum(np.rint(gaps) - 1, 0)))
-                        last[s] = float(r.hub_t[-1])
+                    tk.lost += r.lost
+                    if counted:
+                        lat.append(time.perf_counter() - t0)
+                        tk.pulls += 1
+                        tk.samples += len(r)
+                        tk.nbytes += r.nbytes
                 due += period
         finally:  # our own hub keeps detached clients: it can tell what it dropped for them
             hub.close(quit=quit_at_end)
@@ -249,6 +258,7 @@ def throughput(
     start = time.time() + 1.5 + 0.05 * clients
     end = start + seconds
     procs: list[subprocess.Popen[str]] = []
+    dropped0 = hub.dropped() if hub is not None else None  # a hub may serve several runs
     before = _children_cpu()
     spawned = time.time()
     try:
@@ -261,17 +271,19 @@ def throughput(
                 [sys.executable, "-c", code, json.dumps(job)], stdout=subprocess.PIPE, text=True,
             ))  # fmt: skip
         cpu0 = rss = 0.0
-        dropped0 = dropped1 = None
         if hub is not None:
             time.sleep(max(0.0, start - time.time()))
-            cpu0, dropped0 = cpu_seconds(hub.pid), hub.dropped()
+            cpu0 = cpu_seconds(hub.pid)
             time.sleep(max(0.0, end - time.time()))
-            cpu1, dropped1 = cpu_seconds(hub.pid), hub.dropped()
+            cpu1 = cpu_seconds(hub.pid)
             rss = peak_rss(hub.pid)
         results = []
         for proc in procs:
             out, _ = proc.communicate(timeout=seconds + 60)
             results.append(json.loads(out.strip().splitlines()[-1]))
+        # after the clients' last pulls: what the hub dropped before samples they pulled
+        end_stats = hub.stats() if hub is not None else None
+        dropped1 = None if end_stats is None else int(end_stats["dropped_seen"])
     finally:  # interrupted (or failed): no worker outlives the bench
         _stop_workers(procs)
     client_cores = (_children_cpu() - before) / max(time.time() - spawned, 1e-9)
@@ -299,6 +311,9 @@ def throughput(
         report["hub_peak_rss_mb"] = rss / 2**20
         if dropped0 is not None and dropped1 is not None:
             report["hub_dropped"] = dropped1 - dropped0
+        if end_stats is not None:  # the hub's own part of a pull, whole session
+            report["hub_pull_p50_ms"] = end_stats["pull"]["p50"] * 1e3
+            report["hub_pull_p99_ms"] = end_stats["pull"]["p99"] * 1e3
     report["targets_met"] = bool(
         not report["errors"] and total["lost"] == 0 and not report.get("hub_dropped")
         and report.get("pull_p99_ms", 1e9) <= TARGET_P99_S * 1e3

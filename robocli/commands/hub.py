@@ -435,12 +435,16 @@ def _print_throughput(r: dict[str, Any]) -> None:
             f"  pull latency ms: median {r['pull_p50_ms']:.2f}  p99 {r['pull_p99_ms']:.2f}  "
             f"max {r['pull_max_ms']:.2f}"
         )
+    if "hub_pull_p99_ms" in r:
+        typer.echo(f"  of which in the hub (request framed to reply built): median "
+                   f"{r['hub_pull_p50_ms']:.2f}  p99 {r['hub_pull_p99_ms']:.2f}")  # fmt: skip
     if "hub_cpu_cores" in r:
         typer.echo(
             f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB;"
             f" clients: {r['client_cpu_cores']:.2f} cores (whole run, {os.cpu_count()} CPUs here)"
         )
-        typer.echo(f"  samples the hub dropped for full buffers: {r.get('hub_dropped', '?')}")
+        typer.echo(f"  samples the hub dropped for full buffers: {r.get('hub_dropped', '?')} "
+                   "(before samples the clients pulled: their gaps)")  # fmt: skip
     for s, p in r["per_sensor"].items():
         typer.echo(
             f"  {s:<8} pulls {p['pulls']:>7}  samples {p['samples']:>8}  "

@@ -97,6 +97,9 @@ def arm(
     release: float = typer.Option(
         0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
     ),
+    stale: float = typer.Option(
+        1.0, "--stale", min=0.1, max=60.0, help="Stop when no joint state came this long, s."
+    ),
     link: ArmLink = LINK,
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
@@ -110,7 +113,7 @@ def arm(
                    "1-6 joint, c TCP, arrows/WASD jog (r/f: z)")  # fmt: skip
         typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
         jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
-                        release_timeout=release)  # fmt: skip
+                        release_timeout=release, stale=stale)  # fmt: skip
         with _keys() as read_key:
             run_arm_teleop(jog, read_key, on_update=_status_line())
 

@@ -111,7 +111,8 @@ class RecordingProxy:
                     continue
                 self._socks += [client, device]
             for src, dst, way in ((client, device, "c2s"), (device, client, "s2c")):
-                threading.Thread(target=self._pump, args=(src, dst, way), daemon=True).start()
+                threading.Thread(target=self._pump, args=(src, dst, way), daemon=True,
+                                 name=f"{self._thread.name}-{way}").start()  # fmt: skip
 
     def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
         """Relay one direction of one session, showing each message before it is passed on.
@@ -142,14 +143,21 @@ class RecordingProxy:
         except OSError:
             pass
         finally:
+            # closing: the other way may still be relaying bytes it read (a reply to the last
+            # request); :meth:`close` cuts every session once those are through. Otherwise
+            # the session ended (a side closed or failed): cut both ways now.
+            if not self._closing.is_set():
+                self._end(src, dst)
+
+    def _end(self, src: socket.socket, dst: socket.socket) -> None:
+        for s in (src, dst):
+            with contextlib.suppress(OSError):
+                s.shutdown(socket.SHUT_RDWR)
+        with self._lock:  # the session's slot is free again (the other pump may be first)
             for s in (src, dst):
-                with contextlib.suppress(OSError):
-                    s.shutdown(socket.SHUT_RDWR)
-            with self._lock:  # the session's slot is free again (the other pump may be first)
-                for s in (src, dst):
-                    if s in self._socks:
-                        self._socks.remove(s)
-                        s.close()
+                if s in self._socks:
+                    self._socks.remove(s)
+                    s.close()
 
     def close(self, grace: float = 1.0) -> None:
         """Stop accepting, let bytes already read reach their side (``grace`` s at most),

@@ -379,6 +379,15 @@ class Hub:
             return 0
         return ch.ring.lost(cursor)
 
+    def dropped_seen(self) -> int:
+        """Samples dropped for the known clients before samples they received: the gaps
+        they can see (:meth:`SensorRing.lost_seen`), where :meth:`dropped` also counts those
+        a client's next pull will show."""
+        with self._lock:
+            states = list(self._clients.values())
+        return sum(ch.ring.lost_seen(c) for s in states for n, c in list(s.cursors.items())
+                   if (ch := self.channels.get(n)) is not None and ch.ring is not None)  # fmt: skip
+
     def digital_out(self, levels: list[int]) -> None:
         """Set the ADC board's four digital outputs (kept by the ADC source, shown in
         :meth:`sensors`)."""

@@ -55,6 +55,8 @@ class Cursor:
     slot: tuple[int, int]
     limit: int
     lost_before: int = 0  #: lost in rings replaced by :meth:`SensorRing.reshape`
+    #: lost before the samples its last read returned (:meth:`SensorRing.lost_seen`)
+    lost_read: int = 0
 
     @property
     def reader(self) -> int:
@@ -158,6 +160,13 @@ class SensorRing:
                 return cursor.lost_before
             return cursor.lost_before + self._store.ring.lost(cursor.reader)
 
+    def lost_seen(self, cursor: Cursor) -> int:
+        """Samples dropped for ``cursor`` before the samples its last read returned: the
+        ones its client can know of, from the gaps in what it received. :meth:`lost` also
+        counts those dropped since, which its client sees at its next read, or never if it
+        does not read again (a client gone, or one the count was taken before)."""
+        return cursor.lost_read
+
     def read(self, cursor: Cursor) -> tuple[npt.NDArray[np.float64], npt.NDArray[Any]]:
         """Take every unread sample of ``cursor``: ``(t, records)``, oldest first (records is a
         structured array of :attr:`dtype`, one copy out of the ring). A cursor detached or
@@ -170,6 +179,9 @@ class SensorRing:
             except ValueError:  # detached, or the ring replaced, meanwhile
                 pass
             else:
+                if len(t):  # just read: nothing can have overflowed since, unless a batch
+                    # larger than its limit was pushed in between (then a few are counted early)
+                    cursor.lost_read = cursor.lost_before + store.ring.lost(reader)
                 return t, raw.view(store.dtype).reshape(len(t))
         dtype = self._store.dtype
         return np.empty(0, dtype=np.float64), np.empty(0, dtype=dtype)

@@ -132,8 +132,16 @@ def test_run_loop_stops_on_quit_and_on_a_lost_link(make_sim: Any, make_arm: Any)
     arm = make_arm(mp, sp)
     arm.wait_for_state()
     keys = iter(["2", "w", "w", None, "q"])
-    teleop = ArmTeleop(arm)
-    run_arm_teleop(teleop, lambda timeout: next(keys, "q"))
+    # the loop's own clock, 20 ms a key: the second press and the pause fall within the jog
+    # period, however long the machine takes over each step (one trajectory, then quit)
+    now = [time.monotonic()]
+
+    def read_key(timeout: float) -> str | None:
+        now[0] += 0.02
+        return next(keys, "q")
+
+    teleop = ArmTeleop(arm, stale=3600.0, clock=lambda: now[0])
+    run_arm_teleop(teleop, read_key)
     assert teleop.quit and teleop.sent["trajectories"] == 1
     assert sim.wait_until(lambda s: s.stops == teleop.sent["stops"] >= 1, 30).trajectories == 1
     # the state link dies while a key is held: the teleop stops the arm and says why
@@ -152,7 +160,7 @@ def test_cli_needs_a_terminal() -> None:
 
 
 def test_cli_jogs_on_a_terminal_and_quits() -> None:
-    with terminal("teleop", "arm", "sim") as term:
+    with terminal("teleop", "arm", "sim", "--stale", "30") as term:  # see the next test
         term.read_until(b"q or Ctrl-C quits")
         term.read_until(b"\rJ1  idle", count=2)  # the status line redraws while idle
         os.write(term.master, b"2")
@@ -184,7 +192,9 @@ def _j2(status: str) -> float:
 def test_cli_streams_to_an_embedded_streaming_simulator() -> None:
     """``teleop arm sim --stream`` starts the generic (streaming) profile itself: the jog
     moves the arm (an ABB profile would buffer the streamed points and never run them)."""
-    with terminal("teleop", "arm", "sim", "--stream") as term:
+    # the embedded simulator shares the process: --stale so that a loaded machine's pause
+    # in its state stream is not the end of the jog this test is about
+    with terminal("teleop", "arm", "sim", "--stream", "--stale", "30") as term:
         term.read_until(b"(streaming)")
         term.read_until(b"\rJ1  idle", count=2)
         before = _j2(term.text.rsplit("\r", 1)[-1])

@@ -24,7 +24,8 @@ ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 
 
 class Terminal:
-    """A robocli process on the slave side of a pty of 80x24; stderr is a pipe."""
+    """A robocli process on the slave side of a pty of 80x24; one of its output streams is
+    a pipe (stderr, or stdout when stderr is on the pty)."""
 
     def __init__(self, proc: subprocess.Popen[bytes], master: int) -> None:
         self.proc, self.master, self.output = proc, master, b""
@@ -50,10 +51,18 @@ class Terminal:
             self.read(end - time.monotonic())
 
     def finish(self, timeout: float = 15.0) -> tuple[int, str]:
-        code = self.proc.wait(timeout)
+        """The exit code and what went to the pipe, reading the terminal meanwhile (a child
+        whose terminal output nobody reads would block on it)."""
+        deadline = time.monotonic() + timeout
+        while self.proc.poll() is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise subprocess.TimeoutExpired(self.proc.args, timeout)
+            self.read(min(left, 0.1))
         self.drain(0.2)
-        assert self.proc.stderr is not None
-        return code, self.proc.stderr.read().decode()
+        piped = self.proc.stderr or self.proc.stdout
+        assert piped is not None
+        return self.proc.returncode, piped.read().decode()
 
     @property
     def text(self) -> str:
@@ -61,13 +70,15 @@ class Terminal:
 
 
 @contextmanager
-def terminal(*args: str) -> Iterator[Terminal]:
+def terminal(*args: str, stderr_on_pty: bool = False) -> Iterator[Terminal]:
+    """``robocli ARGS`` with stdin and stdout on the terminal, stderr on a pipe; with
+    ``stderr_on_pty``, stderr on the terminal and stdout on the pipe (a bench: progress on
+    the terminal, results on stdout)."""
     master, slave = os.openpty()
     fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 80, 0, 0))
-    proc = subprocess.Popen(
-        [*ROBOCLI, *args], stdin=slave, stdout=slave, stderr=subprocess.PIPE,
-        env=env_without_rich_width(80, 24),
-    )  # fmt: skip
+    out, err = (subprocess.PIPE, slave) if stderr_on_pty else (slave, subprocess.PIPE)
+    proc = subprocess.Popen([*ROBOCLI, *args], stdin=slave, stdout=out, stderr=err,
+                            env=env_without_rich_width(80, 24))  # fmt: skip
     os.close(slave)
     try:
         yield Terminal(proc, master)
@@ -76,8 +87,9 @@ def terminal(*args: str) -> Iterator[Terminal]:
             proc.kill()
             proc.wait(10)
         os.close(master)
-        assert proc.stderr is not None
-        proc.stderr.close()
+        for pipe in (proc.stdout, proc.stderr):
+            if pipe is not None:
+                pipe.close()
 
 
 def test_live_view_fits_80x24_says_how_to_quit_and_quits_on_q() -> None:

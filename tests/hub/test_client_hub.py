@@ -16,6 +16,7 @@ from robocli.devices.hub.client import subscribe_body
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.protocols.ros4mat import MsgType, encode_request
+from tests.hub.conftest import wait_for as until
 
 # sensor -> (subscribe arguments, the hub's name, expected data shape without N)
 SENSORS: dict[str, tuple[dict[str, Any], str, tuple[int, ...]]] = {
@@ -289,8 +290,11 @@ def test_read_aligned_on_camera_frames(server: HubServer, hub: Hub) -> None:
     hub.subscribe("imu", 200)
     hub.subscribe("camera", rate=30, resolution="320x240")
     hub.subscribe("hokuyo", 40)
-    wait_for(lambda: hub.read("camera"), 1)  # start from now
-    time.sleep(0.3)
+    wait_for(lambda: hub.read("camera"), 1, 30)  # start from now
+    ring = server.hub.channel("camera").ring
+    assert ring is not None
+    pushed = ring.pushed
+    until(lambda: ring.pushed >= pushed + 3, 30, "frames to align")  # not a fixed sleep
     out = hub.read_aligned(["camera", "imu", "hokuyo"], reference="camera")
     m = len(out["t"])
     assert m >= 2 and out["camera"].shape == (240, 320, 3, m)

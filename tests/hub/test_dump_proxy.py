@@ -60,3 +60,50 @@ def test_a_listen_address_in_use_or_unresolvable_is_a_typed_error(server: HubSer
     for bind in ("garbage.invalid", "256.1.1.1", "192.0.2.1"):  # the last: TEST-NET, not ours
         with pytest.raises(InvalidArgument, match="listen"):
             RecordingProxy(upstream, print, framer="sm-le", bind=bind)
+
+
+def test_closing_lets_a_reply_in_flight_reach_the_client(server: HubServer) -> None:
+    """``dump hub --count N`` closes the proxy on the Nth message, often the reply to the
+    client's last request: that reply, read before the close, still reaches the client.
+    The way that ends first (the client's, idle) must not cut the session under the way
+    still relaying it (under load, the client got "link lost" instead of its reply)."""
+    import select
+    import socket
+    import threading
+
+    from robocli.devices.proxy import RecordingProxy
+    from robocli.protocols import ros4mat as r4m
+    from tests.hub.conftest import wait_for
+
+    held, release = threading.Event(), threading.Event()
+    replies: list[bytes] = []
+    pumps: dict[str, threading.Thread] = {}
+
+    def on_message(m: Message) -> None:
+        pumps[m.direction] = threading.current_thread()
+        if m.direction == "s2c":  # the CONNECT_ACK, read from the hub: held here
+            replies.append(m.frame)
+            held.set()
+            assert release.wait(30)
+
+    proxy = RecordingProxy(("127.0.0.1", server.port), on_message, framer="ros4mat").start()
+    with socket.create_connection(("127.0.0.1", proxy.port), timeout=30) as client:
+        client.sendall(r4m.encode_request(r4m.MsgType.CONNECT, bytes([r4m.PROTOCOL_VERSION, 0])))
+        assert held.wait(30), "the hub's CONNECT_ACK never reached the proxy"
+        closer = threading.Thread(target=proxy.close, args=(60.0,), daemon=True)
+        closer.start()
+
+        def cut() -> bool:  # the client's socket saw the end of the session
+            readable = select.select([client], [], [], 0)[0]
+            return bool(readable) and client.recv(1, socket.MSG_PEEK) == b""
+
+        # the idle way sees the proxy closing and ends (its thread is gone), or, as before
+        # the fix, cuts the whole session on its way out
+        wait_for(lambda: cut() or not pumps["c2s"].is_alive(), 30, "the client's way to end")
+        release.set()
+        got = b""
+        while chunk := client.recv(65536):
+            got += chunk
+    closer.join(30)
+    assert not closer.is_alive()
+    assert got == replies[0] and r4m.decode(got).msg_type == r4m.MsgType.CONNECT_ACK

@@ -55,7 +55,7 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
     base: dict[str, float] = {}
     for r in runs:
         if r.laptops == 1 and r.mode not in base:
-            base[r.mode] = max(r.uplink_bytes) / r.seconds
+            base[r.mode] = r.uplink_bytes_s
     out = []
     for r in runs:
         s: dict[str, Any] = r.sensors
@@ -69,7 +69,7 @@ def rows(runs: list[LabRun]) -> list[list[str]]:
         p99s = [v["p99"] for v in num.values() if v.get("p99") is not None]
         cam = s.get("camera", {})
         b = base.get(r.mode)
-        ratio = f"{max(r.uplink_bytes) / r.seconds / b:.2f}" if b else "-"
+        ratio = f"{r.uplink_bytes_s / b:.2f}" if b else "-"
         router = f"{r.router_cores:.2f}" if r.mode == "zenoh" else "-"
         if r.bridge_cores:
             router += f" (bridges {max(r.bridge_cores):.2f})"

@@ -7,14 +7,22 @@ the IMU and ADC of every robot and to the camera of robot ``laptop % robots``. A
 warm-up the bench counts for ``seconds``: bytes on each robot's uplink (its ``eth0`` counters)
 and packets its token bucket dropped, the CPU of each hub (``/proc/PID/stat``), and what each
 laptop received (:class:`LabRun`).
+
+Each counter is read at both ends of the window, each read between two clock reads
+(:class:`Window`): its rate is its increase over the time between its own two reads. The
+counters of a namespace are read through ``ip``/``tc`` processes, which a loaded machine
+starts slowly; divided by a clock started after the first reads and stopped before the last
+ones, the uplink read 7-9 % over its token bucket's rate.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import json
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +42,78 @@ TARGET_P99_S = 0.050
 TARGET_HUB_CORES = 0.3
 
 
+@dataclass(frozen=True)
+class Stamped:
+    """One read of a counter: its value and the monotonic times just before and after."""
+
+    value: float
+    before: float
+    after: float
+
+    @property
+    def t(self) -> float:
+        """When the value was read, as well as the clock can say: the middle of the read."""
+        return (self.before + self.after) / 2
+
+
+class Window:
+    """Counters read at both ends of a counting window (:meth:`start`, :meth:`end`), each
+    read bracketed by reads of ``clock``, in the same order at both ends. A counter's
+    :meth:`rate` is its increase over the time between its own two reads, so the time the
+    other reads take (a process each, on a loaded machine) counts on neither side."""
+
+    def __init__(self, clock: Callable[[], float] = time.monotonic) -> None:
+        self._clock = clock
+        self._sources: dict[str, Callable[[], float]] = {}
+        self._ends: dict[str, list[Stamped]] = {}
+
+    def add(self, name: str, read: Callable[[], float]) -> None:
+        self._sources[name] = read
+
+    def _read_all(self) -> None:
+        clock = self._clock
+        for name, read in self._sources.items():
+            before = clock()
+            value = read()
+            self._ends.setdefault(name, []).append(Stamped(value, before, clock()))
+
+    def start(self) -> None:
+        self._ends.clear()
+        self._read_all()
+
+    def end(self) -> None:
+        self._read_all()
+
+    def _pair(self, name: str) -> tuple[Stamped, Stamped]:
+        ends = self._ends.get(name, [])
+        if len(ends) != 2:
+            raise LabError(f"counter {name!r} was read {len(ends)} time(s), not at both ends")
+        return ends[0], ends[1]
+
+    def delta(self, name: str) -> float:
+        first, last = self._pair(name)
+        return last.value - first.value
+
+    def seconds(self, name: str) -> float:
+        """The time between the two reads of ``name``."""
+        first, last = self._pair(name)
+        return last.t - first.t
+
+    def rate(self, name: str) -> float:
+        """The increase of ``name`` per second between its two reads."""
+        span = self.seconds(name)
+        if not span > 0:
+            raise LabError(f"counter {name!r}: its two reads are {span:g} s apart")
+        return self.delta(name) / span
+
+    def error(self) -> float:
+        """The largest relative error a rate may have: half of each read's duration, both
+        ends, over the time between the reads (where in its bracket a value was taken is
+        not known)."""
+        return max((sum(e.after - e.before for e in self._pair(n)) / 2 / self.seconds(n)
+                    for n in self._sources), default=0.0)  # fmt: skip
+
+
 @dataclass
 class LabRun:
     """One lab run's figures (``sensors``: per sensor, summed or worst over laptops)."""
@@ -45,6 +125,8 @@ class LabRun:
     uplink_mbit: float | None
     camera: str = "spread"
     uplink_bytes: list[int] = field(default_factory=list)  #: per robot, while counting
+    uplink_seconds: list[float] = field(default_factory=list)  #: between its counter's reads
+    counter_error: float = 0.0  #: the largest relative error of a rate (:meth:`Window.error`)
     uplink_drops: list[int] = field(default_factory=list)  #: tbf drops per robot
     hub_cores: list[float] = field(default_factory=list)  #: per hub, while counting
     laptop_cores: list[float] = field(default_factory=list)  #: per laptop process
@@ -55,9 +137,15 @@ class LabRun:
     laptop_seconds: float = 0.0  #: the laptops' counting windows, summed
 
     @property
+    def uplink_bytes_s(self) -> float:
+        """Bytes per second on the busiest robot uplink (each over its own counter's window)."""
+        spans = self.uplink_seconds or [self.seconds] * len(self.uplink_bytes)
+        return max((b / s for b, s in zip(self.uplink_bytes, spans, strict=True)), default=0.0)
+
+    @property
     def uplink_mbit_s(self) -> float:
         """Mean bit rate of the busiest robot uplink, Mbit/s."""
-        return max(self.uplink_bytes, default=0) * 8 / self.seconds / 1e6
+        return self.uplink_bytes_s * 8 / 1e6
 
     def expected(self, sensor: str) -> float:
         """Samples of ``sensor`` the laptops would receive in their counting windows at the
@@ -175,30 +263,24 @@ def run_lab(
         for p, _ in tops:
             wait_for(lambda p=p: "ready" in p.tail(), START_S, f"{p.name} ready", [p])
         time.sleep(warmup)  # the rings and queues settle before counting
-        nodes = [lab.robot(i) for i in range(robots)]
-        tx0 = [lab.tx_bytes(n) for n in nodes]
-        drops0 = [lab.qdisc_drops(n) for n in nodes]
-        cpu0 = [cpu_seconds(h.pid) for h in hubs]
-        lcpu0 = [cpu_seconds(p.pid) for p, _ in tops]
-        rcpu0 = cpu_seconds(router_proc.pid) if router_proc else 0.0
-        bcpu0 = [cpu_seconds(b.pid) for b in bridges]
+        window = _window(lab, hubs, [p for p, _ in tops], router_proc, bridges)
+        window.start()
         for p, _ in tops:
             _say(p, "go")
         t0 = time.monotonic()
         time.sleep(seconds)
-        elapsed = time.monotonic() - t0
-        result.uplink_bytes = [lab.tx_bytes(n) - b for n, b in zip(nodes, tx0, strict=True)]
-        result.uplink_drops = [lab.qdisc_drops(n) - d for n, d in zip(nodes, drops0, strict=True)]
-        result.hub_cores = [
-            (cpu_seconds(h.pid) - c) / elapsed for h, c in zip(hubs, cpu0, strict=True)
-        ]
-        lcpu = [cpu_seconds(p.pid) - c for (p, _), c in zip(tops, lcpu0, strict=True)]
-        result.laptop_cores = [c / elapsed for c in lcpu]
+        result.seconds = time.monotonic() - t0
+        window.end()
+        rng = range(robots)
+        result.uplink_bytes = [int(window.delta(f"tx{i}")) for i in rng]
+        result.uplink_seconds = [window.seconds(f"tx{i}") for i in rng]
+        result.uplink_drops = [int(window.delta(f"drops{i}")) for i in rng]
+        result.hub_cores = [window.rate(f"hub{i}") for i in range(len(hubs))]
+        result.laptop_cores = [window.rate(f"laptop{j}") for j in range(len(tops))]
         if router_proc is not None:
-            result.router_cores = (cpu_seconds(router_proc.pid) - rcpu0) / elapsed
-        bcpu = [cpu_seconds(b.pid) - c for b, c in zip(bridges, bcpu0, strict=True)]
-        result.bridge_cores = [c / elapsed for c in bcpu]
-        result.seconds = elapsed
+            result.router_cores = window.rate("router")
+        result.bridge_cores = [window.rate(f"bridge{i}") for i in range(len(bridges))]
+        result.counter_error = window.error()
         for p, _ in tops:
             _say(p, "stop")
         for p, out in tops:
@@ -212,6 +294,24 @@ def run_lab(
             result.laptop_seconds += float(report["seconds"])
             result.errors += [f"{p.name}: {e}" for e in report["errors"]]
     return result
+
+
+def _window(lab: Lab, hubs: list[Proc], laptops: list[Proc], router: Proc | None,
+            bridges: list[Proc]) -> Window:  # fmt: skip
+    """The run's counters: each robot's uplink bytes and token-bucket drops, the CPU seconds
+    of each hub, laptop, the router and each bridge."""
+    window = Window()
+    for i in range(lab.robots):
+        node = lab.robot(i)
+        window.add(f"tx{i}", functools.partial(lab.tx_bytes, node))
+        window.add(f"drops{i}", functools.partial(lab.qdisc_drops, node))
+    named = [(f"hub{i}", h) for i, h in enumerate(hubs)]
+    named += [(f"laptop{j}", p) for j, p in enumerate(laptops)]
+    named += [("router", router)] if router is not None else []
+    named += [(f"bridge{i}", b) for i, b in enumerate(bridges)]
+    for name, proc in named:
+        window.add(name, functools.partial(cpu_seconds, proc.pid))
+    return window
 
 
 def _start_bridges(lab: Lab, mode: str, config: Path) -> list[Proc]:
