@@ -142,6 +142,16 @@ def test_c_decode_equals_reference(scan: tuple[bytes, list[int], list[int] | Non
     assert fast.reply_framer().feed(block) == [block]
 
 
+@pytest.mark.parametrize("tail", [b"\r", b"x", b"\n", b"\r\n"])
+def test_both_refuse_bytes_after_the_blocks_end(tail: bytes) -> None:
+    """A CR is an end of line only before its LF: ``...\n\n\r`` is a block cut after a
+    stray byte, which the C decoder refused and the reference took (make fuzz, decode-scip2)."""
+    block = b"GD0384038601\n00P\n00?Xg\n0?X1Dh000d\n\n" + tail
+    for check in (True, False):
+        want = _outcome(scip2.decode_scan, block, check)
+        assert isinstance(want, type) and want == _outcome(fast.decode_scan, block, check)
+
+
 @settings(max_examples=500, deadline=None)
 @given(scan=scans(), data=st.data())
 def test_both_reject_the_same_corruption(

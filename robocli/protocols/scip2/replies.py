@@ -70,8 +70,9 @@ def split_lines(block: bytes | bytearray | memoryview) -> list[bytes]:
     if len(data) > MAX_BLOCK:
         raise FramingError(f"SCIP reply of {len(data)} B exceeds {MAX_BLOCK} B")
     lines = [strip_eol(x) for x in data.split(LF)]
-    # "a\nb\n\n".split -> [a, b, "", ""]: the last two are the block end
-    if len(lines) < 3 or lines[-1] != b"" or lines[-2] != b"":
+    # "a\nb\n\n".split -> [a, b, "", ""]: the last two are the block end; a CR is an end of
+    # line only before its LF ("...\n\n\r" is cut, as the C decoder says)
+    if len(lines) < 3 or lines[-1] != b"" or lines[-2] != b"" or not data.endswith(LF):
         raise FramingError(f"SCIP reply {data[:40]!r}: not ended by an empty line (truncated)")
     lines = lines[:-2]
     if any(not line for line in lines):
