@@ -109,10 +109,13 @@ def test_scan_time_maps_the_sensor_clock_to_the_host() -> None:
 
 
 def test_clock_unwraps_the_24_bit_stamp() -> None:
-    with HokuyoSim("utm-30lx", time_scale=1.0, timer_start_ms=(1 << 24) - 100) as sim:
+    # the wrap 1 s after the simulator starts its timer (time_scale 4: 250 ms of wall time),
+    # so that a connect slowed by a loaded machine still sees scans from before it
+    with HokuyoSim("utm-30lx", time_scale=4.0, timer_start_ms=(1 << 24) - 1000) as sim:
         with Laser.connect(sim.serve_tcp(), sync_samples=0) as laser:
-            scans = list(laser.scans(count=12))
+            scans = list(laser.scans(count=60))
     stamps = [s.stamp_ms for s in scans]
+    assert stamps[0] < 1 << 24  # the first scan before the wrap
     assert stamps[-1] > 1 << 24  # past the wrap, unwrapped
     assert all(b - a == 25 for a, b in zip(stamps, stamps[1:], strict=False))
     assert laser.clock.wraps == 1
