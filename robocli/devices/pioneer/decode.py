@@ -12,7 +12,12 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from robocli.devices.pioneer import link
-from robocli.devices.pioneer.state import PioneerState, build_state, sip_essentials
+from robocli.devices.pioneer.state import (
+    PioneerState,
+    build_state,
+    sip_essentials,
+    sip_state_of_charge,
+)
 from robocli.errors import TimeoutError
 from robocli.protocols import arcos
 from robocli.protocols.arcos import PacketType
@@ -79,6 +84,10 @@ class Decoding:
         # of the SIP is decoded, and the SI-unit state built, when the program asks for it.
         body = frame[4:-2]
         x, y, readings = sip_essentials(body)
+        # A charge of 0 reads "not modelled" until the robot has shown another value, in any
+        # SIP: the state is built lazily, so a SIP nobody read must still count.
+        if not self._soc_seen and sip_state_of_charge(body):
+            self._soc_seen = True
         conv = self.params.range_conv / 1000.0
         sonar, sonar_t = self._sonar, self._sonar_t
         n_sonar = len(sonar)
@@ -102,7 +111,6 @@ class Decoding:
                 raise TimeoutError(f"{self.transport.url}: no SIP received yet")
             body, now, odo = self._sip
             sip = arcos.decode_sip(body)
-            self._soc_seen = self._soc_seen or bool(sip["state_of_charge"])
             self._state = build_state(
                 sip, now, odo, tuple(self._sonar), tuple(self._sonar_t),
                 self.params, self.stats.sips, soc_seen=self._soc_seen,

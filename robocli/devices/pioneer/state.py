@@ -145,6 +145,18 @@ _SONAR = layout.struct_of(arcos.SonarReading, "SIP.sonar")
 _FLAGS_INDEX = [sub.name for sub in _SIP_FIELDS].index("flags")
 _FLAGS_AT = layout.struct_of(type(arcos.SIP)(*_SIP_FIELDS[:_FLAGS_INDEX]), "SIP head").size
 _FLAGS = layout.struct_of(type(arcos.SIP)(_SIP_FIELDS[_FLAGS_INDEX]), "SIP.flags")
+_SOC_INDEX = [sub.name for sub in _SIP_FIELDS].index("state_of_charge")
+# the state of charge's offset after the sonar readings (the groups before it, all present)
+_SOC_AFTER_SONAR = layout.struct_of(
+    type(arcos.SIP)(*_SIP_FIELDS[_SONAR_AT + 1 : _SOC_INDEX]), "SIP tail"
+).size
+
+
+def sip_state_of_charge(body: bytes) -> int | None:
+    """The state of charge byte (percent) of a SIP body checked by :func:`sip_essentials`,
+    or None for a SIP too short to carry it."""
+    at = _HEAD_SIZE + 1 + body[_HEAD_SIZE] * _SONAR.size + _SOC_AFTER_SONAR
+    return body[at] if at < len(body) else None
 
 
 def sip_motors_on(body: bytes) -> bool:
