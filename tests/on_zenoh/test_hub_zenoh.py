@@ -122,7 +122,9 @@ def test_late_joiner_gets_history(lab: Lab) -> None:
     wait_for("a second of adc published", lambda: lab.published("adc") >= 1000)
     joined = lab.server.hub.clock()
     with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
-        zh.subscribe("adc")  # join what is published, with the hub's recent history
+        # join what is published, with the hub's recent history; a buffer of 10 s, so that a
+        # slow first read (a loaded machine) overflows nothing and a gap can only be a real one
+        zh.subscribe("adc", buffer=10_000)
         first = read_some(zh, "adc", 100)
         t = np.concatenate([r.hub_t for r in first])
         assert t[0] < joined - 0.2  # samples acquired before this client existed
