@@ -10,6 +10,7 @@ import os
 import select
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import pytest
 from sim.test_hokuyo_sim import DEADLINE, Raw
@@ -210,6 +211,19 @@ def test_a_reader_slower_than_the_stream_gets_whole_frames_and_drops_counted(lin
     assert session.frames_dropped >= missing  # every scan not received was counted
 
 
+def _stream_of_three(laser: Any, hokuyolx: Any) -> list[Any]:
+    """hokuyolx's MD stream of three scans. hokuyolx reads until one recv() ends in LF LF, so
+    two frames coalesced in one recv (a reader late by a scan period on a loaded machine; a
+    real laser does the same) read as one with an empty block: its checksum error. That is
+    hokuyolx's limit, not the simulator's: the stream is asked once more, and must then pass."""
+    try:
+        return list(laser.iter_dist(scans=3))
+    except hokuyolx.exceptions.HokuyoChecksumMismatch:
+        laser._connect_to_laser()  # a clean socket: the first stream's rest is gone
+        laser.activate()
+        return list(laser.iter_dist(scans=3))
+
+
 def test_hokuyolx_runs_against_the_simulator() -> None:
     """hokuyolx itself (MIT, PyPI): its constructor's %ST, TM time sync, PP and BM; a GD
     scan and an MD stream with their stamps mapped to the host clock; the states it reads;
@@ -225,7 +239,7 @@ def test_hokuyolx_runs_against_the_simulator() -> None:
             before = time.time() * 1000
             stamp, scan = laser.get_dist()
             assert len(scan) == 1081 and before - 2000 <= stamp <= time.time() * 1000 + 2000
-            got = list(laser.iter_dist(scans=3))
+            got = _stream_of_three(laser, hokuyolx)
             assert [pending for _, _, pending in got] == [2, 1, 0]
             stamps = [t for _, t, _ in got]
             assert stamps == sorted(stamps) and stamps[0] >= stamp
