@@ -17,12 +17,14 @@ PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csr
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true  # the distribution's old name
 	$(PY) -m pip install -q -e '.[plot,record]'
 	touch $@
 
 $(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true  # the distribution's old name
 	$(PY) -m pip install -q -e '.[test,lint]'
 	touch $@
 
@@ -170,37 +172,39 @@ print("auditwheel policy:", m[1])
 endef
 export AUDITWHEEL_POLICY
 
-# (a stale robocli.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
+# (a stale *.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
 wheel: $(BUILD_STAMP)
-	rm -rf $(DIST_DIR)/robocli-* $(DIST_DIR)/.raw robocli.egg-info
+	rm -rf $(DIST_DIR)/robocli_robots-* $(DIST_DIR)/.raw robocli.egg-info robocli_robots.egg-info
 	CC="$(CURDIR)/tools/zigcc" LDSHARED="$(CURDIR)/tools/zigcc -shared -s" \
 	  ZIG_PYTHON="$(abspath $(BUILDENV))/bin/python" ZIG_TARGET=$(ARCH)-linux-gnu.$(GLIBC) \
 	  $(BUILDENV)/bin/python -m build --outdir $(DIST_DIR)/.raw .
-	mv $(DIST_DIR)/.raw/robocli-*.tar.gz $(DIST_DIR)/
+	mv $(DIST_DIR)/.raw/robocli_robots-*.tar.gz $(DIST_DIR)/
 	PATH="$(abspath $(BUILDENV))/bin:$$PATH" auditwheel repair --only-plat --plat $(WHEEL_PLAT) \
-	  -w $(DIST_DIR) $(DIST_DIR)/.raw/robocli-*-cp310-abi3-linux_$(ARCH).whl
+	  -w $(DIST_DIR) $(DIST_DIR)/.raw/robocli_robots-*-cp310-abi3-linux_$(ARCH).whl
 	rm -rf $(DIST_DIR)/.raw
-	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
+	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli_robots-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
 	  | tee $(DIST_DIR)/.auditwheel-show.txt
 	$(BUILDENV)/bin/python -c "$$AUDITWHEEL_POLICY" $(DIST_DIR)/.auditwheel-show.txt $(GLIBC)
-	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli-*-cp310-abi3-*.whl
-	ls -l $(DIST_DIR)/robocli-*
+	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli_robots-*-cp310-abi3-*.whl
+	ls -l $(DIST_DIR)/robocli_robots-*
 
 # twine's checks of what PyPI would refuse (metadata, README rendering) on both files
 dist: wheel
-	$(BUILDENV)/bin/twine check --strict $(DIST_DIR)/robocli-*.tar.gz $(DIST_DIR)/robocli-*.whl
+	$(BUILDENV)/bin/twine check --strict $(DIST_DIR)/robocli_robots-*.tar.gz $(DIST_DIR)/robocli_robots-*.whl
 
 # The wheel in a clean venv on a PATH without any C compiler (CC=/bin/false too), binary
-# dependencies only: version, then one simulator session. Then the cibuildwheel configuration
+# dependencies only: the version (the sdist's, from the git tag), then one simulator session. Then the cibuildwheel configuration
 # is read for each OS: it must build cp310 (abi3) only.
 dist-check: dist
 	set -e; tmp=$$(mktemp -d); trap '/bin/rm -rf "$$tmp"' EXIT; \
 	$(PYTHON) -m venv "$$tmp/venv"; \
 	export PATH="$$tmp/venv/bin" CC=/bin/false CXX=/bin/false LDSHARED=/bin/false; \
 	if command -v gcc || command -v cc || command -v clang; then echo "a compiler is on PATH"; exit 1; fi; \
-	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
+	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli_robots-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
 	cd "$$tmp"; \
-	robocli --version; \
+	want=$$(basename $(abspath $(DIST_DIR))/robocli_robots-*.tar.gz .tar.gz); \
+	robocli --version | tee version.txt; \
+	test "$$(cat version.txt)" = "robocli $${want#robocli_robots-}" || { echo "not $$want"; exit 1; }; \
 	robocli connect pioneer sim --once --json > session.json; \
 	python -c "import json; d = json.load(open('session.json')); print('session:', sorted(d)[:6])"
 	for p in linux macos windows; do \
