@@ -17,14 +17,14 @@ PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csr
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true  # the distribution's old name
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
 	$(PY) -m pip install -q -e '.[plot,record]'
 	touch $@
 
 $(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true  # the distribution's old name
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
 	$(PY) -m pip install -q -e '.[test,lint]'
 	touch $@
 
