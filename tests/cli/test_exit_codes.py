@@ -1,5 +1,6 @@
-"""The exit-code table of the manual (docs/getting-started.md), checked: every example in its third column is run here as a
-command line, and must end with its row's code (issue 13, finding 15).
+"""The exit-code table of the manual (docs/getting-started.md), checked: every example in its
+third column is run here as a command line, and must end with its row's code (issue 13,
+finding 15).
 
 Command lines without a signal run in-process through ``robocli.cli.main`` (the mapping of
 errors to codes and messages is the same as in a process); Ctrl-C, SIGTERM, a reader that
