@@ -24,8 +24,8 @@ pytest.importorskip("build", reason="build is not installed: pip install -e '.[t
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 300  # s; bounds a hung build only: a build takes seconds
-# tracked files that stay out of the sdist: CI's own files
-NOT_SHIPPED = (".ci/", ".github/", ".gitignore")
+# tracked files that stay out of the sdist: CI's and the developers' own files
+NOT_SHIPPED = (".ci/", ".github/", ".gitignore", ".pre-commit-config.yaml")
 # tests that read tests/data and fuzz/ (at import or in the test), run from the unpacked sdist
 SHIPPED_TESTS = (
     "tests/hub/test_server.py::test_original_client_bytes_are_served",  # original_client.hex
