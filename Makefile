@@ -197,14 +197,15 @@ dist: wheel
 # is read for each OS: it must build cp310 (abi3) only.
 dist-check: dist
 	set -e; tmp=$$(mktemp -d); trap '/bin/rm -rf "$$tmp"' EXIT; \
+	want=$$(cd $(abspath $(DIST_DIR)) && echo robocli_robots-*.tar.gz); \
+	want=$${want%.tar.gz}; want=$${want#robocli_robots-}; \
 	$(PYTHON) -m venv "$$tmp/venv"; \
 	export PATH="$$tmp/venv/bin" CC=/bin/false CXX=/bin/false LDSHARED=/bin/false; \
 	if command -v gcc || command -v cc || command -v clang; then echo "a compiler is on PATH"; exit 1; fi; \
 	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli_robots-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
 	cd "$$tmp"; \
-	want=$$(basename $(abspath $(DIST_DIR))/robocli_robots-*.tar.gz .tar.gz); \
-	robocli --version | tee version.txt; \
-	test "$$(cat version.txt)" = "robocli $${want#robocli_robots-}" || { echo "not $$want"; exit 1; }; \
+	got=$$(robocli --version); echo "$$got"; \
+	test "$$got" = "robocli $$want" || { echo "--version is not the sdist's $$want"; exit 1; }; \
 	robocli connect pioneer sim --once --json > session.json; \
 	python -c "import json; d = json.load(open('session.json')); print('session:', sorted(d)[:6])"
 	for p in linux macos windows; do \
