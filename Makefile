@@ -2,9 +2,9 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-# The demo installs the package with its runtime, plot and record extras only; the test, lint and
-# bench targets add the test and lint tools to the same venv. Separate stamps, so that
-# `make demo` then `make test` installs the tools the demo went without.
+# The demo installs the package with its runtime, plot and record extras only; the test, lint,
+# docs and bench targets add the test, lint and docs tools to the same venv. Separate stamps,
+# so that `make demo` then `make test` installs the tools the demo went without.
 DEMO_STAMP := $(VENV)/.installed-demo
 STAMP  := $(VENV)/.installed
 CC     ?= gcc
@@ -25,7 +25,7 @@ $(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
-	$(PY) -m pip install -q -e '.[test,lint]'
+	$(PY) -m pip install -q -e '.[test,lint,docs]'
 	touch $@
 
 venv: $(STAMP)
@@ -217,12 +217,8 @@ dist-check: dist
 # The documentation site (mkdocs.yml) in build/site, from the docs extra: --strict, so a broken
 # link, a page missing from the nav or an unresolved reference fails. The CLI reference is
 # written from the application at build time; the API reference from the docstrings.
-DOCS_STAMP := $(VENV)/.docs-installed
-$(DOCS_STAMP): $(STAMP)
-	$(PY) -m pip install -q -e '.[docs]'
-	touch $@
-
-docs: $(DOCS_STAMP)
+# The venv of make test has the docs extra too: tests/test_docs.py builds a copy of the site.
+docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
 
 lint: $(STAMP)
