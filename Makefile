@@ -2,9 +2,9 @@
 PYTHON ?= python3
 VENV   := .venv
 PY     := $(VENV)/bin/python
-# The demo installs the package with its runtime, plot and record extras only; the test, lint and
-# bench targets add the test and lint tools to the same venv. Separate stamps, so that
-# `make demo` then `make test` installs the tools the demo went without.
+# The demo installs the package with its runtime, plot and record extras only; the test, lint,
+# docs and bench targets add the test, lint and docs tools to the same venv. Separate stamps,
+# so that `make demo` then `make test` installs the tools the demo went without.
 DEMO_STAMP := $(VENV)/.installed-demo
 STAMP  := $(VENV)/.installed
 CC     ?= gcc
@@ -12,18 +12,20 @@ CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
 CSRC   := csrc/checksum.c csrc/scip.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
-.PHONY: venv demo test test-load test-c asan valgrind bench lab lab-tools lint soak soak-record wheel dist dist-check clean fuzz
+.PHONY: venv docs demo test test-load test-c asan valgrind bench lab lab-tools lint soak soak-record wheel dist dist-check clean fuzz
 
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
 	$(PY) -m pip install -q -e '.[plot,record]'
 	touch $@
 
 $(STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e '.[test,lint]'
+	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
+	$(PY) -m pip install -q -e '.[test,lint,docs]'
 	touch $@
 
 venv: $(STAMP)
@@ -170,37 +172,40 @@ print("auditwheel policy:", m[1])
 endef
 export AUDITWHEEL_POLICY
 
-# (a stale robocli.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
+# (a stale *.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
 wheel: $(BUILD_STAMP)
-	rm -rf $(DIST_DIR)/robocli-* $(DIST_DIR)/.raw robocli.egg-info
+	rm -rf $(DIST_DIR)/robocli_robots-* $(DIST_DIR)/.raw robocli.egg-info robocli_robots.egg-info
 	CC="$(CURDIR)/tools/zigcc" LDSHARED="$(CURDIR)/tools/zigcc -shared -s" \
 	  ZIG_PYTHON="$(abspath $(BUILDENV))/bin/python" ZIG_TARGET=$(ARCH)-linux-gnu.$(GLIBC) \
 	  $(BUILDENV)/bin/python -m build --outdir $(DIST_DIR)/.raw .
-	mv $(DIST_DIR)/.raw/robocli-*.tar.gz $(DIST_DIR)/
+	mv $(DIST_DIR)/.raw/robocli_robots-*.tar.gz $(DIST_DIR)/
 	PATH="$(abspath $(BUILDENV))/bin:$$PATH" auditwheel repair --only-plat --plat $(WHEEL_PLAT) \
-	  -w $(DIST_DIR) $(DIST_DIR)/.raw/robocli-*-cp310-abi3-linux_$(ARCH).whl
+	  -w $(DIST_DIR) $(DIST_DIR)/.raw/robocli_robots-*-cp310-abi3-linux_$(ARCH).whl
 	rm -rf $(DIST_DIR)/.raw
-	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
+	$(BUILDENV)/bin/auditwheel show $(DIST_DIR)/robocli_robots-*-cp310-abi3-*$(WHEEL_PLAT)*.whl \
 	  | tee $(DIST_DIR)/.auditwheel-show.txt
 	$(BUILDENV)/bin/python -c "$$AUDITWHEEL_POLICY" $(DIST_DIR)/.auditwheel-show.txt $(GLIBC)
-	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli-*-cp310-abi3-*.whl
-	ls -l $(DIST_DIR)/robocli-*
+	$(BUILDENV)/bin/abi3audit --strict --summary $(DIST_DIR)/robocli_robots-*-cp310-abi3-*.whl
+	ls -l $(DIST_DIR)/robocli_robots-*
 
 # twine's checks of what PyPI would refuse (metadata, README rendering) on both files
 dist: wheel
-	$(BUILDENV)/bin/twine check --strict $(DIST_DIR)/robocli-*.tar.gz $(DIST_DIR)/robocli-*.whl
+	$(BUILDENV)/bin/twine check --strict $(DIST_DIR)/robocli_robots-*.tar.gz $(DIST_DIR)/robocli_robots-*.whl
 
 # The wheel in a clean venv on a PATH without any C compiler (CC=/bin/false too), binary
-# dependencies only: version, then one simulator session. Then the cibuildwheel configuration
+# dependencies only: the version (the sdist's, from the git tag), then one simulator session. Then the cibuildwheel configuration
 # is read for each OS: it must build cp310 (abi3) only.
 dist-check: dist
 	set -e; tmp=$$(mktemp -d); trap '/bin/rm -rf "$$tmp"' EXIT; \
+	want=$$(cd $(abspath $(DIST_DIR)) && echo robocli_robots-*.tar.gz); \
+	want=$${want%.tar.gz}; want=$${want#robocli_robots-}; \
 	$(PYTHON) -m venv "$$tmp/venv"; \
 	export PATH="$$tmp/venv/bin" CC=/bin/false CXX=/bin/false LDSHARED=/bin/false; \
 	if command -v gcc || command -v cc || command -v clang; then echo "a compiler is on PATH"; exit 1; fi; \
-	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
+	pip install -q --only-binary=:all: $(abspath $(DIST_DIR))/robocli_robots-*-cp310-abi3-*$(WHEEL_PLAT)*.whl; \
 	cd "$$tmp"; \
-	robocli --version; \
+	got=$$(robocli --version); echo "$$got"; \
+	test "$$got" = "robocli $$want" || { echo "--version is not the sdist's $$want"; exit 1; }; \
 	robocli connect pioneer sim --once --json > session.json; \
 	python -c "import json; d = json.load(open('session.json')); print('session:', sorted(d)[:6])"
 	for p in linux macos windows; do \
@@ -209,9 +214,17 @@ dist-check: dist
 	  test -n "$$ids" && ! echo "$$ids" | grep -qv '^cp310-' || { echo "cibuildwheel $$p: not cp310 only"; exit 1; }; \
 	done
 
+# The documentation site (mkdocs.yml) in build/site, from the docs extra: --strict, so a broken
+# link, a page missing from the nav or an unresolved reference fails. The CLI reference is
+# written from the application at build time; the API reference from the docstrings.
+# The venv of make test has the docs extra too: tests/test_docs.py builds a copy of the site.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
+
 lint: $(STAMP)
-	$(VENV)/bin/ruff check robocli tests bench examples
+	$(VENV)/bin/ruff check robocli tests bench examples docs/hooks
 	$(VENV)/bin/mypy robocli
+	$(VENV)/bin/actionlint .github/workflows/*.yml
 
 # Fuzzing (atheris): every harness of fuzz/ runs FUZZ_SECONDS seconds; a crash, an exception
 # that is not a robocli error, a hang (FUZZ_TIMEOUT s on one input) or a memory blow-up

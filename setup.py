@@ -25,7 +25,7 @@ _ABI3 = not hasattr(sys, "gettotalrefcount") and not sysconfig.get_config_var("P
 _HINT = (
     "install a C compiler and the Python headers (Debian/Ubuntu: apt install gcc python3-dev;"
     " Fedora: dnf install gcc python3-devel; macOS: xcode-select --install),"
-    " or install a prebuilt wheel: pip install --only-binary robocli robocli"
+    " or install a prebuilt wheel: pip install --only-binary robocli-robots robocli-robots"
 )
 
 

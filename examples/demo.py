@@ -53,7 +53,7 @@ def arm_circle(out: Path) -> int:
             return 1
     explain_delay(sim_log, real_log)
     print(f"plot written: {figure}" if PLOT else
-          "no plot: matplotlib is not installed (pip install 'robocli[plot]')")  # fmt: skip
+          "no plot: matplotlib is not installed (pip install 'robocli-robots[plot]')")  # fmt: skip
     return 0
 
 
@@ -126,7 +126,8 @@ def recording(path: Path, robot: Pioneer) -> Any:
 def look(out: Path) -> int:
     """What was recorded: `robocli info`, `robocli plot`, and a hub recorded by the CLI."""
     if not RECORD:
-        print("no recordings: the record extra is not installed (pip install 'robocli[record]')")
+        print("no recordings: the record extra is not installed"
+              " (pip install 'robocli-robots[record]')")
         return 0
     wander_rec, hub_rec = str(out / "wander.mcap"), str(out / "hub.mcap")
     steps = [

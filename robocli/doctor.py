@@ -27,7 +27,7 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli import defaults
-from robocli._version import __version__
+from robocli._version import DIST_NAME, __version__
 from robocli.errors import RobocliError
 
 __all__ = ["PROBE_TIMEOUT", "diagnose", "probe_addresses"]
@@ -89,7 +89,7 @@ def _problems(report: dict[str, Any]) -> list[str]:
 def _requirements() -> list[tuple[str, str]] | None:
     """``(distribution, extra or "")`` of robocli's installed metadata; None without it."""
     try:
-        lines = importlib.metadata.metadata("robocli").get_all("Requires-Dist") or []
+        lines = importlib.metadata.metadata(DIST_NAME).get_all("Requires-Dist") or []
     except importlib.metadata.PackageNotFoundError:
         return None
     out = []

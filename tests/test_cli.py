@@ -27,6 +27,14 @@ def test_help_and_version() -> None:
     assert run("--version").stdout.strip() == f"robocli {__version__}"
 
 
+def test_version_is_the_installed_distributions() -> None:
+    """The version comes from the installed robocli-robots (setuptools-scm took it from the git
+    tag at install time), not from a number written in the source."""
+    from importlib.metadata import version
+
+    assert run("--version").stdout.strip() == f"robocli {version('robocli-robots')}"
+
+
 @pytest.mark.parametrize(
     "args",
     [

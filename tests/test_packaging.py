@@ -24,8 +24,8 @@ pytest.importorskip("build", reason="build is not installed: pip install -e '.[t
 
 ROOT = Path(__file__).resolve().parents[1]
 TIMEOUT = 300  # s; bounds a hung build only: a build takes seconds
-# tracked files that stay out of the sdist: CI's own files
-NOT_SHIPPED = (".ci/", ".github/", ".gitignore")
+# tracked files that stay out of the sdist: CI's and the developers' own files
+NOT_SHIPPED = (".ci/", ".github/", ".gitignore", ".pre-commit-config.yaml")
 # tests that read tests/data and fuzz/ (at import or in the test), run from the unpacked sdist
 SHIPPED_TESTS = (
     "tests/hub/test_server.py::test_original_client_bytes_are_served",  # original_client.hex
@@ -84,12 +84,12 @@ def sdist(tmp_path_factory: pytest.TempPathFactory) -> Path:
         cwd=src,
     )
     assert proc.returncode == 0, f"sdist build failed:\n{proc.stdout[-4000:]}{proc.stderr[-4000:]}"
-    (tarball,) = out.glob("robocli-*.tar.gz")
+    (tarball,) = out.glob("robocli_robots-*.tar.gz")
     return tarball
 
 
 def _members(tarball: Path) -> dict[str, tarfile.TarInfo]:
-    """The sdist's regular files by path below its top folder (robocli-X.Y.Z/)."""
+    """The sdist's regular files by path below its top folder (robocli_robots-X.Y.Z/)."""
     with tarfile.open(tarball) as tar:
         return {m.name.split("/", 1)[1]: m for m in tar.getmembers() if m.isfile()}
 
@@ -162,7 +162,9 @@ def test_a_build_without_a_c_compiler_says_so_in_one_line(
     assert len(lines) == 1, out[-4000:]
     line = lines[0]
     assert "no C compiler found" in line and named in line, line
-    assert "apt install gcc python3-dev" in line and "--only-binary" in line, line
+    assert "apt install gcc python3-dev" in line, line
+    # the hint names this distribution: "robocli" on PyPI is an unrelated package
+    assert "pip install --only-binary robocli-robots robocli-robots" in line, line
     assert "Traceback" not in out and "No such file or directory" not in out, out[-4000:]
     assert not list((top / "out").glob("*.whl"))
 
@@ -176,6 +178,8 @@ def test_the_metadata_names_license_authors_and_project(sdist: Path) -> None:
         meta = email.parser.BytesParser().parse(pkg_info)
         license_text = lic.read().decode()
     assert "MIT License" in license_text and "robocli developers" in license_text
+    assert meta["Name"] == "robocli-robots"  # "robocli" on PyPI is an unrelated package
+    assert meta["Version"] == "0.1.0"  # a tree without git metadata: setuptools-scm's fallback
     assert meta["License-Expression"] == "MIT"
     assert meta.get_all("License-File") == ["LICENSE"]
     assert meta["Author"] == "robocli developers"
@@ -189,3 +193,26 @@ def test_the_metadata_names_license_authors_and_project(sdist: Path) -> None:
     # the live view, test and lint for make test
     extras = set(meta.get_all("Provides-Extra") or [])
     assert {"plot", "record", "foxglove", "test", "lint"} <= extras
+
+
+def test_the_version_comes_from_the_git_tag(sdist: Path, tmp_path: Path) -> None:
+    """setuptools-scm versions a tagged checkout by its tag (the tag is made here, in a
+    throwaway repository: the project's tags are the maintainers')."""
+    if shutil.which("git") is None:
+        pytest.skip("git is not installed")
+    top = _unpack(sdist, tmp_path / "unpacked")
+    (top / "PKG-INFO").unlink()  # a checkout has no PKG-INFO: its version is git's alone
+    for info in top.glob("*.egg-info"):  # rewritten by the build: would make the tree dirty
+        shutil.rmtree(info)
+    ident = ["-c", "user.name=t", "-c", "user.email=t@localhost", "-c", "commit.gpgsign=false"]
+    for argv in (["init", "-q"], ["add", "-A"], [*ident, "commit", "-q", "-m", "tree"],
+                 [*ident, "tag", "-a", "v9.8.7", "-m", "v9.8.7"]):  # fmt: skip
+        proc = _run(["git", "-C", str(top), *argv])
+        assert proc.returncode == 0, proc.stderr
+    out = tmp_path / "out"
+    proc = _run(
+        [sys.executable, "-m", "build", "--sdist", "--no-isolation", "--outdir", str(out), "."],
+        cwd=top,
+    )
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-4000:]
+    assert [p.name for p in out.glob("*.tar.gz")] == ["robocli_robots-9.8.7.tar.gz"]

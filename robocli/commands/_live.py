@@ -21,7 +21,7 @@ log = logging.getLogger("robocli.commands")
 FoxgloveOpt = typer.Option(
     None, "--foxglove", min=0, max=65535, metavar="PORT",
     help="Serve the channels live to Foxglove on this WebSocket port (8765 is Foxglove's; "
-         "0: any). Needs pip install 'robocli[foxglove]'.",
+         "0: any). Needs pip install 'robocli-robots[foxglove]'.",
 )  # fmt: skip
 FoxgloveHostOpt = typer.Option(
     "127.0.0.1", "--foxglove-host", metavar="HOST",

@@ -27,7 +27,7 @@ _ARG_MARKS = (0x3B, 0x1B)
 _STRING_MARK = 0x2B
 _ARROWS = {"tx": "->", "rx": "<-"}
 #: What commands 35-38 mean to a simulator (MobileSim/AMRISim's SRISim laser compatibility,
-#: shared/protocols/arcos_sim_laser.md section 1); a real robot reads them as ADSEL, ...
+#: docs/protocols/arcos-sim.md section 1); a real robot reads them as ADSEL, ...
 _SIM_COMMANDS = {
     35: "OLD_LRF_ENABLE", 36: "OLD_LRF_CFG_START", 37: "OLD_LRF_CFG_END", 38: "OLD_LRF_CFG_INC",
 }  # fmt: skip

@@ -69,7 +69,7 @@ def zenoh_option(role: Role, *, default: str | None = None) -> Any:
         metavar=ZENOH_METAVAR,
         show_default=False,
         help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: {DEFAULT_ENDPOINT}; multicast "
-        "scouting off), or take CONFIG, a Zenoh JSON5 file. Needs robocli[zenoh].",
+        "scouting off), or take CONFIG, a Zenoh JSON5 file. Needs robocli-robots[zenoh].",
     )
 
 

@@ -62,7 +62,7 @@ def _print(r: dict[str, Any]) -> None:
     core = r["c_core"]
     typer.echo(f"C core     {'loaded from ' + core['path'] if core['loaded'] else core['error']}")
     extras = [f"{name} {'yes' if e['installed'] else 'no'}" for name, e in r["extras"].items()]
-    typer.echo("extras     " + (", ".join(extras) or "unknown (robocli is not installed)"))
+    typer.echo("extras     " + (", ".join(extras) or "unknown (robocli-robots is not installed)"))
     serial = r["serial"]
     if serial["error"]:
         typer.echo(f"serial     cannot list ports: {serial['error']}")

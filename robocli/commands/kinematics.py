@@ -25,7 +25,7 @@ if TYPE_CHECKING:
 RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
 PointsOpt = typer.Option(100, "--points", "-n", min=2, max=100_000, help="Number of points.")
 OutOpt = typer.Option(Path("sim.json"), "--out", "-o", help="Log to write (.json, .csv or .npz).")
-PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli[plot]).")
+PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli-robots[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
 DurationOpt = typer.Option(None, "--duration", help="Total duration, s (instead of --speed).")
 StartOpt = typer.Option(

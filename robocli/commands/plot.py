@@ -1,5 +1,6 @@
 """``robocli plot``: a figure of a recording, a thin layer over
-:func:`robocli.io.record.plot.plot` (matplotlib: ``pip install 'robocli[plot]'``)."""
+:func:`robocli.io.record.plot.plot` (matplotlib:
+``pip install 'robocli-robots[plot]'``)."""
 
 from __future__ import annotations
 

@@ -19,7 +19,7 @@ Formats, by suffix:
 * ``.mcap``: a recording of ``robocli record`` (:mod:`robocli.io.record`): the frames of
   the raw channels of one link speaking the protocol asked for, in log-time order, ``t``
   in seconds since the recording's first message, whose log time is the ``start_unix``
-  (needs ``robocli[record]``);
+  (needs ``robocli-robots[record]``);
 * anything else: raw bytes of one direction (what a serial sniffer or ``cat`` saved).
 
 Files are streamed in chunks of :data:`CHUNK` bytes, so a capture of any size is read in

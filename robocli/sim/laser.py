@@ -4,7 +4,7 @@
 along a set of bearings in a :class:`~robocli.sim.world.World`, all rays at once with NumPy.
 :class:`LaserGeometry` is the configuration a client changes with the simulated-laser
 commands (field of view, resolution in hundredths of a degree) and the rules of AMRISim's
-Stage model (``shared/protocols/arcos_sim_laser.md`` section 1):
+Stage model (``docs/protocols/arcos-sim.md`` section 1):
 
 * the field of view is ``| |end + 360| - |start + 360| |`` degrees and the scan is always
   symmetric about the laser's heading; ``end < start`` reverses the reading order;

@@ -3,7 +3,7 @@
 :mod:`robocli.zenoh.session` opens a session from ``--zenoh [ENDPOINT|CONFIG]`` (servers
 listen, clients connect, multicast scouting off); :mod:`robocli.zenoh.keys` is the key
 layout (``robocli/<name>/<topic>``, ``@info``, ``@settings``, ``@alive``). The
-``eclipse-zenoh`` package is optional: ``pip install 'robocli[zenoh]'``; nothing here
+``eclipse-zenoh`` package is optional: ``pip install 'robocli-robots[zenoh]'``; nothing here
 imports it until a session is opened.
 """
 

@@ -2,7 +2,7 @@
 README's Zenoh section, for programs that are not robocli).
 
 A batch is a 32-byte little-endian header then the body of a ros4mat v3 data reply for the
-same samples, record for record (``shared/protocols/ros4mat.md``: ADC records of 8 float32
+same samples, record for record (``docs/protocols/ros4mat.md``: ADC records of 8 float32
 volts then a float64 acquisition time, 40 bytes; IMU 9 float32 (accel g, gyro deg/s, mag
 uT) then the time, 44 bytes; images: the info records, then each frame's bytes)::
 

@@ -15,7 +15,7 @@
   history of the hub's samples; a server's or router's file that names no listen endpoint
   listens on :data:`DEFAULT_ENDPOINT` (Zenoh's own default is every interface).
 
-The ``eclipse-zenoh`` package is optional (``pip install 'robocli[zenoh]'``); without it
+The ``eclipse-zenoh`` package is optional (``pip install 'robocli-robots[zenoh]'``); without it
 every function here raises :class:`ZenohMissing`, one line saying how to install it.
 """
 
@@ -49,7 +49,7 @@ __all__ = [
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 """Where ``--zenoh`` without a value listens (servers) or connects (clients): loopback."""
-INSTALL_HINT = "pip install 'robocli[zenoh]'"
+INSTALL_HINT = "pip install 'robocli-robots[zenoh]'"
 Role = Literal["server", "client", "router"]
 _ENDPOINT = re.compile(r"[a-z][a-z0-9\-]*/\S+")
 _CONFIG_SUFFIXES = (".json5", ".json", ".yaml", ".yml")

@@ -1,9 +1,10 @@
-"""The README's exit-code table, checked: every example in its third column is run here as a
-command line, and must end with its row's code (issue 13, finding 15).
+"""The exit-code table of the manual (docs/getting-started.md), checked: every example in its
+third column is run here as a command line, and must end with its row's code (issue 13,
+finding 15).
 
 Command lines without a signal run in-process through ``robocli.cli.main`` (the mapping of
 errors to codes and messages is the same as in a process); Ctrl-C, SIGTERM, a reader that
-leaves and a link that drops run ``robocli`` as a process. An example in the README without
+leaves and a link that drops run ``robocli`` as a process. An example in the table without
 a command line here, or a command line here for no example there, fails the test: the table
 and the code cannot drift apart.
 """
@@ -31,10 +32,10 @@ TIMEOUT = 60.0
 
 
 def readme_table() -> dict[tuple[int, str], str]:
-    """{(code, example): meaning} from the README's "Exit codes" table (examples are split
+    """{(code, example): meaning} from the manual's "Exit codes" table (examples are split
     on "; " in the third column)."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    section = text.split("### Exit codes", 1)[1].split("\n#", 1)[0]
+    text = (ROOT / "docs" / "getting-started.md").read_text(encoding="utf-8")
+    section = text.split("## Exit codes", 1)[1].split("\n#", 1)[0]
     rows = {}
     for line in section.splitlines():
         cells = [c.strip() for c in re.split(r"(?<!\\)\|", line)[1:-1]]
@@ -62,7 +63,7 @@ def run(*args: str, **kw: Any) -> Run:
     return Run(args, **kw)
 
 
-#: The README's examples, each with the command lines that show it.
+#: The table's examples, each with the command lines that show it.
 CASES: dict[tuple[int, str], list[Run]] = {
     (0, "a command that finishes"): [
         run("dump", "pioneer", "--file", str(ROOT / "examples" / "pioneer_drive.jsonl")),
@@ -271,10 +272,10 @@ def test_the_readme_exit_code_table(row: tuple[int, str], case: Run | None, plac
                                     capsys: pytest.CaptureFixture[str]) -> None:  # fmt: skip
     code, example = row
     assert row in readme_table(), f"{example!r}: a command line here, no such example there"
-    assert case is not None, f"{example!r}: an example in the README with no command line here"
+    assert case is not None, f"{example!r}: an example in the table with no command line here"
     got, err = _run(case, places, capsys)
     lines = err.strip().splitlines()
-    assert got == code, f"{case.args}: exit {got}, the README says {code}: {err}"
+    assert got == code, f"{case.args}: exit {got}, the manual says {code}: {err}"
     assert "Traceback" not in err
     if code == 0:
         assert lines == [] or case.how == "main", err

@@ -16,7 +16,8 @@ DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
 
 
 def _session() -> dict[str, bytes]:
-    """The original client's requests (brief section 7), one hex packet per line."""
+    """The original client's requests (docs/protocols/ros4mat.md section 7), one hex packet
+    per line."""
     out = {}
     for line in (DATA / "original_client.hex").read_text().splitlines():
         if line.strip() and not line.startswith("#"):

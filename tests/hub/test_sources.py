@@ -273,7 +273,7 @@ def test_real_camera_only_with_opencv(raw: Any) -> None:
 
     with HubServer(port=0, sim=False) as srv:
         if not opencv_available():
-            assert "camera" not in srv.sensors  # robocli[camera] not installed
+            assert "camera" not in srv.sensors  # robocli-robots[camera] not installed
             return
         assert not srv.sensors["camera"]["simulated"]
         c = raw(srv.port)

@@ -223,7 +223,7 @@ def test_without_websockets_one_line_says_how_to_install() -> None:
         f"sys.exit(main({argv!r}))"  # fmt: skip
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, stdin=subprocess.DEVNULL)  # fmt: skip
-    assert "pip install 'robocli[foxglove]'" in one_line_error(proc, 1)
+    assert "pip install 'robocli-robots[foxglove]'" in one_line_error(proc, 1)
     assert proc.stdout == ""
 
 

@@ -218,5 +218,5 @@ def test_without_matplotlib_one_line_says_how_to_install(tmp_path: Path) -> None
     )
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, cwd=tmp_path)  # fmt: skip
-    assert "pip install 'robocli[plot]'" in one_line_error(proc, 1)
+    assert "pip install 'robocli-robots[plot]'" in one_line_error(proc, 1)
     assert not (tmp_path / "x.png").exists()

@@ -115,7 +115,7 @@ def test_without_matplotlib_the_plot_option_says_how_to_get_it(tmp_path: Path) -
          "sys.exit(main(['traj', 'circle', '--plot', 'x.png']))"],
         capture_output=True, text=True, timeout=60, cwd=tmp_path)
     line = one_line_error(proc, 1)
-    assert "pip install robocli[plot]" in line
+    assert "pip install robocli-robots[plot]" in line
     assert not (tmp_path / "x.png").exists()
 
 

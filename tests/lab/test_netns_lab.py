@@ -55,7 +55,7 @@ def test_laptop_subscribes_to_a_hub_in_another_namespace() -> None:
 
 
 def test_laptop_subscribes_over_zenoh_to_a_hub_in_another_namespace() -> None:
-    pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+    pytest.importorskip("zenoh", reason="robocli-robots[zenoh] is not installed")
     with Lab(robots=1, laptops=1, prefix=f"rcl-{os.getpid()}-z") as lab:
         robot = lab.robot(0)
         endpoint = f"tcp/{robot.address}:7447"  # the hub listens there, the laptop connects
@@ -104,7 +104,7 @@ def test_the_bench_counts_what_a_laptop_receives_over_the_robot_uplink(mode: str
     from robocli.bench.lab.bench import run_lab
 
     if mode == "zenoh":
-        pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+        pytest.importorskip("zenoh", reason="robocli-robots[zenoh] is not installed")
     r = run_lab(mode, robots=1, laptops=1, seconds=2.0, warmup=0.5)
     assert r.errors == []
     assert set(r.sensors) == {"imu", "adc", "camera"}
@@ -120,7 +120,7 @@ def test_the_bench_counts_what_a_laptop_receives_over_the_robot_uplink(mode: str
 
 
 def test_a_class_watches_the_pioneer_one_laptop_drives_and_killing_the_driver_stops_it() -> None:
-    pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+    pytest.importorskip("zenoh", reason="robocli-robots[zenoh] is not installed")
     from robocli.bench.lab.pioneer import class_drives_pioneer
 
     r = class_drives_pioneer(laptops=3)  # laptop 0 drives, laptops 1 and 2 watch
@@ -130,7 +130,7 @@ def test_a_class_watches_the_pioneer_one_laptop_drives_and_killing_the_driver_st
 
 
 def test_laptops_see_the_router_come_back_and_a_killed_hub_leave() -> None:
-    pytest.importorskip("zenoh", reason="robocli[zenoh] is not installed")
+    pytest.importorskip("zenoh", reason="robocli-robots[zenoh] is not installed")
     from robocli.bench.lab.faults import fault_run
 
     r = fault_run(down_s=1.0)

@@ -8,7 +8,7 @@ import socket
 
 import pytest
 
-pytest.importorskip("zenoh", reason="needs robocli[zenoh] (eclipse-zenoh)")
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 def free_endpoint() -> str:

@@ -171,7 +171,7 @@ def test_without_the_extra_each_command_says_how_to_install() -> None:
                              text=True, timeout=60, env=ENV)  # fmt: skip
         assert out.returncode == 1, (args, out.stderr)
         assert out.stderr == (
-            "robocli: Zenoh support needs Eclipse Zenoh: pip install 'robocli[zenoh]'\n"
+            "robocli: Zenoh support needs Eclipse Zenoh: pip install 'robocli-robots[zenoh]'\n"
         ), args
 
 

@@ -116,7 +116,7 @@ def test_without_the_extra_one_line_says_how_to_install() -> None:
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=60, check=True).stdout  # fmt: skip
-    assert out == "1 Zenoh support needs Eclipse Zenoh: pip install 'robocli[zenoh]'\n"
+    assert out == "1 Zenoh support needs Eclipse Zenoh: pip install 'robocli-robots[zenoh]'\n"
 
 
 def test_an_endpoint_means_no_shared_memory_and_no_multicast() -> None:

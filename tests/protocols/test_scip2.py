@@ -1,5 +1,5 @@
 """SCIP 2.0 protocol layer (pure Python): checksums, encodings, requests, replies, scans and
-the reply framer, against the examples of shared/protocols/scip2.md byte for byte."""
+the reply framer, against the examples of docs/protocols/scip2.md byte for byte."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
 """The Hokuyo simulator byte for byte, over real sockets and ptys, with a raw client that is
-independent of the robocli client: the brief's golden exchanges (section 7), the statuses of
+independent of the robocli client: the golden exchanges of specs/, the statuses of
 malformed requests, MD frames and their remaining count, the timer, and the scans of a known
 map against the ray-cast truth."""
 

@@ -31,7 +31,7 @@ def zenoh_missing() -> str | None:
     import importlib.util
 
     if importlib.util.find_spec("zenoh") is None:
-        return "eclipse-zenoh is not installed (pip install 'robocli[zenoh]')"
+        return "eclipse-zenoh is not installed (pip install 'robocli-robots[zenoh]')"
     if importlib.util.find_spec("robocli.hub.frontends.zenoh") is None:
         return "this robocli has no Zenoh front-end for the hub (serve --zenoh)"
     return None
@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="spread: laptop j watches robot j %% R; one: robot 0")  # fmt: skip
     ap.add_argument("--pioneer", type=int, default=0, metavar="LAPTOPS",
                     help="also: LAPTOPS watch a Pioneer that one drives, then the driver is "
-                    "killed (robocli[zenoh])")  # fmt: skip
+                    "killed (robocli-robots[zenoh])")  # fmt: skip
     ap.add_argument("--bridge", action="store_true",
                     help="each robot also runs a simulated Pioneer and its bridge")  # fmt: skip
     ap.add_argument("--faults", action="store_true",

@@ -7,7 +7,7 @@
 
 Every call is one request, read in the caller's thread (:class:`~robocli.devices.session.
 Session` leader/follower): ros4mat has no unsolicited messages. Requests are byte for byte
-those of the original MATLAB client (``shared/protocols/ros4mat.md`` section 7). Replies are
+those of the original MATLAB client (``docs/protocols/ros4mat.md`` section 7). Replies are
 decoded as NumPy views over the received bytes (:mod:`robocli.devices.hub.decode`).
 
 The jobs behind :class:`Hub` have their own modules: the link, its handshake and its

@@ -223,14 +223,14 @@ def _image_block(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, in
 
 
 def decode_jpeg(blob: bytes, max_bytes: int = MAX_DECODED_BYTES) -> np.ndarray[Any, Any]:
-    """One JPEG frame as an H x W x 3 uint8 array (needs Pillow: ``robocli[camera]``).
+    """One JPEG frame as an H x W x 3 uint8 array (needs Pillow: ``robocli-robots[camera]``).
     Raises :class:`ProtocolError` for bytes that are not a JPEG image, or one that would
     decode to more than ``max_bytes``."""
     try:
         from PIL import Image  # type: ignore[import-not-found,unused-ignore]
     except ImportError:
         raise DeviceError(
-            "the hub sends JPEG frames: install Pillow (pip install 'robocli[camera]') or "
+            "the hub sends JPEG frames: install Pillow (pip install 'robocli-robots[camera]') or "
             "subscribe with quality=0 (raw)"
         ) from None
     import io

@@ -38,7 +38,7 @@ def hub_sources(
 ) -> dict[str, Source]:
     """The sources of a hub by sensor name: every simulated sensor when ``sim``; this
     machine's system info always; without ``sim``, a real camera when OpenCV is installed
-    (``robocli[camera]``); the GPS from gpsd (``"HOST[:PORT]"``) and the battery and ADC from
+    (``robocli-robots[camera]``); the GPS from gpsd (``"HOST[:PORT]"``) and the battery and ADC from
     a Pioneer at URL ``pioneer`` when given (they replace the simulated ones)."""
     sources: list[Source] = [SysinfoSource()]
     if sim:

@@ -3,7 +3,7 @@
 The camera sees a synthetic moving scene (a scrolling gradient and a bouncing disc); the
 stereo pair sees it with a horizontal disparity; the depth camera and the laser ray-cast the
 Pioneer simulator's default world from a robot driving a circle in it. Images are RGB24 raw,
-or JPEG at the requested quality when Pillow or OpenCV is installed (``robocli[camera]``);
+or JPEG at the requested quality when Pillow or OpenCV is installed (``robocli-robots[camera]``);
 without either, a JPEG request is served raw and each frame says so (``compression`` 0 in its
 ``msgCam``, which the original client checks per frame).
 

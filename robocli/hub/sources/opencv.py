@@ -1,4 +1,4 @@
-"""A real camera through OpenCV (the optional extra ``robocli[camera]``).
+"""A real camera through OpenCV (the optional extra ``robocli-robots[camera]``).
 
 Serves ``camera`` (ros4mat 0x24) from ``/dev/videoN`` (the subscribe's ``id``) at the
 requested frame rate and size (frames of another size are resized), raw RGB or JPEG at the

@@ -1,5 +1,5 @@
 """Recordings in MCAP, the format of ROS 2 bags and Foxglove: :class:`Recorder` writes them
-(needs ``pip install 'robocli[record]'``), :func:`info` summarises them, :func:`raw_frames`
+(needs ``pip install 'robocli-robots[record]'``), :func:`info` summarises them, :func:`raw_frames`
 gives their raw frames back to ``dump --file``, :func:`recover` rewrites one that was cut
 short (killed, a full disk) whole.
 

@@ -1,6 +1,6 @@
 """The live view: the recordings' channels served as they come over the Foxglove WebSocket
 protocol (:mod:`robocli.io.record.wsserver`, on ``websockets``: ``pip install
-'robocli[foxglove]'``).
+'robocli-robots[foxglove]'``).
 
 >>> from robocli.io.record.live import LiveView             # doctest: +SKIP
 >>> with LiveView(port=8765) as view:                       # ws://127.0.0.1:8765 in Foxglove
@@ -60,7 +60,7 @@ def _server_class() -> type[FoxgloveServer]:
         import websockets.asyncio.server  # noqa: F401 - the optional extra
     except ImportError:
         raise LiveViewError(
-            "the live view needs the websockets package: pip install 'robocli[foxglove]'"
+            "the live view needs the websockets package: pip install 'robocli-robots[foxglove]'"
         ) from None
     from robocli.io.record.wsserver import FoxgloveServer
 

@@ -184,7 +184,7 @@ def _inflate(kind: str, data: bytes, declared: int) -> bytearray:
                 out += piece
     except ImportError as exc:
         raise BadRecording(f"reading {kind} chunks needs {exc.name}: pip install "
-                           "'robocli[record]'") from None  # fmt: skip
+                           "'robocli-robots[record]'") from None  # fmt: skip
     except Exception as exc:  # noqa: BLE001 - the codecs' own errors (ZstdError, RuntimeError)
         raise _Malformed(f"it does not decompress ({kind}: {exc})") from None
     return out
@@ -222,7 +222,7 @@ class McapFile:
             import mcap  # noqa: F401 - the optional extra
         except ImportError:
             raise BadRecording("reading MCAP needs the mcap package: pip install "
-                               "'robocli[record]'") from None  # fmt: skip
+                               "'robocli-robots[record]'") from None  # fmt: skip
         try:
             self._file: IO[bytes] = Path(path).open("rb")
             self.size = os.fstat(self._file.fileno()).st_size

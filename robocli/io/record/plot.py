@@ -83,7 +83,7 @@ def _pyplot() -> Any:
         import matplotlib  # type: ignore[import-not-found,unused-ignore]  # optional extra
     except ImportError:
         raise PlotUnavailableError(
-            "plotting needs matplotlib: pip install 'robocli[plot]'"
+            "plotting needs matplotlib: pip install 'robocli-robots[plot]'"
         ) from None
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt  # type: ignore[import-not-found,unused-ignore]

@@ -99,7 +99,7 @@ def _mcap() -> Any:
         import mcap.writer  # noqa: F401 - the optional extra
     except ImportError:
         raise RecordingError(
-            "recording needs the mcap package: pip install 'robocli[record]'"
+            "recording needs the mcap package: pip install 'robocli-robots[record]'"
         ) from None
     import mcap
 

@@ -1,6 +1,6 @@
 """ARCOS: the Pioneer host <-> microcontroller protocol, declared once with ``construct``.
 
-Facts from ``shared/protocols/arcos.md`` (read from AriaCoda, MobileSim, p2os and the
+Facts from ``docs/protocols/arcos.md`` (read from AriaCoda, MobileSim, p2os and the
 Pioneer 3 manuals). Raw protocol units live only here; devices convert to SI with the
 subtype's :class:`RobotParams`.
 

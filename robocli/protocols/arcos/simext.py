@@ -1,7 +1,7 @@
 """MobileSim/AMRISim extensions of ARCOS: simulated laser (0x60, 0x61), SIMSTAT (0x62), SETO data.
 
 Part of :mod:`robocli.protocols.arcos` (import from there). Facts from
-``shared/protocols/arcos_sim_laser.md``, checked on the recorded traces h, i, j, k.
+``docs/protocols/arcos-sim.md``, checked on the recorded traces h, i, j, k.
 
 Each packet is declared once with ``construct``; the hot paths (six laser packets per SIP
 cycle, both in the simulator and in the client) read and write the same bytes through

@@ -1,6 +1,6 @@
 """ros4mat protocol version 3 (the sensor hub's wire format), declared once with ``construct``.
 
-Facts from ``shared/protocols/ros4mat.md`` (the original project's ``exchangeStructs.h``,
+Facts from ``docs/protocols/ros4mat.md`` (the original project's ``exchangeStructs.h``,
 server and MATLAB client, LGPL-3.0) and the bytes captured from the original client.
 Reimplemented from those facts; no original code is used.
 

@@ -1,6 +1,6 @@
 """Hokuyo SCIP 2.0: the ASCII line protocol of URG-04LX, UTM-30LX and UST-10LX/20LX scanners.
 
-Facts from ``shared/protocols/scip2.md`` (SPEC C-42-03320B, the URG Network wiki, urg_library,
+Facts from ``docs/protocols/scip2.md`` (SPEC C-42-03320B, the URG Network wiki, urg_library,
 hokuyo_node, hokuyolx, urg_stamped). This package knows bytes and field meanings only; the
 client and the simulator are built on it.
 
@@ -19,7 +19,7 @@ VV/PP/II bodies, scans; building them for a simulator), :mod:`~robocli.protocols
 (the pure-Python reply framer) and :mod:`~robocli.protocols.scip2.fast` (the C framer and scan
 decoder; same results, same errors).
 
-Choices where the sources disagree (brief markers [U]):
+Choices where the sources disagree:
 
 * Info lines (``KEY:value;S``): the sum is checked over ``KEY:value`` (WIKI, hokuyolx, every
   published example); ``KEY:value;`` (urg_library's alternative) and, for UTM-30LX, the line

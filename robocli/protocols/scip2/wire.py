@@ -178,7 +178,7 @@ def join_data_lines(lines: Sequence[bytes], check: bool = True) -> bytes:
 
 # ---------------------------------------------------------------------------- statuses
 
-#: Meanings of the status codes as the brief gives them (SPEC p.11-23, UST/UTM tables of HL
+#: Meanings of the status codes as the specification gives them (SPEC p.11-23, UST/UTM tables of HL
 #: and US). Per-command meanings of 01..07 are in :data:`COMMAND_STATUS`.
 STATUS_TEXT: dict[str, str] = {
     "00": "ok",

@@ -1,6 +1,6 @@
 """ROS-Industrial Simple Message, declared once with ``construct``.
 
-Facts from ``shared/protocols/simple_message.md`` (REP-I0004, REP-I0006, industrial_core,
+Facts from ``docs/protocols/simple-message.md`` (REP-I0004, REP-I0006, industrial_core,
 abb_driver, motoman_driver) and the frames recorded from the reference C++ library
 (``tests/data/simple_message/``). Reimplemented from those facts; no reference code is used.
 

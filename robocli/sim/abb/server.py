@@ -1,7 +1,7 @@
 """Built-in ABB arm simulator: the RAPID ``abb_driver`` servers over Simple Message.
 
 Two TCP servers on the shared serving layer, one client each (a second one is refused), as
-on the IRC5 controller (brief section 4):
+on the IRC5 controller (docs/protocols/simple-message.md section 4):
 
 * **motion** (11000): JOINT_TRAJ_PT only; each SERVICE_REQUEST acknowledged header-only
   SUCCESS, even a point dropped because the 100-point buffer is full; ``-1`` starts a

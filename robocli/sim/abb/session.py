@@ -2,11 +2,11 @@
 
 :class:`Executor` moves the joints along activated trajectories on the simulator's clock.
 :class:`ArmController` is what the RAPID tasks do (``ROS_motionServer``, ``ROS_motion``,
-``ROS_stateServer``; brief section 4) or, with ``profile="generic"``, what an
-industrial_robot_client streaming server does. :class:`MotionSession` and
-:class:`StateSession` are one link's protocol state (a :class:`~robocli.sim.serving.Session`):
-the serving layer hands them complete frames and writes their replies. Every method that
-touches shared state takes the controller's lock.
+``ROS_stateServer``; docs/protocols/simple-message.md section 4) or, with
+``profile="generic"``, what an industrial_robot_client streaming server does.
+:class:`MotionSession` and :class:`StateSession` are one link's protocol state (a
+:class:`~robocli.sim.serving.Session`): the serving layer hands them complete frames and
+writes their replies. Every method that touches shared state takes the controller's lock.
 
 Execution model: the points of an activated trajectory are knots of a cubic Hermite curve
 whose knot velocities are finite differences of the points (as in the JSON logs), so the arm

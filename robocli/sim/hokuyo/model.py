@@ -1,8 +1,8 @@
 """The simulated Hokuyo scanners' fixed data (:class:`HokuyoModel`) and their measurement in a
 :class:`~robocli.sim.world.World` (:func:`measure`).
 
-Values from ``shared/protocols/scip2.md`` section 4 (PP), section 3 (VV/II of the URG-04LX).
-Decisions where the brief marks a fact uncertain **[U]**:
+Values from ``docs/protocols/scip2.md`` section 4 (PP), section 3 (VV/II of the URG-04LX).
+Decisions where the sources leave a fact uncertain:
 
 * the USB UTM-30LX reports ``MODL:UTM-30LX``; the UST-10LX reports ``MODL:UST-10LX``;
 * error codes on the wire for a ray with no return (beyond DMAX, or nothing hit) and for a
@@ -101,7 +101,7 @@ def _vv(prod: str, firm: str, seri: str) -> tuple[tuple[str, str], ...]:
     )  # fmt: skip
 
 
-#: URG-04LX: the WIKI identity of the brief (section 3), 682 steps, 100 ms, USB/RS-232.
+#: URG-04LX: the wiki identity (docs/protocols/scip2.md section 3), 682 steps, 100 ms, USB/RS-232.
 URG_04LX = HokuyoModel(
     name="urg-04lx",
     vv=_vv("SOKUIKI Sensor URG-04LX", "3.1.00(18/Jan./2007)", "H0614967"),

@@ -2,8 +2,8 @@
 (:class:`FrameOutput`).
 
 A sensor never sends part of a frame: when its host reads too slowly it drops whole scans
-and counts them (brief section 5 item 11). Over TCP the link queues whatever the kernel does
-not take, whole; a scan is dropped while more than :data:`TCP_BEHIND` bytes wait for the
+and counts them (docs/protocols/scip2.md section 5). Over TCP the link queues whatever the
+kernel does not take, whole; a scan is dropped while more than :data:`TCP_BEHIND` bytes wait for the
 client (a client that reads nothing for the serving layer's send timeout is dropped there).
 On a pty the link drops what the line cannot take now (counted in
 :attr:`~robocli.sim.serving.LinkStats.tx_dropped`), which would cut a frame: here the part of

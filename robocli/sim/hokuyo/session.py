@@ -1,6 +1,6 @@
 """One client's SCIP 2.0 conversation with a simulated Hokuyo (:class:`ScipSession`).
 
-The state machine of ``shared/protocols/scip2.md`` section 6: (SCIP 1.1 ->) IDLE (laser off)
+The state machine of ``docs/protocols/scip2.md`` section 6: (SCIP 1.1 ->) IDLE (laser off)
 -BM-> LASER ON -MD/MS/ME-> STREAMING -QT-> IDLE; TM0 -> TIME ADJUST (every other command
 answered ``0E``, as UL observed for QT) -TM2-> IDLE; RS/RT -> IDLE with the timer at 0; RB
 twice within 1 s -> reboot (timer 0, laser off, back to SCIP 1.1 on a profile that boots

@@ -1,5 +1,5 @@
 """The simulator-only part of the built-in Pioneer's ARCOS: simulated laser, SIMSTAT, teleports
-and the cycle on which SETO takes effect (``shared/protocols/arcos_sim_laser.md``).
+and the cycle on which SETO takes effect (``docs/protocols/arcos-sim.md``).
 
 :class:`SimExtensions` is used by :class:`~robocli.sim.pioneer.session.ArcosController` under its
 lock: it contributes command handlers and the packets that go out around each SIP. Timing,
