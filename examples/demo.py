@@ -218,7 +218,8 @@ def run(out: Path = OUT) -> int:
         print(f"  {shown / path.name}")
     if RECORD:
         print(f"look again: robocli info {shown / 'wander.mcap'}; open the .mcap files in "
-              "Foxglove (Open local file): the 3D panel shows the path and the laser")
+              "Foxglove (Open local file): the 3D panel shows the path, the laser and, once\n"
+              "/robot_description is ticked in its topics, the P3-DX (docs/models.md)")
     return 0
 
 
