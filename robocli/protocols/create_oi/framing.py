@@ -1,4 +1,5 @@
-"""The Open Interface's command stream, framed (:class:`CommandFramer`).
+"""The Open Interface's two byte streams, framed: the commands a robot receives
+(:class:`CommandFramer`) and the sensor stream a client receives (:class:`StreamFramer`).
 
 The OI has no sync marker: a command is its opcode and as many data bytes as the opcode
 says (:func:`~robocli.protocols.create_oi.commands.command_length`). A byte where an opcode
@@ -15,8 +16,9 @@ from __future__ import annotations
 from robocli.core import FramerStats
 from robocli.errors import ProtocolError
 from robocli.protocols.create_oi.commands import command_length
+from robocli.protocols.create_oi.sensors import STREAM_HEADER
 
-__all__ = ["CommandFramer"]
+__all__ = ["CommandFramer", "StreamFramer"]
 
 
 class CommandFramer:
@@ -64,3 +66,57 @@ class CommandFramer:
     def stats(self) -> FramerStats:
         """Commands framed, bytes dropped, 0 checksums (the OI has none), songs refused."""
         return FramerStats(self._frames, self._dropped, 0, self._bad)
+
+
+class StreamFramer:
+    """Splits the robot's output into whole stream frames (opcode 148's: 19, n, n bytes,
+    checksum). A byte where a header should be that is not 19 is dropped and counted; a frame
+    whose checksum is wrong counts as a bad checksum and only its header byte is dropped, the
+    rest rescanned (a 19 inside a frame's data is found out by its checksum). A frame is at
+    most 258 bytes: the buffer never holds more. Same interface as
+    :class:`robocli.core.Framer`."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+        self._frames = 0
+        self._dropped = 0
+        self._bad = 0
+
+    def feed(self, data: bytes | bytearray | memoryview) -> list[bytes]:
+        """Append ``data``; every frame now complete, in order."""
+        buf = self._buf
+        buf += data
+        out: list[bytes] = []
+        pos = 0
+        while pos < len(buf):
+            if buf[pos] != STREAM_HEADER:
+                self._dropped += 1
+                pos += 1
+                continue
+            if pos + 2 > len(buf) or pos + 3 + buf[pos + 1] > len(buf):
+                break
+            end = pos + 3 + buf[pos + 1]
+            if sum(buf[pos:end]) & 0xFF:
+                self._bad += 1
+                self._dropped += 1
+                pos += 1
+                continue
+            out.append(bytes(buf[pos:end]))
+            pos = end
+        del buf[:pos]
+        self._frames += len(out)
+        return out
+
+    @property
+    def pending(self) -> int:
+        """Bytes of a frame not complete yet."""
+        return len(self._buf)
+
+    def reset(self) -> None:
+        """Forget the partial frame (the counters are kept)."""
+        self._buf.clear()
+
+    @property
+    def stats(self) -> FramerStats:
+        """Frames, bytes dropped, bad checksums, 0 bad lengths (any length byte is one)."""
+        return FramerStats(self._frames, self._dropped, self._bad, 0)
