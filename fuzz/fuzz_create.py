@@ -10,8 +10,11 @@ chunks (sizes from its first bytes, as the framer harnesses do):
 * each command goes to a real :class:`~robocli.sim.create.session.CreateController` (an
   empty world, in-process, stepped between chunks): it must not raise, and every reply is
   exactly the packets' size;
-* the same bytes, read as a stream frame or sensor data by a client, must decode or raise a
-  :class:`robocli.errors.RobocliError`.
+* the same bytes, as a client's :class:`~robocli.protocols.create_oi.StreamFramer` reads
+  the robot's output, must give only frames whose header, length and checksum hold (each
+  then decodes or raises a :class:`robocli.errors.RobocliError`), with every input byte
+  either framed, dropped or pending; read as a stream frame or sensor data, they must decode
+  or raise a :class:`robocli.errors.RobocliError`.
 
 Any other exception, or a broken invariant (an ``AssertionError``), is a finding.
 """
@@ -102,11 +105,29 @@ def fuzz_create(data: bytes) -> None:
                 assert len(reply) == sum(oi.packet_size(i) for i in ids), command.hex()
         with ctl.lock:
             ctl.tick(0.015)
+    _client_side(data)
     for decode in (oi.parse_stream, lambda b: oi.decode_packets(b[:1], b[1:])):
         try:
             decode(data)
         except RobocliError:
             pass
+
+
+def _client_side(data: bytes) -> None:
+    framer = oi.StreamFramer()
+    framed = 0
+    for chunk in _chunks(data):
+        for frame in framer.feed(chunk):
+            framed += len(frame)
+            assert frame[0] == oi.STREAM_HEADER and frame[1] + 3 == len(frame), frame.hex()
+            assert sum(frame) & 0xFF == 0, frame.hex()
+            try:
+                oi.parse_stream(frame)
+            except RobocliError:
+                pass
+        assert framer.pending <= 258
+    total = sum(map(len, _chunks(data)))
+    assert framed + framer.stats.dropped_bytes + framer.pending == total
 
 
 def seed_inputs() -> list[bytes]:
