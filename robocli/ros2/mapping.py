@@ -113,6 +113,12 @@ class Mapper:
 
     # ------------------------------------------------------------------ the mapping
 
+    @staticmethod
+    def maps(kind: str) -> bool:
+        """Whether samples of robocli schema ``kind`` have a mapping (some, as the
+        Pioneer's pose, map to nothing: another message says it)."""
+        return kind in _HANDLERS
+
     def map(self, kind: str, topic: str, sample: dict[str, Any]) -> list[Ros2Message]:
         """``sample`` (a message of robocli schema ``kind`` on robocli ``topic``) as ROS 2
         messages; [] for a schema with no mapping."""
