@@ -77,15 +77,17 @@ def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dic
             yield topic, kind, record.publish_time, record.log_time, message
 
 
-def message_of(path: str | Path, topic: str, schema: str, encoding: str,
-               data: bytes) -> tuple[str, dict[str, Any]]:  # fmt: skip
+def message_of(path: str | Path, topic: str, schema: str, encoding: str, data: bytes,
+               view: bool = False) -> tuple[str, dict[str, Any]]:  # fmt: skip
     """(schema, message as a dict) of one message of a ``json`` or ``cdr`` channel (see
-    :func:`channel_messages`). Raises :class:`RobocliError` for one that does not decode."""
+    :func:`channel_messages`; ``view``: a CDR message with the fields robocli's figures
+    read, :func:`robocli.ros2.read.decode`). Raises :class:`RobocliError` for one that does
+    not decode."""
     if encoding == "cdr":
         from robocli.ros2.read import decode, view_schema
 
         try:
-            return view_schema(schema), decode(schema, data)
+            return view_schema(schema), decode(schema, data, view)
         except RobocliError as exc:
             raise RobocliError(f"{path}: a message of {topic}: {exc}") from None
     try:

@@ -13,7 +13,8 @@ get the fields of the robocli schema they correspond to (:data:`VIEWS`), beside 
   orientation) and ``frame_id``;
 - ``sensor_msgs/msg/JointState``: its ``name``, ``position``... are robocli's already.
 
-A reader names such a channel by :func:`view_schema` to pick its figure or log format.
+(An export writes the message's own fields: ``decode(..., view=False)``.) A reader names
+such a channel by :func:`view_schema` to pick its figure or log format.
 """
 
 from __future__ import annotations
@@ -40,11 +41,13 @@ def view_schema(msgtype: str) -> str:
     return VIEWS.get(msgtype, msgtype)
 
 
-def decode(msgtype: str, data: bytes | memoryview) -> dict[str, Any]:
+def decode(msgtype: str, data: bytes | memoryview, view: bool = True) -> dict[str, Any]:
     """One CDR message of ``msgtype`` as a robocli reader's dict (see the module
-    docstring). Raises :class:`~robocli.errors.RobocliError` for bytes that do not decode."""
+    docstring); without ``view``, the message's own fields only (and ``timestamp``), as an
+    export writes them. Raises :class:`~robocli.errors.RobocliError` for bytes that do not
+    decode."""
     raw = T.plain(T.deserialize(data, msgtype))
-    if msgtype == "sensor_msgs/msg/LaserScan":  # no return (+-inf, NaN): robocli's 0
+    if view and msgtype == "sensor_msgs/msg/LaserScan":  # no return (+-inf, NaN): robocli's 0
         raw["ranges"] = [r if math.isfinite(r) else 0.0 for r in raw["ranges"]]
     msg = _clean(raw)
     assert isinstance(msg, dict)
@@ -54,6 +57,8 @@ def decode(msgtype: str, data: bytes | memoryview) -> dict[str, Any]:
         msg = {"timestamp": {"sec": stamp.get("sec", 0), "nsec": stamp.get("nanosec", 0)},
                **msg}  # fmt: skip
     frame_id = header.get("frame_id", "") if isinstance(header, dict) else ""
+    if not view:
+        return msg
     if msgtype == "sensor_msgs/msg/LaserScan":
         msg.update(start_angle=msg.get("angle_min"), end_angle=msg.get("angle_max"),
                    frame_id=frame_id, pose=_IDENTITY)

@@ -114,7 +114,7 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
             wanted = out.get(topic)
             if wanted is not None and encoding in ("json", "cdr"):
                 wanted.append((record.log_time, record.publish_time, message_of(
-                    recording, topic, types[topic], encoding, record.data)[1]))  # fmt: skip
+                    recording, topic, types[topic], encoding, record.data, True)[1]))  # fmt: skip
         elif isinstance(record, Schema):
             schemas[record.id] = record.name
         elif isinstance(record, Channel):
