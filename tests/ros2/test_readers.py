@@ -137,3 +137,40 @@ def test_a_killed_bag_recording_keeps_its_chunks(tmp_path: Path) -> None:
     msgs = _read(tmp_path / "whole.mcap")  # rosbags reads the recovered bag whole
     assert sum(len(v) for v in msgs.values()) == stats.messages >= kept.messages
     assert msgs["/pioneer/odom"]
+
+
+def test_a_live_view_of_a_bag_recording_gets_robocli_json(tmp_path: Path) -> None:
+    """record --ros2 --foxglove: the file is CDR, the live view's mirror still gets the
+    JSON messages of robocli's schemas (what the viewer's panels read)."""
+    import json
+
+    from robocli.io.record import Recorder
+
+    class Mirror:
+        def __init__(self) -> None:
+            self.schemas: dict[int, str] = {}
+            self.got: list[tuple[str, dict[str, object]]] = []
+
+        def channel(self, topic: str, schema: str | None, **_: object) -> int:
+            self.schemas[len(self.schemas) + 1] = schema or ""
+            return len(self.schemas)
+
+        def write(self, cid: int, data: bytes, *_: object) -> None:
+            self.got.append((self.schemas[cid], json.loads(data)))
+
+    mirror = Mirror()
+    path = tmp_path / "live.mcap"
+    from robocli.io import schemas as S
+
+    with Recorder(path, ros2=True) as rec:
+        rec.mirror(mirror)
+        scan = S.laser_scan(10**18, "laser/laser", -1.0, 1.0, [1.0, 2.0, 3.0])
+
+        def put() -> None:
+            rec.write(rec.channel("/laser/scan", "foxglove.LaserScan"),
+                      json.dumps(scan).encode(), 10**18)  # fmt: skip
+
+        rec.put(put, ())
+    assert mirror.got == [("foxglove.LaserScan", scan)]
+    msgs = _read(path)
+    assert list(msgs["/laser/scan"][0].ranges) == [1.0, 2.0, 3.0]  # type: ignore[attr-defined]
