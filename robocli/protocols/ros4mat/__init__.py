@@ -103,7 +103,13 @@ from robocli.protocols.ros4mat.messages import (
     body_length,
     sensor_type,
 )
-from robocli.protocols.ros4mat.stream import MAX_STREAM_CHUNK, PARITIES, STOP_BITS, SerialOpen
+from robocli.protocols.ros4mat.stream import (
+    MAX_STREAM_CHUNK,
+    PARITIES,
+    STOP_BITS,
+    SerialOpen,
+    write_deadline,
+)
 
 __all__ = [
     "Adc",
@@ -174,4 +180,5 @@ __all__ = [
     "record_dtype",
     "sensor_type",
     "struct_dtype",
+    "write_deadline",
 ]

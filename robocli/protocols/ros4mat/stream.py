@@ -32,10 +32,14 @@ that stops reading is dropped, as for any reply).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import construct as cs
 
-__all__ = ["MAX_STREAM_CHUNK", "PARITIES", "STOP_BITS", "SerialOpen"]
+__all__ = ["MAX_STREAM_CHUNK", "PARITIES", "STOP_BITS", "SerialOpen", "write_deadline"]
 
+WRITE_SLACK_S = 1.0  #: a write's deadline beyond the time its bytes take on the line
 MAX_STREAM_CHUNK = 4096
 """The most bytes one SERIAL_WRITE or SERIAL_DATA carries."""
 PARITIES = "NEOMS"
@@ -51,3 +55,11 @@ SerialOpen = cs.Struct(
     "port" / cs.PascalString(cs.Int16ul, "utf8"),
 )
 """SERIAL_OPEN body: the line settings and the hub's port name."""
+
+
+def write_deadline(settings: Mapping[str, Any], n: int) -> float:
+    """Seconds the hub gives a write of ``n`` bytes to its port (pyserial ``settings``):
+    twice their time on the line plus :data:`WRITE_SLACK_S`. A client waits for the hub to
+    take a write a second longer (the hub drains what came before at the line's rate)."""
+    bits = 1 + settings["bytesize"] + (settings["parity"] != "N") + settings["stopbits"]
+    return float(WRITE_SLACK_S + 2.0 * n * bits / settings["baudrate"])
