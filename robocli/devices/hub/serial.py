@@ -288,7 +288,7 @@ class VirtualSerial:
                 continue
             why = str(session.error or "closed")
             session.close()
-            self._event("lost", f"link to the hub lost ({why}); reconnecting for up to "
+            self._event("lost", f"hub lost ({why}); {self.port} reconnecting for up to "
                         f"{self.resume:g} s")  # fmt: skip
             deadline = time.monotonic() + self.resume
             while not self._closed:
@@ -308,7 +308,8 @@ class VirtualSerial:
                     time.sleep(RETRY_S)  # the retry period, not a wait for an event
                     continue
                 self.resumes += 1
-                self._event("resumed", f"{self.port} on {self.host}:{self.hub_port} again")
+                self._event("resumed", f"hub back: {self.port} on {self.host}:{self.hub_port} "
+                            "resumed")  # fmt: skip
                 break
 
     def close(self) -> None:
