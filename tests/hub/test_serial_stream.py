@@ -258,3 +258,30 @@ def test_the_line_ends_when_the_hub_does_not_come_back(device: Device) -> None:
             line.read(1, timeout=1)
         with pytest.raises(ConnectionLost):
             line.write(b"x")
+
+
+# ---------------------------------------------------------------------------- soak
+
+
+@pytest.mark.slow
+def test_soak_both_ways_at_115200_through_the_pty(device: Device, hub: HubServer) -> None:
+    """``make soak-serial``: SOAK_SERIAL_S seconds (default 600) of bytes both ways at
+    115200 baud from a program on the relay's pty to the device on the hub's port."""
+    import serial
+
+    seconds = float(os.environ.get("SOAK_SERIAL_S", "600"))
+    with PtyRelay(_address(hub), device.path, token=TOKEN) as relay:
+        stop = threading.Event()
+        runner = threading.Thread(target=relay.run, args=(stop,), daemon=True)
+        runner.start()
+        try:
+            with serial.Serial(relay.path, 115200, timeout=seconds + TIMEOUT) as program:
+                up, got_up, down, got_down = duplex(
+                    program.write, lambda n, t: program.read(n), device, seconds=seconds
+                )
+        finally:
+            stop.set()
+            runner.join(TIMEOUT)
+    assert len(got_up) == len(up) and got_up == up
+    assert len(got_down) == len(down) and got_down == down
+    assert relay.dropped == 0 and relay.line is not None and relay.line.overflowed == 0
