@@ -15,6 +15,7 @@ import typer
 from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
 from robocli.commands import bridge as bridge_commands
+from robocli.commands import create as create_commands
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
@@ -121,6 +122,7 @@ app.command("doctor", cls=PlainCommand)(doctor_command.doctor)
 app.command("record", cls=PlainCommand)(record.record)
 connect.command("laser", cls=PlainCommand)(laser_commands.connect)
 sim.command("laser", cls=PlainCommand)(laser_commands.simulate)
+sim.command("create", cls=PlainCommand)(create_commands.simulate)
 dump.command("laser", cls=PlainCommand)(laser_dump.dump)
 
 bridge = _group("bridge", "Put a robot on Eclipse Zenoh: state for many, commands from one.")

@@ -48,10 +48,10 @@ import socket
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, TypeVar
 
 from robocli.core import Framer
-from robocli.errors import TransportError
+from robocli.errors import TimeoutError, TransportError
 from robocli.protocols.common import refusal_line
 from robocli.sim.links import (
     DONTWAIT,
@@ -76,6 +76,7 @@ __all__ = [
     "Session",
     "SessionFactory",
     "UnframedHook",
+    "poll_until",
 ]
 
 log = logging.getLogger("robocli.sim.serving")
@@ -94,6 +95,21 @@ ABB motion or state client may rightly stay silent: those ports have no such dea
 
 
 SessionFactory = Callable[[Link], Session]
+S = TypeVar("S")
+
+
+def poll_until(snapshot: Callable[[], S], predicate: Callable[[S], bool], timeout: float) -> S:
+    """Poll ``snapshot()`` until ``predicate`` holds of it (what a simulator's
+    ``wait_until`` does); raises :class:`~robocli.errors.TimeoutError` after ``timeout``
+    wall seconds."""
+    deadline = time.monotonic() + timeout
+    while True:
+        state = snapshot()
+        if predicate(state):
+            return state
+        if time.monotonic() >= deadline:
+            raise TimeoutError(f"simulator condition not met within {timeout:g} s")
+        time.sleep(min(0.005, max(0.0, deadline - time.monotonic())))
 
 
 # ============================================================================ the server

@@ -90,7 +90,8 @@ class PioneerModel:
         self.noise = noise
         self.rng = np.random.default_rng(seed)
         self.half_track = 1.0 / (params.diff_conv * 1000.0)  # m: w = (r - l) / (2 * half_track)
-        self.sensors = np.array([(s.x, s.y, s.th) for s in params.sonar], dtype=np.float64)
+        sonar = [(s.x, s.y, s.th) for s in params.sonar]  # none on a Create
+        self.sensors = np.array(sonar, dtype=np.float64).reshape(-1, 3)
         self.limits = Limits.for_robot(self.params)
         self.x, self.y, self.th = start
         self.odom = [0.0, 0.0, 0.0]
@@ -208,6 +209,8 @@ class PioneerModel:
 
     def update_sonar(self) -> None:
         """Cast the sonar cones from the current pose."""
+        if not len(self.sensors):
+            return
         self.sonar = self.world.sonar(
             (self.x, self.y, self.th),
             self.sensors,
@@ -324,11 +327,18 @@ class PioneerModel:
             lo = hi
         return 1.0
 
-    def _contact_bumpers(self) -> int:
+    def contact_bearing(self) -> float | None:
+        """Bearing (rad, robot frame, counter-clockwise from ahead) of the wall the body
+        touches now; None when it touches none. What a bumper of any robot reads."""
         d, px, py = self.world.nearest(self.x, self.y)
         if d > self.params.radius + CONTACT_EPS:
+            return None
+        return wrap_pi(math.atan2(py - self.y, px - self.x) - self.th)
+
+    def _contact_bumpers(self) -> int:
+        a = self.contact_bearing()
+        if a is None:
             return 0
-        a = wrap_pi(math.atan2(py - self.y, px - self.x) - self.th)
         front = abs(a) <= math.pi / 2
         if not front:
             a = wrap_pi(a - math.pi)

@@ -37,20 +37,19 @@ guarded by the controller's lock. Nothing is global: simulators are independent.
 from __future__ import annotations
 
 import collections
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
-from robocli.errors import InvalidArgument, TimeoutError, TransportError
+from robocli.errors import InvalidArgument, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.packets import sonar_batch
 from robocli.sim.pioneer.session import PRE_SYNC, ArcosController
 from robocli.sim.pioneer.simext import Georef
-from robocli.sim.serving import SIM_HANDSHAKE_S, Server
+from robocli.sim.serving import SIM_HANDSHAKE_S, Server, poll_until
 from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
@@ -265,14 +264,7 @@ class PioneerSim:
     def wait_until(self, predicate: Callable[[SimState], bool], timeout: float) -> SimState:
         """Poll snapshots until ``predicate`` holds; raises :class:`~robocli.errors.TimeoutError`
         after ``timeout`` wall seconds."""
-        deadline = time.monotonic() + timeout
-        while True:
-            state = self.snapshot()
-            if predicate(state):
-                return state
-            if time.monotonic() >= deadline:
-                raise TimeoutError(f"simulator condition not met within {timeout:g} s")
-            time.sleep(min(0.005, max(0.0, deadline - time.monotonic())))
+        return poll_until(self.snapshot, predicate, timeout)
 
     # ---------------------------------------------------------------- internals
 
