@@ -54,6 +54,11 @@ def serial(
     pty: bool = typer.Option(
         False, "--pty", help="Print the path of a local pty relayed to PORT until Ctrl-C."
     ),
+    zenoh: str | None = typer.Option(  # noqa: UP007
+        None, "--zenoh", metavar="CONFIG",
+        help="With --pty: through the hub's Zenoh front-end, HUB being its name (the CONFIG "
+        "file's user streams the port). Needs robocli[zenoh].",
+    ),  # fmt: skip
 ) -> None:
     """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD); with --pty, a
     local serial port (a pty) for any program, relayed both ways until Ctrl-C."""
@@ -65,8 +70,10 @@ def serial(
     if pty:
         if send or recv or hex_io:
             raise typer.BadParameter("--pty relays until Ctrl-C: no --send, --recv, --hex")
-        _relay(hub, port, baud, token_file)
+        _relay(hub, port, baud, token_file, zenoh)
         return
+    if zenoh is not None:
+        raise typer.BadParameter("--zenoh goes with --pty")
     if hex_io:
         try:
             data = bytes.fromhex(send)
@@ -82,7 +89,7 @@ def serial(
     typer.echo(reply.hex(" ") if hex_io else reply.decode("latin-1"))
 
 
-def _relay(hub: str, port: str, baud: int, token_file: Path | None) -> None:
+def _relay(hub: str, port: str, baud: int, token_file: Path | None, zenoh: str | None) -> None:
     """The pty relay: its path on stdout, what happens to the hub on stderr (one line each)."""
     from robocli.commands._common import sigterm_as_interrupt
     from robocli.commands.serve import token_from_file
@@ -94,7 +101,7 @@ def _relay(hub: str, port: str, baud: int, token_file: Path | None) -> None:
 
     token = token_from_file(token_file)
     with sigterm_as_interrupt(), PtyRelay(hub, port, baudrate=baud, token=token,
-                                          on_event=say) as relay:  # fmt: skip
+                                          on_event=say, zenoh=zenoh) as relay:  # fmt: skip
         typer.echo(relay.path)
         sys.stdout.flush()
         relay.run(threading.Event())

@@ -177,7 +177,8 @@ def _zenoh_frontend(
     sensors = _published(publish, srv)
     session = zenoh_session(zenoh, "server")
     try:
-        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors).start()
+        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors,
+                             serial=srv.serial).start()  # fmt: skip
     except BaseException:
         close_session(session)
         raise

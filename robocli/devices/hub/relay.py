@@ -22,6 +22,7 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli.devices.hub.serial import LineSettings, VirtualSerial
+from robocli.devices.hub.zenoh_serial import ZenohSerialLine
 from robocli.errors import ConnectionLost, InvalidArgument
 
 __all__ = ["PtyRelay", "settings_of"]
@@ -70,11 +71,14 @@ class PtyRelay:
     :meth:`run` relays until ``stop`` is set or the line ends (its error is raised).
     ``on_event(kind, text)``: the line's ``lost``, ``resumed``, ``ended``.
     ``VirtualSerial`` keywords (``token``, ``timeout``, ``resume``) pass through.
+    ``zenoh``: a Zenoh configuration; ``hub`` is then the hub's name on Zenoh and the line a
+    :class:`~robocli.devices.hub.zenoh_serial.ZenohSerialLine` (``token``, ``timeout``).
     """
 
     def __init__(
         self, hub: str, port: str, *, baudrate: int = 9600,
-        on_event: Callable[[str, str], None] | None = None, **line: Any,
+        on_event: Callable[[str, str], None] | None = None, zenoh: str | None = None,
+        **line: Any,
     ) -> None:  # fmt: skip
         if os.name != "posix":
             raise InvalidArgument("a local pty needs a POSIX system (Linux, macOS)")
@@ -82,9 +86,10 @@ class PtyRelay:
         self._baudrate = baudrate
         self._on_event = on_event
         self._line_kw = line
+        self._zenoh = zenoh
         self.master = self.slave = -1
         self.path = ""
-        self.line: VirtualSerial | None = None
+        self.line: VirtualSerial | ZenohSerialLine | None = None
         self.dropped = 0  #: bytes from the hub the program did not take in time
         self._attrs: list[Any] | None = None
 
@@ -107,8 +112,16 @@ class PtyRelay:
             os.set_blocking(self.master, False)
             self.path = os.ttyname(self.slave)
             settings = settings_of(self._attrs, LineSettings(self._baudrate))
-            self.line = VirtualSerial.open(self.hub, self.port, **settings, on_data=self._to_pty,
-                                           on_event=self._on_event, **self._line_kw)  # fmt: skip
+            if self._zenoh is not None:
+                self.line = ZenohSerialLine.open(
+                    self.hub, self.port, zenoh=self._zenoh, **settings, on_data=self._to_pty,
+                    on_event=self._on_event, **self._line_kw,
+                )  # fmt: skip
+            else:
+                self.line = VirtualSerial.open(
+                    self.hub, self.port, **settings, on_data=self._to_pty,
+                    on_event=self._on_event, **self._line_kw,
+                )  # fmt: skip
         except BaseException:
             self.close()
             raise
