@@ -5,23 +5,15 @@ from __future__ import annotations
 
 import os
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from hub.serial_device import TIMEOUT, Device
+from hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
 from cli.helpers import one_line_error, read_lines, run, running
 from robocli.hub import HubServer
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
-
-
-@pytest.fixture
-def device() -> Iterator[Device]:
-    d = Device()
-    yield d
-    d.close()
 
 
 @pytest.fixture

@@ -12,7 +12,9 @@ import termios
 import threading
 import time
 import tty
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+
+import pytest
 
 TIMEOUT = 10.0
 
@@ -76,6 +78,14 @@ class Device:
         self._thread.join(2)
         os.close(self.master)
         os.close(self.slave)
+
+
+@pytest.fixture(name="device")
+def device_fixture() -> Iterator[Device]:
+    """``device``: a :class:`Device` (import this into a test module to use it)."""
+    d = Device()
+    yield d
+    d.close()
 
 
 def paced(write: Callable[[bytes], object], data: bytes, rate: float, stop: threading.Event,

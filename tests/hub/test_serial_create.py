@@ -16,8 +16,8 @@ import termios
 from pathlib import Path
 
 import pytest
-
 from cli.helpers import read_lines, running
+
 from robocli.hub import HubServer
 from robocli.sim.create import CreateSim
 

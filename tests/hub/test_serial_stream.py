@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from serial_device import TIMEOUT, Device, duplex
+from serial_device import TIMEOUT, Device, device_fixture, duplex  # noqa: F401
 
 from robocli.devices.hub.relay import PtyRelay
 from robocli.devices.hub.serial import VirtualSerial
@@ -23,13 +23,6 @@ from robocli.protocols import ros4mat as r4m
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 
 TOKEN = b"lab-secret"
-
-
-@pytest.fixture
-def device() -> Iterator[Device]:
-    d = Device()
-    yield d
-    d.close()
 
 
 @pytest.fixture

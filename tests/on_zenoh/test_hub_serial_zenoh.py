@@ -11,8 +11,8 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
+from hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
-from hub.serial_device import TIMEOUT, Device
 from on_zenoh.bridge_helpers import wait_for
 from on_zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the lab fixture
 from robocli.devices.hub.zenoh_serial import ZenohSerialLine
@@ -22,13 +22,6 @@ from robocli.hub.frontends.zenoh import ZenohFrontend
 from robocli.zenoh.keys import serial_key
 
 TOKEN = b"lab-token"
-
-
-@pytest.fixture
-def device() -> Iterator[Device]:
-    d = Device()
-    yield d
-    d.close()
 
 
 @pytest.fixture
@@ -102,8 +95,9 @@ def test_token_and_allow_list_over_zenoh(lab: Lab, hub1: ZenohFrontend,  # noqa:
 
 def test_a_program_on_the_pty_through_zenoh(lab: Lab, hub1: ZenohFrontend,  # noqa: F811
                                             device: Device) -> None:  # fmt: skip
-    import serial
     import termios
+
+    import serial
 
     from robocli.devices.hub.relay import PtyRelay
 
