@@ -213,6 +213,35 @@ def test_pyserial_url_handler(device: Device, hub: HubServer, tmp_path: Any) -> 
         serial.serial_for_url(f"robocli://{_address(hub)}{device.path}")
 
 
+def test_an_unmodified_pyserial_program_run_with_the_handler(device: Device, hub: HubServer,
+                                                            tmp_path: Any) -> None:  # fmt: skip
+    """``python -m robocli.devices.hub.serial_url PROGRAM URL``: the program opens its port
+    with ``serial.serial_for_url`` and knows nothing of robocli; only its port string says
+    ``robocli://`` (the token from ``$ROBOCLI_HUB_TOKEN_FILE``)."""
+    import subprocess
+    import sys
+
+    program = tmp_path / "program.py"
+    program.write_text(
+        "import sys, serial\n"
+        "port = serial.serial_for_url(sys.argv[1], baudrate=115200, timeout=10)\n"
+        "port.write(b'hello')\n"
+        "print(port.read(3).decode())\n"
+        "port.close()\n"
+    )
+    token_file = tmp_path / "token"
+    token_file.write_bytes(TOKEN)
+    url = f"robocli://{_address(hub)}{device.path}"
+    device.echo = True
+    run = subprocess.run(
+        [sys.executable, "-m", "robocli.devices.hub.serial_url", str(program), url],
+        capture_output=True, text=True, timeout=60,
+        env={**os.environ, "ROBOCLI_HUB_TOKEN_FILE": str(token_file)},
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.strip() == "hel" and device.wait_bytes(5) == b"hello"
+
+
 # ---------------------------------------------------------------------------- restarts
 
 
