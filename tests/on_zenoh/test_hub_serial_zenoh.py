@@ -115,3 +115,38 @@ def test_a_program_on_the_pty_through_zenoh(lab: Lab, hub1: ZenohFrontend,  # no
         finally:
             stop.set()
             runner.join(TIMEOUT)
+
+
+def test_the_line_resumes_when_the_hub_comes_back(lab: Lab, device: Device) -> None:  # noqa: F811
+    events: list[str] = []
+
+    def start() -> tuple[Any, HubServer, ZenohFrontend]:
+        session = lab.session("hub1")
+        srv = HubServer(port=0, sim=False, serial_ports=[device.path], token=TOKEN)
+        return session, srv, ZenohFrontend(srv.hub, session, "hub1", token=TOKEN,
+                                           serial=srv.serial).start()  # fmt: skip
+
+    def stop(parts: tuple[Any, HubServer, ZenohFrontend]) -> None:
+        parts[2].close()
+        parts[1].close()
+        parts[0].close()
+
+    hub = start()
+    got = Got()
+    line = _line(lab, "alice", device.path, on_data=got, token=TOKEN,
+                 on_event=lambda kind, text: events.append(kind))  # fmt: skip
+    try:
+        line.write(b"one")
+        assert device.wait_bytes(3) == b"one"
+        stop(hub)
+        wait_for(lambda: events == ["lost"], "the line to say the hub left")
+        hub = start()
+        wait_for(lambda: line.connected, "the line to come back")
+        assert events == ["lost", "resumed"] and line.resumes == 1
+        line.write(b"two")
+        assert device.wait_bytes(6) == b"onetwo"
+        device.write(b"back")
+        assert got.wait(4) == b"back"
+    finally:
+        line.close()
+        stop(hub)

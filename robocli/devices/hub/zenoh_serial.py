@@ -4,8 +4,9 @@
 
 The user is the one the Zenoh configuration authenticates as (the router's user, whose key
 chunk the lab's access control lets through); the hub's token goes in the open request, as
-for its settings. The line ends (``on_event("ended", ...)``, every call then raising) when
-the hub reports its port failed or the hub's liveliness token goes.
+for its settings. When the hub's liveliness token goes, the line says ``"lost"`` and waits
+``resume`` seconds for it to come back, then opens the port again (``"resumed"``) or ends
+(``"ended"``, every call then raising); it ends at once when the hub reports its port failed.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from robocli.devices.hub.serial import LineSettings
+from robocli.devices.hub.serial import RESUME_S, LineSettings
 from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, RobocliError, TimeoutError
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
 from robocli.zenoh.keys import alive_key, check_name, serial_data_key, serial_key
@@ -37,14 +38,19 @@ class ZenohSerialLine:
     def __init__(self, session: Any, hub: str, port: str, user: str, settings: LineSettings,
                  token: bytes | None, timeout: float,
                  on_data: Callable[[bytes], None],
-                 on_event: Callable[[str, str], None] | None) -> None:  # fmt: skip
+                 on_event: Callable[[str, str], None] | None,
+                 resume: float = RESUME_S) -> None:  # fmt: skip
         self.session, self.hub, self.port, self.user = session, hub, port, user
         self.settings = settings
         self.timeout = timeout
         self._token = token
         self._on_data, self._on_event = on_data, on_event
+        self.resume = resume
+        self.resumes = 0  #: times the line came back after the hub went away
         self._error: RobocliError | None = None
         self._lock = threading.Lock()
+        self._back = threading.Event()  # the hub's liveliness token came back
+        self._down = False  # the hub went away; the line waits for it
         self.bytes_in = self.bytes_out = 0
         self._declared: list[Any] = []
 
@@ -59,6 +65,7 @@ class ZenohSerialLine:
         on_event: Callable[[str, str], None] | None = None,
         token: bytes | str | None = None,
         timeout: float = 5.0,
+        resume: float = RESUME_S,
         baudrate: int = 9600,
         bytesize: int = 8,
         parity: str = "N",
@@ -75,7 +82,8 @@ class ZenohSerialLine:
         settings = LineSettings(baudrate, bytesize, parity, stopbits)
         secret = token.encode() if isinstance(token, str) else token
         session = open_session(zenoh, "client")
-        line = cls(session, hub, port, user, settings, secret, timeout, on_data, on_event)
+        line = cls(session, hub, port, user, settings, secret, timeout, on_data, on_event,
+                   resume)  # fmt: skip
         try:
             line._start()
         except BaseException:
@@ -128,21 +136,50 @@ class ZenohSerialLine:
             self._end(exc)
 
     def _on_hub(self, sample: Any) -> None:
-        if sample.kind != import_zenoh().SampleKind.PUT:
-            self._end(ConnectionLost(f"hub {self.hub} left Zenoh"))
+        if sample.kind == import_zenoh().SampleKind.PUT:
+            self._back.set()
+            return
+        with self._lock:
+            if self._down or self._error is not None:
+                return
+            self._down = True
+            self._back.clear()
+        self._say("lost", f"hub {self.hub} left Zenoh; {self.port} waiting up to "
+                  f"{self.resume:g} s for it")  # fmt: skip
+        threading.Thread(target=self._await_hub, name="zenoh-serial-resume", daemon=True).start()
+
+    def _await_hub(self) -> None:
+        """The hub went away: open the port again when it comes back, or end the line."""
+        if not self._back.wait(self.resume) or self._error is not None:
+            self._end(ConnectionLost(f"hub {self.hub} did not come back in {self.resume:g} s"))
+            return
+        try:
+            self._open()
+        except RobocliError as exc:
+            self._end(exc)
+            return
+        self._down = False
+        self.resumes += 1
+        self._say("resumed", f"hub back: {self.port} on {self.hub} resumed")
+
+    def _say(self, kind: str, text: str) -> None:
+        log.info("%s: %s: %s", self.port, kind, text)
+        if self._on_event is not None:
+            self._on_event(kind, text)
 
     def _end(self, exc: RobocliError) -> None:
         with self._lock:
             if self._error is not None:
                 return
             self._error = exc
-        if self._on_event is not None:
-            self._on_event("ended", str(exc))
+        self._say("ended", str(exc))
 
     def write(self, data: bytes | bytearray | memoryview) -> int:
         """Put ``data`` for the hub's port, in pieces of at most ``MAX_STREAM_CHUNK``."""
         if self._error is not None:
             raise self._error
+        if self._down:
+            raise ConnectionLost(f"hub {self.hub} away; {self.port} waiting for it")
         raw = bytes(data)
         for i in range(0, len(raw), MAX_STREAM_CHUNK):
             self._writer.put(raw[i : i + MAX_STREAM_CHUNK])
@@ -158,7 +195,7 @@ class ZenohSerialLine:
 
     @property
     def connected(self) -> bool:
-        return self._error is None
+        return self._error is None and not self._down
 
     @property
     def ended(self) -> RobocliError | None:
@@ -169,6 +206,7 @@ class ZenohSerialLine:
         session. Idempotent."""
         if self._error is None:
             self._error = ConnectionLost(f"{self.port}: the serial line is closed")
+        self._back.set()  # a waiting resume ends now
         for entity in self._declared:
             try:
                 entity.undeclare()
