@@ -107,9 +107,7 @@ class SerialStream:
                     self.bytes_in += len(data)
                     if not self._push(bytes(data)):
                         break
-        except (OSError, ValueError, TypeError, AttributeError) as exc:
-            # OSError covers pyserial's SerialException; a port closed under the read raises
-            # TypeError/AttributeError in some pyserial versions
+        except PORT_ERRORS as exc:  # pyserial's SerialException is an OSError
             if not self._closed.is_set():
                 log.warning("serial %s: read failed: %s", self.name, exc)
                 self._on_fail(f"serial port {self.name!r} failed on the hub: {exc}")

@@ -293,7 +293,7 @@ class VirtualSerial:
             deadline = time.monotonic() + self.resume
             while not self._closed:
                 try:
-                    self._session = self._connect()
+                    fresh = self._connect()
                 except DeviceError as exc:  # the new hub refuses: no use retrying
                     self._event("ended", str(exc))
                     self._end(exc)
@@ -307,6 +307,9 @@ class VirtualSerial:
                         return
                     time.sleep(RETRY_S)  # the retry period, not a wait for an event
                     continue
+                self._session = fresh  # close() closes it if it came after close began
+                if self._closed:
+                    return
                 self.resumes += 1
                 self._event("resumed", f"hub back: {self.port} on {self.host}:{self.hub_port} "
                             "resumed")  # fmt: skip
@@ -319,10 +322,14 @@ class VirtualSerial:
         self._end(ConnectionLost(f"{self.port}: the virtual serial port is closed"))
         session = self._session
         if session is not None:
+            with session.cond:  # wakes the watcher
+                session.cond.notify_all()
+        if self._watch is not None and self._watch is not threading.current_thread():
+            self._watch.join(self.timeout + RETRY_S)  # it may be connecting: then it stops
+        session = self._session  # the watcher's last link, if it made one
+        if session is not None:
             session.close((header_only(MsgType.SERIAL_CLOSE, self._client_id),
                            header_only(MsgType.QUIT, self._client_id)))  # fmt: skip
-        if self._watch is not None and self._watch is not threading.current_thread():
-            self._watch.join(self.timeout + RETRY_S)
 
     def __enter__(self) -> VirtualSerial:
         return self
