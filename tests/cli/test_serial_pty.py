@@ -37,6 +37,8 @@ def test_refusals_are_one_line_each(device: Device, token_file: Path) -> None:
         assert "cannot be opened on the hub" in line
         line = one_line_error(run("serial", hub, device.path, "--pty", "--send", "x"), 2)
         assert "--pty relays until Ctrl-C" in line
+        line = one_line_error(run("serial", hub, device.path, "--zenoh", "lab.json5"), 2)
+        assert "--zenoh goes with --pty" in line
         port = srv.port
     line = one_line_error(run("serial", f"127.0.0.1:{port}", device.path, "--pty"), 3)
     assert "no hub at 127.0.0.1" in line
