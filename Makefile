@@ -223,7 +223,7 @@ FUZZ_TARGETS := framer-arcos framer-sm-le framer-sm-be framer-ros4mat framer-sci
                 framer-scip2-requests \
                 decode-arcos decode-simple_message decode-ros4mat decode-scip2 \
                 decode-hub-reply hub-server-requests capture-readers \
-                file-readers recording-readers
+                file-readers recording-readers create-oi
 FUZZ_STAMP   := $(VENV)/.fuzz-installed
 
 $(FUZZ_STAMP): $(STAMP)

@@ -9,8 +9,9 @@ Targets: ``framer-arcos``, ``framer-sm-le``, ``framer-sm-be``, ``framer-ros4mat`
 frames, clock mapping),
 ``hub-server-requests`` (a hub server session fed one client's bytes, in-process),
 ``capture-readers`` (``.jsonl`` and raw capture files), ``file-readers`` (trajectory logs,
-waypoints, robot models) and ``recording-readers`` (every command that opens an MCAP
-recording, and ``recover``). ``list`` prints them. Example::
+waypoints, robot models), ``recording-readers`` (every command that opens an MCAP
+recording, and ``recover``) and ``create-oi`` (the Create 2 command framer against an
+oracle, each command into the simulator's OI in-process). ``list`` prints them. Example::
 
     python fuzz/run.py decode-ros4mat -max_total_time=600
 
@@ -43,10 +44,14 @@ NAMES = (
     "capture-readers",
     "file-readers",
     "recording-readers",
+    "create-oi",
 )
 
 #: Packages instrumented for coverage besides the protocols, by target.
-INSTRUMENTED = {"recording-readers": ("robocli.io", "robocli.sim", "robocli.hub", "mcap")}
+INSTRUMENTED = {
+    "recording-readers": ("robocli.io", "robocli.sim", "robocli.hub", "mcap"),
+    "create-oi": ("robocli.sim",),
+}
 #: libFuzzer options of a target besides :data:`harness.DEFAULTS` (recordings are larger
 #: than protocol frames).
 OPTIONS = {"recording-readers": {"-max_len": "65536"}}
@@ -56,6 +61,7 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     """(one-input function, seed corpus) of a target (imported as they are: call it inside
     :func:`harness.instrumented` to fuzz with coverage)."""
     import fuzz_capture
+    import fuzz_create
     import fuzz_decoders
     import fuzz_files
     import fuzz_framers
@@ -70,6 +76,8 @@ def load(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
     if name in fuzz_hub.TARGETS:
         one_input, kinds = fuzz_hub.TARGETS[name]
         return one_input, fuzz_hub.seed_inputs(name, harness.seeds(kinds))
+    if name in fuzz_create.TARGETS:
+        return fuzz_create.fuzz_create, fuzz_create.seed_inputs()
     if name in fuzz_recordings.TARGETS:
         return fuzz_recordings.fuzz_recordings, fuzz_recordings.seed_inputs()
     if name in fuzz_files.TARGETS:

@@ -15,6 +15,7 @@ from hypothesis import strategies as st
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "fuzz"))
 
 import fuzz_capture  # noqa: E402
+import fuzz_create  # noqa: E402
 import fuzz_decoders  # noqa: E402
 import fuzz_files  # noqa: E402
 import fuzz_framers  # noqa: E402
@@ -30,7 +31,8 @@ def _harness(name: str) -> tuple[Callable[[bytes], None], list[bytes]]:
 
 
 def test_every_target_is_runnable() -> None:
-    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture, fuzz_files, fuzz_recordings)
+    modules = (fuzz_framers, fuzz_decoders, fuzz_hub, fuzz_capture, fuzz_files, fuzz_recordings,
+               fuzz_create)  # fmt: skip
     assert set(run.NAMES) == set().union(*(m.TARGETS for m in modules))
 
 

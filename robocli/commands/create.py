@@ -6,13 +6,16 @@ command's options can change without touching the others'.
 
 from __future__ import annotations
 
+import contextlib
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import typer
 
-from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
+from robocli.commands._common import SIM, bind_address, listening, sigterm_as_interrupt
 
 
 def simulate(
@@ -60,3 +63,27 @@ def simulate(
         sys.stdout.flush()
         while True:
             time.sleep(3600)
+
+
+@contextlib.contextmanager
+def create_url(port: str) -> Iterator[str]:
+    """``port`` itself, or for ``sim`` an embedded Create simulator on an ephemeral TCP
+    port (closed when the block ends)."""
+    if port != SIM:
+        yield port
+        return
+    from robocli.sim.create import CreateSim
+
+    with CreateSim() as sim:
+        yield sim.serve_tcp("127.0.0.1", 0)
+
+
+def connect_create(stack: contextlib.ExitStack, rec: Any, port: str, timeout: float) -> Any:
+    """``record --create``: a Create recorded from its first byte; returns the device."""
+    from robocli.devices.create import Create
+
+    url = stack.enter_context(create_url(port))
+    listener = rec.listener("create", "create-oi", url=url)
+    robot = stack.enter_context(Create.connect(url, timeout=timeout, listeners=[listener]))
+    rec.add(robot, listener.name)
+    return robot

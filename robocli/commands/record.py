@@ -96,6 +96,9 @@ def record(
     laser: str | None = typer.Option(  # noqa: UP007
         None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
     ),
+    create: list[str] = typer.Option(  # noqa: B008
+        [], "--create", metavar="URL", help="An iRobot Create 2 (port, URL or 'sim'); repeatable."
+    ),
     no_laser: bool = typer.Option(
         False, "--no-laser", help="Do not start a Pioneer simulator's own (ARCOS) laser."
     ),
@@ -104,16 +107,17 @@ def record(
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
-    """Record Pioneers, arms (their state port), a hub and a Hokuyo laser into one MCAP
-    file (Foxglove's schemas, raw frames for dump --file) until --duration, --count or
-    Ctrl-C. The file is made once every source is connected; an existing one is refused
+    """Record Pioneers, arms (their state port), a hub, a Hokuyo laser and iRobot Creates
+    into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
+    --count or Ctrl-C. The file is made once every source is connected; an existing one is refused
     unless --overwrite. To record an arm while uploading to it: upload --record."""
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.output import check_output
     from robocli.io.record import COMPRESSIONS, Recorder
 
-    if not (pioneer or arm or hub or laser):
-        raise typer.BadParameter("give at least one of --pioneer, --arm, --hub, --laser")
+    if not (pioneer or arm or hub or laser or create):
+        raise typer.BadParameter("give at least one of --pioneer, --arm, --hub, --laser, "
+                                 "--create")  # fmt: skip
     if output.suffix != ".mcap":
         raise typer.BadParameter(f"--output {output}: a recording needs a .mcap name")
     if compression not in COMPRESSIONS:
@@ -132,6 +136,7 @@ def record(
             try:
                 devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, not no_laser,
                                    link, laser)  # fmt: skip
+                devices.update(_connect_creates(stack, rec, create, link.timeout))
                 rec.begin()  # every source connected: now the file is made
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
                 start = time.monotonic()  # --duration counts from here, not from connecting
@@ -183,7 +188,7 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
                 device.wait_for_sip(0)  # raises why the session ended
             elif name.startswith("arm"):
                 device.check()
-            elif name.startswith("laser"):
+            elif name.startswith(("laser", "create")):
                 device.session.check()
         return time.monotonic() >= end or (count is not None and rec.stats.added >= count)
 
@@ -239,6 +244,14 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             client.subscribe(name, **args)
         devices["hub"] = client
     return devices
+
+
+def _connect_creates(stack: contextlib.ExitStack, rec: Recorder, ports: list[str],
+                     timeout: float) -> dict[str, Any]:  # fmt: skip
+    """Each Create of ``--create``, recorded from its first byte (closing pauses its stream)."""
+    from robocli.commands.create import connect_create
+
+    return {f"create{i or ''}": connect_create(stack, rec, p, timeout) for i, p in enumerate(ports)}
 
 
 def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeout: float,

@@ -241,6 +241,25 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "sip_count": _integer("SIPs decoded by the recorder"),
         },  # fmt: skip
     ),
+    "robocli.create.State": _robocli(
+        "robocli.create.State", "One iRobot Create 2 stream frame in SI units (odometry pose "
+        "summed from the distance and angle packets since the recording began)",
+        {
+            "x": _number("Odometry x, m"), "y": _number("Odometry y, m"),
+            "th": _number("Odometry heading, rad, in [-pi, pi]"),
+            "bump_left": _boolean("Left bumper pressed"),
+            "bump_right": _boolean("Right bumper pressed"),
+            "wheel_drop_left": _boolean("Left wheel dropped"),
+            "wheel_drop_right": _boolean("Right wheel dropped"),
+            "voltage": _number("Battery, V"),
+            "current": _number("Battery current, A (negative: discharging)"),
+            "charge": _number("Battery charge, Ah"),
+            "capacity": _number("Battery capacity, Ah"),
+            "charging_state": _integer("Charging state code (0: not charging)"),
+            "mode": _integer("OI mode: 0 off, 1 passive, 2 safe, 3 full"),
+            "frame_count": _integer("Stream frames decoded by the recorder"),
+        },  # fmt: skip
+    ),
     "robocli.JointState": _robocli(
         "robocli.JointState",
         "Joint positions, shaped like sensor_msgs/JointState (empty arrays: not reported)",
@@ -308,7 +327,7 @@ ROBOCLI: dict[str, dict[str, Any]] = {
         "One whole frame as it went over a link (framing and checksum included), base64",
         {
             "link": _string("The link's name (the topic's first part)"),
-            "protocol": _string("arcos, sm-le, sm-be, ros4mat or scip2"),
+            "protocol": _string("arcos, sm-le, sm-be, ros4mat, scip2 or create-oi"),
             "direction": _string("tx: robocli sent it; rx: robocli received it"),
             "port": _string("The arm's port, motion or state (empty for other links)"),
             "data": dict(_BASE64, description="The frame's bytes, base64"),

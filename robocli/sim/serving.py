@@ -29,7 +29,7 @@ socket:
   request while one of its replies waits. ``output_budget`` bounds the memory held by the
   output waiting over all links (the links whose output waited longest are dropped first).
   On a pty, output the line cannot take is dropped as on a serial line with nobody
-  listening.
+  listening, a message at a time: one the line took in part is finished as it drains.
 * Periodic work (physics, SIPs, a state stream) runs on a
   :class:`~robocli.sim.ticker.Ticker` and pushes through :meth:`Link.send`.
 

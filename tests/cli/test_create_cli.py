@@ -52,3 +52,16 @@ def test_sim_create_on_tcp_answers_sensors() -> None:
 def test_sim_create_usage_errors_are_one_line() -> None:
     assert "not both" in one_line_error(run("sim", "create", "--pty", "--port", "1"), 2)
     assert "X,Y,TH" in one_line_error(run("sim", "create", "--pose", "1,2"), 2)
+
+
+def test_record_create_errors_are_one_line_and_leave_no_file(tmp_path: Path) -> None:
+    out = tmp_path / "c.mcap"
+    refused = run("record", "--create", "tcp://127.0.0.1:1", "-o", str(out))
+    assert "connection refused" in one_line_error(refused, 3)
+    with socket.socket() as silent:  # accepts, never streams
+        silent.bind(("127.0.0.1", 0))
+        silent.listen()
+        port = silent.getsockname()[1]
+        quiet = run("record", "--create", f"tcp://127.0.0.1:{port}", "-o", str(out))
+    assert "no sensor stream frame" in one_line_error(quiet, 3)
+    assert not out.exists()

@@ -138,3 +138,22 @@ def test_framer_is_bounded() -> None:
     framer.feed(b"\x95\x02\x07")
     framer.reset()
     assert framer.pending == 0
+
+
+def test_stream_framer_resynchronises_on_headers_and_checksums() -> None:
+    """A client's view: garbage before a frame is dropped; a 19 inside garbage that looks
+    like a header is found out by its checksum (counted) once enough bytes came."""
+    frame = bytes.fromhex(next(v["hex"] for v in STREAMS))
+    framer = oi.StreamFramer()
+    assert framer.feed(b"\x00\x13\x13" + frame[:4]) == [] and framer.pending > 0
+    assert framer.feed(frame[4:] + frame * 3) == [frame] * 4
+    s = framer.stats
+    assert (s.frames, s.bad_checksums, s.dropped_bytes, framer.pending) == (4, 2, 3, 0)
+    bad = frame[:-1] + bytes([frame[-1] ^ 1])
+    assert framer.feed(bad + frame) == [frame]
+    assert framer.stats.bad_checksums == 3
+    assert [c for b in frame for c in framer.feed(bytes([b]))] == [frame]  # byte by byte
+    framer.feed(b"\x13\xff")
+    assert framer.pending == 2 <= 258
+    framer.reset()
+    assert framer.pending == 0

@@ -234,3 +234,17 @@ def test_tcp_serves_one_client_and_refuses_a_second() -> None:
             assert battery["battery_capacity"] == 2696 and 13000 < battery["voltage"] <= 16000
             with socket.create_connection((host, int(port)), timeout=WAIT) as b:
                 assert b.recv(256).startswith(b"robocli-refused: robot busy")
+
+
+def test_a_stream_that_cannot_fit_its_byte_count_is_refused(
+    pty_sim: tuple[CreateSim, PtyClient],
+) -> None:
+    """Four groups 100 make 324 bytes: n-bytes is one byte, so the request is ignored (the
+    ticker would otherwise fail building the frame) and a fitting one still works."""
+    sim, client = pty_sim
+    client.send(cmd(Op.START), cmd(Op.STREAM, packets=[100, 100, 100, 100]))
+    s = sim.wait_until(lambda s: s.bad_requests == 1, WAIT)
+    assert s.stream is None
+    client.send(cmd(Op.STREAM, packets=[100, 100, 100]))  # 243 bytes: fits
+    frame = oi.parse_stream(client.read(3 + 243))
+    assert [pid for pid, _ in frame] == [100, 100, 100]

@@ -225,8 +225,10 @@ class Recorder:
 
     def add(self, device: Any, name: str | None = None, **options: Any) -> str:
         """Record ``device`` (a :class:`~robocli.devices.pioneer.Pioneer`, an
-        :class:`~robocli.devices.arm.Arm` or a :class:`~robocli.devices.hub.client.Hub`) under the
-        topic prefix ``/name/`` (default ``pioneer``, ``arm``, ``hub``, numbered when taken).
+        :class:`~robocli.devices.arm.Arm`, a :class:`~robocli.devices.hub.client.Hub`, a
+        :class:`~robocli.devices.laser.Laser` or a :class:`~robocli.devices.create.Create`)
+        under the topic prefix ``/name/`` (default ``pioneer``, ``arm``, ``hub``, ``laser``,
+        ``create``, numbered when taken).
         Returns the name. Options by device: a hub's ``sensors`` are only named in its raw
         channels' metadata (the program, or :func:`~robocli.io.record.pull_hub`, pulls them);
         an arm's ``ports`` (``"both"``). Raises :class:`RecordingError` once closed."""
@@ -241,7 +243,8 @@ class Recorder:
         (``name2``... when taken: its ``.name`` says), to hand to a device's
         ``connect(listeners=[...])`` so that the handshake is recorded too; a later
         ``add(device, listener.name)`` decodes on top of it. ``protocol``: the framer's name
-        (``arcos``, ``sm-le``, ``sm-be``, ``ros4mat``); ``metadata`` goes into its channels."""
+        (``arcos``, ``sm-le``, ``sm-be``, ``ros4mat``, ``scip2``, ``create-oi``); ``metadata``
+        goes into its channels."""
         from robocli.io.record import sources
 
         return sources.raw_link(self, name, protocol, **metadata)

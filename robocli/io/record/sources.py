@@ -26,6 +26,9 @@ Hub        ``imu`` (robocli.Imu), ``adc``, ``battery``, ``sysinfo``, ``gps`` (Lo
 Laser      ``scan`` (a Hokuyo's streamed scans, LaserScan in ``NAME/laser``; publish time:
            the sensor's timestamp on the host clock), ``tf`` (on a robot: FrameTransform
            from its ``base_link`` at the mount); raw channels of protocol ``scip2``
+Create     ``pose`` (PoseInFrame in ``odom``, summed from the distance and angle packets),
+           ``tf`` (odom -> base_link), ``state`` (robocli.create.State: bumpers, wheel drops,
+           battery, OI mode); raw channels of protocol ``create-oi``
 ========== =================================================================================
 """
 
@@ -34,18 +37,32 @@ from __future__ import annotations
 from typing import Any
 
 from robocli.errors import InvalidArgument
-from robocli.io.record.links import RawLink, Sink, raw_link
+from robocli.io.record import links
+from robocli.io.record.links import RawLink, Sink
 
 __all__ = ["RawLink", "attach", "raw_link"]
+
+
+def raw_link(rec: Sink, name: str, protocol: str, **metadata: str) -> RawLink:
+    """A new raw link (see :meth:`Recorder.listener`). A ``create-oi`` link decodes from its
+    first frame on (the Create's pose is a sum of the distances and angles since)."""
+    link = links.raw_link(rec, name, protocol, **metadata)
+    if protocol == "create-oi":
+        from robocli.io.record.create import CreateDecoder
+
+        link.decoder = CreateDecoder(rec, link.name)
+    return link
 
 
 def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> str:
     """Record ``device`` into ``rec`` (see :meth:`Recorder.add`); returns its name."""
     from robocli.devices.arm import Arm
+    from robocli.devices.create import Create
     from robocli.devices.hub.client import Hub
     from robocli.devices.laser import Laser
     from robocli.devices.pioneer import Pioneer
     from robocli.io.record.arm import attach_arm
+    from robocli.io.record.create import attach_create
     from robocli.io.record.hub import attach_hub
     from robocli.io.record.laser import attach_laser
     from robocli.io.record.pioneer import attach_pioneer
@@ -58,5 +75,7 @@ def attach(rec: Sink, device: Any, name: str | None = None, **options: Any) -> s
         return attach_hub(rec, device, name or "hub", **options)
     if isinstance(device, Laser):
         return attach_laser(rec, device, name, **options)
+    if isinstance(device, Create):
+        return attach_create(rec, device, name)
     raise InvalidArgument(f"cannot record a {type(device).__name__}: give a Pioneer, an Arm, "
-                          "a Hub or a Laser")  # fmt: skip
+                          "a Hub, a Laser or a Create")  # fmt: skip

@@ -15,7 +15,8 @@ Wire format (115200 8N1 by default)::
 Modules: :mod:`~robocli.protocols.create_oi.commands` (opcodes, their data declared with
 ``construct``, built and parsed), :mod:`~robocli.protocols.create_oi.sensors` (sensor
 packets and groups, the stream's frames) and :mod:`~robocli.protocols.create_oi.framing`
-(the command framer: resynchronises on garbage and counts what it drops).
+(the command framer, and the stream framer of a client: both resynchronise on garbage and
+count what they drop).
 
 Choices where sources differ: encoder counts (43, 44) are signed as the specification says
 (pycreate2 reads them unsigned; the bits are the same); packets 32 and 33 are 1 and 2 bytes
@@ -39,7 +40,7 @@ from robocli.protocols.create_oi.commands import (
     command_length,
     parse_command,
 )
-from robocli.protocols.create_oi.framing import CommandFramer
+from robocli.protocols.create_oi.framing import CommandFramer, StreamFramer
 from robocli.protocols.create_oi.sensors import (
     GROUPS,
     MODES,
@@ -68,6 +69,7 @@ __all__ = [
     "TURN_CCW",
     "TURN_CW",
     "CommandFramer",
+    "StreamFramer",
     "Op",
     "build_command",
     "build_stream",

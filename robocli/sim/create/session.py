@@ -177,7 +177,8 @@ class CreateController:
 
     def _on_stream(self, p: dict[str, Any]) -> None:
         ids = tuple(p["packets"])
-        if not all(i in oi.PACKETS or i in oi.GROUPS for i in ids):
+        known = all(i in oi.PACKETS or i in oi.GROUPS for i in ids)
+        if not known or sum(1 + oi.packet_size(i) for i in ids) > 255:  # n-bytes is one byte
             self.bad_requests += 1
             return
         self.stream, self.stream_paused = ids, False
