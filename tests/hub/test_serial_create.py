@@ -89,6 +89,7 @@ def test_the_whole_chain_as_processes() -> None:
             (said,) = read_lines(serve.stdout, 1)
             hub = re.search(r"tcp://(127\.0\.0\.1:\d+)", said)
             assert hub, said
+            assert f"serial port {line} on tcp://" in said
             with running("serial", hub.group(1), line, "--pty") as relay:
                 assert relay.stdout is not None
                 (pty_path,) = read_lines(relay.stdout, 1)
