@@ -1,9 +1,13 @@
 """``robocli serial``: write to and read from a serial port on the hub's computer, a thin
-layer over :meth:`robocli.devices.hub.client.Hub.serial` (ros4mat SERIAL_CMD)."""
+layer over :meth:`robocli.devices.hub.client.Hub.serial` (ros4mat SERIAL_CMD), or with
+``--pty`` a local pseudo-terminal relayed to it (:class:`robocli.devices.hub.relay.PtyRelay`,
+robocli's serial stream)."""
 
 from __future__ import annotations
 
 import os
+import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -47,13 +51,29 @@ def serial(
     parity: bool = typer.Option(False, "--parity", help="Even parity."),
     stop_bits: int = typer.Option(1, "--stop-bits", min=1, max=2, help="Stop bits."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
+    pty: bool = typer.Option(
+        False, "--pty", help="Print the path of a local pty relayed to PORT until Ctrl-C."
+    ),
+    zenoh: str | None = typer.Option(  # noqa: UP007
+        None, "--zenoh", metavar="CONFIG",
+        help="With --pty: through the hub's Zenoh front-end, HUB being its name (the CONFIG "
+        "file's user streams the port). Needs robocli[zenoh].",
+    ),  # fmt: skip
 ) -> None:
-    """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD)."""
+    """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD); with --pty, a
+    local serial port (a pty) for any program, relayed both ways until Ctrl-C."""
     if port is None:  # one word: PORT, on the hub of $ROBOCLI_HUB
         default = os.environ.get(HUB_ENV, "").strip()
         if not default or from_env(ctx, "hub"):
             raise typer.BadParameter(f"give HUB PORT, or PORT alone with ${HUB_ENV} set")
         hub, port = default, hub
+    if pty:
+        if send or recv or hex_io:
+            raise typer.BadParameter("--pty relays until Ctrl-C: no --send, --recv, --hex")
+        _relay(hub, port, baud, token_file, zenoh)
+        return
+    if zenoh is not None:
+        raise typer.BadParameter("--zenoh goes with --pty")
     if hex_io:
         try:
             data = bytes.fromhex(send)
@@ -67,3 +87,21 @@ def serial(
             stop_bits=stop_bits,
         )  # fmt: skip
     typer.echo(reply.hex(" ") if hex_io else reply.decode("latin-1"))
+
+
+def _relay(hub: str, port: str, baud: int, token_file: Path | None, zenoh: str | None) -> None:
+    """The pty relay: its path on stdout, what happens to the hub on stderr (one line each)."""
+    from robocli.commands._common import sigterm_as_interrupt
+    from robocli.commands.serve import token_from_file
+    from robocli.devices.hub.relay import PtyRelay
+
+    def say(kind: str, text: str) -> None:
+        if kind != "ended":  # the end is the error run() raises: main prints it
+            typer.echo(f"robocli: {text}", err=True)
+
+    token = token_from_file(token_file)
+    with sigterm_as_interrupt(), PtyRelay(hub, port, baudrate=baud, token=token,
+                                          on_event=say, zenoh=zenoh) as relay:  # fmt: skip
+        typer.echo(relay.path)
+        sys.stdout.flush()
+        relay.run(threading.Event())

@@ -139,7 +139,8 @@ def serve(
             where = [srv.url] if tcp else []
             if frontend is not None:
                 where.append(f"zenoh robocli/{frontend.name}/* ({zenoh})")
-            typer.echo(f"{what}serving {', '.join(srv.sensors)} on {' and '.join(where)}")
+            served = [*srv.sensors, *(f"serial port {p}" for p in srv.serial_ports)]
+            typer.echo(f"{what}serving {', '.join(served)} on {' and '.join(where)}")
             sys.stdout.flush()
             with hub_live_view(foxglove, foxglove_host, srv, token):  # what clients make it run
                 if sys.stdout.isatty():
@@ -177,7 +178,8 @@ def _zenoh_frontend(
     sensors = _published(publish, srv)
     session = zenoh_session(zenoh, "server")
     try:
-        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors).start()
+        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors,
+                             serial=srv.serial).start()  # fmt: skip
     except BaseException:
         close_session(session)
         raise

@@ -12,6 +12,11 @@ name (``serve --name``, default the host name) or a robot's (``bridge ... --name
                                     hub, pioneer or arm
     robocli/<name>/@control/...     a robot's command side (the bridge: commands and the
                                     liveliness of the controller holding it)
+    robocli/<name>/serial-<port>    the bytes a hub's serial port sent, put by the hub for
+                                    the user streaming it; that user's side is
+                                    robocli/<name>/@control/<user>/serial-open (query),
+                                    serial-write (put), serial-alive (liveliness),
+                                    serial-error (put by the hub)
 
 Chunks starting with ``@`` are *verbatim* in Zenoh: the wildcards ``*`` and ``**`` never
 match them, so ``robocli/hub1/**`` subscribes to data only, never to the queryables and
@@ -36,7 +41,11 @@ __all__ = [
     "check_name",
     "default_name",
     "info_key",
+    "SERIAL_PARTS",
     "parse_alive",
+    "serial_data_key",
+    "serial_holder",
+    "serial_key",
     "settings_key",
     "topic_key",
 ]
@@ -95,3 +104,31 @@ def parse_alive(key: str) -> tuple[str, str] | None:
     if len(parts) == 4 and parts[0] == ROOT and parts[2] == "@alive" and parts[3] in KINDS:
         return parts[1], parts[3]
     return None
+
+
+SERIAL_PARTS = ("serial-open", "serial-write", "serial-alive", "serial-error")
+"""What lies under ``robocli/<hub>/@control/<user>/`` for a hub's serial stream."""
+
+
+def serial_key(name: str, user: str | None, part: str) -> str:
+    """``robocli/<name>/@control/<user>/<part>`` (``user`` None: ``*``, any user)."""
+    if part not in SERIAL_PARTS:
+        raise InvalidArgument(f"part {part!r}: one of {', '.join(SERIAL_PARTS)}")
+    who = "*" if user is None else check_name(user, "user")
+    return f"{ROOT}/{check_name(name)}/@control/{who}/{part}"
+
+
+def serial_holder(key: object, name: str, part: str) -> str | None:
+    """The user a :func:`serial_key` names (the key chunk the router checked under the lab's
+    ACL), None for any other key."""
+    parts = str(key).split("/")
+    if len(parts) != 5 or parts[:3] != [ROOT, name, "@control"] or parts[4] != part:
+        return None
+    return parts[3] if _NAME.fullmatch(parts[3]) else None
+
+
+def serial_data_key(name: str, port: str) -> str:
+    """``robocli/<name>/serial-<port>``: the port's name as one chunk (``/dev/ttyUSB0`` ->
+    ``serial-dev_ttyUSB0``)."""
+    chunk = re.sub(r"[^A-Za-z0-9_.\-]", "_", port.strip("/"))[:55] or "port"
+    return f"{ROOT}/{check_name(name)}/serial-{chunk}"

@@ -55,7 +55,8 @@ def test_malformed_input_does_not_disturb_a_streaming_client(
         replies = []
         for frame, want in [
             (_header(0x2F, 0, 0, 0), 0x2F),  # unknown id
-            (_header(0x07, 1, 3, 3) + b"abc", 0x07),  # unknown command
+            (_header(0x0A, 1, 3, 3) + b"abc", 0x0A),  # unknown command
+            (_header(0x07, 1, 3, 3) + b"abc", 0x17),  # truncated SERIAL_OPEN (robocli's)
             (_header(0x03, 1, 4, 2, ctype=1) + b"\x78\x9c", 0x13),  # compressed request
             (_header(0x03, 1, 3, 3) + b"\x20\x00\x01", 0x13),  # truncated SUBSCRIBE
             (

@@ -31,6 +31,8 @@ def test_spec_file_shape() -> None:
 def test_spec_vector(vector: dict[str, Any]) -> None:
     frame = bytes.fromhex(vector["hex"])
     header, body = vector["fields"]["header"], vector["fields"]["body"]
+    if vector.get("raw_body"):  # robocli's serial stream: the bytes themselves, in hex
+        body = bytes.fromhex(body)
     assert r4m.plain(r4m.Header.parse(frame)) == header
     assert r4m.plain(r4m.Packet.parse(frame))["body"] == frame[r4m.HEADER_SIZE :]
     msg = r4m.decode(frame)
@@ -40,6 +42,25 @@ def test_spec_vector(vector: dict[str, Any]) -> None:
     # the original client's bytes, from our encoder: from the decoded body and the fields
     assert r4m.encode_request(msg.msg_type, msg.body, client_id=msg.client_id) == frame
     assert r4m.encode_request(header["type"], body, client_id=header["client_id"]) == frame
+
+
+def test_serial_stream_extension_ids_are_new_and_framed() -> None:
+    """robocli's serial stream takes ids the original protocol leaves free, each in a class the
+    C framer takes (0x0X, 0x1X, 0x2X), and its vectors frame as one frame each."""
+    original = {0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x11, 0x13, *range(0x20, 0x2B)}
+    stream = {r4m.MsgType.SERIAL_OPEN, r4m.MsgType.SERIAL_WRITE, r4m.MsgType.SERIAL_CLOSE,
+              r4m.MsgType.SERIAL_OPEN_ACK, r4m.MsgType.SERIAL_DATA}  # fmt: skip
+    assert not stream & original and all(int(k) >> 4 in (0, 1, 2) for k in stream)
+    from robocli.core import Framer
+
+    vectors = [v for v in SPEC["vectors"] if v["message"].startswith("SERIAL_")]
+    assert {v["message"] for v in vectors} == {k.name for k in stream}
+    framer = Framer("ros4mat")
+    frames = framer.feed(b"".join(bytes.fromhex(v["hex"]) for v in vectors))
+    assert [f.hex() for f in frames] == [v["hex"] for v in vectors]
+    open_ = r4m.decode(bytes.fromhex(vectors[0]["hex"])).body
+    assert open_ == {"speed": 115200, "byte_size": 8, "parity": "N", "stop_bits": 10,
+                     "port": "/dev/ttyUSB0"}  # fmt: skip
 
 
 @pytest.mark.parametrize("entry", SPEC["structs"], ids=lambda s: s["struct"])

@@ -136,6 +136,8 @@ _REQUEST_OF: dict[int, str] = {
     MsgType.CONNECT_ACK: "CONNECT",
     MsgType.SUBSCRIBE_ACK: "SUBSCRIBE",
     MsgType.SERIAL_ANS: "SERIAL_CMD",
+    MsgType.SERIAL_OPEN_ACK: "SERIAL_OPEN",
+    MsgType.SERIAL_DATA: "the serial stream",
 }
 
 

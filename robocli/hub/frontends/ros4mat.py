@@ -42,6 +42,7 @@ import numpy as np
 
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.hub.registry import ClientState, Hub, Pulled
+from robocli.hub.serial import SerialStream, line_settings
 from robocli.protocols import layout
 from robocli.protocols.common import DECODE_ERRORS, undecodable
 from robocli.protocols.ros4mat import (
@@ -51,6 +52,7 @@ from robocli.protocols.ros4mat import (
     Header,
     MsgType,
     SerialCmdRequest,
+    SerialOpen,
     SubscribeRequest,
     encode_error,
     plain,
@@ -78,12 +80,14 @@ _REPLY_TYPES: dict[int, int] = {
     MsgType.CONNECT: MsgType.CONNECT_ACK,
     MsgType.SUBSCRIBE: MsgType.SUBSCRIBE_ACK,
     MsgType.SERIAL_CMD: MsgType.SERIAL_ANS,
+    MsgType.SERIAL_OPEN: MsgType.SERIAL_OPEN_ACK,
 }
 """Request -> the type of its reply (an error reply has the type of the expected reply)."""
 
 _REQUESTS = frozenset(
     [MsgType.CONNECT, MsgType.QUIT, MsgType.SUBSCRIBE, MsgType.UNSUBSCRIBE, MsgType.SERIAL_CMD,
-     MsgType.DOUT_CTRL, *SENSOR_IDS]
+     MsgType.DOUT_CTRL, MsgType.SERIAL_OPEN, MsgType.SERIAL_WRITE, MsgType.SERIAL_CLOSE,
+     *SENSOR_IDS]
 )  # fmt: skip
 """The message ids a client sends."""
 
@@ -169,6 +173,8 @@ class Ros4matSession:
         self._serial = serial
         self._times = times or PullTimes()
         self.state: ClientState | None = None
+        self.stream: SerialStream | None = None
+        """The hub's serial port this connection streams (robocli's extension)."""
 
     # ---------------------------------------------------------------- replies
 
@@ -238,6 +244,7 @@ class Ros4matSession:
                            f"over this hub's limit of {self._max_body}; closing")  # fmt: skip
 
     def on_close(self) -> None:
+        self._end_stream()
         if self.state is not None:
             self.hub.detach(self.state)
             log.info("%s: client %d detached (buffers kept)", self.peer, self.state.id)
@@ -303,6 +310,7 @@ class Ros4matSession:
                 self.hub.unsubscribe(state, sensor)
             return None
         if kind == MsgType.QUIT:
+            self._end_stream()
             self.hub.quit(state)
             self.state = None
             self.link.close()
@@ -315,6 +323,9 @@ class Ros4matSession:
         if kind == MsgType.SERIAL_CMD:
             self._authorize(kind)
             return self._serial_cmd(body)
+        if kind in (MsgType.SERIAL_OPEN, MsgType.SERIAL_WRITE, MsgType.SERIAL_CLOSE):
+            self._authorize(kind)  # the token guards a stream as it guards SERIAL_CMD
+            return self._stream_request(kind, body)
         return self._error(kind, f"unknown message id 0x{kind & 0xFF:02x}")
 
     def _authorize(self, kind: int) -> None:
@@ -368,6 +379,46 @@ class Ros4matSession:
         status, data = self._serial.command(req)
         payload = struct.pack("<bI", status, len(data)) + data
         return self._packet(MsgType.SERIAL_ANS, payload, 1)
+
+
+    # ---------------------------------------------------------------- serial stream
+
+    def _stream_request(self, kind: int, body: bytes) -> bytes | None:
+        """SERIAL_OPEN (open, or new settings), SERIAL_WRITE, SERIAL_CLOSE."""
+        stream = self.stream
+        if kind == MsgType.SERIAL_CLOSE:
+            self._end_stream()
+            return None
+        if kind == MsgType.SERIAL_WRITE:
+            if stream is None:
+                raise DeviceError("no serial stream open: send SERIAL_OPEN first")
+            stream.write(body)
+            return None
+        req = _parse(SerialOpen, body, "SERIAL_OPEN")
+        settings = line_settings(req)
+        if stream is not None and stream.name != req["port"]:
+            raise DeviceError(f"this connection streams {stream.name!r}: close it first")
+        if stream is not None:
+            stream.apply(settings)
+        elif self._serial is None:
+            raise DeviceError("this hub serves no serial port")
+        else:
+            self.stream = SerialStream(self._serial, req["port"], settings, self._push,
+                                       self._stream_failed)  # fmt: skip
+        return self._packet(MsgType.SERIAL_OPEN_ACK, b"", 0)
+
+    def _push(self, data: bytes) -> bool:
+        """Bytes from the streamed port, sent unasked (the reader's thread)."""
+        return self.link.send(self._packet(MsgType.SERIAL_DATA, data, 1))
+
+    def _stream_failed(self, reason: str) -> None:
+        self.link.send(self._error(MsgType.SERIAL_DATA, reason))
+        self._end_stream()
+
+    def _end_stream(self) -> None:
+        stream, self.stream = self.stream, None
+        if stream is not None:
+            stream.close()
 
 
 def _parse(decl: Any, body: bytes, what: str) -> dict[str, Any]:

@@ -18,6 +18,8 @@ publishes, however many Zenoh subscribers there are: Zenoh copies to them, not t
   without the token when the hub has one. Settings are shared, as over ros4mat: last
   writer wins.
 * A liveliness token ``robocli/<hub>/@alive/hub`` while it runs.
+* With ``serial`` (the hub's allow-list), its serial ports streamed to one user each
+  (:mod:`robocli.hub.frontends.zenoh_serial`).
 
 Zenoh's callbacks (queries) run on Zenoh's threads and never raise into them; the batches
 go out from one ticker thread.
@@ -34,7 +36,9 @@ from typing import TYPE_CHECKING, Any
 
 from robocli.errors import DeviceError, ProtocolError, RobocliError
 from robocli.hub.frontends.ros4mat import SENSOR_IDS, body_parts
+from robocli.hub.frontends.zenoh_serial import ZenohSerial
 from robocli.hub.registry import ClientState, Hub
+from robocli.hub.sources import SerialPorts
 from robocli.sim.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
 from robocli.zenoh.keys import alive_key, check_name, info_key, settings_key, topic_key
@@ -80,7 +84,8 @@ class ZenohFrontend:
     ``token``: the hub's token, required by the settings queryable (None: open).
     ``publish``: sensor -> settings (ros4mat SUBSCRIBE parameters; empty or None: its
     defaults) started at :meth:`start`. ``period``: seconds between two puts of a sensor.
-    ``history_s``: seconds of batches kept for late joiners. The session stays the
+    ``history_s``: seconds of batches kept for late joiners. ``serial``: the hub's serial
+    ports, streamed (:class:`ZenohSerial`). The session stays the
     caller's: :meth:`close` undeclares what this front-end declared.
     """
 
@@ -94,8 +99,12 @@ class ZenohFrontend:
         publish: Mapping[str, Mapping[str, Any] | None] | None = None,
         period: float = BATCH_PERIOD_S,
         history_s: float = HISTORY_S,
+        serial: SerialPorts | None = None,
     ) -> None:
         self.hub, self.session = hub, session
+        self._serial_ports = serial
+        self.serial: ZenohSerial | None = None
+        """The serial streams (with ``serial``, once started)."""
         self.name = check_name(name, "hub name")
         self._token = token
         for sensor in publish or {}:
@@ -123,12 +132,17 @@ class ZenohFrontend:
         self._declared.append(s.declare_queryable(info_key(self.name), self._on_info))
         self._declared.append(s.declare_queryable(settings_key(self.name), self._on_settings))
         self._declared.append(s.liveliness().declare_token(alive_key(self.name, "hub")))
+        if self._serial_ports is not None:
+            self.serial = ZenohSerial(s, self.name, self._serial_ports, self._token)
         self._ticker.start()
         return self
 
     def close(self) -> None:
-        """Stop publishing, undeclare everything, release the hub's sensors. Idempotent."""
+        """Stop publishing, undeclare everything, release the hub's sensors and serial ports.
+        Idempotent."""
         self._ticker.close()
+        if self.serial is not None:
+            self.serial.close()
         with self._lock:
             for entity in [*self._declared, *(p.publisher for p in self._published.values())]:
                 try:

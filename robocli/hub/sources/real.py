@@ -276,6 +276,7 @@ class SerialPorts:
     def __init__(self, allowed: tuple[str, ...] | list[str]) -> None:
         self.allowed = tuple(allowed)
         self._open: dict[str, Any] = {}
+        self._streamed: dict[str, Any] = {}  # claimed by a stream (robocli.hub.serial)
         self._lock = threading.Lock()
 
     @property
@@ -288,14 +289,15 @@ class SerialPorts:
         """Run one SERIAL_CMD (decoded ``SerialCmdRequest``): (status, bytes read)."""
         cmd = req["cmd"]
         name = bytes(req["port"]).split(b"\0", 1)[0].decode("ascii", "replace")
-        if name not in self.allowed:
-            raise DeviceError(f"serial port {name!r} is not served by this hub")
+        self.check(name)
         if not self._lock.acquire(timeout=SERIAL_QUEUE_S):
             raise DeviceError(
                 f"serial port {name!r} busy: other clients' commands held the hub's serial "
                 f"ports for {SERIAL_QUEUE_S:g} s; retry"
             )
         try:
+            if name in self._streamed:
+                raise DeviceError(f"serial port {name!r} busy: a client streams it")
             try:
                 port = self._port(name, cmd)
             except (OSError, ValueError) as exc:
@@ -313,6 +315,39 @@ class SerialPorts:
         finally:
             self._lock.release()
 
+    def check(self, name: str) -> None:
+        """:class:`DeviceError` unless ``name`` is on the allow-list."""
+        if name not in self.allowed:
+            raise DeviceError(f"serial port {name!r} is not served by this hub")
+
+    def claim(self, name: str, settings: Mapping[str, Any]) -> Any:
+        """Open ``name`` (allowed, not streamed yet) with pyserial ``settings`` for a stream
+        that holds it alone until :meth:`release`. :class:`DeviceError` when it is not on the
+        allow-list, streamed already, busy past the queue time or cannot be opened."""
+        self.check(name)
+        if not self._lock.acquire(timeout=SERIAL_QUEUE_S):
+            raise DeviceError(f"serial port {name!r} busy: other clients' commands; retry")
+        try:
+            if name in self._streamed:
+                raise DeviceError(f"serial port {name!r} busy: another client streams it")
+            self._close(name)  # SERIAL_CMD's handle: the stream opens its own
+            try:
+                port = _open_port(name, settings)
+            except PORT_ERRORS as exc:
+                raise DeviceError(f"serial port {name!r} cannot be opened on the hub: "
+                                  f"{exc}") from None  # fmt: skip
+            self._streamed[name] = port
+            return port
+        finally:
+            self._lock.release()
+
+    def release(self, name: str) -> None:
+        """Close the port a stream claimed (idempotent)."""
+        with self._lock:
+            port = self._streamed.pop(name, None)
+        if port is not None:
+            port.close()
+
     def _port(self, name: str, cmd: Mapping[str, Any]) -> Any:
         import serial
 
@@ -323,7 +358,7 @@ class SerialPorts:
             "stopbits": serial.STOPBITS_TWO if cmd["stop_bits"] == 2 else serial.STOPBITS_ONE,
         }
         if port is None:
-            port = serial.serial_for_url(name, timeout=0, write_timeout=1.0, **settings)
+            port = _open_port(name, settings)
             self._open[name] = port
         else:
             port.apply_settings(settings)
@@ -356,7 +391,27 @@ class SerialPorts:
             port.close()
 
     def close(self) -> None:
-        """Close every open port."""
+        """Close every open port (the streams' too)."""
         with self._lock:
             for name in list(self._open):
                 self._close(name)
+            streamed, self._streamed = list(self._streamed.values()), {}
+        for port in streamed:
+            port.close()
+
+
+try:
+    from termios import error as _TermiosError
+except ImportError:  # not POSIX: pyserial raises its own errors only
+    _TermiosError = OSError  # type: ignore[misc,assignment]
+PORT_ERRORS = (OSError, ValueError, _TermiosError)
+"""What pyserial raises when a port cannot open, refuses settings or fails (its
+SerialException is an OSError; termios.error escapes it on POSIX)."""
+
+
+def _open_port(name: str, settings: Mapping[str, Any]) -> Any:
+    """A pyserial port (a device path or any pyserial URL) with ``settings``; reads do not
+    block, writes have a 1 s deadline (a stream sets its own)."""
+    import serial
+
+    return serial.serial_for_url(name, timeout=0, write_timeout=1.0, **settings)

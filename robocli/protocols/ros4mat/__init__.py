@@ -28,6 +28,9 @@ An early (pre-v3) revision of the original header had a different 37-byte batter
 Quirks of the original client, documented rather than copied: it casts the serial baud rate
 to uint16 (115200 wraps; the wire field is uint32), its stereo ROI parser reads the wrong
 arguments, it always sends ``size = 1`` for requests with a body.
+
+**Serial streaming (0x07-0x09, 0x17, 0x2B) is robocli's extension**, documented in
+:mod:`robocli.protocols.ros4mat.stream`; the original messages are unchanged.
 """
 
 from __future__ import annotations
@@ -100,6 +103,13 @@ from robocli.protocols.ros4mat.messages import (
     body_length,
     sensor_type,
 )
+from robocli.protocols.ros4mat.stream import (
+    MAX_STREAM_CHUNK,
+    PARITIES,
+    STOP_BITS,
+    SerialOpen,
+    write_deadline,
+)
 
 __all__ = [
     "Adc",
@@ -126,9 +136,11 @@ __all__ = [
     "Kinect",
     "KinectData",
     "MAX_BODY_SIZE",
+    "MAX_STREAM_CHUNK",
     "Message",
     "MsgType",
     "PARAMS",
+    "PARITIES",
     "PORT",
     "PROTOCOL_VERSION",
     "Packet",
@@ -144,11 +156,13 @@ __all__ = [
     "RECORDS",
     "REQUEST_BODIES",
     "SENSORS",
+    "STOP_BITS",
     "STRUCT_SIZES",
     "SerialAns",
     "SerialAnsReply",
     "SerialCmd",
     "SerialCmdRequest",
+    "SerialOpen",
     "SerialStatus",
     "StereoData",
     "Subscribe",
@@ -166,4 +180,5 @@ __all__ = [
     "record_dtype",
     "sensor_type",
     "struct_dtype",
+    "write_deadline",
 ]

@@ -7,14 +7,12 @@ from __future__ import annotations
 
 import enum
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import construct as cs
 
 from robocli.errors import InvalidArgument, ProtocolError
-
-if TYPE_CHECKING:
-    pass
+from robocli.protocols.ros4mat.stream import SerialOpen
 
 PORT = 1500
 PROTOCOL_VERSION = 3
@@ -35,8 +33,12 @@ class MsgType(enum.IntEnum):
     UNSUBSCRIBE = 0x04
     SERIAL_CMD = 0x05
     DOUT_CTRL = 0x06
+    SERIAL_OPEN = 0x07  # 0x07-0x09, 0x17, 0x2B: robocli's serial stream (.stream)
+    SERIAL_WRITE = 0x08
+    SERIAL_CLOSE = 0x09
     CONNECT_ACK = 0x11
     SUBSCRIBE_ACK = 0x13
+    SERIAL_OPEN_ACK = 0x17
     ADC = 0x20
     IMU = 0x21
     BATTERY = 0x22  # robocli's own definition, see the module docstring
@@ -48,6 +50,7 @@ class MsgType(enum.IntEnum):
     KINECT_DEPTH = 0x28
     KINECT = 0x29
     WEBCAM_STEREO = 0x2A
+    SERIAL_DATA = 0x2B
 
 
 class Compression(enum.IntEnum):
@@ -493,5 +496,6 @@ REQUEST_BODIES: dict[int, Any] = {
     MsgType.UNSUBSCRIBE: Unsubscribe,
     MsgType.SERIAL_CMD: SerialCmdRequest,
     MsgType.DOUT_CTRL: DigitalOut,
+    MsgType.SERIAL_OPEN: SerialOpen,
 }
 """Request ids whose body is declared (QUIT and data pulls have none)."""
