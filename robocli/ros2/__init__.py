@@ -1,3 +1,24 @@
-"""robocli for ROS 2, with no ROS installed: ROS 2 messages (CDR), and ROS 2 topics on
-Zenoh the way ``rmw_zenoh_cpp`` lays them (:mod:`robocli.ros2.rmw`, :mod:`robocli.ros2.node`).
-Needs the ``ros2`` extra (``rosbags``, ``xxhash``) and, on Zenoh, the ``zenoh`` extra."""
+"""ROS 2 without ROS: robocli's samples as standard ROS 2 messages in CDR
+(:mod:`.mapping`), the type store, schemas and type hashes (:mod:`.types`).
+
+>>> from robocli.ros2 import to_ros2, type_hash, msgdef   # doctest: +SKIP
+>>> for m in to_ros2("foxglove.LaserScan", "/laser/scan", scan):
+...     publish(m.topic, type_hash(m.msgtype), m.data, m.t_ns)
+
+Needs the ``rosbags`` package (``pip install 'robocli[record]'``): without it, the first
+call raises :class:`~.types.Ros2Unavailable`.
+"""
+
+from robocli.ros2.mapping import Mapper, Ros2Message, laser_scan_cdr, to_ros2
+from robocli.ros2.types import (
+    RAW_FRAME,
+    Ros2Unavailable,
+    deserialize,
+    msgdef,
+    plain,
+    serialize,
+    type_hash,
+)
+
+__all__ = ["RAW_FRAME", "Mapper", "Ros2Message", "Ros2Unavailable", "deserialize",
+           "laser_scan_cdr", "msgdef", "plain", "serialize", "to_ros2", "type_hash"]

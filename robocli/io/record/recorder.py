@@ -115,7 +115,9 @@ class Recorder:
     ``max_queue`` / ``max_queue_bytes``: what may wait for the writer before items are
     dropped (counted). ``path`` may also be an open binary stream with ``tell``: it is
     written and flushed, and left open. ``overwrite``: replace an existing file (else
-    refused); ``deferred``: make the file at :meth:`begin`, not now. Raises
+    refused); ``deferred``: make the file at :meth:`begin`, not now. ``ros2``: write a ROS 2
+    bag (:mod:`robocli.ros2.bag`: every channel's messages mapped to standard ROS 2 types in
+    CDR; ``prefix_frames``: see :class:`~robocli.ros2.mapping.Mapper`). Raises
     :class:`~robocli.io.output.OutputError` when the file may not or cannot be created,
     :class:`RecordingError` without the ``mcap`` package.
     """
@@ -131,6 +133,8 @@ class Recorder:
         max_queue_bytes: int = 256 << 20,
         overwrite: bool = False,
         deferred: bool = False,
+        ros2: bool = False,
+        prefix_frames: bool = False,
     ) -> None:
         if compression not in COMPRESSIONS:
             raise InvalidArgument(f"compression is one of {', '.join(COMPRESSIONS)}, "
@@ -140,6 +144,12 @@ class Recorder:
         if max_queue < 1 or max_queue_bytes < 1:
             raise InvalidArgument("max_queue and max_queue_bytes must be >= 1")
         _mcap()
+        if ros2:
+            from robocli.ros2.types import typestore
+
+            typestore()  # rosbags is there (or say so now, before any file or connection)
+        self.ros2, self.prefix_frames = ros2, prefix_frames
+        self._ros2: Any = None  # the Translator, once begun
         self._owned = isinstance(path, (str, Path))
         if isinstance(path, (str, Path)):  # refused now (exists, a link...), before connecting
             self.path = check_output(path, overwrite)
@@ -202,7 +212,7 @@ class Recorder:
                 "none": CompressionType.NONE}[self.compression]  # fmt: skip
         try:
             self._writer = Writer(self._file, chunk_size=self._chunk_size, compression=kind)
-            self._writer.start(profile="", library=f"robocli {__version__} (mcap "
+            self._writer.start(profile="ros2" if self.ros2 else "", library=f"robocli {__version__} (mcap "
                                f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
             self._file.flush()
         except Exception as exc:
@@ -210,6 +220,10 @@ class Recorder:
                 with contextlib.suppress(OSError):
                     self._file.close()
             raise RecordingError(f"cannot write {self.path}: {exc}") from None
+        if self.ros2:
+            from robocli.ros2.bag import BagChannels, Translator
+
+            self._ros2 = Translator(BagChannels(self._writer, prefix_frames=self.prefix_frames))
         self._adder = MessageAdder(self._writer, getattr(self._file, "tell", None))
         self._add_message = self._adder.add
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
@@ -299,12 +313,15 @@ class Recorder:
         if cid is not None:
             return cid
         sid = 0
-        if schema is not None:
+        if self._ros2 is not None:  # the bag's channels come with the messages they map to
+            cid = self._ros2.channel(topic, schema, metadata)
+        elif schema is not None:
             sid = self._schemas.get(schema, 0)
             if not sid:
                 sid = self._writer.register_schema(schema, "jsonschema", schema_bytes(schema))
                 self._schemas[schema] = sid
-        cid = self._writer.register_channel(topic, encoding, sid, dict(metadata or {}))
+        if self._ros2 is None:
+            cid = self._writer.register_channel(topic, encoding, sid, dict(metadata or {}))
         self._channels[topic] = cid
         if self._mirrors:
             self._mirrored[cid] = [
@@ -315,10 +332,15 @@ class Recorder:
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
         """Add one message to channel ``cid`` (writer thread only)."""
-        seq = self._sequence.get(cid, 0)
-        self._sequence[cid] = seq + 1
-        self._add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns, seq)
-        self.stats.added += 1
+        if self._ros2 is not None:
+            self.stats.added += self._ros2.write(cid, data, log_ns, publish_ns,
+                                                 self._add_message)  # fmt: skip
+        else:
+            seq = self._sequence.get(cid, 0)
+            self._sequence[cid] = seq + 1
+            self._add_message(cid, log_ns, data, log_ns if publish_ns is None else publish_ns,
+                              seq)  # fmt: skip
+            self.stats.added += 1
         mirrored = self._mirrored.get(cid)
         if mirrored:
             for sink, mid in mirrored:
@@ -360,6 +382,8 @@ class Recorder:
                     last_chunk = now
                     self._flush()
             self._flush()  # the last chunk, counted as the others
+            if self._ros2 is not None:
+                self._ros2.bag.finish(self.path.name)
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.flush()
         except BaseException as exc:  # noqa: BLE001 - a full disk, a closed file: say so at close
