@@ -20,6 +20,7 @@ from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
 from robocli.commands import hub as hub_commands
 from robocli.commands import laser as laser_commands
+from robocli.commands import models as model_commands
 from robocli.commands import recover as recover_command
 from robocli.commands import router as router_commands
 from robocli.commands import serial as serial_command
@@ -132,6 +133,7 @@ app.command("export", cls=PlainCommand)(export_command.export)
 app.command("recover", cls=PlainCommand)(recover_command.recover)
 app.command("router", cls=ZenohCommand)(router_commands.router)
 app.command("list", cls=ZenohCommand)(router_commands.list_)
+app.command("urdf", cls=PlainCommand)(model_commands.urdf)
 
 
 def _hoist_verbose(argv: list[str]) -> list[str]:

@@ -83,6 +83,17 @@ class RobotParams:
     #: Where a laser scanner sits (``params/*.p`` LaserX, LaserY mm, LaserTh deg,
     #: LaserFlipped); the robot's centre where robocli does not know the model's values
     laser_mount: Mount = field(default=Mount())
+    #: Drawn in robot models (:mod:`robocli.robots.urdf`): the P3-DX's wheels (195 mm, 47 mm
+    #: wide) and body height (237 mm, its data sheet), used where robocli has no other values
+    wheel_radius: float = 0.0975  #: m
+    wheel_width: float = 0.047  #: m
+    body_height: float = 0.237  #: m, the top plate above the floor
+
+    @property
+    def half_track(self) -> float:
+        """Half the distance between the wheels (m), from ``diff_conv``: a rotation of
+        ``w`` rad/s is a wheel-speed difference of ``2 * half_track * w``."""
+        return 1.0 / (self.diff_conv * 1000.0)
 
 
 #: The P3-DX's laser: ``p3dx.p`` gives LaserX 18, LaserY 0, LaserTh 0, not flipped.

@@ -89,7 +89,7 @@ class PioneerModel:
         self.start = start
         self.noise = noise
         self.rng = np.random.default_rng(seed)
-        self.half_track = 1.0 / (params.diff_conv * 1000.0)  # m: w = (r - l) / (2 * half_track)
+        self.half_track = params.half_track  # m: w = (r - l) / (2 * half_track)
         self.sensors = np.array([(s.x, s.y, s.th) for s in params.sonar], dtype=np.float64)
         self.limits = Limits.for_robot(self.params)
         self.x, self.y, self.th = start
