@@ -13,14 +13,14 @@ samples carry the attachment rmw_zenoh requires.
   the size limit are dropped and counted, and a callback that raises is logged, never
   raised into Zenoh's thread.
 
-Type hashes (RIHS01) come from the ``rosbags`` type store of ROS 2 Kilted (:func:`type_hash`).
+Type hashes (RIHS01) come from robocli's ROS 2 type store (:func:`robocli.ros2.types.type_hash`).
 """
 
 from __future__ import annotations
 
-import functools
 import itertools
 import logging
+import re
 import threading
 import time
 from collections.abc import Callable
@@ -41,12 +41,13 @@ from robocli.ros2.rmw import (
     qualified,
     topic_key,
 )
+from robocli.ros2.types import type_hash
 from robocli.zenoh.session import import_zenoh
 
 if TYPE_CHECKING:
     import zenoh
 
-__all__ = ["MAX_MESSAGE", "Ros2Node", "Ros2Publisher", "Ros2Subscriber", "type_hash"]
+__all__ = ["MAX_MESSAGE", "Ros2Node", "Ros2Publisher", "Ros2Subscriber", "node_name"]
 
 log = logging.getLogger("robocli.ros2")
 
@@ -54,17 +55,10 @@ MAX_MESSAGE = 1 << 20
 """The largest ROS 2 message a subscriber decodes (bytes): a command, a trajectory."""
 
 
-@functools.lru_cache(maxsize=1)
-def _store() -> Any:
-    from rosbags.typesys import Stores, get_typestore
-
-    return get_typestore(Stores.ROS2_KILTED)
-
-
-@functools.lru_cache(maxsize=256)
-def type_hash(ros_type: str) -> str:
-    """The RIHS01 hash of a standard ROS 2 type (``rosbags``' Kilted type store)."""
-    return str(_store().hash_rihs01(ros_type))
+def node_name(name: str) -> str:
+    """A robocli name as a ROS 2 node name (letters, digits, ``_``; not a digit first)."""
+    out = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    return out if out[:1].isalpha() or out[:1] == "_" else f"n_{out}"
 
 
 class Ros2Publisher:

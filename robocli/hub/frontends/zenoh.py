@@ -29,7 +29,7 @@ import hmac
 import json
 import logging
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import DeviceError, ProtocolError, RobocliError
@@ -80,7 +80,8 @@ class ZenohFrontend:
     ``token``: the hub's token, required by the settings queryable (None: open).
     ``publish``: sensor -> settings (ros4mat SUBSCRIBE parameters; empty or None: its
     defaults) started at :meth:`start`. ``period``: seconds between two puts of a sensor.
-    ``history_s``: seconds of batches kept for late joiners. The session stays the
+    ``history_s``: seconds of batches kept for late joiners. ``on_batch``: see
+    :attr:`on_batch` (``serve --ros2``: :class:`robocli.ros2.hub.HubTopics`). The session stays the
     caller's: :meth:`close` undeclares what this front-end declared.
     """
 
@@ -94,6 +95,7 @@ class ZenohFrontend:
         publish: Mapping[str, Mapping[str, Any] | None] | None = None,
         period: float = BATCH_PERIOD_S,
         history_s: float = HISTORY_S,
+        on_batch: Callable[[int, int, list[Any]], None] | None = None,
     ) -> None:
         self.hub, self.session = hub, session
         self.name = check_name(name, "hub name")
@@ -110,6 +112,9 @@ class ZenohFrontend:
         self._ticker = Ticker(period, self._tick, f"hub-zenoh-{self.name}")
         self._declared: list[Any] = []
         self.refused = 0  #: settings queries refused
+        #: called with (sensor id, samples, body parts) after each batch is put, on the
+        #: ticker's thread: the parts are views of the ring's records, valid until it returns
+        self.on_batch = on_batch
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -212,6 +217,8 @@ class ZenohFrontend:
         size = sum(memoryview(p).nbytes for p in parts)
         head = encode_head(pub.sensor_id, pub.next_seq, n, size, self.hub.clock())
         pub.publisher.put(b"".join([head, *parts]))  # one copy out of the records
+        if self.on_batch is not None:
+            self.on_batch(pub.sensor_id, n, parts)
         pub.next_seq += n
         pub.batches += 1
         pub.samples += n
