@@ -96,7 +96,7 @@ def test_qos_is_written_relative_to_rmw_zenohs_defaults() -> None:
 
 
 def test_the_type_names_and_hashes() -> None:
-    from robocli.ros2.node import type_hash
+    from robocli.ros2.types import type_hash
 
     assert dds_type("geometry_msgs/msg/Twist") == "geometry_msgs::msg::dds_::Twist_"
     assert type_hash("std_msgs/msg/String") == STRING_HASH  # the design document's
