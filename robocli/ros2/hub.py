@@ -52,13 +52,32 @@ class HubTopics:
         self.node = Ros2Node(session, node_name(name), namespace=namespace, domain=domain)
         self.topics = Ros2Topics(self.node, name)
         self._decoder = HubDecoder(self.topics, name, _HubClock(hub))  # type: ignore[arg-type]
+        self._used: dict[int, set[Any]] = {}  # sensor id -> the ROS 2 publishers it feeds
+        self.skipped = 0  #: batches not decoded: no subscriber of their topics
 
     def batch(self, sensor_id: int, n: int, parts: Sequence[Any]) -> None:
         """One batch of ``n`` samples of ros4mat sensor ``sensor_id`` (its reply body in
-        ``parts``): copied, then decoded and published on the sink's thread."""
+        ``parts``): copied, then decoded and published on the sink's thread. A sensor whose
+        ROS 2 topics no subscriber matches is skipped (counted in :attr:`skipped`): its first
+        batch declares them, and it is published again as soon as one is matched."""
+        used = self._used.get(sensor_id)
+        if used is not None and not any(pub.matching for pub in used):
+            self.skipped += 1
+            return
         body = b"".join(parts)
         head = HEADER.pack(sensor_id, 0, 0, n, len(body), len(body), Compression.NONE, 0.0)
-        self.topics.put(self._decoder, ("rx", head + body, time.time_ns()), len(body))
+        self.topics.put(self._decode, (sensor_id, head + body, time.time_ns()), len(body))
+
+    def _decode(self, sensor_id: int, frame: bytes, ns: int) -> None:
+        """The sink's thread: decode, map, publish; note the publishers it used."""
+        topics = self.topics
+        topics.used = used = self._used.get(sensor_id) or set()
+        try:
+            self._decoder("rx", frame, ns)
+        finally:
+            topics.used = None
+        if used:
+            self._used[sensor_id] = used
 
     def close(self) -> None:
         self.topics.close()

@@ -64,6 +64,8 @@ class Ros2Topics:
         self.published = 0  #: ROS 2 messages put
         self.dropped = 0  #: work items dropped (queue full)
         self.errors = 0  #: messages that did not map (logged once)
+        #: when a set: every publisher a message went out on is added (see ros2.hub)
+        self.used: set[Ros2Publisher] | None = None
         self._prefix = f"/{name}/"
         self._channels: list[tuple[str, str]] = []
         self._publishers: dict[tuple[str, str], Ros2Publisher] = {}
@@ -140,8 +142,11 @@ class Ros2Topics:
 
     def publish(self, m: Ros2Message) -> None:
         """Put one mapped message on its topic (relative to the node's namespace)."""
-        self.publisher(self.relative(m.topic), m.msgtype).publish(m.data, m.t_ns or None)
+        pub = self.publisher(self.relative(m.topic), m.msgtype)
+        pub.publish(m.data, m.t_ns or None)
         self.published += 1
+        if self.used is not None:
+            self.used.add(pub)
 
     def publish_model(self, urdf: str, t_ns: int | None = None) -> None:
         """``robot_description`` (std_msgs/String) and the model's fixed joints (wheels at 0)

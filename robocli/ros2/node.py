@@ -92,6 +92,13 @@ class Ros2Publisher:
             self._pub = node.session.declare_publisher(self.key, **options)
         self._token = node.session.liveliness().declare_token(self.token_key)
 
+    @property
+    def matching(self) -> bool:
+        """Whether a subscriber matches the topic now (a transient-local publisher: always
+        True, its cache serves the ones to come)."""
+        status = getattr(self._pub, "matching_status", None)
+        return True if status is None else bool(status.matching)
+
     def publish(self, cdr: bytes, t_ns: int | None = None) -> None:
         """Put one CDR-encoded message (``t_ns``: its source time, ns since the epoch; now
         when None). A session that is closing refuses it: logged, not raised."""
