@@ -14,7 +14,9 @@ std_msgs/String) and ``tf_static`` (its fixed joints), both transient local.
   ``positions`` in rad, ``time_from_start``; joint names, when given, in any order of
   ``joint_1``...).
 * Every ROS 2 publisher of those topics is one controller named :data:`ROS_HOLDER`
-  (``ros2``). A ROS 2 command takes the robot **only when nobody holds it**: a robocli
+  (``ros2``). A ROS 2 command takes the robot **only when nobody holds it** and a publisher
+  of the topic is in the ROS 2 graph (a message still in flight after its publisher left
+  takes nothing): a robocli
   controller that holds it is never preempted (the ROS 2 command is ignored, counted, and
   announced once on ``robocli/<robot>/@control/event``), and a robocli controller asking
   while ROS 2 holds it is refused with the holder's name ``ros2``.
@@ -103,8 +105,12 @@ class Ros2Bridge:
 
     def take(self) -> bool:
         """Before a ROS 2 command: take the robot for :data:`ROS_HOLDER` when nobody holds
-        it. True when ROS 2 holds it (the gate still judges each command)."""
-        if self.gate.holder is None:
+        it and a ROS 2 publisher of a command topic is in the graph (a sample still in
+        flight when its publisher left takes nothing: the robot stays stopped). True when
+        ROS 2 holds it (the gate still judges each command)."""
+        with self._lock:
+            present = bool(self._publishers)
+        if self.gate.holder is None and present:
             self.gate.acquire(ROS_HOLDER)
         return self.gate.holder == ROS_HOLDER
 

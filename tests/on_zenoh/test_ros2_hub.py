@@ -63,3 +63,36 @@ def test_a_hub_serving_ros2_is_a_node_whose_topics_zenoh_ros2_sdk_reads(tmp_path
                                              lambda s: batches.append(s.payload.to_bytes()))
             wait_for(lambda: batches, "a batch on robocli/hub1/adc")
             sub.undeclare()
+
+
+def test_a_sensor_nobody_reads_on_ros2_is_not_decoded_until_someone_does(endpoint) -> None:
+    """The hub's first ADC batch declares /adc; with no ROS 2 subscriber the next batches
+    are skipped (robocli's own key still gets them), and a subscriber brings them back."""
+    from robocli.hub import HubServer
+    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.ros2.hub import HubTopics
+    from robocli.ros2.rmw import topic_key
+    from robocli.ros2.types import type_hash
+    from robocli.zenoh.session import close_session, open_session
+
+    server = HubServer(port=0, sim=True).start()
+    session = open_session(endpoint, "server")
+    front = ZenohFrontend(server.hub, session, "hub1", publish={"adc": None})
+    ros = HubTopics(server.hub, session, "hub1")
+    front.on_batch = ros.batch
+    front.start()
+    reader = open_session(endpoint, "client")
+    try:
+        wait_for(lambda: ros.skipped >= 3, "ADC batches skipped with no ROS 2 subscriber")
+        published = ros.topics.published
+        key = topic_key(0, "/adc", HUB_TYPES["/adc"], type_hash(HUB_TYPES["/adc"]))
+        got: list[object] = []
+        reader.declare_subscriber(key, got.append)
+        wait_for(lambda: len(got) >= 10, "ADC messages once a ROS 2 subscriber is there")
+        assert ros.topics.published > published
+    finally:
+        front.close()
+        ros.close()
+        close_session(reader)
+        close_session(session)
+        server.close()
