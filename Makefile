@@ -12,7 +12,7 @@ CFLAGS_STRICT := -std=c89 -Wall -Wextra -pedantic -Werror -O2
 CSRC   := csrc/checksum.c csrc/scip.c csrc/framer.c csrc/ring.c csrc/align.c csrc/pingpong.c csrc/benchnet.c
 PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csrc/build_core.py
 
-.PHONY: venv demo test test-load test-c asan valgrind bench lab lab-tools lint soak soak-record wheel dist dist-check clean fuzz
+.PHONY: venv node-deps demo test test-load test-c asan valgrind bench lab lab-tools lint soak soak-record wheel dist dist-check clean fuzz
 
 $(DEMO_STAMP): $(PKG_DEPS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -40,7 +40,18 @@ PYTEST_ARGS ?=
 # tests (pytest-xdist; 0 runs them in this process, in file order).
 TEST_WORKERS ?= 4
 
-test: $(STAMP) test-c
+# Foxglove's own CDR reader for tests/ros2/test_bags.py, from the npm registry through the lock
+# file. Without npm, or when npm ci fails, make goes on and that one test skips, saying why.
+NODE_CHECK := tests/ros2/node
+NODE_STAMP := $(NODE_CHECK)/node_modules/.installed
+$(NODE_STAMP): $(NODE_CHECK)/package.json $(NODE_CHECK)/package-lock.json
+	@if ! command -v npm >/dev/null; then echo "npm not found: the Foxglove bag check will skip"; \
+	elif npm ci --prefix $(NODE_CHECK) --no-audit --no-fund --loglevel=error; then touch $@; \
+	else echo "npm ci failed: the Foxglove bag check will skip"; fi
+
+node-deps: $(NODE_STAMP)
+
+test: $(STAMP) test-c node-deps
 	$(PYTEST) -n $(TEST_WORKERS) $(PYTEST_ARGS)
 
 # The same suite on a busy machine: LOAD_PER_CORE busy loops per core and LOAD_WRITERS disk
@@ -72,7 +83,7 @@ while True:
     time.sleep(max(0.0, start + n * period - time.monotonic()))
 endef
 export LOAD_WRITER
-test-load: $(STAMP) test-c
+test-load: $(STAMP) test-c node-deps
 	@n=$$(( $$(nproc) * $(LOAD_PER_CORE) )); pids=; \
 	stop() { for p in $$pids; do kill $$p 2>/dev/null; done; wait $$pids 2>/dev/null; pids=; }; \
 	trap 'stop' EXIT; trap 'stop; exit 130' INT; trap 'stop; exit 143' TERM HUP; \

@@ -6,7 +6,7 @@ dump and the round-trip benchmark with its C floor; then an IRB120 circle upload
 embedded ABB simulator, monitored and validated (the time shift it reports is the download
 time); then a simulated sensor hub with two concurrent `robocli subscribe` clients and a
 summary read from Python; the wander is recorded to MCAP and drawn, the hub too. Takes
-about 50 s. Everything it makes stays in OUT (default demo-out/ in the repository, which git
+about 65 s. Everything it makes stays in OUT (default demo-out/ in the repository, which git
 ignores) for you to open afterwards: the recordings (`robocli info`, Foxglove), the figures,
 the arm's trajectory logs.
 """
@@ -27,6 +27,9 @@ from robocli.sim.pioneer.server import PioneerSim
 #: Where the demo leaves its recordings, figures and logs (the first argument overrides it).
 OUT = Path(__file__).resolve().parent.parent / "demo-out"
 PLOT = importlib.util.find_spec("matplotlib") is not None
+#: How long the wander runs (SIPs, 100 ms of robot time each): long enough to cross the room
+#: and turn away from several walls (18 s of the demo's time at 5x).
+WANDER_SIPS = 900
 RECORD = importlib.util.find_spec("mcap") is not None
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -189,12 +192,14 @@ def run(out: Path = OUT) -> int:
                   if near else "laser: no return within 32 m")  # fmt: skip
 
             where = f", recorded to {out / 'wander.mcap'}" if RECORD else ""
-            step(f"examples/wander.py: potential-field wander for 20 s of simulated time{where}")
+            step(f"examples/wander.py: the robot explores the room for {WANDER_SIPS // 10} s of "
+                 f"simulated time, turning away from what its sonar and laser see{where}")
             with recording(out / "wander.mcap", robot):
-                result = wander(robot, 200)
+                result = wander(robot, WANDER_SIPS)
             print(
-                f"travelled {result.distance:.2f} m with {result.bumps} bumps; "
-                f"link: {robot.stats.sips} SIPs, {robot.stats.bad_checksums} bad checksums"
+                f"travelled {result.distance:.2f} m, {result.turns} turns away from walls, "
+                f"{result.bumps} bumps; link: {robot.stats.sips} SIPs, "
+                f"{robot.stats.bad_checksums} bad checksums"
             )
 
         step(f"robocli dump pioneer {url} --count 12")
@@ -213,7 +218,8 @@ def run(out: Path = OUT) -> int:
         print(f"  {shown / path.name}")
     if RECORD:
         print(f"look again: robocli info {shown / 'wander.mcap'}; open the .mcap files in "
-              "Foxglove (Open local file): the 3D panel shows the path and the laser")
+              "Foxglove (Open local file): the 3D panel shows the path, the laser and, once\n"
+              "/robot_description is ticked in its topics, the P3-DX (docs/models.md)")
     return 0
 
 

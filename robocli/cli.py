@@ -15,6 +15,7 @@ import typer
 from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
 from robocli.commands import bridge as bridge_commands
+from robocli.commands import convert as convert_command
 from robocli.commands import doctor as doctor_command
 from robocli.commands import dump as dump_commands
 from robocli.commands import export as export_command
@@ -131,6 +132,7 @@ app.command("info", cls=PlainCommand)(record.info)
 app.command("plot", cls=PlainCommand)(plot.plot)
 app.command("export", cls=PlainCommand)(export_command.export)
 app.command("recover", cls=PlainCommand)(recover_command.recover)
+app.command("convert", cls=PlainCommand)(convert_command.convert)
 app.command("router", cls=ZenohCommand)(router_commands.router)
 app.command("list", cls=ZenohCommand)(router_commands.list_)
 app.command("urdf", cls=PlainCommand)(model_commands.urdf)

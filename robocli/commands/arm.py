@@ -236,6 +236,7 @@ def upload(
         None, "--record", metavar="FILE.mcap", dir_okay=False,
         help="Record this upload's connection (both ports, every frame) to an MCAP file.",
     ),  # fmt: skip
+    ros2: bool = typer.Option(False, "--ros2", help="--record a ROS 2 bag (docs/ros2-bags.md)."),
     overwrite: bool = OverwriteOpt,
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
@@ -254,7 +255,7 @@ def upload(
     if monitor is not None:
         check_writable(monitor, overwrite)  # before the arm moves: not after the whole run
     traj = _trajectory(link.robot, shape, points, file, duration, radius, center)
-    with _recorded(record_to, link, overwrite) as (rec, listeners), \
+    with _recorded(record_to, link, overwrite, ros2) as (rec, listeners), \
             connected(host, link, stream, listeners=listeners) as arm:  # fmt: skip
         if rec is not None:
             rec.add(arm, "arm")
@@ -288,8 +289,8 @@ def upload(
 
 
 @contextlib.contextmanager
-def _recorded(path: Path | None, link: ArmLink,
-              overwrite: bool) -> Iterator[tuple[Any, dict[str, Any]]]:  # fmt: skip
+def _recorded(path: Path | None, link: ArmLink, overwrite: bool,
+              ros2: bool = False) -> Iterator[tuple[Any, dict[str, Any]]]:  # fmt: skip
     """``upload --record``: a recorder (not begun: the file is made once connected) and the
     listeners to connect the arm with, so that both ports are recorded from their first
     byte; ``(None, {})`` without a path. The recording is closed after the arm (its stop
@@ -303,7 +304,8 @@ def _recorded(path: Path | None, link: ArmLink,
 
     if path.suffix != ".mcap":
         raise typer.BadParameter(f"--record {path}: a recording needs a .mcap name")
-    rec = Recorder(path, overwrite=overwrite, deferred=True)  # refused now: before connecting
+    rec = Recorder(path, overwrite=overwrite, deferred=True,
+                   ros2=ros2)  # refused now (and a missing rosbags said): before connecting
     name, links = arm_links(rec, "arm", byte_order=link.byte_order, real_size=link.real_size)
     assert name == "arm"
     start = time.monotonic()

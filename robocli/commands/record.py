@@ -103,6 +103,8 @@ def record(
     link: ArmLink = LINK,
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
+    ros2: bool = typer.Option(False, "--ros2", help="Write a ROS 2 bag: standard messages "
+                              "in CDR that ros2 bag play reads (see docs/ros2-bags.md)."),
 ) -> None:
     """Record Pioneers, arms (their state port), a hub and a Hokuyo laser into one MCAP
     file (Foxglove's schemas, raw frames for dump --file) until --duration, --count or
@@ -125,7 +127,8 @@ def record(
     interrupted = False
     with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
         view = stack.enter_context(live_view(foxglove, foxglove_host))
-        rec = Recorder(output, compression=compression, overwrite=overwrite, deferred=True)
+        rec = Recorder(output, compression=compression, overwrite=overwrite, deferred=True,
+                       ros2=ros2)  # fmt: skip
         if view is not None:
             rec.mirror(view)
         try:

@@ -51,31 +51,50 @@ JOINT_SCHEMA = "robocli.JointState"
 
 
 def channel_messages(path: str | Path) -> Iterator[tuple[str, str, int, int, dict[str, Any]]]:
-    """``(topic, schema, publish_ns, log_ns, message)`` of every JSON message of the
-    recording at ``path``, in file order (a channel's messages in the order written)."""
+    """``(topic, schema, publish_ns, log_ns, message)`` of every decoded message of the
+    recording at ``path``, in file order (a channel's messages in the order written): the
+    JSON of a robocli recording, or the CDR of a ROS 2 bag read as
+    :func:`robocli.ros2.read.decode` reads it (its schema: the robocli one it is read as,
+    :func:`~robocli.ros2.read.view_schema`). Raw channels are left out."""
     from mcap.records import Channel, Message, Schema
 
-    from robocli.io.record.links import RAW_SCHEMA
+    from robocli.io.record.links import is_raw
     from robocli.io.record.reader import iter_messages
 
     schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, str]] = {}
+    channels: dict[int, tuple[str, str, str]] = {}
     for record in iter_messages(path):
         if isinstance(record, Schema):
             schemas[record.id] = record.name
         elif isinstance(record, Channel):
             schema = schemas.get(record.schema_id, "")
-            if record.message_encoding == "json" and schema != RAW_SCHEMA:
-                channels[record.id] = (record.topic, schema)
+            encoding = record.message_encoding
+            if encoding in ("json", "cdr") and not is_raw(encoding, schema):
+                channels[record.id] = (record.topic, schema, encoding)
         elif isinstance(record, Message) and record.channel_id in channels:
-            topic, schema = channels[record.channel_id]
-            try:
-                message = json.loads(record.data)
-            except (ValueError, UnicodeDecodeError, RecursionError):
-                raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
-            if not isinstance(message, dict):
-                message = {"value": message}
-            yield topic, schema, record.publish_time, record.log_time, message
+            topic, schema, encoding = channels[record.channel_id]
+            kind, message = message_of(path, topic, schema, encoding, record.data)
+            yield topic, kind, record.publish_time, record.log_time, message
+
+
+def message_of(path: str | Path, topic: str, schema: str, encoding: str, data: bytes,
+               view: bool = False) -> tuple[str, dict[str, Any]]:  # fmt: skip
+    """(schema, message as a dict) of one message of a ``json`` or ``cdr`` channel (see
+    :func:`channel_messages`; ``view``: a CDR message with the fields robocli's figures
+    read, :func:`robocli.ros2.read.decode`). Raises :class:`RobocliError` for one that does
+    not decode."""
+    if encoding == "cdr":
+        from robocli.ros2.read import decode, view_schema
+
+        try:
+            return view_schema(schema), decode(schema, data, view)
+        except RobocliError as exc:
+            raise RobocliError(f"{path}: a message of {topic}: {exc}") from None
+    try:
+        message = json.loads(data)
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        raise RobocliError(f"{path}: a message of {topic} is not JSON") from None
+    return schema, message if isinstance(message, dict) else {"value": message}
 
 
 def export(path: str | Path, fmt: str, out_dir: str | Path | None = None,

@@ -35,6 +35,7 @@ from typing import Any
 
 __all__ = [
     "FOXGLOVE",
+    "ROS",
     "SCHEMAS",
     "compressed_image",
     "frame_transform",
@@ -316,8 +317,19 @@ ROBOCLI: dict[str, dict[str, Any]] = {
     ),
 }
 
+#: ROS messages robocli writes as JSON where a viewer knows them by their ROS name: a robot's
+#: model (URDF text in ``data``) on ``/robot_description``, which the 3D panel of Foxglove
+#: and Lichtblick reads from a message of schema ``std_msgs/String`` (or
+#: ``std_msgs/msg/String``) only.
+ROS: dict[str, dict[str, Any]] = {
+    "std_msgs/String": _object(
+        "std_msgs/String", "Text, shaped like std_msgs/String: here a robot's URDF",
+        {"data": _string("The text (a robot description: URDF XML)")},
+    ),
+}
+
 #: Every schema a recording may use, by name.
-SCHEMAS: dict[str, dict[str, Any]] = {**FOXGLOVE, **ROBOCLI}
+SCHEMAS: dict[str, dict[str, Any]] = {**FOXGLOVE, **ROBOCLI, **ROS}
 
 
 def schema_bytes(name: str) -> bytes:

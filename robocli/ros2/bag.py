@@ -91,7 +91,7 @@ class BagChannels:
                 msgtype, "ros2msg", T.msgdef(msgtype).encode())  # fmt: skip
         meta = {"offered_qos_profiles": qos_profiles(topic),
                 "topic_type_hash": T.type_hash(msgtype), **(metadata or {})}  # fmt: skip
-        cid = self.writer.register_channel(topic, "cdr", sid, meta)
+        cid: int = self.writer.register_channel(topic, "cdr", sid, meta)
         self._channels[topic] = (cid, msgtype)
         self.counts[topic] = 0
         return cid

@@ -113,6 +113,12 @@ class Mapper:
 
     # ------------------------------------------------------------------ the mapping
 
+    @staticmethod
+    def maps(kind: str) -> bool:
+        """Whether samples of robocli schema ``kind`` have a mapping (some, as the
+        Pioneer's pose, map to nothing: another message says it)."""
+        return kind in _HANDLERS
+
     def map(self, kind: str, topic: str, sample: dict[str, Any]) -> list[Ros2Message]:
         """``sample`` (a message of robocli schema ``kind`` on robocli ``topic``) as ROS 2
         messages; [] for a schema with no mapping."""
@@ -328,11 +334,13 @@ def laser_scan_cdr(ns: int, frame_id: str, angle_min: float, angle_max: float,
     given. The bytes equal :func:`.types.serialize` of the same message."""
     r = np.asarray(ranges, _F4)
     n = len(r)
+    top = float(r.max()) if n else 0.0
+    if not math.isfinite(top):  # an infinity or a NaN given: the farthest finite range
+        top = float(r[np.isfinite(r)].max(initial=0.0))
+    rmax = max(_RANGE_MAX, top)
     if n and not r.all():
         r = np.where(r == 0, np.float32(np.inf), r)
     inten = np.asarray(() if intensities is None else intensities, _F4)
-    finite = r[np.isfinite(r)]
-    rmax = max(_RANGE_MAX, float(finite.max())) if len(finite) else _RANGE_MAX
     inc = (angle_max - angle_min) / (n - 1) if n > 1 else 0.0
     sec, nsec = divmod(ns, 1_000_000_000)
     fid = frame_id.encode() + b"\0"

@@ -291,7 +291,7 @@ def test_several_sources_one_timeline(pioneer_url: str, abb: tuple[int, int],
     assert names == ["pioneer", "pioneer2", "arm", "hub"]
     summary = info(path)
     prefixes = {c.topic.split("/")[1] for c in summary.channels if c.count}
-    assert prefixes == {"pioneer", "pioneer2", "arm", "hub"}
+    assert prefixes == {"pioneer", "pioneer2", "arm", "hub", "robot_description"}
     poses = by_topic(path)["/pioneer2/pose"]
     assert decoded(poses[0])["frame_id"] == "pioneer2/odom"
     times = [m.log_time for _, _, m in messages(path)]

@@ -210,3 +210,12 @@ def test_mapper_frames() -> None:
     assert [m.frame(f) for f in ("pioneer/odom", "arm/base", "laser/laser", "odom")] == [
         "odom", "base_link", "laser", "odom"]
     assert Mapper(prefix_frames=True).frame("arm/base") == "arm/base"
+
+
+def test_fast_laser_scan_range_max_ignores_infinities_and_nan() -> None:
+    ranges = np.array([1.0, np.inf, 45.0, np.nan, 0.0], np.float32)
+    back = deserialize(laser_scan_cdr(NS, "laser", -1.0, 1.0, ranges), "sensor_msgs/msg/LaserScan")
+    assert back.range_max == 45.0 and back.ranges[4] == np.inf and np.isnan(back.ranges[3])
+    small = np.array([np.inf, 2.0], np.float32)
+    back = deserialize(laser_scan_cdr(NS, "laser", -1.0, 1.0, small), "sensor_msgs/msg/LaserScan")
+    assert back.range_max == 30.0

@@ -1,5 +1,6 @@
-"""The arm's channels: joint states, the flange pose and every link's frame, the status
-(see :mod:`.sources` for the topics)."""
+"""The arm's channels: joint states, the flange pose and every link's frame, the status, the
+robot's model (see :mod:`.sources` for the topics). The link frames are those of the arm's
+URDF (:mod:`robocli.robots.urdf`): ``NAME/link_i`` turns with joint ``i``, at its axis."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import numpy as np
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
 from robocli.io.record.links import RawLink, Sink, json_text
+from robocli.io.record.models import add_model
+from robocli.robots.urdf import arm_transforms, arm_urdf, joint_origins
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
@@ -56,6 +59,7 @@ def attach_arm(rec: Sink, arm: Arm, name: str, ports: str = "both") -> str:
                 continue
             arm.add_listener(link, ports=port)
             rec.on_close(_detach_arm(arm, link, port))
+    add_model(rec, name, arm_urdf(arm.robot, f"{name}/"))
     decoder = ArmDecoder(rec, name, arm)
     for port, link in made.items():
         link.decoder = decoder if port == "state" else _no_decoding
@@ -87,9 +91,7 @@ class ArmDecoder:
         self.offset: float | None = None  #: host epoch s minus controller s (min so far)
         self._feedback = False  # JOINT_FEEDBACK seen: the frames follow it
         self._cids: dict[str, int] = {}
-        dh = zip(self.model.a, self.model.d, self.model.alpha, self.model.offset, strict=True)
-        self._dh = [(float(a), float(d), math.cos(al), math.sin(al), float(off))
-                    for a, d, al, off in dh]  # fmt: skip
+        self._flange = joint_origins(self.model)[-1]
 
     def _cid(self, key: str, schema: str) -> int:
         cid = self._cids.get(key)
@@ -142,18 +144,17 @@ class ArmDecoder:
         rec.write(self._cid(topic, "robocli.JointState"), json_text(state).encode(), ns, publish)
         if self._feedback and topic != "joint_feedback":
             return  # the frames follow the feedback, on the controller's clock
+        if len(q) != self.model.n_joints:
+            return  # a controller with fewer joints than the model: no frames to give
         transforms = []
-        rot = np.eye(3)
-        pos = np.zeros(3)
-        for i, (theta, (a, d, ca, sa, off)) in enumerate(zip(q, self._dh, strict=False)):
-            ct, st = math.cos(theta + off), math.sin(theta + off)
-            # standard DH: Rz(theta) Tz(d) Tx(a) Rx(alpha)
-            r = np.array([[ct, -st * ca, st * sa], [st, ct * ca, -ct * sa], [0.0, sa, ca]])
-            t = (a * ct, a * st, d)
+        chain = np.eye(4)
+        for i, m in enumerate(arm_transforms(self.model, q)):  # the URDF's joints, moved
+            t = (float(m[0, 3]), float(m[1, 3]), float(m[2, 3]))
             transforms.append(S.frame_transform(publish, self.frames[i], self.frames[i + 1], t,
-                                                _quaternion(r)))  # fmt: skip
-            pos = pos + rot @ np.array(t)
-            rot = rot @ r
+                                                _quaternion(m)))  # fmt: skip
+            chain = chain @ m
+        chain = chain @ self._flange
+        rot, pos = chain[:3, :3], chain[:3, 3]
         rec.write(self._cid("tf", "foxglove.FrameTransforms"),
                   json_text({"transforms": transforms}).encode(), ns, publish)  # fmt: skip
         x, y, z = (float(v) for v in pos)

@@ -8,8 +8,8 @@ import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
-__all__ = ["RAW_ENCODING", "RAW_SCHEMA", "RawLink", "Sink", "is_raw", "json_text", "new_link",
-           "raw_link"]
+__all__ = ["RAW_ENCODING", "RAW_SCHEMA", "ROS2_RAW_TYPE", "RawLink", "Sink", "is_raw",
+           "json_text", "new_link", "raw_link"]
 
 #: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
@@ -22,9 +22,14 @@ RAW_SCHEMA = "robocli.RawFrame"
 RAW_ENCODING = "robocli.raw"
 
 
+#: The raw channels' type in a ROS 2 bag (CDR, see :mod:`robocli.ros2.types`).
+ROS2_RAW_TYPE = "robocli_msgs/msg/RawFrame"
+
+
 def is_raw(encoding: str, schema: str) -> bool:
-    """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel."""
-    return schema == RAW_SCHEMA or encoding == RAW_ENCODING
+    """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel: robocli's
+    JSON, its older bytes, or a ROS 2 bag's ``robocli_msgs/msg/RawFrame``."""
+    return schema == RAW_SCHEMA or encoding == RAW_ENCODING or schema == ROS2_RAW_TYPE
 
 
 

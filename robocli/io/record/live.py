@@ -164,7 +164,9 @@ class LiveView:
     def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
                 metadata: dict[str, str] | None = None) -> int:  # fmt: skip
         """The id of ``topic``'s live channel, advertised on first use; -1 for a channel
-        the view does not serve (raw bytes, an unknown schema)."""
+        the view does not serve (raw bytes, an unknown schema). A channel whose
+        ``metadata`` says ``latched`` keeps its last message for clients that subscribe
+        later."""
         cid = self._by_topic.get(topic)
         if cid is not None:
             return cid
@@ -172,7 +174,9 @@ class LiveView:
             self._by_topic[topic] = -1
             return -1
         cid = self._by_topic[topic] = len(self._by_topic) + 1
-        self.server.advertise(cid, topic, "json", schema, schema_bytes(schema).decode())
+        latched = (metadata or {}).get("latched") == "true"  # a robot's model
+        self.server.advertise(cid, topic, "json", schema, schema_bytes(schema).decode(),
+                              latched=latched)  # fmt: skip
         return cid
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:

@@ -38,6 +38,10 @@ def attach_pioneer(rec: Sink, robot: Pioneer, name: str | None) -> str:
         robot.add_listener(link)
         rec.on_close(lambda: robot.remove_listener(link))
     assert name is not None
+    from robocli.io.record.models import add_model
+    from robocli.robots.urdf import pioneer_urdf
+
+    add_model(rec, name, pioneer_urdf(robot.params, f"{name}/"))
     decoder = PioneerDecoder(rec, name, robot.params)
     link.decoder = decoder
     put = rec.put

@@ -29,14 +29,13 @@ program or a test can check the figure without looking at pixels.
 from __future__ import annotations
 
 import bisect
-import json
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from robocli.errors import InvalidArgument, RobocliError
+from robocli.errors import InvalidArgument
 from robocli.io.record.mcapfile import BadRecording
 
 __all__ = ["PlotResult", "numeric_fields", "plot"]
@@ -100,27 +99,30 @@ def _read(recording: str | Path, topics: Sequence[str]) -> tuple[dict[str, str],
     wanted topic)."""
     from mcap.records import Channel, Message, Schema
 
+    from robocli.io.export import message_of
     from robocli.io.record.reader import iter_messages
+    from robocli.ros2.read import view_schema
 
     schemas: dict[int, str] = {}
     channels: dict[int, tuple[str, str]] = {}
     names: dict[str, str] = {}
+    types: dict[str, str] = {}  # the schema each topic is written with
     out: Records = {t: [] for t in topics}
     for record in iter_messages(recording):
         if isinstance(record, Message):
             topic, encoding = channels.get(record.channel_id, ("", ""))
             wanted = out.get(topic)
-            if wanted is not None and encoding == "json":
-                try:
-                    wanted.append((record.log_time, record.publish_time,
-                                   json.loads(record.data)))  # fmt: skip
-                except (ValueError, RecursionError):
-                    raise RobocliError(f"{recording}: a {topic} message is not JSON") from None
+            if wanted is not None and encoding in ("json", "cdr"):
+                wanted.append((record.log_time, record.publish_time, message_of(
+                    recording, topic, types[topic], encoding, record.data, True)[1]))  # fmt: skip
         elif isinstance(record, Schema):
             schemas[record.id] = record.name
         elif isinstance(record, Channel):
             channels[record.id] = (record.topic, record.message_encoding)
-            names[record.topic] = schemas.get(record.schema_id, "")
+            types[record.topic] = schemas.get(record.schema_id, "")
+            names[record.topic] = (view_schema(types[record.topic])
+                                   if record.message_encoding == "cdr"
+                                   else types[record.topic])  # fmt: skip
     return names, out
 
 

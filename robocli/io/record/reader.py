@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from robocli.errors import RobocliError
-from robocli.io.record.links import RAW_ENCODING, is_raw
+from robocli.io.record.links import RAW_ENCODING, ROS2_RAW_TYPE, is_raw
 from robocli.io.record.mcapfile import BadRecording, McapFile, warn_truncated
 from robocli.io.record.recorder import RecordingError
 
@@ -306,10 +306,17 @@ def raw_frames(path: str | Path, protocol: str, stats: Any = None
 
 def raw_frame(encoding: str, data: bytes) -> bytes:
     """The frame a raw channel's message holds: ``data`` itself for :data:`RAW_ENCODING`,
-    else the base64 ``data`` of the JSON. Raises
-    :class:`RecordingError` for a message that has none."""
+    the ``data`` of a ROS 2 bag's ``robocli_msgs/msg/RawFrame`` (CDR), else the base64
+    ``data`` of the JSON. Raises :class:`RecordingError` for a message that has none."""
     if encoding == RAW_ENCODING:
         return data
+    if encoding == "cdr":
+        from robocli.ros2.types import deserialize
+
+        try:
+            return bytes(deserialize(data, ROS2_RAW_TYPE).data)
+        except RobocliError as exc:
+            raise RecordingError(f"a raw frame's message is malformed ({exc})") from None
     try:
         text = json.loads(data)["data"]
         return base64.b64decode(text, validate=True)

@@ -212,7 +212,8 @@ class Recorder:
                 "none": CompressionType.NONE}[self.compression]  # fmt: skip
         try:
             self._writer = Writer(self._file, chunk_size=self._chunk_size, compression=kind)
-            self._writer.start(profile="ros2" if self.ros2 else "", library=f"robocli {__version__} (mcap "
+            self._writer.start(profile="ros2" if self.ros2 else "",
+                               library=f"robocli {__version__} (mcap "
                                f"{getattr(mcap, '__version__', '?')})")  # fmt: skip
             self._file.flush()
         except Exception as exc:
@@ -309,18 +310,19 @@ class Recorder:
     def channel(self, topic: str, schema: str | None, *, encoding: str = "json",
                 metadata: dict[str, str] | None = None) -> int:  # fmt: skip
         """The id of ``topic``'s channel, registered on first use (writer thread only)."""
-        cid = self._channels.get(topic)
-        if cid is not None:
-            return cid
-        sid = 0
+        known = self._channels.get(topic)
+        if known is not None:
+            return known
         if self._ros2 is not None:  # the bag's channels come with the messages they map to
-            cid = self._ros2.channel(topic, schema, metadata)
-        elif schema is not None:
-            sid = self._schemas.get(schema, 0)
-            if not sid:
-                sid = self._writer.register_schema(schema, "jsonschema", schema_bytes(schema))
-                self._schemas[schema] = sid
-        if self._ros2 is None:
+            cid: int = self._ros2.channel(topic, schema, metadata)
+        else:
+            sid = 0
+            if schema is not None:
+                sid = self._schemas.get(schema, 0)
+                if not sid:
+                    sid = self._writer.register_schema(schema, "jsonschema",
+                                                       schema_bytes(schema))  # fmt: skip
+                    self._schemas[schema] = sid
             cid = self._writer.register_channel(topic, encoding, sid, dict(metadata or {}))
         self._channels[topic] = cid
         if self._mirrors:

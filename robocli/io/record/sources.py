@@ -23,6 +23,9 @@ Arm        ``joint_states`` (JOINT_POSITION) and ``joint_feedback`` (JOINT_FEEDB
 Hub        ``imu`` (robocli.Imu), ``adc``, ``battery``, ``sysinfo``, ``gps`` (LocationFix),
            ``laser`` (LaserScan), ``camera`` (CompressedImage for JPEG, else RawImage rgb8),
            ``stereo/left|right``, ``depth/rgb`` and ``depth/image`` (RawImage mono16, mm)
+Models     ``robot_description`` (a Pioneer's and an arm's URDF, std_msgs/String, written
+           once, latched; the first robot's also on ``/robot_description``, see
+           :mod:`.models`); an arm's ``link_i`` frames are those of its URDF
 Laser      ``scan`` (a Hokuyo's streamed scans, LaserScan in ``NAME/laser``; publish time:
            the sensor's timestamp on the host clock), ``tf`` (on a robot: FrameTransform
            from its ``base_link`` at the mount); raw channels of protocol ``scip2``

@@ -84,6 +84,8 @@ class FoxgloveServer:
         self._lock = threading.Lock()
         self._clients: list[_Client] = []
         self._channels: dict[int, dict[str, Any]] = {}
+        #: latched channels: their last message (data, ns), None before the first
+        self._latched: dict[int, tuple[bytes, int] | None] = {}
         self._session = str(time.time_ns())
         self._loop = asyncio.new_event_loop()
         started = threading.Event()
@@ -121,13 +123,17 @@ class FoxgloveServer:
     # ------------------------------------------------------------------ publishing (any thread)
 
     def advertise(self, cid: int, topic: str, encoding: str, schema_name: str,
-                  schema: str) -> None:  # fmt: skip
-        """Make channel ``cid`` known to every client, now and later."""
+                  schema: str, *, latched: bool = False) -> None:  # fmt: skip
+        """Make channel ``cid`` known to every client, now and later. ``latched``: its last
+        message is kept and sent to each subscription made later (a robot's model, written
+        once), as to those there when it came."""
         channel = {"id": cid, "topic": topic, "encoding": encoding, "schemaName": schema_name,
                    "schema": schema, "schemaEncoding": "jsonschema"}  # fmt: skip
         text = json.dumps({"op": "advertise", "channels": [channel]}, separators=(",", ":"))
         with self._lock:
             self._channels[cid] = channel
+            if latched:
+                self._latched.setdefault(cid, None)
             clients = list(self._clients)
         for client in clients:
             self._control(client, text)
@@ -137,24 +143,31 @@ class FoxgloveServer:
         whose share it does not fit loses it (counted). Never blocks."""
         wake = []
         with self._lock:
+            if cid in self._latched:
+                self._latched[cid] = (data, ns)
             for client in self._clients:
                 sub = client.subs.get(cid)
-                if sub is None or client.closed:
-                    continue
-                size = _MESSAGE_DATA.size + len(data)
-                if client.queued + size > self.client_share:
-                    client.dropped += 1
-                    self.dropped += 1
-                    continue
-                client.queue.append(_MESSAGE_DATA.pack(1, sub, ns) + data)
-                client.queued += size
-                self._queued += size
-                if client.asleep:
-                    client.asleep = False
+                if sub is not None and self._queue_data(client, sub, data, ns):
                     wake.append(client)
             self.peak_queued = max(self.peak_queued, self._queued)
         for client in wake:
             self._loop.call_soon_threadsafe(client.wake.set)
+
+    def _queue_data(self, client: _Client, sub: int, data: bytes, ns: int) -> bool:
+        """Queue one message for ``client``'s subscription ``sub`` unless its share is full
+        (counted); True when its sender must be woken. Holds ``_lock``."""
+        if client.closed:
+            return False
+        size = _MESSAGE_DATA.size + len(data)
+        if client.queued + size > self.client_share:
+            client.dropped += 1
+            self.dropped += 1
+            return False
+        client.queue.append(_MESSAGE_DATA.pack(1, sub, ns) + data)
+        client.queued += size
+        self._queued += size
+        asleep, client.asleep = client.asleep, False
+        return asleep
 
     def _control(self, client: _Client, frame: str) -> None:
         """Queue a control message (JSON text): never dropped; few and small (one
@@ -264,6 +277,9 @@ class FoxgloveServer:
                     with self._lock:
                         if cid in self._channels and 0 <= sid < 1 << 32:
                             client.subs[cid] = sid
+                            last = self._latched.get(cid)
+                            if last is not None and self._queue_data(client, sid, *last):
+                                client.wake.set()  # (this runs on the server's loop)
             elif op == "unsubscribe":
                 gone = {int(s) for s in msg["subscriptionIds"]}
                 with self._lock:
