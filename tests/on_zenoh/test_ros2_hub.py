@@ -96,3 +96,12 @@ def test_a_sensor_nobody_reads_on_ros2_is_not_decoded_until_someone_does(endpoin
         close_session(reader)
         close_session(session)
         server.close()
+
+
+def test_ros2_without_zenoh_is_a_one_line_usage_error() -> None:
+    from on_zenoh.test_cli_zenoh import robocli
+
+    done = robocli("serve", "--sim", "--no-tcp", "--ros2")
+    assert done.returncode == 2  # --no-tcp without --zenoh: the first usage error
+    done = robocli("serve", "--sim", "--port", "0", "--ros2")
+    assert done.returncode == 2 and "--ros2" in done.stderr and "Traceback" not in done.stderr

@@ -1,7 +1,7 @@
 """The lab's ACL (examples/lab-router.json5) over ROS 2's keys: the bridge r1 publishes its
-ROS 2 topics in the namespace /r1; alice, with her own credentials, reads them, declares her
-node's graph tokens and drives r1 through /r1/cmd_vel; bob's forged odometry on r1's topic
-is dropped by the router."""
+ROS 2 topics in the namespace /r1 of ROS domain 7; alice, with her own credentials, reads
+them, declares her node's graph tokens and drives r1 through /r1/cmd_vel; bob's forged
+odometry on r1's topic is dropped by the router."""
 
 from __future__ import annotations
 
@@ -42,25 +42,25 @@ def test_the_lab_acl_covers_ros2_topics(lab: Lab) -> None:  # noqa: F811 - the f
     with PioneerSim() as simulator:
         url = simulator.serve_tcp("127.0.0.1", 0)
         args = ["bridge", "pioneer", url, "--zenoh", str(lab.configs["r1"]), "--ros2",
-                "--ros2-namespace", "/r1"]  # fmt: skip
+                "--ros2-namespace", "/r1", "--ros2-domain", "7"]  # fmt: skip
         with robocli_process(args, "bridge "):
             alice, bob = lab.session("alice"), lab.session("bob")
             try:
-                node = Ros2Node(alice, "alice_teleop")  # the root namespace: her own tokens
+                node = Ros2Node(alice, "alice_teleop", domain=7)  # the root namespace: her tokens
                 odoms: list[Any] = []
                 node.subscriber("/r1/odom", ODOM,
                                 lambda cdr, _a: odoms.append(T.deserialize(cdr, ODOM)))
                 wait_for(lambda: odoms, "alice reads r1's odometry")
                 # bob forges r1's odometry, then probes on his own namespace's key
-                key = topic_key(0, "/r1/odom", ODOM, T.type_hash(ODOM))
+                key = topic_key(7, "/r1/odom", ODOM, T.type_hash(ODOM))
                 probe: list[Any] = []
-                alice.declare_subscriber("0/bob/probe", probe.append)
+                alice.declare_subscriber("7/bob/probe", probe.append)
                 forged = _forged_odom()
                 for _ in range(3):
                     bob.put(key, forged, attachment=Attachment(1, 0, bytes(16)).encode())
 
                 def probed() -> bool:
-                    bob.put("0/bob/probe", b"after the forgeries")
+                    bob.put("7/bob/probe", b"after the forgeries")
                     return bool(probe)
 
                 wait_for(probed, "bob's own put, after his forged ones")
