@@ -37,9 +37,11 @@ the robot's own user may publish its other topics.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import threading
+from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -58,7 +60,8 @@ if TYPE_CHECKING:
     from robocli.bridge.control import ControlGate
     from robocli.bridge.pioneer import PioneerBridge
 
-__all__ = ["ROS_HOLDER", "Ros2Bridge", "ros2_arm", "ros2_pioneer", "trajectory_arrays"]
+__all__ = ["ROS_HOLDER", "Ros2Bridge", "ros2_arm", "ros2_node", "ros2_pioneer",
+           "trajectory_arrays"]
 
 log = logging.getLogger("robocli.bridge")
 
@@ -213,3 +216,20 @@ def trajectory_arrays(msg: Any, names: list[str]) -> tuple[np.ndarray, np.ndarra
     if not (np.isfinite(times).all() and np.isfinite(joints).all()):
         raise ProtocolError("a trajectory of numbers that are not finite")
     return times, joints
+
+
+@contextlib.contextmanager
+def ros2_node(bridge: PioneerBridge | ArmBridge, session: zenoh.Session, enabled: bool, *,
+              domain: int = 0, namespace: str = "") -> Iterator[Ros2Bridge | None]:  # fmt: skip
+    """``bridge`` as a ROS 2 node while the block runs (``enabled`` False: None, nothing)."""
+    from robocli.bridge.pioneer import PioneerBridge
+
+    if not enabled:
+        yield None
+        return
+    make = ros2_pioneer if isinstance(bridge, PioneerBridge) else ros2_arm
+    ros = make(bridge, session, domain=domain, namespace=namespace)  # type: ignore[arg-type]
+    try:
+        yield ros
+    finally:
+        ros.close()

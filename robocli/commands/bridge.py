@@ -55,6 +55,7 @@ def pioneer(
     controller at a time, until Ctrl-C. The robot stops when its controller's commands stop
     for --silence, when the controller goes, and when the bridge ends."""
     from robocli.bridge.pioneer import PioneerBridge
+    from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
     robot_name = server_name(name, zenoh, "pioneer")
@@ -66,20 +67,14 @@ def pioneer(
         try:
             with sigterm_as_interrupt(), PioneerBridge(robot, session, robot_name,
                                                        silence=silence) as bridge:  # fmt: skip
-                from robocli.bridge.ros2 import ros2_pioneer
-
-                ros = (ros2_pioneer(bridge, session, domain=ros2_domain, namespace=ros2_namespace)
-                       if ros2 else None)  # fmt: skip
-                try:
+                with ros2_node(bridge, session, ros2, domain=ros2_domain,
+                               namespace=ros2_namespace) as ros:  # fmt: skip
                     typer.echo(f"bridge {robot_name}: pioneer {robot.params.subtype} on "
                                f"{robot.transport.url}, Zenoh {target}"
                                + (f", ROS 2 domain {ros2_domain}" if ros else ""))  # fmt: skip
                     sys.stdout.flush()
                     while not bridge.wait(0.5):
                         pass
-                finally:
-                    if ros is not None:
-                        ros.close()
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
@@ -100,6 +95,7 @@ def arm(
     trajectory uploads from one controller at a time, until Ctrl-C. A running trajectory is
     stopped when its controller goes and when the bridge ends."""
     from robocli.bridge.arm import ArmBridge
+    from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
     robot_name = server_name(name, zenoh, "arm")
@@ -110,19 +106,13 @@ def arm(
         session = zenoh_session(zenoh, "server")
         try:
             with sigterm_as_interrupt(), ArmBridge(robot, session, robot_name) as bridge:
-                from robocli.bridge.ros2 import ros2_arm
-
-                ros = (ros2_arm(bridge, session, domain=ros2_domain, namespace=ros2_namespace)
-                       if ros2 else None)  # fmt: skip
-                try:
+                with ros2_node(bridge, session, ros2, domain=ros2_domain,
+                               namespace=ros2_namespace) as ros:  # fmt: skip
                     typer.echo(f"bridge {robot_name}: arm {robot.robot.name}, Zenoh {target}"
                                + (f", ROS 2 domain {ros2_domain}" if ros else ""))  # fmt: skip
                     sys.stdout.flush()
                     while not bridge.wait(0.5):
                         pass
-                finally:
-                    if ros is not None:
-                        ros.close()
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:

@@ -15,7 +15,10 @@ from typing import Any
 
 import pytest
 
+from on_zenoh.bridge_helpers import robocli_process
 from on_zenoh.conftest import free_endpoint
+
+__all__ = ["client_config", "node_names", "robocli_process", "router", "sdk", "topics"]
 
 _RULE = "=" * 80 + "\n"
 
@@ -106,34 +109,3 @@ def node_names(session: Any, domain: int = 0) -> set[str]:
                 names.add(token.namespace.rstrip("/") + "/" + token.node)
     return names
 
-
-@contextlib.contextmanager
-def robocli_process(args: list[str], ready: str) -> Iterator[tuple[Any, str]]:
-    """``robocli ARGS`` in its own process until its first line starts with ``ready``."""
-    import os
-    import subprocess
-    import sys
-
-    from on_zenoh.bridge_helpers import DEADLINE, read_line
-
-    proc = subprocess.Popen([sys.executable, "-m", "robocli", *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, "PYTHONUNBUFFERED": "1"})  # fmt: skip
-    try:
-        line = read_line(proc, DEADLINE)
-        if not line.startswith(ready):
-            proc.kill()
-            raise AssertionError(f"robocli {args[0]} did not start: {line!r} "
-                                 f"{proc.communicate(timeout=DEADLINE)[1]!r}")  # fmt: skip
-        yield proc, line
-    finally:
-        if proc.poll() is None:
-            proc.terminate()
-            try:
-                proc.wait(DEADLINE)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        for pipe in (proc.stdout, proc.stderr):
-            if pipe is not None:
-                pipe.close()
