@@ -67,6 +67,8 @@ log = logging.getLogger("robocli.bridge")
 
 ROS_HOLDER = "ros2"
 """The one controller name every ROS 2 publisher of a command topic drives as."""
+MAX_PUBLISHERS = 1024
+"""The most ROS 2 publishers of the command topics a bridge keeps track of."""
 
 
 class Ros2Bridge:
@@ -131,6 +133,8 @@ class Ros2Bridge:
                 return
             before = bool(self._publishers)
             if sample.kind == self._put:
+                if len(self._publishers) >= MAX_PUBLISHERS:
+                    return  # a flood of tokens: the ones known keep ROS 2 holding
                 self._publishers.add(key)
             else:
                 self._publishers.discard(key)

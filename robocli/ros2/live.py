@@ -55,9 +55,11 @@ def _qos(topic: str) -> Qos:
 class Ros2Topics:
     """The sink (see the module) of robocli ``name``'s messages, published by ``node``.
 
-    ``max_queue``: work items waiting for the sink's thread before new ones are dropped."""
+    ``max_queue`` / ``max_queue_bytes``: the work items (and the bytes they carry) that may
+    wait for the sink's thread; what would go past either is dropped (:attr:`dropped`)."""
 
-    def __init__(self, node: Ros2Node, name: str, *, max_queue: int = 1024) -> None:
+    def __init__(self, node: Ros2Node, name: str, *, max_queue: int = 1024,
+                 max_queue_bytes: int = 64 << 20) -> None:  # fmt: skip
         self.node, self.name = node, name
         self.links: dict[str, Any] = {}
         self.mapper = Mapper()
@@ -71,8 +73,9 @@ class Ros2Topics:
         self._publishers: dict[tuple[str, str], Ros2Publisher] = {}
         self._closers: list[Callable[[], None]] = []
         self._epoch_ns = time.time_ns() - time.monotonic_ns()
-        self._queue: queue.Queue[tuple[Callable[..., None], tuple[Any, ...]] | None] = (
+        self._queue: queue.Queue[tuple[Callable[..., None], tuple[Any, ...], int] | None] = (
             queue.Queue(max_queue))  # fmt: skip
+        self._max_bytes, self._queued_bytes = max_queue_bytes, 0
         self._lock = threading.Lock()  # publishers are made by the sink thread and callers
         self._thread = threading.Thread(target=self._run, name=f"ros2-{name}", daemon=True)
         self._thread.start()
@@ -93,9 +96,16 @@ class Ros2Topics:
         self._closers.append(detach)
 
     def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
+        with self._lock:
+            if self._queued_bytes + size > self._max_bytes:
+                self.dropped += 1
+                return False
+            self._queued_bytes += size
         try:
-            self._queue.put_nowait((handler, args))
+            self._queue.put_nowait((handler, args, size))
         except queue.Full:
+            with self._lock:
+                self._queued_bytes -= size
             self.dropped += 1
             return False
         return True
@@ -173,12 +183,15 @@ class Ros2Topics:
             item = self._queue.get()
             if item is None:
                 return
-            handler, args = item
+            handler, args, size = item
             try:
                 handler(*args)
             except Exception:  # noqa: BLE001 - one bad frame never ends the topics
                 self.errors += 1
                 log.error("%s: a sample could not be published", self.name, exc_info=True)
+            finally:
+                with self._lock:
+                    self._queued_bytes -= size
 
     def close(self) -> None:
         """Detach from the devices, finish the queued work (bounded), stop. Idempotent."""
