@@ -42,8 +42,9 @@ _INFINITE = {"sec": 9223372036, "nsec": 854775807}  # RMW_DURATION_INFINITE, as 
 def qos_profiles(topic: str) -> str:
     """``offered_qos_profiles`` of ``topic``: reliable (a reliable offer matches both
     reliable and best-effort subscribers), keep last 10 (100 for ``/tf``), volatile, but
-    transient local and depth 1 for latched topics (``/tf_static``, ``/robot_description``)."""
-    latched = topic in _LATCHED
+    transient local and depth 1 for latched topics (``/tf_static``, every
+    ``robot_description``)."""
+    latched = topic in _LATCHED or topic.endswith("/robot_description")
     profile = {
         "history": "keep_last", "depth": 1 if latched else 100 if topic == "/tf" else 10,
         "reliability": "reliable",

@@ -40,14 +40,17 @@ foxglove.CompressedImage   the same topic, sensor_msgs/CompressedImage
 foxglove.RawImage          the same topic, sensor_msgs/Image (``rgb8``; ``mono16`` depth in mm
                            becomes ``16UC1``, the ROS depth convention)
 robocli.RawFrame           the same topic, ``robocli_msgs/msg/RawFrame`` (:data:`.types.RAW_FRAME`)
+std_msgs/String            the same topic, std_msgs/String (a robot's URDF on
+                           ``robot_description``, its link names mapped as frames)
 ========================== ======================================================================
 
 **Frames.** robocli names frames ``NAME/odom``, ``NAME/base_link``, ``NAME/laser``, the
-arm's ``NAME/base`` and ``NAME/link_i``. By default they become REP 105's plain names
-(``odom``, ``base_link``, ``laser``; the arm's base ``base_link`` and ``link_i``, as
-ROS-Industrial names them), which is what a ROS 2 tool expects of one robot;
-``Mapper(prefix_frames=True)`` keeps robocli's ``NAME/`` prefix, for several robots in one
-bag or on one ROS 2 graph.
+arm's ``NAME/base`` and ``NAME/link_i`` (its URDF's links, :mod:`robocli.robots.urdf`). By
+default the ``NAME/`` prefix goes: REP 105's ``odom``, ``base_link``, ``laser``, the arm's
+``base`` and ``link_i`` (ROS-Industrial's names), which is what a ROS 2 tool expects of one
+robot; a robot description's link names lose it too, so that its model and ``/tf`` agree.
+``Mapper(prefix_frames=True)`` keeps the prefixes, for several robots in one bag or on one
+ROS 2 graph.
 
 **Time.** ``t_ns`` is the message's own stamp (the source's acquisition time, robocli's
 ``timestamp``), also written in every header. A sample of a schema not listed above maps to
@@ -57,6 +60,7 @@ nothing. A malformed sample raises :class:`~robocli.errors.RobocliError`.
 from __future__ import annotations
 
 import math
+import re
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -99,11 +103,7 @@ class Mapper:
         """A robocli frame id as a ROS 2 one (see *Frames*)."""
         out = self._frames.get(name)
         if out is None:
-            if self.prefix_frames or "/" not in name:
-                out = name
-            else:
-                out = name.split("/", 1)[1]
-                out = "base_link" if out == "base" else out
+            out = name if self.prefix_frames else name.split("/", 1)[-1]
             self._frames[name] = out
         return out
 
@@ -283,6 +283,12 @@ class Mapper:
                           step=int(s["step"]),
                           data=np.frombuffer(base64.b64decode(s["data"]), _U1))]  # fmt: skip
 
+    def text(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
+        data = str(s["data"])
+        if topic.endswith("/robot_description") and not self.prefix_frames:
+            data = _URDF_LINK.sub(lambda m: m[1] + self.frame(m[2]) + m[3], data)
+        return [self._one(topic, "std_msgs/msg/String", ns, data=data)]
+
     def raw(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
         import base64
 
@@ -308,7 +314,10 @@ _HANDLERS = {
     "foxglove.CompressedImage": Mapper.compressed,
     "foxglove.RawImage": Mapper.image,
     "robocli.RawFrame": Mapper.raw,
+    "std_msgs/String": Mapper.text,
 }
+#: A link's name in a URDF: ``<link name="...">``, ``<parent link="...">``, ``<child link=...``.
+_URDF_LINK = re.compile(r'(<(?:link\s[^>]*?\bname|(?:parent|child)\s[^>]*?\blink)=")([^"]*)(")')
 
 _DEFAULT = Mapper()
 

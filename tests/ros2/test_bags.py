@@ -32,6 +32,8 @@ EXPECTED = {
         "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
         "/pioneer/raw/rx": "robocli_msgs/msg/RawFrame",
         "/pioneer/raw/tx": "robocli_msgs/msg/RawFrame",
+        "/pioneer/robot_description": "std_msgs/msg/String",
+        "/robot_description": "std_msgs/msg/String",
     },
     "arm": {
         "/arm/joint_states": "sensor_msgs/msg/JointState",
@@ -41,6 +43,7 @@ EXPECTED = {
         "/arm/raw/motion/tx": "robocli_msgs/msg/RawFrame",
         "/arm/raw/motion/rx": "robocli_msgs/msg/RawFrame",
         "/arm/raw/state/rx": "robocli_msgs/msg/RawFrame",
+        "/arm/robot_description": "std_msgs/msg/String",
     },
     "hub": {
         "/hub/imu": "sensor_msgs/msg/Imu", "/hub/imu/mag": "sensor_msgs/msg/MagneticField",
@@ -88,6 +91,12 @@ def test_rosbags_reads_the_bag_whole(bags: dict[str, Path], source: str) -> None
         assert len(first["/pioneer/laser"].ranges) == 181
     elif source == "arm":
         assert list(first["/arm/joint_states"].name) == [f"joint_{i}" for i in range(1, 7)]
+    if source != "hub":  # the model's links are the frames /tf moves (REP 105 names)
+        import re
+
+        links = set(re.findall(r'<link name="([^"]+)"', first[f"/{source}/robot_description"].data))
+        frames = {f for t in first["/tf"].transforms for f in (t.header.frame_id, t.child_frame_id)}
+        assert frames - {"odom"} <= links, (frames, links)
     else:
         assert (first["/hub/camera"].width, first["/hub/camera"].encoding) == (160, "rgb8")
         assert first["/hub/depth/image"].encoding == "16UC1"

@@ -84,7 +84,7 @@ def test_transforms_go_to_tf_and_frames_follow_rep105_or_keep_their_prefix() -> 
                                             S.quaternion_z(0.1))]}  # fmt: skip
     _, msg = _decoded("foxglove.FrameTransforms", "/arm/tf", arm)["/tf"]
     assert [(t["header"]["frame_id"], t["child_frame_id"]) for t in msg["transforms"]] == [
-        ("base_link", "link_1"), ("link_1", "link_2")]  # ROS-Industrial's names
+        ("base", "link_1"), ("link_1", "link_2")]  # ROS-Industrial's names
 
 
 def test_laser_scan_has_ros_conventions() -> None:
@@ -128,7 +128,7 @@ def test_joint_state_status_and_pose() -> None:
     tcp = {"timestamp": STAMP, "frame_id": "arm/base", "pose": S.pose(0.3, 0.0, 0.6)}
     kind, msg = _decoded("foxglove.PoseInFrame", "/arm/tcp", tcp)["/arm/tcp"]
     assert kind == "geometry_msgs/msg/PoseStamped"
-    assert msg["header"]["frame_id"] == "base_link" and msg["pose"]["position"]["z"] == 0.6
+    assert msg["header"]["frame_id"] == "base" and msg["pose"]["position"]["z"] == 0.6
     # the Pioneer's pose is in its odometry already
     assert to_ros2("foxglove.PoseInFrame", "/pioneer/pose", dict(tcp)) == []
 
@@ -208,7 +208,7 @@ def test_type_hashes_are_ros2s() -> None:
 def test_mapper_frames() -> None:
     m = Mapper()
     assert [m.frame(f) for f in ("pioneer/odom", "arm/base", "laser/laser", "odom")] == [
-        "odom", "base_link", "laser", "odom"]
+        "odom", "base", "laser", "odom"]
     assert Mapper(prefix_frames=True).frame("arm/base") == "arm/base"
 
 
@@ -219,3 +219,15 @@ def test_fast_laser_scan_range_max_ignores_infinities_and_nan() -> None:
     small = np.array([np.inf, 2.0], np.float32)
     back = deserialize(laser_scan_cdr(NS, "laser", -1.0, 1.0, small), "sensor_msgs/msg/LaserScan")
     assert back.range_max == 30.0
+
+
+def test_robot_description_links_follow_the_frames() -> None:
+    from robocli.robots.urdf import urdf
+
+    sample = {"data": urdf("irb120", "arm/")}
+    (m,) = to_ros2("std_msgs/String", "/arm/robot_description", sample)
+    text = plain(deserialize(m.data, m.msgtype))["data"]
+    assert m.msgtype == "std_msgs/msg/String"
+    assert '<link name="base"' in text and '<child link="link_1"' in text and "arm/" not in text
+    (m,) = to_ros2("std_msgs/String", "/arm/robot_description", sample, prefix_frames=True)
+    assert plain(deserialize(m.data, m.msgtype))["data"] == sample["data"]
