@@ -159,7 +159,7 @@ def ros2_pioneer(bridge: PioneerBridge, session: zenoh.Session, *, domain: int =
 
     ros = Ros2Bridge(session, bridge.name, bridge.gate, domain=domain, namespace=namespace)
     attach_pioneer(ros.topics, bridge.robot, bridge.name)
-    ros.topics.publish_model(urdf(bridge.robot.params.subtype))
+    ros.topics.publish_static(urdf(bridge.robot.params.subtype))
 
     def twist(msg: Any) -> None:
         v, w = float(msg.linear.x), float(msg.angular.z)
@@ -180,7 +180,7 @@ def ros2_arm(bridge: ArmBridge, session: zenoh.Session, *, domain: int = 0,
 
     ros = Ros2Bridge(session, bridge.name, bridge.gate, domain=domain, namespace=namespace)
     attach_arm(ros.topics, bridge.arm, bridge.name, ports="state")
-    ros.topics.publish_model(urdf(bridge.arm.robot.name))
+    ros.topics.publish_static(urdf(bridge.arm.robot.name))
     n = bridge.arm.robot.n_joints
     names = [f"joint_{i + 1}" for i in range(n)]
 

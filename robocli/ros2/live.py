@@ -158,14 +158,13 @@ class Ros2Topics:
         if self.used is not None:
             self.used.add(pub)
 
-    def publish_model(self, urdf: str, t_ns: int | None = None) -> None:
-        """``robot_description`` (std_msgs/String) and the model's fixed joints (wheels at 0)
-        on ``tf_static``, both transient local: what ``robot_state_publisher`` would say."""
+    def publish_static(self, urdf: str, t_ns: int | None = None) -> None:
+        """``tf_static``: the model's fixed joints (wheels at 0), transient local, as
+        ``robot_state_publisher`` would say them. (``robot_description`` itself comes from
+        the device's decoders, as in a recording: :mod:`robocli.io.record.models`.)"""
         from robocli.ros2 import types as T
 
         stamp = _time(time.time_ns() if t_ns is None else t_ns)
-        self.publisher("robot_description", "std_msgs/msg/String").publish(
-            T.serialize(T.message("std_msgs/msg/String", data=urdf), "std_msgs/msg/String"))
         tfs = [T.message("geometry_msgs/msg/TransformStamped",
                          header=T.message("std_msgs/msg/Header", stamp=stamp, frame_id=parent),
                          child_frame_id=child,
@@ -212,28 +211,21 @@ def static_transforms(
     urdf: str,
 ) -> list[tuple[str, str, tuple[float, float, float], tuple[float, float, float, float]]]:
     """(parent, child, xyz, quaternion xyzw) of the URDF's fixed and continuous joints (a
-    continuous one at 0: robocli measures no wheel angle), and ``base_link`` -> the root link
-    when the model's root has another name (an arm's ``base``: robocli's frames call it
-    ``base_link``)."""
+    continuous one at 0: robocli measures no wheel angle); an arm's revolute joints are its
+    ``tf``'s."""
     root = ET.fromstring(urdf)
     out: list[tuple[str, str, tuple[float, float, float], tuple[float, float, float, float]]]
     out = []
-    children: set[str] = set()
     for joint in root.iter("joint"):
         parent, child = joint.find("parent"), joint.find("child")
         if parent is None or child is None:
             continue
-        children.add(child.get("link", ""))
         if joint.get("type") not in ("fixed", "continuous"):
             continue
         origin = joint.find("origin")
         xyz = _floats(origin.get("xyz") if origin is not None else None)
         rpy = _floats(origin.get("rpy") if origin is not None else None)
         out.append((parent.get("link", ""), child.get("link", ""), xyz, _rpy_quat(*rpy)))
-    roots = [link.get("name", "") for link in root.iter("link")
-             if link.get("name", "") not in children]  # fmt: skip
-    if roots and roots[0] != "base_link":
-        out.insert(0, ("base_link", roots[0], (0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0)))
     return out
 
 
