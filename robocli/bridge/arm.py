@@ -26,6 +26,7 @@ import logging
 import queue
 import threading
 import time
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -64,7 +65,7 @@ class ArmBridge:
         self._done = threading.Event()
         self._closed = False
         self._offset = time.time() - time.monotonic()
-        self._uploads: queue.Queue[zenoh.Query | None] = queue.Queue(maxsize=4)
+        self._uploads: queue.Queue[zenoh.Query | Callable[[], None] | None] = queue.Queue(4)
         z = session
         self.gate = ControlGate(z, self.name, stop=self._stop, silence=None,
                                 token_wait=token_wait)  # fmt: skip
@@ -152,6 +153,12 @@ class ArmBridge:
             query = self._uploads.get()
             if query is None:
                 return
+            if callable(query):
+                try:
+                    query()
+                except Exception:  # noqa: BLE001 - one bad upload never ends this thread
+                    log.error("%s: upload failed", self.name, exc_info=True)
+                continue
             try:
                 n = self._download(query)
             except RobocliError as exc:
@@ -177,16 +184,28 @@ class ArmBridge:
         if times.ndim != 1 or joints.ndim != 2 or len(times) != len(joints):
             raise ProtocolError(f"{what}: time (N) and joints (N x joints) must match")
         first = data.get("first_duration")
+        return self.upload(holder, times, joints, split=bool(data.get("split", False)),
+                           first_duration=None if first is None else float(first))  # fmt: skip
+
+    def upload(self, holder: str, times: np.ndarray, joints: np.ndarray, *, split: bool = False,
+               first_duration: float | None = None) -> int:  # fmt: skip
+        """Download ``holder``'s trajectory (on the upload thread: it waits for each point's
+        ack) under the gate's rules; :class:`RobocliError` unless ``holder`` holds the arm."""
+        what = f"{self.name} trajectory"
         with self.gate.command(holder, moving=False) as ok:
             if not ok:
                 raise RobocliError(f"{what}: {holder} does not hold {self.name}"
                                    + (f" ({self.gate.holder} does)" if self.gate.holder
                                       else ""))  # fmt: skip
-            return self.arm.download(
-                (times, joints),
-                split=bool(data.get("split", False)),
-                first_duration=None if first is None else float(first),
-            )
+            return self.arm.download((times, joints), split=split, first_duration=first_duration)
+
+    def queue_work(self, work: Callable[[], None]) -> bool:
+        """Run ``work`` on the upload thread (a ROS 2 trajectory); False when busy."""
+        try:
+            self._uploads.put_nowait(work)
+        except queue.Full:
+            return False
+        return True
 
     def _stop(self, reason: str) -> None:
         if self.arm.running():

@@ -206,8 +206,19 @@ class ControlGate:
             name = holder_of(sample.key_expr, self.robot, "alive")
         except ProtocolError:
             return  # not a holder's token (a wildcard): nobody's
+        self.alive(name, sample.kind == _PUT)
+
+    def acquire(self, holder: str) -> dict[str, Any]:
+        """Take the robot for ``holder`` as its acquire request would (granted only when the
+        robot is free or ``holder``'s already): for a controller the bridge itself
+        authenticates, a ROS 2 publisher (:mod:`robocli.bridge.ros2`). The reply's dict."""
+        return self._acquire(check_name(holder, "holder"))
+
+    def alive(self, name: str, up: bool) -> None:
+        """``name``'s liveliness came (``up``) or went: a holder's robocli token, or what
+        stands for it (a ROS 2 publisher's graph token). A holder that goes is released."""
         with self._cond:
-            if sample.kind == _PUT:
+            if up:
                 self._alive.add(name)
                 if name == self.holder:
                     self._token_seen = True

@@ -180,6 +180,12 @@ class PioneerBridge:
                 log.warning("%s (later ones only counted)", exc)
                 self.gate.event("ignored", holder=self.gate.holder, reason=str(exc))
             return
+        self.drive(holder, v, w, epoch)
+
+    def drive(self, holder: str, v: float, w: float, epoch: int | None = None) -> None:
+        """One velocity command of ``holder`` (m/s, rad/s; ``epoch``: the one it carries),
+        under the gate's rules: ignored unless ``holder`` holds the robot and the command is
+        fresh, and no motion after a stall until a stop (see the module)."""
         moving = v != 0.0 or w != 0.0
         with self.gate.command(holder, moving, epoch) as ok:
             if not ok:

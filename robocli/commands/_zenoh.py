@@ -123,3 +123,36 @@ def zenoh_hub(
         raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
     target = zenoh_target(value)
     return ZenohHub.connect(name, zenoh=target, token=token)
+
+
+Ros2Opt = typer.Option(
+    False, "--ros2",
+    help="Also appear as a ROS 2 node on the same Zenoh session, as rmw_zenoh_cpp lays ROS 2 "
+    "topics (needs robocli[ros2]; see docs/ros2.md).",
+)  # fmt: skip
+Ros2DomainOpt = typer.Option(
+    0, "--ros2-domain", min=0, max=232, metavar="ID", envvar="ROS_DOMAIN_ID",
+    help="The ROS domain id of --ros2 (default: $ROS_DOMAIN_ID, else 0).",
+)  # fmt: skip
+Ros2NamespaceOpt = typer.Option(
+    "", "--ros2-namespace", metavar="NS",
+    help="The ROS 2 namespace of --ros2's node and topics (default: the root).",
+)  # fmt: skip
+
+
+def ros2_check(ros2: bool, zenoh: str | None) -> None:
+    """``--ros2`` needs ``--zenoh`` and the ``ros2`` extra: a usage error or one line now,
+    before anything connects."""
+    if not ros2:
+        return
+    if zenoh is None:
+        raise typer.BadParameter("--ros2 puts ROS 2 topics on Zenoh: give --zenoh too")
+    from robocli.ros2.types import typestore
+
+    typestore()
+    try:
+        import xxhash  # noqa: F401 - rmw_zenoh's GIDs
+    except ImportError:
+        from robocli.ros2.types import Ros2Unavailable
+
+        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli[ros2]'") from None

@@ -11,7 +11,16 @@ import typer
 from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
 from robocli.commands._common import sigterm_as_interrupt
-from robocli.commands._zenoh import server_name, zenoh_option, zenoh_session, zenoh_target
+from robocli.commands._zenoh import (
+    Ros2DomainOpt,
+    Ros2NamespaceOpt,
+    Ros2Opt,
+    ros2_check,
+    server_name,
+    zenoh_option,
+    zenoh_session,
+    zenoh_target,
+)
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
@@ -38,26 +47,34 @@ def pioneer(
     subtype: str | None = SubtypeOpt,  # noqa: UP007
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
+    ros2: bool = Ros2Opt,
+    ros2_domain: int = Ros2DomainOpt,
+    ros2_namespace: str = Ros2NamespaceOpt,
 ) -> None:
     """Put a Pioneer on Zenoh: its state for any number of watchers, velocity from one
     controller at a time, until Ctrl-C. The robot stops when its controller's commands stop
     for --silence, when the controller goes, and when the bridge ends."""
     from robocli.bridge.pioneer import PioneerBridge
+    from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
     robot_name = server_name(name, zenoh, "pioneer")
     target = zenoh_target(zenoh)
+    ros2_check(ros2, zenoh)
     with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
         start_laser(robot, wait=False)
         session = zenoh_session(zenoh, "server")
         try:
             with sigterm_as_interrupt(), PioneerBridge(robot, session, robot_name,
                                                        silence=silence) as bridge:  # fmt: skip
-                typer.echo(f"bridge {robot_name}: pioneer {robot.params.subtype} on "
-                           f"{robot.transport.url}, Zenoh {target}")  # fmt: skip
-                sys.stdout.flush()
-                while not bridge.wait(0.5):
-                    pass
+                with ros2_node(bridge, session, ros2, domain=ros2_domain,
+                               namespace=ros2_namespace) as ros:  # fmt: skip
+                    typer.echo(f"bridge {robot_name}: pioneer {robot.params.subtype} on "
+                               f"{robot.transport.url}, Zenoh {target}"
+                               + (f", ROS 2 domain {ros2_domain}" if ros else ""))  # fmt: skip
+                    sys.stdout.flush()
+                    while not bridge.wait(0.5):
+                        pass
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:
@@ -70,24 +87,32 @@ def arm(
     zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
     name: str | None = NameOpt,  # noqa: UP007
     link: ArmLink = LINK,
+    ros2: bool = Ros2Opt,
+    ros2_domain: int = Ros2DomainOpt,
+    ros2_namespace: str = Ros2NamespaceOpt,
 ) -> None:
     """Put an arm on Zenoh: joints, TCP pose and status for any number of watchers,
     trajectory uploads from one controller at a time, until Ctrl-C. A running trajectory is
     stopped when its controller goes and when the bridge ends."""
     from robocli.bridge.arm import ArmBridge
+    from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
     robot_name = server_name(name, zenoh, "arm")
     target = zenoh_target(zenoh)
+    ros2_check(ros2, zenoh)
     with connected_arm(host, link) as robot:
         robot.wait_for_state()
         session = zenoh_session(zenoh, "server")
         try:
             with sigterm_as_interrupt(), ArmBridge(robot, session, robot_name) as bridge:
-                typer.echo(f"bridge {robot_name}: arm {robot.robot.name}, Zenoh {target}")
-                sys.stdout.flush()
-                while not bridge.wait(0.5):
-                    pass
+                with ros2_node(bridge, session, ros2, domain=ros2_domain,
+                               namespace=ros2_namespace) as ros:  # fmt: skip
+                    typer.echo(f"bridge {robot_name}: arm {robot.robot.name}, Zenoh {target}"
+                               + (f", ROS 2 domain {ros2_domain}" if ros else ""))  # fmt: skip
+                    sys.stdout.flush()
+                    while not bridge.wait(0.5):
+                        pass
                 if bridge.failure is not None:
                     raise bridge.failure
         finally:

@@ -19,7 +19,15 @@ import typer
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
-from robocli.commands._zenoh import server_name, zenoh_option, zenoh_session
+from robocli.commands._zenoh import (
+    Ros2DomainOpt,
+    Ros2NamespaceOpt,
+    Ros2Opt,
+    ros2_check,
+    server_name,
+    zenoh_option,
+    zenoh_session,
+)
 
 if TYPE_CHECKING:
     from robocli.hub import HubServer, tune_hub_process
@@ -104,6 +112,9 @@ def serve(
         help="Sensors published on Zenoh from the start (others once a client asks).",
     ),  # fmt: skip
     tcp: bool = typer.Option(True, "--tcp/--no-tcp", help="Serve ros4mat on TCP (--port)."),
+    ros2: bool = Ros2Opt,
+    ros2_domain: int = Ros2DomainOpt,
+    ros2_namespace: str = Ros2NamespaceOpt,
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C. With --zenoh,
     also publish its sensors on robocli/NAME/SENSOR (--no-tcp: on Zenoh only)."""
@@ -111,6 +122,7 @@ def serve(
 
     if not tcp and zenoh is None:
         raise typer.BadParameter("--no-tcp serves nothing without --zenoh")
+    ros2_check(ros2, zenoh)
     sources = replay_sources(replay, speed, loop)
     tune_hub_process()
     token = token_from_file(token_file)
@@ -124,6 +136,7 @@ def serve(
         token=token, max_clients=max_clients, sources=sources,
     )  # fmt: skip
     frontend: Any = None
+    ros: Any = None
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
         try:
             if tcp:
@@ -131,6 +144,12 @@ def serve(
                     srv.start()
             if zenoh is not None:
                 frontend = _zenoh_frontend(srv, zenoh, name, publish, token)
+                if ros2:
+                    from robocli.ros2.hub import HubTopics
+
+                    ros = HubTopics(srv.hub, frontend.session, frontend.name,
+                                    domain=ros2_domain, namespace=ros2_namespace)  # fmt: skip
+                    frontend.on_batch = ros.batch
             for warning in srv.warnings:
                 typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
             for note in _replaced(sim, pioneer, gpsd, laser):
@@ -139,6 +158,8 @@ def serve(
             where = [srv.url] if tcp else []
             if frontend is not None:
                 where.append(f"zenoh robocli/{frontend.name}/* ({zenoh})")
+            if ros is not None:
+                where.append(f"ROS 2 domain {ros2_domain}")
             served = [*srv.sensors, *(f"serial port {p}" for p in srv.serial_ports)]
             typer.echo(f"{what}serving {', '.join(served)} on {' and '.join(where)}")
             sys.stdout.flush()
@@ -152,6 +173,8 @@ def serve(
                 from robocli.zenoh.session import close_session
 
                 frontend.close()
+                if ros is not None:
+                    ros.close()
                 close_session(frontend.session)
             srv.close()
 

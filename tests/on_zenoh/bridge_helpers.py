@@ -33,16 +33,25 @@ def wait_for(condition: Callable[[], T], what: str, timeout: float = DEADLINE) -
 @contextlib.contextmanager
 def bridge_process(args: list[str]) -> Iterator[tuple[subprocess.Popen[str], str]]:
     """``robocli bridge ARGS`` in its own process; yield it and its first line (ready)."""
+    with robocli_process(["bridge", *args], "bridge ") as started:
+        yield started
+
+
+@contextlib.contextmanager
+def robocli_process(args: list[str], ready: str) -> Iterator[tuple[subprocess.Popen[str], str]]:
+    """``robocli ARGS`` in its own process until its first line starts with ``ready``; yield
+    it and that line; terminated (then killed) at the end."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "robocli", "bridge", *args],
+        [sys.executable, "-m", "robocli", *args],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
         env={**os.environ, "PYTHONUNBUFFERED": "1"},
     )  # fmt: skip
     try:
         line = read_line(proc, DEADLINE)
-        if not line.startswith("bridge "):
+        if not line.startswith(ready):
             proc.kill()
-            raise AssertionError(f"the bridge did not start: {line!r} {proc.stderr.read()!r}")
+            raise AssertionError(f"robocli {args[0]} did not start: {line!r} "
+                                 f"{proc.stderr.read()!r}")  # fmt: skip
         yield proc, line
     finally:
         if proc.poll() is None:

@@ -31,7 +31,7 @@ import hmac
 import json
 import logging
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import DeviceError, ProtocolError, RobocliError
@@ -85,7 +85,8 @@ class ZenohFrontend:
     ``publish``: sensor -> settings (ros4mat SUBSCRIBE parameters; empty or None: its
     defaults) started at :meth:`start`. ``period``: seconds between two puts of a sensor.
     ``history_s``: seconds of batches kept for late joiners. ``serial``: the hub's serial
-    ports, streamed (:class:`ZenohSerial`). The session stays the
+    ports, streamed (:class:`ZenohSerial`). ``on_batch``: see :attr:`on_batch` (``serve
+    --ros2``: :class:`robocli.ros2.hub.HubTopics`). The session stays the
     caller's: :meth:`close` undeclares what this front-end declared.
     """
 
@@ -100,6 +101,7 @@ class ZenohFrontend:
         period: float = BATCH_PERIOD_S,
         history_s: float = HISTORY_S,
         serial: SerialPorts | None = None,
+        on_batch: Callable[[int, int, list[Any]], None] | None = None,
     ) -> None:
         self.hub, self.session = hub, session
         self._serial_ports = serial
@@ -119,6 +121,9 @@ class ZenohFrontend:
         self._ticker = Ticker(period, self._tick, f"hub-zenoh-{self.name}")
         self._declared: list[Any] = []
         self.refused = 0  #: settings queries refused
+        #: called with (sensor id, samples, body parts) after each batch is put, on the
+        #: ticker's thread: the parts are views of the ring's records, valid until it returns
+        self.on_batch = on_batch
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -226,6 +231,8 @@ class ZenohFrontend:
         size = sum(memoryview(p).nbytes for p in parts)
         head = encode_head(pub.sensor_id, pub.next_seq, n, size, self.hub.clock())
         pub.publisher.put(b"".join([head, *parts]))  # one copy out of the records
+        if self.on_batch is not None:
+            self.on_batch(pub.sensor_id, n, parts)
         pub.next_seq += n
         pub.batches += 1
         pub.samples += n
