@@ -5,7 +5,7 @@ pull draws it forward. The sum, in the robot's frame, gives the heading error an
 A bumper hit stops the robot, backs it off and turns it away.
 
     python examples/wander.py tcp://127.0.0.1:8101 --seconds 60
-    python examples/wander.py sim                       # embedded simulator (via the CLI's helper)
+    python examples/wander.py sim://                    # the built-in simulator, in-process
 """
 
 from __future__ import annotations
@@ -79,12 +79,10 @@ def wander(robot: Pioneer, sips: int, params: WanderParams | None = None) -> Wan
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[1])
-    parser.add_argument("url", help="robot URL or port, or 'sim'")
+    parser.add_argument("url", help="robot URL or port, or sim:// (docs/urls.md)")
     parser.add_argument("--seconds", type=float, default=30.0)
     args = parser.parse_args()
-    from robocli.commands._common import pioneer_url
-
-    with pioneer_url(args.url) as url, Pioneer.connect(url) as robot:
+    with Pioneer.connect(args.url) as robot:
         result = wander(robot, int(args.seconds * 10))
         print(f"travelled {result.distance:.2f} m, {result.bumps} bumps")
 

@@ -196,13 +196,13 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
     """Connect every source (simulators started on ``stack``) and add it to ``rec``, each
     recorded from its first byte; ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
     from robocli.commands._arm import arm_host, connect_at
-    from robocli.commands._common import explain_refusal, pioneer_url
+    from robocli.commands._common import explain_refusal
     from robocli.devices.pioneer import Pioneer
     from robocli.io.record.arm import arm_links
 
     devices: dict[str, Any] = {}
     for port in pioneers:
-        url = stack.enter_context(pioneer_url(port))
+        url = port
         listener = rec.listener("pioneer", "arcos", url=url)
         with explain_refusal(url):
             robot = stack.enter_context(
@@ -250,7 +250,7 @@ def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeou
 
     url = stack.enter_context(laser_url(port))
     listener = rec.listener("laser", "scip2", url=url)
-    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listener=listener))
+    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listeners=[listener]))
     name = rec.add(laser, listener.name, **on)
     laser.start()
     return {name: laser}

@@ -30,12 +30,14 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from robocli.devices.base import ListenerHandle, renamed_argument
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
 from robocli.devices.stats import LinkStats
 from robocli.errors import (
+    ConnectionLost,
     DeviceError,
     InvalidArgument,
     ProtocolError,
@@ -381,11 +383,30 @@ class ZenohHub(Hub):
     def stats(self) -> LinkStats:
         return LinkStats()
 
-    def close(self, quit: bool = True) -> None:  # noqa: A002 - Hub's signature
-        """Undeclare every subscription and close the Zenoh session."""
+    def close(self, stop: bool = True, *, quit: bool | None = None) -> None:  # noqa: A002
+        """Undeclare every subscription and close the Zenoh session (``stop``: nothing more
+        to stop over Zenoh; ``quit`` is its deprecated old name). Idempotent."""
+        renamed_argument("ZenohHub.close", "quit", "stop", quit, stop, True)
+        self._closed = True
         for key in list(self._subs):
             self._drop(key)
         close_session(self.zsession)
+
+    _closed = False
+
+    @property
+    def alive(self) -> bool:
+        """True until :meth:`close` (Zenoh reconnects by itself: a hub that went away is
+        a :class:`TimeoutError` of the next query). Never blocks."""
+        return not self._closed
+
+    def check(self) -> None:
+        if self._closed:
+            raise ConnectionLost(f"{self.url}: closed")
+
+    def add_listener(self, listener: Any, *, kind: str = "frames") -> ListenerHandle:
+        """Over Zenoh there are no ros4mat frames to listen to: :class:`DeviceError`."""
+        raise DeviceError(f"{self.url}: a hub over Zenoh has no frames to listen to")
 
     def __enter__(self) -> ZenohHub:
         return self

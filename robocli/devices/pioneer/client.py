@@ -30,10 +30,19 @@ import logging
 import math
 import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
+from robocli.addresses import parse_device_url
 from robocli.core import Framer
+from robocli.devices import simulators
+from robocli.devices.base import (
+    ListenerHandle,
+    close_simulator,
+    deprecated,
+    pick_kind,
+    renamed_argument,
+)
 from robocli.devices.pioneer import link
 from robocli.devices.pioneer.commands import Commands, _finite
 from robocli.devices.pioneer.decode import Decoding
@@ -141,7 +150,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         *,
         subtype: str | None = None,
         params: RobotParams | None = None,
-        baud: int = 9600,
+        baudrate: int | None = None,
         switch_baud: int | None = None,
         timeout: float = 5.0,
         sip_timeout: float = 8.0,
@@ -150,16 +159,20 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         require_config: bool = False,
         listeners: Iterable[PacketListener] = (),
         laser: bool = False,
+        baud: int | None = None,
     ) -> Pioneer:
-        """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs),
-        run the ARCOS handshake and start the reader and keep-alive threads.
+        """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs, or
+        ``sim://[SUBTYPE][?OPTION=VALUE...]``: the built-in simulator, started in-process on
+        loopback and closed with the robot; see ``docs/urls.md``), run the ARCOS handshake
+        and start the reader and keep-alive threads.
 
         ``subtype`` overrides the robot's own (conversion factors from
         :data:`robocli.robots.pioneer.ROBOT_PARAMS`); ``params`` gives them outright.
         ``timeout`` bounds each step of connecting: opening the port, each handshake reply,
         the first SIP. ``sip_timeout``: a session without SIPs for that long has lost the
         robot. ``deadman``: stop the robot when no motion command came for that many seconds.
-        Serial ports start at ``baud`` and probe the other rates when the robot stays silent;
+        Serial ports start at ``baudrate`` (default 9600; ``baud`` is its deprecated old
+        name) and probe the other rates when the robot stays silent;
         ``switch_baud`` (e.g. 38400) moves the link there with HOSTBAUD after CONFIG, when
         the robot allows it. Raises :class:`TransportError` (unreachable),
         :class:`TimeoutError` (no robot answering), :class:`DeviceError` (the robot
@@ -167,21 +180,24 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         its subtype). ``laser=True`` starts a simulator's laser with the vendor SDK's
         defaults (:meth:`start_laser`; a :class:`DeviceError` on a real robot).
         """
+        rate = renamed_argument("Pioneer.connect", "baud", "baudrate", baud, baudrate, 9600)
         _check_seconds(timeout=timeout, sip_timeout=sip_timeout, keepalive=keepalive)
-        transport = open_transport(url, baudrate=baud, timeout=timeout)
-        return cls.from_transport(
-            transport,
-            subtype=subtype,
-            params=params,
-            switch_baud=switch_baud,
-            timeout=timeout,
-            sip_timeout=sip_timeout,
-            keepalive=keepalive,
-            deadman=deadman,
-            require_config=require_config,
-            listeners=listeners,
-            laser=laser,
-        )
+        where = parse_device_url(url, what="Pioneer URL")
+        options: dict[str, Any] = {
+            "subtype": subtype, "params": params, "switch_baud": switch_baud,
+            "timeout": timeout, "sip_timeout": sip_timeout, "keepalive": keepalive,
+            "deadman": deadman, "require_config": require_config, "listeners": listeners,
+            "laser": laser,
+        }  # fmt: skip
+        if where.kind == "sim":
+            return simulators.connect_to(  # type: ignore[no-any-return]
+                "pioneer", where, lambda sim: cls.connect(sim.url, **options)
+            )
+        if where.kind == "zenoh":
+            raise InvalidArgument(f"{url!r}: a Pioneer behind a Zenoh bridge is reached with "
+                                  "robocli.RemotePioneer.connect")  # fmt: skip
+        transport = open_transport(where.target, baudrate=rate, timeout=timeout)
+        return cls.from_transport(transport, **options)
 
     @classmethod
     def from_transport(
@@ -289,10 +305,22 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         return self.state.battery
 
     @property
-    def connected(self) -> bool:
+    def alive(self) -> bool:
         """True while the session runs: False once the link failed, SIPs stopped or
-        :meth:`close` began."""
+        :meth:`close` began. Never blocks."""
         return self._session.alive
+
+    @property
+    def connected(self) -> bool:
+        """Deprecated: :attr:`alive`."""
+        deprecated("Pioneer.connected", "Pioneer.alive")
+        return self._session.alive
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended the session
+        (:class:`ConnectionLost` for a lost link or once closed). Never blocks."""
+        with self._session.cond:
+            self._session.check()
 
     def wait_for_sip(self, timeout: float | None = None) -> PioneerState:
         """Block until the next SIP arrives and return it (``timeout`` defaults to
@@ -332,28 +360,52 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
             "link": {k: stats[k] for k in ("sips", "bad_checksums", "dropped_bytes", "keepalives")},
         }
 
-    def add_listener(self, listener: PacketListener) -> None:
-        """Call ``listener(direction, payload, t)`` for every packet sent ("tx") or received
-        ("rx"). Listeners run in the thread that sent or read the packet: keep them short.
-        One that raises is logged once with its traceback, counted in
-        ``stats.listener_errors``, and never stops the client."""
-        self._session.listeners.add(listener)
+    def add_listener(self, listener: Callable[..., None], *, kind: str = "frames"
+                     ) -> ListenerHandle:  # fmt: skip
+        """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
+        takes it off: ``"frames"`` (every packet sent or received: ``(direction "tx"/"rx",
+        payload, t)``), ``"laser"`` (each complete simulated laser scan, a
+        :class:`LaserScan`) or ``"watchdog"`` (each :class:`WatchdogTrip`). Listeners run in
+        the thread that sent or read the packet: keep them short. One that raises is logged
+        once with its traceback, counted in ``stats.listener_errors``, and never stops the
+        client."""
+        registry = self._listeners_of(kind)
+        registry.add(listener)
+        return ListenerHandle(listener, lambda: registry.remove(listener))
 
-    def remove_listener(self, listener: PacketListener) -> None:
-        self._session.listeners.remove(listener)
+    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
+        self._listeners_of(kind).remove(listener)
+
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
+        pick_kind(kind, ("frames", "laser", "watchdog"), "Pioneer")
+        found: dict[str, Listeners[Any]] = {
+            "frames": self._session.listeners, "laser": self._laser_listeners,
+            "watchdog": self._trip_listeners,
+        }  # fmt: skip
+        return found[kind]
 
     # ------------------------------------------------------------------ closing
 
-    def close(self) -> None:
+    def close(self, *, stop: bool = True) -> None:
         """Stop the robot, disable the motors, CLOSE the session and the port, within about
-        2 s whatever state the link is in. Idempotent."""
-        self._session.close(link.STOP_SEQUENCE)
+        2 s whatever state the link is in; then the simulator of a ``sim://`` URL.
+        Idempotent. A Pioneer is always stopped (``stop=False`` is refused): its watchdog
+        would stop it anyway, 2 s later."""
+        if not stop:
+            raise InvalidArgument("a Pioneer is always stopped on close (stop=False refused)")
+        try:
+            self._session.close(link.STOP_SEQUENCE)
+        finally:
+            close_simulator(self)
 
     def __enter__(self) -> Pioneer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the robot
+    simulator: simulators.Simulator | None = None
 
     def __repr__(self) -> str:
         i = self.identity
