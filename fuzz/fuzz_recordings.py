@@ -143,7 +143,7 @@ def _pioneer(url: str) -> Callable[[Any], None]:
             robot.set_velocity(0.2, 0.1)
             for _ in range(3):
                 robot.wait_for_sip()
-            robot.wait_for_laser(10.0)
+            robot.sim.wait_for_laser(10.0)
 
     return make
 

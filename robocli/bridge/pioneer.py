@@ -140,7 +140,7 @@ class PioneerBridge:
             data = state_json(state, n_sonar, self._offset)
             data["holder"] = self.gate.holder
             put(self._state, data)
-            scan = robot.laser
+            scan = robot.sim.laser if robot.sim is not None else None
             if scan is not None and scan.t > last_scan:
                 last_scan = scan.t
                 put(self._laser, {

@@ -161,12 +161,12 @@ def start_laser(robot: Pioneer, wait: bool) -> None:
     port)."""
     from robocli.errors import TimeoutError
 
-    if not robot.is_simulator:
+    if robot.sim is None:
         return
-    robot.start_laser()
+    robot.sim.start_laser()
     if wait:
         with contextlib.suppress(TimeoutError):
-            robot.wait_for_laser(1.0)
+            robot.sim.wait_for_laser(1.0)
 
 
 def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
@@ -178,7 +178,7 @@ def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any
         from robocli.commands._mounted import placed_json
 
         data["hokuyo"] = placed_json(hokuyo)
-    scan = robot.laser
+    scan = robot.sim.laser if robot.sim is not None else None
     if scan is not None and "laser" not in data:
         data["laser"] = unix_stamped({
             "t": scan.t,

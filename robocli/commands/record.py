@@ -210,8 +210,8 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             )
         name = rec.add(robot, listener.name)
         devices[name] = robot
-        if laser and robot.is_simulator:
-            robot.start_laser()
+        if laser and robot.sim is not None:
+            robot.sim.start_laser()
     for host in arms:
         address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
                                                link.byte_order, link.real_size, link.robot,

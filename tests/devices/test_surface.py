@@ -3,6 +3,7 @@ starts, and the old spellings kept for a release with a one-time DeprecationWarn
 
 from __future__ import annotations
 
+import time
 import warnings
 from collections.abc import Callable
 from typing import Any
@@ -110,3 +111,28 @@ def test_baudrate_is_the_one_spelling(monkeypatch: pytest.MonkeyPatch) -> None:
     assert messages == ["Pioneer.connect(baud=) is deprecated; use Pioneer.connect(baudrate=)"]
     with pytest.raises(InvalidArgument, match="give baudrate= only"):
         robocli.Pioneer.connect("sim://", baud=9600, baudrate=38400)
+
+
+def test_simulator_only_methods_are_a_part_under_robot_sim() -> None:
+    from robocli.devices.pioneer.simulated import PioneerSimulator
+
+    with robocli.Pioneer.connect("sim://?time_scale=4") as robot:
+        sim = robot.sim
+        assert isinstance(sim, PioneerSimulator)
+        scans: list[Any] = []
+        robot.add_listener(scans.append, kind="laser")
+        sim.start_laser()
+        assert len(sim.wait_for_laser(20.0)) > 0 and sim.laser is not None
+        sim.set_pose(1.0, -0.5, 0.0)
+        deadline = time.monotonic() + 20.0
+        status = sim.status(20.0)
+        while status.true_pose[0] != pytest.approx(1.0):  # the teleport lands within a step
+            assert time.monotonic() < deadline, "the teleport never showed"
+            status = sim.status(20.0)
+        assert scans
+        # the robot's own surface no longer carries the simulator's names
+        public = {n for n in vars(type(robot)) if not n.startswith("_")}
+        assert not {"start_laser", "sim_status", "set_simulator_pose"} & public
+        robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
+        robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
+        assert robot.sim is None

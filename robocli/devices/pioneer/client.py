@@ -39,13 +39,13 @@ from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
     close_simulator,
-    deprecated,
     pick_kind,
     renamed_argument,
 )
 from robocli.devices.pioneer import link
 from robocli.devices.pioneer.commands import Commands, _finite
 from robocli.devices.pioneer.decode import Decoding
+from robocli.devices.pioneer.deprecated import DeprecatedNames
 from robocli.devices.pioneer.keepalive import (
     DEFAULT_WATCHDOG_S,
     KeepAlive,
@@ -54,7 +54,7 @@ from robocli.devices.pioneer.keepalive import (
     WatchdogTripped,
 )
 from robocli.devices.pioneer.link import PioneerStats
-from robocli.devices.pioneer.simulated import SimulatorFeatures
+from robocli.devices.pioneer.simulated import PioneerSimulator, is_simulator
 from robocli.devices.pioneer.state import Odometry, PioneerState, RobotIdentity
 from robocli.devices.session import FrameListener, Listeners, Session
 from robocli.errors import DeviceError, InvalidArgument, TimeoutError
@@ -69,15 +69,15 @@ log = logging.getLogger("robocli.devices.pioneer")
 PacketListener = FrameListener
 
 
-class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
+class Pioneer(Commands, KeepAlive, Decoding, DeprecatedNames):
     """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
 
     Here: connecting, the state, listeners and closing. Its commands come from
     :class:`~robocli.devices.pioneer.commands.Commands`; keeping it safe and alive (set-points,
     watchdog trips, dead-man) from :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
     frames it receives are decoded by :class:`~robocli.devices.pioneer.decode.Decoding`.
-    With a simulator also: its laser (:meth:`start_laser`, :attr:`laser`, :meth:`on_laser`)
-    and its status (:meth:`sim_status`), from :class:`SimulatorFeatures`."""
+    What only a simulator offers is a part of it, :attr:`sim` (None on a real robot): its
+    laser (``robot.sim.start_laser()``, ``robot.sim.laser``), its status, teleporting."""
 
     def __init__(
         self,
@@ -132,7 +132,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         self._clamp_warned: set[str] = set()
         self._motors_off_warned = False
         self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
-        self._init_simulated()
+        self._simulated = PioneerSimulator(self)
         session.on_frame = self._on_frame
         session.on_sent = self._on_sent  # the time of every packet sent
         session.before_send = self._before_send
@@ -178,7 +178,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         :class:`TimeoutError` (no robot answering), :class:`DeviceError` (the robot
         refused: busy with another client), :class:`UnknownRobotError` (no parameters for
         its subtype). ``laser=True`` starts a simulator's laser with the vendor SDK's
-        defaults (:meth:`start_laser`; a :class:`DeviceError` on a real robot).
+        defaults (``robot.sim.start_laser()``; a :class:`DeviceError` on a real robot).
         """
         rate = renamed_argument("Pioneer.connect", "baud", "baudrate", baud, baudrate, 9600)
         _check_seconds(timeout=timeout, sip_timeout=sip_timeout, keepalive=keepalive)
@@ -267,7 +267,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
             if robot.stats.sips == 0:  # connecting ends with the first SIP, within timeout
                 robot.wait_for_sip(timeout=max(timeout, 1.0))
             if laser:
-                robot.start_laser()
+                robot._simulated.start_laser()
         except BaseException:
             robot.close()
             raise
@@ -311,10 +311,19 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         return self._session.alive
 
     @property
-    def connected(self) -> bool:
-        """Deprecated: :attr:`alive`."""
-        deprecated("Pioneer.connected", "Pioneer.alive")
-        return self._session.alive
+    def is_simulator(self) -> bool:
+        """The robot is a simulator: it says so in its name or its CONFIG serial (``SIM``),
+        the vendor SDK's test before it asks for the simulated laser."""
+        return is_simulator(self.identity.name, self.config)
+
+    @property
+    def sim(self) -> PioneerSimulator | None:
+        """What only a simulator offers (its laser, status, teleporting): a
+        :class:`~robocli.devices.pioneer.simulated.PioneerSimulator`; None on a real robot."""
+        return self._simulated if self.is_simulator else None
+
+    def _on_laser(self, ptype: int, body: bytes, now: float) -> None:
+        self._simulated._on_laser(ptype, body, now)
 
     def check(self) -> None:
         """Return while :attr:`alive`; else raise the error that ended the session
@@ -379,7 +388,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
     def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames", "laser", "watchdog"), "Pioneer")
         found: dict[str, Listeners[Any]] = {
-            "frames": self._session.listeners, "laser": self._laser_listeners,
+            "frames": self._session.listeners, "laser": self._simulated.listeners,
             "watchdog": self._trip_listeners,
         }  # fmt: skip
         return found[kind]

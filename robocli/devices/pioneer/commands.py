@@ -214,12 +214,6 @@ class Commands:
         assert self.config is not None  # stored from this very frame by _on_frame
         return self.config
 
-    def set_simulator_pose(self, x: float, y: float, th: float) -> None:
-        """Simulators only (MobileSim, robocli sim): teleport the true pose (m, m, rad)."""
-        self._session.send(
-            arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th)))
-        )
-
 
 def _finite(name: str, value: object) -> float:
     """``value`` as a finite float, or :class:`InvalidArgument` naming ``name``."""

@@ -1,7 +1,7 @@
 """What keeps a commanded Pioneer safe and alive, mixed into
 :class:`~robocli.devices.pioneer.Pioneer`: the set-points the keep-alive re-sends (PULSE
 when there are none), the watchdog trip of a program that stalled (:class:`WatchdogTrip`,
-:class:`WatchdogTripped`, :meth:`KeepAlive.on_watchdog_trip`), the dead-man and the SIP
+:class:`WatchdogTripped`, ``robot.add_listener(f, kind="watchdog")``), the dead-man and the SIP
 supervisor. Every motion command goes out through :meth:`KeepAlive._command_motion`.
 """
 
@@ -100,17 +100,6 @@ class KeepAlive:
     if TYPE_CHECKING:
 
         def stop(self) -> None: ...
-
-    def on_watchdog_trip(self, listener: WatchdogListener) -> None:
-        """Call ``listener(trip)`` with each :class:`WatchdogTrip` (this program stalled past
-        the robot's watchdog while the robot was commanded to move), once the stop that
-        replaced the stale set-points went out; in the thread that found the trip (the
-        keep-alive, or the program's own). One that raises is logged once, counted in
-        ``stats.listener_errors``, and never stops the keep-alive."""
-        self._trip_listeners.add(listener)
-
-    def remove_watchdog_trip_listener(self, listener: WatchdogListener) -> None:
-        self._trip_listeners.remove(listener)
 
     def _judge_silence(self) -> None:
         """Before a command that changes the set-points: after a silence longer than the
