@@ -179,7 +179,7 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
     def done() -> bool:
         rec.check()  # the disk is full: stop now, what was written stays readable
         for name, device in devices.items():
-            if name.startswith("pioneer") and not device.connected:
+            if name.startswith("pioneer") and not device.alive:
                 device.wait_for_sip(0)  # raises why the session ended
             elif name.startswith("arm"):
                 device.check()

@@ -7,7 +7,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -26,6 +26,30 @@ class Case:
     connect: Callable[[], Any]
     traffic: Callable[[Any], object]  # something that makes frames flow (a request...)
     after_death: Callable[[Any], object]  # the device's ordinary next call (it may block)
+    kill: Callable[[Any], object] = lambda device: device.simulator.close()
+
+
+def _remote_pioneer() -> Any:
+    """A RemotePioneer on zenoh/r1: a Pioneer on its simulator behind a bridge in this
+    process, on a Zenoh server session listening on an ephemeral loopback port; the test
+    kills the link by closing the bridge (its liveliness token goes)."""
+    pytest.importorskip("zenoh", reason="needs robocli[zenoh] (eclipse-zenoh)")
+    from robocli.bridge.pioneer import PioneerBridge
+    from robocli.zenoh.session import close_session, open_session
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        endpoint = f"tcp/127.0.0.1:{s.getsockname()[1]}"
+    server = open_session(endpoint, "server")
+    robot = robocli.Pioneer.connect("sim://?time_scale=4")
+    bridge = PioneerBridge(robot, server, "r1")
+    try:
+        remote = robocli.RemotePioneer.connect("zenoh/r1", endpoint, holder="contract")
+    except BaseException:
+        bridge.close(), robot.close(), close_session(server)
+        raise
+    remote.behind = (bridge, robot, server)  # closed by the fixture (a test kills the bridge)
+    return remote
 
 
 def _hub_traffic(hub: Any) -> object:
@@ -42,12 +66,26 @@ CASES = [
          lambda h: h.pull("adc")),
     Case("Laser", lambda: robocli.Laser.connect("sim://"),
          lambda laser: laser.scan(), lambda laser: laser.scan()),
+    Case("RemotePioneer", _remote_pioneer, lambda r: r.wait_for_state(DEADLINE_S),
+         lambda r: r.wait_for_state(DEADLINE_S), lambda r: r.behind[0].close()),
 ]  # fmt: skip
 
 
 @pytest.fixture(params=CASES, ids=[c.name for c in CASES])
-def case(request: pytest.FixtureRequest) -> Case:
-    return request.param  # type: ignore[no-any-return]
+def case(request: pytest.FixtureRequest) -> Iterator[Case]:
+    made: list[Any] = []
+    param: Case = request.param
+    yield Case(param.name, lambda: made.append(param.connect()) or made[-1], param.traffic,
+               param.after_death, param.kill)  # fmt: skip
+    for device in made:
+        device.close()
+        bridge, robot, server = getattr(device, "behind", (None, None, None))
+        if bridge is not None:
+            from robocli.zenoh.session import close_session
+
+            bridge.close()
+            robot.close()
+            close_session(server)
 
 
 def _wait(condition: Callable[[], bool], what: str) -> None:
@@ -71,14 +109,14 @@ def test_connect_context_manager_and_close_twice(case: Case) -> None:
         assert isinstance(device, Device)
         assert device.alive
         device.check()
-        simulator = device.simulator
-        assert simulator is not None
+        simulator = getattr(device, "simulator", None)
     assert not device.alive
     with pytest.raises(ConnectionLost):
         device.check()
     assert device.close() is None  # a second close: nothing, no error
     assert device.close(stop=True) is None
-    assert all(_refused(url) for url in simulator.urls.values())  # its simulator went too
+    if simulator is not None:  # a sim:// device: its simulator went too
+        assert all(_refused(url) for url in simulator.urls.values())
 
 
 def test_listeners_get_frames_and_a_removed_one_none(case: Case) -> None:
@@ -118,7 +156,7 @@ def test_stats(case: Case) -> None:
 def test_a_dead_link_is_a_typed_error(case: Case) -> None:
     with case.connect() as device:
         case.traffic(device)
-        device.simulator.close()  # the simulator dies under the client
+        case.kill(device)  # the simulator (or the bridge) dies under the client
         started = time.monotonic()
         with pytest.raises(ConnectionLost):  # the next call that needs the link, not a hang
             case.after_death(device)
