@@ -22,7 +22,7 @@ from robocli.errors import InvalidArgument
 
 log = logging.getLogger("robocli.devices.simulators")
 
-__all__ = ["Simulator", "adopt", "start"]
+__all__ = ["STARTERS", "Simulator", "adopt", "connect_to", "options", "start"]
 
 #: Options a ``sim://`` query may not set: where the simulator listens is loopback, always.
 _RESERVED = frozenset({"host", "bind", "port", "motion_port", "state_port"})
@@ -61,7 +61,8 @@ def _value(text: str) -> Any:
     return text
 
 
-def _options(url: DeviceURL, **fixed: Any) -> dict[str, Any]:
+def options(url: DeviceURL, **fixed: Any) -> dict[str, Any]:
+    """The simulator's constructor options: ``fixed``, then the URL's query (converted)."""
     bad = sorted(_RESERVED & url.options.keys())
     if bad:
         raise InvalidArgument(f"{url.text!r}: a sim:// URL cannot set {', '.join(bad)} "
@@ -72,51 +73,47 @@ def _options(url: DeviceURL, **fixed: Any) -> dict[str, Any]:
 def _pioneer(url: DeviceURL, **fixed: Any) -> Simulator:
     from robocli.sim.pioneer.server import PioneerSim
 
-    server = PioneerSim(url.model or "p3dx", **_options(url, **fixed))
+    server = PioneerSim(url.model or "p3dx", **options(url, **fixed))
     return Simulator(server, {"": server.serve_tcp("127.0.0.1", 0)})
 
 
 def _arm(url: DeviceURL, **fixed: Any) -> Simulator:
     from robocli.sim.abb.server import AbbSim
 
-    options = _options(url, **{"state_ms": 5.0, "feedback": True, **fixed})
-    server = AbbSim(url.model or "irb120", **options)
+    given = options(url, **{"state_ms": 5.0, "feedback": True, **fixed})
+    server = AbbSim(url.model or "irb120", **given)
     motion, state = server.serve_tcp("127.0.0.1", 0, 0)
     return Simulator(server, {"motion": motion, "state": state})
-
-
-def _hub(url: DeviceURL, **fixed: Any) -> Simulator:
-    from robocli.hub import HubServer
-
-    if url.model:
-        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
-    server = HubServer("127.0.0.1", 0, **_options(url, sim=True, **fixed)).start()
-    return Simulator(server, {"": f"127.0.0.1:{server.port}"})
 
 
 def _laser(url: DeviceURL, **fixed: Any) -> Simulator:
     from robocli.sim.hokuyo import HokuyoSim
 
-    server = HokuyoSim(url.model or "utm-30lx", **_options(url, **fixed))
+    server = HokuyoSim(url.model or "utm-30lx", **options(url, **fixed))
     return Simulator(server, {"": server.serve_tcp("127.0.0.1", 0)})
 
 
-_STARTERS: dict[str, Callable[..., Simulator]] = {
-    "pioneer": _pioneer, "arm": _arm, "hub": _hub, "laser": _laser,
+#: The simulators of the robots, by device. The hub's is given by its client
+#: (:mod:`robocli.devices.hub.client`): the hub server's sources use the other clients, so
+#: importing it from here would make an import circle.
+STARTERS: dict[str, Callable[..., Simulator]] = {
+    "pioneer": _pioneer, "arm": _arm, "laser": _laser,
 }  # fmt: skip
 
 
-def start(device: str, url: DeviceURL, **fixed: Any) -> Simulator:
-    """Start the simulator of ``device`` (``pioneer``, ``arm``, ``hub``, ``laser``) that
-    ``url`` (a ``sim`` :class:`DeviceURL`) asks for; ``fixed``: options the client's own
-    arguments imply (the arm's byte order), overridden by the URL's. An option the
-    simulator does not have, or a value it refuses, is an :class:`InvalidArgument`."""
+def start(device: str | Callable[..., Simulator], url: DeviceURL, **fixed: Any) -> Simulator:
+    """Start the simulator of ``device`` (``pioneer``, ``arm``, ``laser``, or a function
+    ``(url, **options) -> Simulator``) that ``url`` (a ``sim`` :class:`DeviceURL`) asks
+    for; ``fixed``: options the client's own arguments imply (the arm's byte order),
+    overridden by the URL's. An option the simulator does not have, or a value it
+    refuses, is an :class:`InvalidArgument`."""
+    starter = STARTERS[device] if isinstance(device, str) else device
     try:
-        return _STARTERS[device](url, **fixed)
+        return starter(url, **fixed)
     except (TypeError, ValueError, LookupError) as exc:
         if isinstance(exc, InvalidArgument):
             raise
-        raise InvalidArgument(f"{url.text!r}: the {device} simulator refused it: {exc}") from None
+        raise InvalidArgument(f"{url.text!r}: the simulator refused it: {exc}") from None
 
 
 def adopt(device: Any, simulator: Simulator) -> None:
@@ -126,7 +123,8 @@ def adopt(device: Any, simulator: Simulator) -> None:
     log.info("%r runs on its own simulator at %s", device, simulator.url)
 
 
-def connect_to(device: str, url: DeviceURL, connect: Callable[[Simulator], Any],
+def connect_to(device: str | Callable[..., Simulator], url: DeviceURL,
+               connect: Callable[[Simulator], Any],
                **fixed: Any) -> Any:  # fmt: skip
     """Start ``device``'s simulator for ``url``, ``connect(simulator)`` to it and hand the
     simulator to what that returns (:func:`adopt`); a connect that fails stops it again."""

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.addresses import parse_device_url
+from robocli.addresses import DeviceURL, parse_device_url
 from robocli.devices import simulators
 from robocli.devices.base import ListenerHandle, close_simulator, pick_kind, renamed_argument
 from robocli.devices.hub.clock import CLOCK_SLEW, CLOCK_STEP, CLOCK_WINDOW, ClockSync
@@ -106,9 +106,9 @@ class Hub:
     ) -> Hub:
         """Connect to the hub at ``url`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
         default 1500; default 127.0.0.1) and send CONNECT. ``sim://`` starts the built-in
-        simulated hub in-process on loopback (closed with the client); ``zenoh/NAME`` reaches
-        the hub's Zenoh front-end (a :class:`~robocli.devices.hub.over_zenoh.ZenohHub`, at
-        the default Zenoh endpoint). ``host`` is the deprecated old name of ``url``.
+        simulated hub in-process on loopback (closed with the client); a hub's Zenoh
+        front-end (``zenoh/NAME``) is :class:`~robocli.devices.hub.over_zenoh.ZenohHub`'s.
+        ``host`` is the deprecated old name of ``url``.
         ``compress``: the hub zlib-compresses every reply.
         ``client_id``: re-attach to that client's buffers. ``clock``: the client's clock
         (seconds, like :func:`time.time`). ``token``: the shared secret of a hub started
@@ -119,15 +119,13 @@ class Hub:
         Raises :class:`TransportError` when nobody listens,
         :class:`TimeoutError` when the hub does not answer."""
         text = renamed_argument("Hub.connect", "host", "url", host, url, "127.0.0.1")
-        if text == "sim" or text.startswith(("sim://", "zenoh/")):
+        if text.startswith("zenoh/"):
+            raise InvalidArgument(f"{text!r}: a hub on Zenoh is reached with "
+                                  "robocli.ZenohHub.connect")  # fmt: skip
+        if text == "sim" or text.startswith("sim://"):
             where = parse_device_url(text, what="hub URL")
-            if where.kind == "zenoh":
-                from robocli.devices.hub.over_zenoh import ZenohHub
-
-                return ZenohHub.connect(where.name, timeout=timeout, clock=clock,
-                                        hub_clock=hub_clock, token=token)  # fmt: skip
             return simulators.connect_to(  # type: ignore[no-any-return]
-                "hub", where, lambda sim: cls.connect(
+                _start_simulated_hub, where, lambda sim: cls.connect(
                     sim.url, compress=compress, timeout=timeout, client_id=client_id,
                     clock=clock, hub_clock=hub_clock, token=token, listeners=listeners),
             )  # fmt: skip
@@ -439,3 +437,13 @@ __all__ = [
     "resolution",
     "subscribe_body",
 ]
+
+
+def _start_simulated_hub(url: DeviceURL, **fixed: Any) -> simulators.Simulator:
+    """The simulated hub of ``sim://`` (the hub server with simulated sensors)."""
+    from robocli.hub import HubServer
+
+    if url.model:
+        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
+    server = HubServer("127.0.0.1", 0, **simulators.options(url, sim=True, **fixed)).start()
+    return simulators.Simulator(server, {"": f"127.0.0.1:{server.port}"})

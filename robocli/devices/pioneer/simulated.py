@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from robocli.devices.pioneer.laser import (
     LaserScan,
@@ -29,7 +29,27 @@ from robocli.protocols import arcos
 from robocli.protocols.arcos import Command, PacketType
 
 if TYPE_CHECKING:
-    from robocli.devices.pioneer.client import Pioneer
+    from robocli.devices.pioneer.link import PioneerStats
+    from robocli.devices.pioneer.state import PioneerState, RobotIdentity
+    from robocli.devices.session import Session
+    from robocli.transports import Transport
+
+
+class _Robot(Protocol):
+    """What :class:`PioneerSimulator` uses of the Pioneer it belongs to."""
+
+    _session: Session
+    _sip: Any
+    identity: RobotIdentity
+    config: dict[str, Any] | None
+    transport: Transport
+    stats: PioneerStats
+    sip_timeout: float
+
+    @property
+    def is_simulator(self) -> bool: ...
+
+    def _current_state(self) -> PioneerState: ...
 
 __all__ = ["LaserListener", "PioneerSimulator", "is_simulator"]
 
@@ -55,7 +75,7 @@ class PioneerSimulator:
     """``robot.sim``: the simulated laser, the simulator's status, teleporting (see the
     module). Made by the :class:`~robocli.devices.pioneer.Pioneer` it belongs to."""
 
-    def __init__(self, robot: Pioneer) -> None:
+    def __init__(self, robot: _Robot) -> None:
         self._robot = robot
         self._session = robot._session
         self._laser: LaserScan | None = None
