@@ -136,3 +136,4 @@ def test_simulator_only_methods_are_a_part_under_robot_sim() -> None:
         robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
         robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
         assert robot.sim is None
+

@@ -376,13 +376,13 @@ class Hub:
         packet = encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id)
         self._unanswered(packet, MsgType.DOUT_CTRL)
 
-    def close(self, stop: bool = True, *, quit: bool | None = None) -> None:  # noqa: A002
+    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:  # noqa: A002
         """Send QUIT (the hub forgets this client; ``stop=False`` keeps its buffers for a
         reconnect with :attr:`client_id`) and close the link, bounded; then the simulator of
         a ``sim://`` URL. Idempotent. ``quit`` is the deprecated old name of ``stop``."""
-        stop = renamed_argument("Hub.close", "quit", "stop", quit, stop, True)
+        send_quit = renamed_argument("Hub.close", "quit", "stop", quit, stop, True)
         try:
-            self.session.close((header_only(MsgType.QUIT, self.client_id),) if stop else ())
+            self.session.close((header_only(MsgType.QUIT, self.client_id),) if send_quit else ())
         finally:
             close_simulator(self)
 
