@@ -24,6 +24,7 @@ from __future__ import annotations
 import threading
 import warnings
 from collections.abc import Callable
+from types import TracebackType
 from typing import Any, Protocol, runtime_checkable
 
 from robocli.errors import InvalidArgument
@@ -58,7 +59,8 @@ class Device(Protocol):
 
     def __enter__(self) -> Any: ...
 
-    def __exit__(self, *exc: object) -> None: ...
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None, /) -> None: ...  # fmt: skip
 
 
 class ListenerHandle:
