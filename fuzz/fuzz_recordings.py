@@ -154,7 +154,7 @@ def _arm(motion: int, state: int) -> Callable[[Any], None]:
 
         with Arm.connect("127.0.0.1", motion, state) as arm:
             samples: list[Any] = []
-            arm.add_sample_listener(samples.append)
+            arm.add_listener(samples.append, kind="samples")
             rec.add(arm)
             while sum(s.source == "joint_feedback" for s in samples) < 4:
                 arm.wait_for_state(5.0)
