@@ -130,9 +130,14 @@ def test_simulator_only_methods_are_a_part_under_robot_sim() -> None:
             assert time.monotonic() < deadline, "the teleport never showed"
             status = sim.status(20.0)
         assert scans
-        # the robot's own surface no longer carries the simulator's names
+        # the robot's own surface no longer carries the simulator's names, and its parts
+        # (the simulator's, the keep-alive) are held, not inherited
+        from robocli.devices.pioneer.keepalive import KeepAlive
+
         public = {n for n in vars(type(robot)) if not n.startswith("_")}
         assert not {"start_laser", "sim_status", "set_simulator_pose"} & public
+        assert not {KeepAlive, PioneerSimulator} & set(type(robot).__mro__)
+        assert isinstance(robot._keeper, KeepAlive)
         robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
         robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
         assert robot.sim is None

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
 from collections.abc import Callable, Iterable
 from typing import Any
@@ -69,12 +68,13 @@ log = logging.getLogger("robocli.devices.pioneer")
 PacketListener = FrameListener
 
 
-class Pioneer(Commands, KeepAlive, Decoding, DeprecatedNames):
+class Pioneer(Commands, Decoding, DeprecatedNames):
     """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
 
     Here: connecting, the state, listeners and closing. Its commands come from
     :class:`~robocli.devices.pioneer.commands.Commands`; keeping it safe and alive (set-points,
-    watchdog trips, dead-man) from :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
+    watchdog trips, dead-man) is a part it holds,
+    :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
     frames it receives are decoded by :class:`~robocli.devices.pioneer.decode.Decoding`.
     What only a simulator offers is a part of it, :attr:`sim` (None on a real robot): its
     laser (``robot.sim.start_laser()``, ``robot.sim.laser``), its status, teleporting."""
@@ -117,28 +117,18 @@ class Pioneer(Commands, KeepAlive, Decoding, DeprecatedNames):
         self._config_raw = b""
         now = time.monotonic()
         self._last_sip = now
-        self._last_app_command = now
-        # set-points re-sent by the keep-alive: list of (command, arg) in send order
-        self._setpoints: list[tuple[int, int]] = []
-        self._setpoint_lock = threading.Lock()
-        # the last motion command asked the robot to move (cleared by a stop or a trip)
-        self._motion_commanded = False
-        self._trip_pending: WatchdogTrip | None = None  # for the next motion command
-        self._trip_unannounced: WatchdogTrip | None = None  # for the listeners
-        self._trip_listeners: Listeners[WatchdogListener] = Listeners(
-            self.stats, "pioneer watchdog trip"
-        )
         self._soc_seen = False  # a SIP reported a non-zero state of charge
         self._clamp_warned: set[str] = set()
-        self._motors_off_warned = False
-        self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
+        #: set-points kept alive, watchdog trips, dead-man, SIP supervision: a part
+        self._keeper = KeepAlive(self)
         self._simulated = PioneerSimulator(self)
         session.on_frame = self._on_frame
-        session.on_sent = self._on_sent  # the time of every packet sent
-        session.before_send = self._before_send
+        keeper = self._keeper
+        session.on_sent = keeper.on_sent  # the time of every packet sent
+        session.before_send = keeper.before_send
         session.silence_limit = self.watchdog  # a set-point held up past it is not sent
-        session.add_task("keepalive", self._keepalive_step)
-        self._supervisor = session.add_task("supervisor", self._supervise_step)
+        session.add_task("keepalive", keeper.keepalive_step)
+        keeper.supervisor = session.add_task("supervisor", keeper.supervise_step)
         session.start()
 
     # ------------------------------------------------------------------ connecting
@@ -346,7 +336,7 @@ class Pioneer(Commands, KeepAlive, Decoding, DeprecatedNames):
                 left = deadline - time.monotonic()
                 if left <= 0:
                     if timeout is None:  # the robot's silence limit: as the supervisor says it
-                        raise self._silence_error()
+                        raise self._keeper.silence_error()
                     raise TimeoutError(f"{self.transport.url}: no SIP within {limit:g} s")
                 cond.wait(left)
 
@@ -389,7 +379,7 @@ class Pioneer(Commands, KeepAlive, Decoding, DeprecatedNames):
         pick_kind(kind, ("frames", "laser", "watchdog"), "Pioneer")
         found: dict[str, Listeners[Any]] = {
             "frames": self._session.listeners, "laser": self._simulated.listeners,
-            "watchdog": self._trip_listeners,
+            "watchdog": self._keeper.listeners,
         }  # fmt: skip
         return found[kind]
 
