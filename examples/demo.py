@@ -187,8 +187,8 @@ def run(out: Path = OUT) -> int:
                 f"simulator truth:  x {truth.x:+.3f} m  y {truth.y:+.3f} m  "
                 f"th {math.degrees(truth.th):+6.1f} deg"
             )
-            robot.start_laser()  # the simulated SICK LMS200: a 181-reading scan every SIP
-            near = robot.wait_for_laser(timeout=5).nearest()
+            robot.sim.start_laser()  # the simulated SICK LMS200: a 181-reading scan every SIP
+            near = robot.sim.wait_for_laser(timeout=5).nearest()
             print(f"laser: nearest return {near[0]:.2f} m at {math.degrees(near[1]):+.0f} deg"
                   if near else "laser: no return within 32 m")  # fmt: skip
 

@@ -20,7 +20,7 @@ robot has one, the laser's returns. The random draws come from ``seed``: a run o
 simulator is repeatable.
 
     python examples/wander.py tcp://127.0.0.1:8101 --seconds 60
-    python examples/wander.py sim                       # embedded simulator (via the CLI's helper)
+    python examples/wander.py sim://                    # the built-in simulator, in-process
 """
 
 from __future__ import annotations
@@ -161,7 +161,7 @@ class Wanderer:
 
 def wander(robot: Pioneer, sips: int, params: WanderParams | None = None) -> WanderResult:
     """Wander for ``sips`` SIP cycles (100 ms each on a real robot), with the laser's
-    returns when the robot has a laser running (a simulator's: ``robot.start_laser()``)."""
+    returns when the robot has a laser running (a simulator's: ``robot.sim.start_laser()``)."""
     p = params or WanderParams()
     brain = Wanderer(p)
     distance = 0.0
@@ -184,14 +184,12 @@ def wander(robot: Pioneer, sips: int, params: WanderParams | None = None) -> Wan
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("url", help="robot URL or port, or 'sim'")
+    parser.add_argument("url", help="robot URL or port, or sim:// (docs/urls.md)")
     parser.add_argument("--seconds", type=float, default=30.0)
     args = parser.parse_args()
-    from robocli.commands._common import pioneer_url
-
-    with pioneer_url(args.url) as url, Pioneer.connect(url) as robot:
-        if robot.is_simulator:
-            robot.start_laser()
+    with Pioneer.connect(args.url) as robot:
+        if robot.sim is not None:
+            robot.sim.start_laser()
         result = wander(robot, int(args.seconds * 10))
         print(f"travelled {result.distance:.2f} m, {result.turns} turns, {result.bumps} bumps")
 

@@ -143,7 +143,7 @@ def _pioneer(url: str) -> Callable[[Any], None]:
             robot.set_velocity(0.2, 0.1)
             for _ in range(3):
                 robot.wait_for_sip()
-            robot.wait_for_laser(10.0)
+            robot.sim.wait_for_laser(10.0)
 
     return make
 
@@ -154,7 +154,7 @@ def _arm(motion: int, state: int) -> Callable[[Any], None]:
 
         with Arm.connect("127.0.0.1", motion, state) as arm:
             samples: list[Any] = []
-            arm.add_sample_listener(samples.append)
+            arm.add_listener(samples.append, kind="samples")
             rec.add(arm)
             while sum(s.source == "joint_feedback" for s in samples) < 4:
                 arm.wait_for_state(5.0)

@@ -3,7 +3,9 @@
 :func:`parse_address` (``HOST[:PORT]``, ``[IPv6]:PORT``), :func:`parse_host` (an address
 without a port, e.g. where to listen), :func:`check_url` (what
 :func:`~robocli.transports.open_transport` accepts, checked without opening anything),
-:func:`is_tcp` (whether it takes a URL as TCP) and :func:`format_address` (back to text).
+:func:`is_tcp` (whether it takes a URL as TCP), :func:`format_address` (back to text) and
+:func:`parse_device_url` (a device's one URL: ``sim://``, ``tcp://``, a serial port, a pyserial
+URL, ``zenoh/NAME``; an arm's two ports in the query, see ``docs/urls.md``).
 Each refuses a malformed value with :class:`InvalidURL`, a usage error. Nothing here resolves,
 connects or opens; :mod:`robocli.transports` re-exports every public name.
 """
@@ -13,6 +15,8 @@ from __future__ import annotations
 import ipaddress
 import os
 import re
+from dataclasses import dataclass, field
+from urllib.parse import parse_qsl
 
 from robocli.errors import InvalidArgument, TransportError
 
@@ -189,3 +193,113 @@ def _pyserial_scheme(scheme: str) -> bool:
         return importlib.util.find_spec(f"serial.urlhandler.protocol_{scheme}") is not None
     except (ImportError, ValueError):
         return False
+
+
+#: The schemes :func:`parse_device_url` tells apart.
+DEVICE_KINDS = ("sim", "tcp", "serial", "zenoh")
+#: The ports an arm's URL may carry in its query (``tcp://HOST?motion=11000&state=11002``).
+ARM_PORTS = ("motion", "state")
+#: Longest URL read (a bound on input; a device URL is a few dozen characters).
+MAX_URL = 2048
+
+
+@dataclass(frozen=True)
+class DeviceURL:
+    """A device's address as :func:`parse_device_url` read it.
+
+    ``kind``: ``"sim"`` (an in-process simulator: ``model`` is what follows ``sim://``, e.g.
+    ``p3dx``; ``options`` its query, e.g. ``time_scale=4``), ``"tcp"`` (``host``, ``port``
+    or None when the URL gave none; ``ports`` the named ports of its query), ``"serial"``
+    (``target`` a path, ``COMn`` or a pyserial URL) or ``"zenoh"`` (``name`` after
+    ``zenoh/``). ``target`` is what :func:`~robocli.transports.open_transport` opens."""
+
+    kind: str
+    text: str
+    target: str = ""
+    host: str = ""
+    port: int | None = None
+    model: str = ""
+    name: str = ""
+    options: dict[str, str] = field(default_factory=dict)
+    ports: dict[str, int] = field(default_factory=dict)
+
+
+def _query(text: str, query: str) -> dict[str, str]:
+    try:
+        pairs = parse_qsl(query, keep_blank_values=True, strict_parsing=bool(query),
+                          max_num_fields=32)  # fmt: skip
+    except ValueError as exc:
+        raise _bad("URL", text, f"bad query ({exc})") from None
+    out: dict[str, str] = {}
+    for key, value in pairs:
+        if not key.isidentifier() or key in out:
+            raise _bad("URL", text, f"bad or repeated option {key!r} in the query")
+        out[key] = value
+    return out
+
+
+def _named_ports(text: str, options: dict[str, str], names: tuple[str, ...]) -> dict[str, int]:
+    ports: dict[str, int] = {}
+    for key, value in options.items():
+        if key not in names:
+            known = ", ".join(names) or "none"
+            raise _bad("URL", text, f"unknown option {key!r} (ports known here: {known})")
+        if not (value.isascii() and value.isdigit() and 1 <= int(value) <= 65535):
+            raise _bad("URL", text, f"{key} port {value!r} is not a number in 1..65535")
+        ports[key] = int(value)
+    return ports
+
+
+def parse_device_url(
+    url: str, *, default_port: int | None = None, ports: tuple[str, ...] = (),
+    what: str = "URL",
+) -> DeviceURL:  # fmt: skip
+    """Read a device's URL, one grammar for every device (see ``docs/urls.md``):
+
+    - ``sim`` or ``sim://[MODEL][?OPTION=VALUE&...]``: the built-in simulator, in-process;
+    - ``tcp://HOST[:PORT]``, ``HOST:PORT`` (``[IPv6]:PORT``), or a bare ``HOST`` when
+      ``default_port`` is given; ``ports`` names the ports the query may carry, e.g.
+      ``tcp://HOST?motion=11000&state=11002`` for an arm (``ports=ARM_PORTS``);
+    - a serial port (``/dev/ttyUSB0``, ``COM3``) or a pyserial URL (``socket://``,
+      ``rfc2217://``...): ``kind="serial"``;
+    - ``zenoh/NAME``: a robot or hub behind a Zenoh bridge.
+
+    Raises :class:`InvalidURL` (a usage error) for anything else; nothing is opened."""
+    text = url.strip() if isinstance(url, str) else ""
+    if not text:
+        raise InvalidURL(f"{what}: empty; give sim://, tcp://HOST:PORT, a serial port or "
+                         "zenoh/NAME", "empty")  # fmt: skip
+    if len(text) > MAX_URL:
+        raise InvalidURL(f"{what}: longer than {MAX_URL} characters", "too long")
+    if text == "sim" or text.startswith("sim://"):
+        rest, _, query = text.removeprefix("sim").removeprefix("://").partition("?")
+        model = rest.removesuffix("/")
+        if model and not _HOSTNAME.match(model):
+            raise _bad(what, text, f"{model!r} is not a simulator model name", "sim://MODEL")
+        return DeviceURL("sim", text, model=model, options=_query(text, query))
+    if text.startswith("zenoh/"):
+        name = text.removeprefix("zenoh/")
+        if not name or not _HOSTNAME.match(name):
+            raise _bad(what, text, "not a name after zenoh/", "zenoh/NAME")
+        return DeviceURL("zenoh", text, name=name)
+    if ports and not text.startswith(("/", "\\")) and ("://" not in text or is_tcp(text)):
+        address, _, query = text.partition("?")
+        named = _named_ports(text, _query(text, query), ports)
+        try:
+            host = parse_host(address.removeprefix("tcp://").removesuffix("/"), what=what)
+        except InvalidURL as exc:
+            form = "tcp://HOST?" + "&".join(f"{p}=PORT" for p in ports)
+            raise _bad(what, text, exc.reason, form) from None
+        return DeviceURL("tcp", text, host=host, ports=named)
+    if default_port is not None and "://" not in text and not _is_path(text):
+        host, port = parse_address(text, default_port, what=what)
+        return DeviceURL("tcp", text, target=f"tcp://{format_address(host, port)}",
+                         host=host, port=port)  # fmt: skip
+    checked = check_url(text, what=what)
+    if is_tcp(checked):
+        host, port = parse_address(checked, what=what)
+        return DeviceURL("tcp", text, target=checked, host=host, port=port)
+    if checked.lower().startswith("loop://"):
+        raise _bad(what, text, "pyserial's loop:// echoes what is sent: no device can answer "
+                   "there (for a simulated one, give sim://)")  # fmt: skip
+    return DeviceURL("serial", text, target=checked)

@@ -86,14 +86,14 @@ def state_periods(arm: Arm, run: Run, progress: Progress | None = None,
         if sample.source == "joint_position" and len(stamps) <= run.n:
             stamps.append(sample.t)
 
-    arm.add_sample_listener(on_sample)
+    arm.add_listener(on_sample, kind="samples")
     try:
         while len(stamps) <= run.n:
             arm.wait_for_state(timeout)
             if progress is not None:
                 progress(max(0, len(stamps) - 1))
     finally:
-        arm.remove_sample_listener(on_sample)
+        arm.remove_listener(on_sample, kind="samples")
         periods = np.diff(np.array(stamps[: run.n + 1], dtype=np.float64))
         run.samples[: periods.size] = periods
         run.count = int(periods.size)

@@ -196,7 +196,7 @@ def _client(
                         tk.nbytes += r.nbytes
                 due += period
         finally:  # our own hub keeps detached clients: it can tell what it dropped for them
-            hub.close(quit=quit_at_end)
+            hub.close(stop=quit_at_end)
     except RobocliError as exc:
         with lock:
             out.setdefault("errors", []).append(str(exc))

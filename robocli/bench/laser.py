@@ -35,7 +35,7 @@ def laser_scan_timing(
             last[:] = [payload]
 
     try:
-        with Laser.connect(url, listener=keep) as laser:
+        with Laser.connect(url, listeners=[keep]) as laser:
             with contextlib.closing(laser.scans(n + 1)) as scans:  # QT now, not at collection
                 for i, scan in enumerate(scans):
                     received.append(scan.received)

@@ -92,7 +92,7 @@ class PioneerBridge:
         self._velocity = z.declare_subscriber(holder_key(self.name, None, "velocity"),
                                               self._on_velocity)  # fmt: skip
         self._info = z.declare_queryable(info_key(self.name), self._on_info)
-        robot.on_watchdog_trip(self._on_trip)
+        robot.add_listener(self._on_trip, kind="watchdog")
         self._thread = threading.Thread(target=self._publish, daemon=True,
                                         name=f"bridge-pioneer-{self.name}")  # fmt: skip
         self._thread.start()
@@ -130,7 +130,7 @@ class PioneerBridge:
             try:
                 state = robot.wait_for_sip(timeout=1.0)
             except TimeoutError:
-                if robot.connected:
+                if robot.alive:
                     continue
                 self._fail(robot)
                 return
@@ -140,7 +140,7 @@ class PioneerBridge:
             data = state_json(state, n_sonar, self._offset)
             data["holder"] = self.gate.holder
             put(self._state, data)
-            scan = robot.laser
+            scan = robot.sim.laser if robot.sim is not None else None
             if scan is not None and scan.t > last_scan:
                 last_scan = scan.t
                 put(self._laser, {

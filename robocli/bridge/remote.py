@@ -33,9 +33,18 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
+from robocli.devices.base import ListenerHandle, deprecated, pick_kind
+from robocli.devices.listeners import Listeners
 from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
-from robocli.errors import ConnectionLost, DeviceError, ProtocolError, TimeoutError
+from robocli.devices.stats import LinkStats
+from robocli.errors import (
+    ConnectionLost,
+    DeviceError,
+    InvalidArgument,
+    ProtocolError,
+    TimeoutError,
+)
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
 from robocli.zenoh.session import (
     ZenohTarget,
@@ -73,7 +82,13 @@ class RemotePioneer:
     def __init__(self, session: zenoh.Session, robot: str, *, holder: str | None = None,
                  timeout: float = 5.0, resend: float = DEFAULT_RESEND_S,
                  own_session: bool = False) -> None:  # fmt: skip
-        self.robot = check_name(robot, "robot name")
+        self.robot = check_name(robot.removeprefix("zenoh/"), "robot name")
+        #: samples received (by key: state, laser, event) and set-points sent
+        self.stats = LinkStats()
+        self._listeners: dict[str, Listeners[Any]] = {
+            kind: Listeners(self.stats, f"zenoh/{self.robot} {kind}")
+            for kind in ("frames", "states")
+        }
         self.holder = check_name(holder or default_holder(), "holder")
         self.timeout = timeout
         self.resend = resend
@@ -117,10 +132,11 @@ class RemotePioneer:
                 holder: str | None = None, timeout: float = 5.0,
                 resend: float = DEFAULT_RESEND_S) -> RemotePioneer:  # fmt: skip
         """Connect to ``zenoh`` (an endpoint such as ``tcp/127.0.0.1:7447``, or a JSON5
-        config file) as a client and find the bridge ``robot``: :class:`TimeoutError`
-        when no bridge of that name answers within ``timeout`` s. ``holder`` (default:
-        the configuration's user, else :func:`default_holder`): the name this program
-        drives as; under a lab's ACL, only its own user name is let through."""
+        config file) as a client and find the bridge ``robot`` (``NAME`` or ``zenoh/NAME``):
+        :class:`TimeoutError` when no bridge of that name answers within ``timeout`` s.
+        ``holder`` (default: the configuration's user, else :func:`default_holder`): the
+        name this program drives as; under a lab's ACL, only its own user name is let
+        through."""
         holder = holder or config_user(zenoh)
         session = open_session(zenoh, "client")
         return cls(session, robot, holder=holder, timeout=timeout, resend=resend,
@@ -153,9 +169,42 @@ class RemotePioneer:
             return self._laser
 
     @property
-    def connected(self) -> bool:
+    def alive(self) -> bool:
         """False once the bridge left (its liveliness token went) or :meth:`close` began."""
         return self._gone is None and not self._closed
+
+    @property
+    def connected(self) -> bool:
+        """Deprecated: :attr:`alive`."""
+        deprecated("RemotePioneer.connected", "RemotePioneer.alive")
+        return self.alive
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else :class:`ConnectionLost` saying why. Never blocks."""
+        if self._closed:
+            raise ConnectionLost(f"{self.url}: closed")
+        if self._gone is not None:
+            raise ConnectionLost(f"{self.url}: {self._gone}")
+
+    def add_listener(self, listener: Any, *, kind: str = "frames") -> ListenerHandle:
+        """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
+        takes it off: ``"frames"``, ``(direction "tx"/"rx", payload, t)`` for every state,
+        laser and event sample received and every set-point sent (the JSON payloads);
+        ``"states"``, ``listener(state)`` with each :class:`PioneerState`. Called in Zenoh's
+        threads: keep it short; one that raises is counted and logged, never stops this."""
+        registry = self._listeners[pick_kind(kind, tuple(self._listeners), "RemotePioneer")]
+        registry.add(listener)
+        return ListenerHandle(listener, lambda: registry.remove(listener))
+
+    def remove_listener(self, listener: Any, *, kind: str = "frames") -> None:
+        self._listeners[pick_kind(kind, tuple(self._listeners), "RemotePioneer")].remove(
+            listener)  # fmt: skip
+
+    def _received(self, what: str, sample: zenoh.Sample) -> bytes:
+        payload: bytes = sample.payload.to_bytes()
+        self.stats.count_received(what)
+        self._listeners["frames"].notify("rx", payload, time.monotonic())
+        return payload
 
     def wait_for_state(self, timeout: float | None = None) -> PioneerState:
         """Block until the next state arrives and return it; :class:`ConnectionLost` once
@@ -237,8 +286,11 @@ class RemotePioneer:
         finally:
             token.undeclare()
 
-    def close(self) -> None:
-        """Stop and release the robot, stop watching; close the session when it is ours."""
+    def close(self, *, stop: bool = True) -> None:
+        """Stop and release the robot, stop watching; close the session when it is ours.
+        Idempotent. The robot is always stopped (``stop=False`` is refused), as a Pioneer's."""
+        if not stop:
+            raise InvalidArgument("a Pioneer is always stopped on close (stop=False refused)")
         if self._closed:
             return
         try:
@@ -272,7 +324,10 @@ class RemotePioneer:
         body: dict[str, Any] = {"v": v, "w": w}
         if epoch is not None:  # (a bridge that gave none does not know epochs)
             body["epoch"] = epoch
-        self._session.put(holder_key(self.robot, self.holder, "velocity"), encode(body),
+        payload = encode(body)
+        self.stats.count_sent("velocity")
+        self._listeners["frames"].notify("tx", payload, time.monotonic())
+        self._session.put(holder_key(self.robot, self.holder, "velocity"), payload,
                           encoding=JSON_ENCODING, priority=_ZENOH.Priority.INTERACTIVE_HIGH,
                           express=True)  # fmt: skip
 
@@ -323,7 +378,7 @@ class RemotePioneer:
 
     def _on_state(self, sample: zenoh.Sample) -> None:
         try:
-            data = decode(sample.payload.to_bytes(), f"{self.url} state")
+            data = decode(self._received("state", sample), f"{self.url} state")
             state = _state_of(data, time.monotonic())
         except ProtocolError as exc:
             log.warning("%s", exc)
@@ -332,10 +387,11 @@ class RemotePioneer:
             self._state = state
             self._states += 1
             self._cond.notify_all()
+        self._listeners["states"].notify(state)
 
     def _on_laser(self, sample: zenoh.Sample) -> None:
         try:
-            data = decode(sample.payload.to_bytes(), f"{self.url} laser")
+            data = decode(self._received("laser", sample), f"{self.url} laser")
         except ProtocolError as exc:
             log.warning("%s", exc)
             return
@@ -351,7 +407,7 @@ class RemotePioneer:
 
     def _on_event(self, sample: zenoh.Sample) -> None:
         try:
-            data = decode(sample.payload.to_bytes(), f"{self.url} event")
+            data = decode(self._received("event", sample), f"{self.url} event")
         except ProtocolError:
             return
         kind = data.get("event")

@@ -138,26 +138,6 @@ def bundled(
 
 
 @contextlib.contextmanager
-def pioneer_url(port: str, **sim_options: Any) -> Iterator[str]:
-    """Yield a URL for ``port``; for ``sim`` start an in-process simulator on an ephemeral
-    loopback port and stop it afterwards (the CLI, not the client, knows simulators)."""
-    if port.strip().lower().startswith("loop://"):
-        from robocli.errors import InvalidArgument
-
-        raise InvalidArgument(
-            f"PORT {port!r} is pyserial's loopback, which echoes what is sent: no robot can "
-            "answer there (for a simulated robot, give PORT 'sim')"
-        )
-    if port != SIM:
-        yield port
-        return
-    from robocli.sim.pioneer.server import PioneerSim
-
-    with PioneerSim(**sim_options) as simulator:
-        yield simulator.serve_tcp("127.0.0.1", 0)
-
-
-@contextlib.contextmanager
 def pioneer_sim_process(cpu: int | None = None, timeout: float = 20.0) -> Iterator[str]:
     """Yield the URL of a Pioneer simulator running in its own process (pinned to ``cpu``
     when given), so that a benchmark measures the client against a server that does not

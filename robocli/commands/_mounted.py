@@ -61,7 +61,7 @@ def _following(sim: Any, robot: Pioneer) -> Iterator[None]:
                 robot.wait_for_sip(0.5)
                 place()
             except RobocliError:
-                if not robot.connected:
+                if not robot.alive:
                     return
 
     place()

@@ -49,7 +49,7 @@ def sonar_text(ranges: Any) -> list[str]:
 def laser_text(robot: Pioneer) -> str | None:
     """A one-line summary of the latest laser scan (nearest return and its bearing, number
     of readings), or None when the robot has no laser scan."""
-    scan = robot.laser
+    scan = robot.sim.laser if robot.sim is not None else None
     if scan is None:
         return None
     nearest = scan.nearest()

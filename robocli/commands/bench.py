@@ -19,7 +19,6 @@ import typer
 
 from robocli.commands._common import (
     pioneer_sim_process,
-    pioneer_url,
     print_json,
     sigterm_as_interrupt,
 )
@@ -233,8 +232,8 @@ def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
     progress = _Progress()
     with sigterm_as_interrupt():
         try:
-            with pioneer_url(url or "sim") as where, progress.stage("SIPs", n) as update:
-                bp.pioneer_sip_timing(where, n, progress=update, into=timing)
+            with progress.stage("SIPs", n) as update:
+                bp.pioneer_sip_timing(url or "sim://", n, progress=update, into=timing)
         except KeyboardInterrupt:
             return timing, True
     return timing, False

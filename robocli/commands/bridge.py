@@ -61,7 +61,7 @@ def pioneer(
     robot_name = server_name(name, zenoh, "pioneer")
     target = zenoh_target(zenoh)
     ros2_check(ros2, zenoh)
-    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+    with connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
         start_laser(robot, wait=False)
         session = zenoh_session(zenoh, "server")
         try:

@@ -102,7 +102,7 @@ def pioneer(
             _pioneer_file(view, file)
         else:
             assert port is not None
-            _pioneer_live(view, port, laser, subtype=subtype, baud=baud, timeout=timeout)
+            _pioneer_live(view, port, laser, subtype=subtype, baudrate=baud, timeout=timeout)
     finally:
         if writer is not None:
             writer.close()
@@ -167,7 +167,7 @@ def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
                 start_laser(robot, wait=False)
             while not view.done:
                 feed.show()
-                if not robot.connected:
+                if not robot.alive:
                     robot.wait_for_sip(0)  # raises the reason the session ended
     finally:
         with reader_may_leave():

@@ -90,7 +90,7 @@ def dump(
         from robocli.devices.laser import Laser
 
         with laser_url(port, model) as url:
-            with Laser.connect(url, baudrate=baud, timeout=timeout, listener=view.show) as laser:
+            with Laser.connect(url, baudrate=baud, timeout=timeout, listeners=[view.show]) as laser:
                 with contextlib.closing(laser.scans(None)) as scans:  # QT now, not at collection
                     for n, _ in enumerate(scans, 1):
                         if count and n >= count:

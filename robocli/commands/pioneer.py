@@ -23,7 +23,6 @@ from robocli.commands._common import (
     bind_address,
     explain_refusal,
     listening,
-    pioneer_url,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -75,9 +74,9 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
     from robocli.devices.pioneer import Pioneer
 
     options.setdefault("sip_timeout", options.get("timeout", 5.0))
-    with reader_may_leave(), sigterm_as_interrupt(), pioneer_url(port) as url:
-        with explain_refusal(url):
-            robot = Pioneer.connect(url, **options)
+    with reader_may_leave(), sigterm_as_interrupt():
+        with explain_refusal(port):
+            robot = Pioneer.connect(port, **options)
         with robot:
             yield robot
 
@@ -114,7 +113,7 @@ def connect(
         connect_remote(port, zenoh, once, json_out, timeout)
         return
     with foxglove_view(foxglove, foxglove_host) as view, \
-            connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot, \
+            connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot, \
             _hokuyo(laser, robot, once) as hokuyo:  # fmt: skip
         if view is not None:
             name = view.add(robot)
@@ -162,12 +161,12 @@ def start_laser(robot: Pioneer, wait: bool) -> None:
     port)."""
     from robocli.errors import TimeoutError
 
-    if not robot.is_simulator:
+    if robot.sim is None:
         return
-    robot.start_laser()
+    robot.sim.start_laser()
     if wait:
         with contextlib.suppress(TimeoutError):
-            robot.wait_for_laser(1.0)
+            robot.sim.wait_for_laser(1.0)
 
 
 def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
@@ -179,7 +178,7 @@ def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any
         from robocli.commands._mounted import placed_json
 
         data["hokuyo"] = placed_json(hokuyo)
-    scan = robot.laser
+    scan = robot.sim.laser if robot.sim is not None else None
     if scan is not None and "laser" not in data:
         data["laser"] = unix_stamped({
             "t": scan.t,

@@ -187,7 +187,7 @@ def _until(rec: Recorder, start: float, duration: float | None, count: int | Non
     def done() -> bool:
         rec.check()  # the disk is full: stop now, what was written stays readable
         for name, device in devices.items():
-            if name.startswith("pioneer") and not device.connected:
+            if name.startswith("pioneer") and not device.alive:
                 device.wait_for_sip(0)  # raises why the session ended
             elif name.startswith("arm"):
                 device.check()
@@ -204,13 +204,13 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
     """Connect every source (simulators started on ``stack``) and add it to ``rec``, each
     recorded from its first byte; ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
     from robocli.commands._arm import arm_host, connect_at
-    from robocli.commands._common import explain_refusal, pioneer_url
+    from robocli.commands._common import explain_refusal
     from robocli.devices.pioneer import Pioneer
     from robocli.io.record.arm import arm_links
 
     devices: dict[str, Any] = {}
     for port in pioneers:
-        url = stack.enter_context(pioneer_url(port))
+        url = port
         listener = rec.listener("pioneer", "arcos", url=url)
         with explain_refusal(url):
             robot = stack.enter_context(
@@ -218,8 +218,8 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             )
         name = rec.add(robot, listener.name)
         devices[name] = robot
-        if laser and robot.is_simulator:
-            robot.start_laser()
+        if laser and robot.sim is not None:
+            robot.sim.start_laser()
     for host in arms:
         address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
                                                link.byte_order, link.real_size, link.robot,
@@ -266,7 +266,7 @@ def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeou
 
     url = stack.enter_context(laser_url(port))
     listener = rec.listener("laser", "scip2", url=url)
-    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listener=listener))
+    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listeners=[listener]))
     name = rec.add(laser, listener.name, **on)
     laser.start()
     return {name: laser}

@@ -73,7 +73,7 @@ def pioneer(
     if remote:
         teleop_remote(port, zenoh, controller, timeout)
         return
-    with connected(port, subtype=subtype, baud=baud, timeout=timeout) as robot:
+    with connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
         robot.enable_motors()
         typer.echo(
             f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "

@@ -33,13 +33,22 @@ in :mod:`robocli.devices.arm.link`.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
+from robocli.addresses import ARM_PORTS, parse_device_url
+from robocli.devices import simulators
 from robocli.devices.arm.link import first_state, no_refusal, open_session, stop_frame
 from robocli.devices.arm.motion import Motion
 from robocli.devices.arm.tracking import SampleListener, StillMoving
+from robocli.devices.base import (
+    ListenerHandle,
+    close_simulator,
+    deprecated,
+    pick_kind,
+    renamed_argument,
+)
 from robocli.devices.session import FrameListener, Session
 from robocli.errors import InvalidArgument
 from robocli.kinematics import load_model
@@ -71,13 +80,18 @@ class Arm(Motion):
     # ------------------------------------------------------------------ connecting
 
     @classmethod
-    def connect(cls, host: str, motion_port: int = sm.PORT_MOTION,
-                state_port: int = sm.PORT_STATE, *, byte_order: str = "little",
+    def connect(cls, url: str | None = None, motion_port: int | None = None,
+                state_port: int | None = None, *, byte_order: str = "little",
                 real_size: int = 4, robot: str | RobotModel = "irb120", motion: bool = True,
                 state: bool = True, timeout: float = 5.0, history: int = 10_000,
                 listeners: Iterable[FrameListener] | Mapping[str, Iterable[FrameListener]] = (),
-                stop_on_failure: bool = True) -> Arm:  # fmt: skip
-        """Open the motion and/or state port of the controller at ``host``.
+                stop_on_failure: bool = True, host: str | None = None) -> Arm:  # fmt: skip
+        """Open the motion and/or state port of the controller at ``url``: ``HOST``,
+        ``tcp://HOST?motion=11000&state=11002`` (the ports in the URL; else
+        ``motion_port``/``state_port``, default 11000 and 11002), or ``sim://[MODEL][?...]``,
+        the built-in simulator started in-process and closed with the arm
+        (``sim://?profile=generic`` executes streamed points). ``host`` is the deprecated
+        old name of ``url``.
 
         ``byte_order``: ``"little"`` (ABB) or ``"big"`` (Fanuc, FS100); ``real_size`` 4 or 8.
         With ``state``, waits up to ``timeout`` s for the first state message. A motion link
@@ -94,6 +108,27 @@ class Arm(Motion):
             raise InvalidArgument(f"byte_order must be 'little' or 'big', not {byte_order!r}")
         if real_size not in (4, 8):
             raise InvalidArgument(f"real_size must be 4 or 8, not {real_size!r}")
+        text = renamed_argument("Arm.connect", "host", "url", host, url, None)
+        if text is None:
+            raise InvalidArgument("Arm.connect: give the controller's URL")
+        where = parse_device_url(text, ports=ARM_PORTS, what="arm URL")
+        options: dict[str, Any] = {
+            "byte_order": byte_order, "real_size": real_size, "robot": robot,
+            "motion": motion, "state": state, "timeout": timeout, "history": history,
+            "listeners": listeners, "stop_on_failure": stop_on_failure,
+        }  # fmt: skip
+        if where.kind == "sim":
+            return simulators.connect_to(  # type: ignore[no-any-return]
+                "arm", where, lambda sim: cls.connect(
+                    "127.0.0.1", sim.port("motion"), sim.port("state"), **options),
+                real=real_size, byteorder=order,
+            )  # fmt: skip
+        if where.kind != "tcp":
+            raise InvalidArgument(f"arm URL {text!r}: an arm is reached over TCP "
+                                  "(HOST, tcp://HOST?motion=PORT&state=PORT or sim://)")
+        host = where.host
+        motion_port = _one_port("motion", where.ports, motion_port, sm.PORT_MOTION)
+        state_port = _one_port("state", where.ports, state_port, sm.PORT_STATE)
         if not (motion or state):
             raise InvalidArgument("connect to the motion port, the state port, or both")
         model = robot if isinstance(robot, RobotModel) else load_model(robot)
@@ -146,14 +181,20 @@ class Arm(Motion):
     def close(self, stop: bool = True) -> None:
         """Close both links. With ``stop`` (the default) a trajectory that may be running is
         stopped first (STOP, -4); ``stop=False`` leaves it running, as a dropped link does on
-        an ABB. Bounded in time; idempotent."""
-        if self._motion is not None:
-            seq = [self._stop_frame] if stop and self.running() else []
-            self._motion.close(seq)
-        if self._state is not None:
-            self._state.close()
-        with self._cond:
-            self._cond.notify_all()
+        an ABB. Then the simulator of a ``sim://`` URL. Bounded in time; idempotent."""
+        try:
+            if self._motion is not None:
+                seq = [self._stop_frame] if stop and self.running() else []
+                self._motion.close(seq)
+            if self._state is not None:
+                self._state.close()
+            with self._cond:
+                self._cond.notify_all()
+        finally:
+            close_simulator(self)
+
+    #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the arm
+    simulator: simulators.Simulator | None = None
 
     def __enter__(self) -> Arm:
         return self
@@ -164,22 +205,39 @@ class Arm(Motion):
 
     # ------------------------------------------------------------------ listeners
 
-    def add_listener(self, listener: FrameListener, ports: str = "both") -> None:
-        """Call ``listener(direction, frame, t)`` for every frame sent ("tx") or received
-        ("rx") on the ``"motion"``, ``"state"`` or ``"both"`` ports. A listener that raises
-        is logged once, counted in ``stats.listener_errors``, and never stops the client."""
-        for s in self._sessions(ports):
-            s.listeners.add(listener)
+    def add_listener(self, listener: Callable[..., None], ports: str = "both", *,
+                     kind: str = "frames") -> ListenerHandle:  # fmt: skip
+        """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
+        takes it off: ``"frames"``, ``listener(direction, frame, t)`` for every frame sent
+        ("tx") or received ("rx") on the ``"motion"``, ``"state"`` or ``"both"`` ports;
+        ``"samples"``, ``listener(sample)`` for each :class:`JointSample`. A listener that
+        raises is logged once, counted in ``stats.listener_errors``, and never stops the
+        client."""
+        pick_kind(kind, ("frames", "samples"), "Arm")
+        if kind == "samples":
+            self._sample_listeners.add(listener)
+        else:
+            for s in self._sessions(ports):
+                s.listeners.add(listener)
+        return ListenerHandle(listener, lambda: self.remove_listener(listener, ports, kind=kind))
 
-    def remove_listener(self, listener: FrameListener, ports: str = "both") -> None:
+    def remove_listener(self, listener: Callable[..., None], ports: str = "both", *,
+                        kind: str = "frames") -> None:  # fmt: skip
+        pick_kind(kind, ("frames", "samples"), "Arm")
+        if kind == "samples":
+            self._sample_listeners.remove(listener)
+            return
         for s in self._sessions(ports):
             s.listeners.remove(listener)
 
     def add_sample_listener(self, listener: SampleListener) -> None:
-        """Call ``listener(sample)`` for each :class:`JointSample` (isolated like frames)."""
+        """Deprecated: ``add_listener(listener, kind="samples")``."""
+        deprecated("Arm.add_sample_listener", 'Arm.add_listener(..., kind="samples")')
         self._sample_listeners.add(listener)
 
     def remove_sample_listener(self, listener: SampleListener) -> None:
+        """Deprecated: ``remove_listener(listener, kind="samples")``."""
+        deprecated("Arm.remove_sample_listener", 'Arm.remove_listener(..., kind="samples")')
         self._sample_listeners.remove(listener)
 
     def _sessions(self, ports: str) -> list[Session]:
@@ -189,7 +247,22 @@ class Arm(Motion):
         return [s for s, name in picked if s is not None and ports in ("both", name)]
 
     @property
-    def stats(self) -> dict[str, Any]:
-        """Counters of both links (JSON-ready)."""
-        return {name: s.stats.as_dict() for s, name in
-                ((self._motion, "motion"), (self._state, "state")) if s is not None}  # fmt: skip
+    def stats(self) -> ArmStats:
+        """Counters of both links (JSON-ready): ``stats["motion"]``, ``stats.as_dict()``."""
+        return ArmStats({name: s.stats.as_dict() for s, name in
+                ((self._motion, "motion"), (self._state, "state")) if s is not None})  # fmt: skip
+
+
+class ArmStats(dict[str, Any]):
+    """The counters of an arm's links by port name; :meth:`as_dict` as every device's."""
+
+    def as_dict(self) -> dict[str, Any]:
+        return dict(self)
+
+
+def _one_port(name: str, in_url: dict[str, int], given: int | None, default: int) -> int:
+    port = in_url.get(name)
+    if port is not None and given is not None and given != port:
+        raise InvalidArgument(f"the {name} port is {port} in the URL and {given} in "
+                              f"{name}_port: give it once")  # fmt: skip
+    return port if port is not None else given if given is not None else default

@@ -171,10 +171,10 @@ class Recorder:
     def __init__(self, arm: Any, max_samples: int) -> None:
         self._arm = arm
         self.samples: deque[JointSample] = deque(maxlen=max_samples)
-        arm.add_sample_listener(self.samples.append)
+        arm.add_listener(self.samples.append, kind="samples")
 
     def stop(self) -> None:
-        self._arm.remove_sample_listener(self.samples.append)
+        self._arm.remove_listener(self.samples.append, kind="samples")
 
     def log(self) -> TrajectoryLog:
         from robocli.kinematics.fk import fk_positions

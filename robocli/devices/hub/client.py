@@ -26,6 +26,9 @@ from typing import Any
 
 import numpy as np
 
+from robocli.addresses import DeviceURL, parse_device_url
+from robocli.devices import simulators
+from robocli.devices.base import ListenerHandle, close_simulator, pick_kind, renamed_argument
 from robocli.devices.hub.clock import CLOCK_SLEW, CLOCK_STEP, CLOCK_WINDOW, ClockSync
 from robocli.devices.hub.decode import HEADER, Reading, align_readings, body_of, decode_reading
 from robocli.devices.hub.link import (
@@ -89,7 +92,7 @@ class Hub:
     @classmethod
     def connect(
         cls,
-        host: str = "127.0.0.1",
+        url: str | None = None,
         port: int | None = None,
         *,
         compress: bool = False,
@@ -99,9 +102,14 @@ class Hub:
         hub_clock: bool = False,
         token: bytes | str | None = None,
         listeners: Iterable[FrameListener] = (),
+        host: str | None = None,
     ) -> Hub:
-        """Connect to the hub at ``host`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
-        default 1500) and send CONNECT. ``compress``: the hub zlib-compresses every reply.
+        """Connect to the hub at ``url`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
+        default 1500; default 127.0.0.1) and send CONNECT. ``sim://`` starts the built-in
+        simulated hub in-process on loopback (closed with the client); a hub's Zenoh
+        front-end (``zenoh/NAME``) is :class:`~robocli.devices.hub.over_zenoh.ZenohHub`'s.
+        ``host`` is the deprecated old name of ``url``.
+        ``compress``: the hub zlib-compresses every reply.
         ``client_id``: re-attach to that client's buffers. ``clock``: the client's clock
         (seconds, like :func:`time.time`). ``token``: the shared secret of a hub started
         with one (``robocli serve --token-file``), sent after CONNECT's 2-byte body; a
@@ -110,8 +118,19 @@ class Hub:
         subscribes work. ``listeners`` see every frame from the first (CONNECT) on.
         Raises :class:`TransportError` when nobody listens,
         :class:`TimeoutError` when the hub does not answer."""
+        text = renamed_argument("Hub.connect", "host", "url", host, url, "127.0.0.1")
+        if text.startswith("zenoh/"):
+            raise InvalidArgument(f"{text!r}: a hub on Zenoh is reached with "
+                                  "robocli.ZenohHub.connect")  # fmt: skip
+        if text == "sim" or text.startswith("sim://"):
+            where = parse_device_url(text, what="hub URL")
+            return simulators.connect_to(  # type: ignore[no-any-return]
+                _start_simulated_hub, where, lambda sim: cls.connect(
+                    sim.url, compress=compress, timeout=timeout, client_id=client_id,
+                    clock=clock, hub_clock=hub_clock, token=token, listeners=listeners),
+            )  # fmt: skip
         secret = token_bytes(token)
-        h, p = parse_hub(host)
+        h, p = parse_hub(text)
         if port is not None:
             p = port
         transport = open_hub(h, p, timeout)
@@ -357,11 +376,41 @@ class Hub:
         packet = encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id)
         self._unanswered(packet, MsgType.DOUT_CTRL)
 
-    def close(self, quit: bool = True) -> None:  # noqa: A002 - the protocol's word
-        """Send QUIT (the hub forgets this client; ``quit=False`` keeps its buffers for a
-        reconnect with :attr:`client_id`) and close the link, bounded."""
-        stop = (header_only(MsgType.QUIT, self.client_id),) if quit else ()
-        self.session.close(stop)
+    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:  # noqa: A002
+        """Send QUIT (the hub forgets this client; ``stop=False`` keeps its buffers for a
+        reconnect with :attr:`client_id`) and close the link, bounded; then the simulator of
+        a ``sim://`` URL. Idempotent. ``quit`` is the deprecated old name of ``stop``."""
+        send_quit = renamed_argument("Hub.close", "quit", "stop", quit, stop, True)
+        try:
+            self.session.close((header_only(MsgType.QUIT, self.client_id),) if send_quit else ())
+        finally:
+            close_simulator(self)
+
+    #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the hub
+    simulator: simulators.Simulator | None = None
+
+    @property
+    def alive(self) -> bool:
+        """True until the link failed or :meth:`close` began. Never blocks."""
+        return self.session.alive
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended the link
+        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
+        with self.session.cond:
+            self.session.check()
+
+    def add_listener(self, listener: FrameListener, *, kind: str = "frames") -> ListenerHandle:
+        """Call ``listener(direction "tx"/"rx", frame, t)`` for every frame sent or
+        received; returns a handle whose ``remove()`` takes it off. One that raises is
+        logged once, counted in ``stats.listener_errors``, never stops the client."""
+        pick_kind(kind, ("frames",), "Hub")
+        self.session.listeners.add(listener)
+        return ListenerHandle(listener, lambda: self.session.listeners.remove(listener))
+
+    def remove_listener(self, listener: FrameListener, *, kind: str = "frames") -> None:
+        pick_kind(kind, ("frames",), "Hub")
+        self.session.listeners.remove(listener)
 
     def __enter__(self) -> Hub:
         return self
@@ -388,3 +437,13 @@ __all__ = [
     "resolution",
     "subscribe_body",
 ]
+
+
+def _start_simulated_hub(url: DeviceURL, **fixed: Any) -> simulators.Simulator:
+    """The simulated hub of ``sim://`` (the hub server with simulated sensors)."""
+    from robocli.hub import HubServer
+
+    if url.model:
+        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
+    server = HubServer("127.0.0.1", 0, **simulators.options(url, sim=True, **fixed)).start()
+    return simulators.Simulator(server, {"": f"127.0.0.1:{server.port}"})

@@ -30,12 +30,15 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
+from robocli.devices.base import ListenerHandle, pick_kind, renamed_argument
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
+from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.stats import LinkStats
 from robocli.errors import (
+    ConnectionLost,
     DeviceError,
     InvalidArgument,
     ProtocolError,
@@ -44,7 +47,15 @@ from robocli.errors import (
 )
 from robocli.protocols.ros4mat import MsgType, sensor_type
 from robocli.zenoh.batch import BLOBS, Batch, decode_batch, head_size
-from robocli.zenoh.keys import ALIVE_ALL, check_name, info_key, parse_alive, settings_key, topic_key
+from robocli.zenoh.keys import (
+    ALIVE_ALL,
+    alive_key,
+    check_name,
+    info_key,
+    parse_alive,
+    settings_key,
+    topic_key,
+)
 from robocli.zenoh.payload import decode_object
 from robocli.zenoh.session import (
     DEFAULT_ENDPOINT,
@@ -172,6 +183,24 @@ class ZenohHub(Hub):
         self.rejected: dict[str, int] = {}
         """Batches that cannot be the hub's (see the module), by sensor: dropped."""
         self._hz: dict[str, float] = {}  # each sensor's rate when subscribed
+        self._stats = LinkStats()  # batches received, by sensor
+        self._frames: Listeners[FrameListener] = Listeners(self._stats, f"zenoh/{self.name}")
+        self._gone: str | None = None  # why the hub is gone (its liveliness token went)
+        self._alive_sub = zsession.liveliness().declare_subscriber(
+            alive_key(self.name, "hub"), self._on_alive, history=True
+        )
+
+    def _on_alive(self, sample: Any) -> None:
+        """The hub's liveliness token: gone, or (a hub restarted under the name) back."""
+        if sample.kind == import_zenoh().SampleKind.DELETE:
+            self._gone = f"the hub {self.name} left (its liveliness token went)"
+        else:
+            self._gone = None
+
+    def _received(self, queue: _Queue, key: str, payload: bytes) -> None:
+        self._stats.count_received(key)
+        self._frames.notify("rx", payload, time.monotonic())
+        queue.push(payload)
 
     @classmethod
     def connect(  # type: ignore[override]
@@ -225,6 +254,7 @@ class ZenohHub(Hub):
             except ProtocolError:  # not the hub's JSON: its first bytes as text
                 text = raw[:500].decode("utf-8", "replace")
             raise DeviceError(f"hub {self.name} refused: {text}")
+        self.check()  # nobody answered: because the hub left (ConnectionLost)?
         raise TimeoutError(f"no hub named {self.name!r} answers on Zenoh ({key})")
 
     def info(self) -> dict[str, Any]:
@@ -284,7 +314,7 @@ class ZenohHub(Hub):
         sub = ext.declare_advanced_subscriber(
             self.zsession,
             topic_key(self.name, sensor),
-            lambda sample: queue.push(sample.payload.to_bytes()),
+            lambda sample: self._received(queue, sensor, sample.payload.to_bytes()),
             history=history,
             recovery=ext.RecoveryConfig(heartbeat=True, periodic_queries=None),
         )
@@ -379,13 +409,48 @@ class ZenohHub(Hub):
 
     @property
     def stats(self) -> LinkStats:
-        return LinkStats()
+        """Batches received, by sensor (``stats.as_dict()``)."""
+        return self._stats
 
-    def close(self, quit: bool = True) -> None:  # noqa: A002 - Hub's signature
-        """Undeclare every subscription and close the Zenoh session."""
+    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:  # noqa: A002
+        """Undeclare every subscription and close the Zenoh session (``stop``: nothing more
+        to stop over Zenoh; ``quit`` is its deprecated old name). Idempotent."""
+        renamed_argument("ZenohHub.close", "quit", "stop", quit, stop, True)
+        if self._closed:
+            return
+        self._closed = True
         for key in list(self._subs):
             self._drop(key)
+        self._alive_sub.undeclare()  # type: ignore[no-untyped-call]
         close_session(self.zsession)
+
+    _closed = False
+
+    @property
+    def alive(self) -> bool:
+        """False once the hub left (its liveliness token went; true again if a hub of that
+        name comes back) or :meth:`close` began. Never blocks. What arrived can still be
+        :meth:`read`; a query (:meth:`info`, a rate change) unanswered then raises
+        :class:`ConnectionLost`."""
+        return self._gone is None and not self._closed
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else :class:`ConnectionLost` saying why."""
+        if self._closed:
+            raise ConnectionLost(f"{self.url}: closed")
+        if self._gone is not None:
+            raise ConnectionLost(f"{self.url}: {self._gone}")
+
+    def add_listener(self, listener: FrameListener, *, kind: str = "frames") -> ListenerHandle:
+        """Call ``listener("rx", batch, t)`` with every batch received (the Zenoh payload,
+        :mod:`robocli.zenoh.batch`); returns a handle whose ``remove()`` takes it off."""
+        pick_kind(kind, ("frames",), "ZenohHub")
+        self._frames.add(listener)
+        return ListenerHandle(listener, lambda: self._frames.remove(listener))
+
+    def remove_listener(self, listener: FrameListener, *, kind: str = "frames") -> None:
+        pick_kind(kind, ("frames",), "ZenohHub")
+        self._frames.remove(listener)
 
     def __enter__(self) -> ZenohHub:
         return self

@@ -30,14 +30,26 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Iterable
 from types import TracebackType
+from typing import Any
 
+from robocli.addresses import parse_device_url
+from robocli.devices import simulators
+from robocli.devices.base import ListenerHandle, close_simulator, deprecated, pick_kind
 from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
-from robocli.errors import ConnectionLost, DeviceError, FramingError, ProtocolError, TimeoutError
+from robocli.devices.stats import LinkStats
+from robocli.errors import (
+    ConnectionLost,
+    DeviceError,
+    FramingError,
+    InvalidArgument,
+    ProtocolError,
+    TimeoutError,
+)
 from robocli.protocols import scip2
 from robocli.protocols.common import find_refusal
 from robocli.protocols.scip2 import fast
@@ -75,7 +87,7 @@ class Laser:
         handshake, whose replies it reads in the calling thread: the line a robocli server
         sends before closing a link it refuses is still there to read then."""
         self.timeout = timeout
-        self.check = check
+        self.checksums = check  #: checksums are verified (``check=`` of connect)
         self.clock = SensorClock()
         self.info: LaserInfo | None = None
         self.switched = False  #: the sensor was in SCIP 1.1 and was switched to 2.0
@@ -111,16 +123,31 @@ class Laser:
         laser_on: bool = True,
         sync_samples: int = 5,
         check: bool = True,
+        listeners: Iterable[FrameListener] = (),
         listener: FrameListener | None = None,
     ) -> Laser:
-        """Open ``url`` (a serial device, a pyserial URL, or ``tcp://host:10940``), bring the
-        sensor to SCIP 2.0 and idle, read VV/PP/II, estimate the clock offset
-        (``sync_samples`` TM1 round trips; 0: none) and turn the laser on. ``listener``
-        sees every request and reply block from the first (``(direction, bytes, t)``)."""
-        transport = open_transport(url, baudrate=baudrate, timeout=max(timeout, 1.0))
-        laser = cls(transport, timeout=timeout, check=check, start=False)
+        """Open ``url`` (a serial device, a pyserial URL, ``tcp://host:10940``, or
+        ``sim://[MODEL][?OPTION=VALUE...]``: the built-in simulator, started in-process on
+        loopback and closed with the laser), bring the sensor to SCIP 2.0 and idle, read
+        VV/PP/II, estimate the clock offset (``sync_samples`` TM1 round trips; 0: none) and
+        turn the laser on. ``listeners`` see every request and reply block from the first
+        (``(direction, bytes, t)``); ``listener`` is the deprecated one-listener spelling."""
         if listener is not None:
-            laser.session.listeners.add(listener)
+            deprecated("Laser.connect(listener=)", "Laser.connect(listeners=[...])")
+            listeners = (*listeners, listener)
+        where = parse_device_url(url, what="laser URL")
+        if where.kind == "sim":
+            return simulators.connect_to(  # type: ignore[no-any-return]
+                "laser", where, lambda sim: cls.connect(
+                    sim.url, timeout=timeout, laser_on=laser_on, sync_samples=sync_samples,
+                    check=check, listeners=listeners),
+            )  # fmt: skip
+        if where.kind == "zenoh":
+            raise InvalidArgument(f"{url!r}: a laser is reached by its serial port or TCP")
+        transport = open_transport(where.target, baudrate=baudrate, timeout=max(timeout, 1.0))
+        laser = cls(transport, timeout=timeout, check=check, start=False)
+        for one in listeners:
+            laser.session.listeners.add(one)
         try:
             laser._handshake()
             laser._session.start()
@@ -168,7 +195,7 @@ class Laser:
     def read_info(self) -> LaserInfo:
         """VV, PP and II (VV's sums are not checked: some URG-04LX get SERI's wrong)."""
         vv = scip2.parse_info(self.command("VV").body, check=False)
-        pp = scip2.parse_info(self.command("PP").body, check=self.check)
+        pp = scip2.parse_info(self.command("PP").body, check=self.checksums)
         ii = scip2.parse_info(self.command("II").body, check=False)
         return LaserInfo(vv, pp, ii)
 
@@ -190,7 +217,7 @@ class Laser:
         """Send a request ``line`` and return its reply (the block echoing the line), not
         checked for its status."""
         block = self._request_block(line, timeout)
-        return scip2.parse_reply(block, self.check)
+        return scip2.parse_reply(block, self.checksums)
 
     def _request_block(self, line: bytes, timeout: float | None) -> bytes:
         prefix = line.rstrip(b"\r\n") + b"\n"
@@ -237,7 +264,9 @@ class Laser:
                 after = self.epoch()
                 if len(reply.body) != 1 or len(reply.body[0]) != 5:
                     raise FramingError(f"SCIP TM1 reply {reply.body!r}: expected one time line")
-                line = scip2.check_line(reply.body[0], "TM1 time") if self.check else reply.body[0]
+                line = reply.body[0]
+                if self.checksums:
+                    line = scip2.check_line(line, "TM1 time")
                 got.append((before, scip2.decode_value(line[:4]), after))
         finally:
             self.command("TM", code=2)
@@ -269,7 +298,7 @@ class Laser:
             scip2.build_request(cmd, start=first, end=last, cluster=cluster), None
         )
         received = self.epoch()
-        return self._to_scan(fast.decode_scan(block, self.check), received, observe=False)
+        return self._to_scan(fast.decode_scan(block, self.checksums), received, observe=False)
 
     def _to_scan(self, s: scip2.Scan, received: float, *, observe: bool) -> Scan:
         ms = self.clock.unwrap(s.timestamp)
@@ -369,13 +398,49 @@ class Laser:
             if self._session.alive:
                 self.stop()
 
+    def add_listener(self, listener: Callable[..., None], *, kind: str = "frames"
+                     ) -> ListenerHandle:  # fmt: skip
+        """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
+        takes it off: ``"frames"``, ``(direction "tx"/"rx", block, t)`` for every request
+        and reply block; ``"scans"``, ``listener(scan)`` for each streamed :class:`Scan`.
+        Called in the reader thread; an exception there is counted and logged, never stops
+        the stream."""
+        registry = self._listeners_of(kind)
+        registry.add(listener)
+        return ListenerHandle(listener, lambda: registry.remove(listener))
+
+    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
+        self._listeners_of(kind).remove(listener)
+
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
+        pick_kind(kind, ("frames", "scans"), "Laser")
+        return self._session.listeners if kind == "frames" else self.scan_listeners
+
     def on_scan(self, listener: ScanListener) -> None:
-        """Call ``listener(scan)`` for each streamed scan, in the reader thread (an exception
-        there is counted and logged, never stops the stream)."""
+        """Deprecated: ``add_listener(listener, kind="scans")``."""
+        deprecated("Laser.on_scan", 'Laser.add_listener(..., kind="scans")')
         self.scan_listeners.add(listener)
 
     def remove_scan_listener(self, listener: ScanListener) -> None:
+        """Deprecated: ``remove_listener(listener, kind="scans")``."""
+        deprecated("Laser.remove_scan_listener", 'Laser.remove_listener(..., kind="scans")')
         self.scan_listeners.remove(listener)
+
+    @property
+    def alive(self) -> bool:
+        """True until the link failed or :meth:`close` began. Never blocks."""
+        return self._session.alive
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended the link
+        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
+        with self._session.cond:
+            self._session.check()
+
+    @property
+    def stats(self) -> LinkStats:
+        """The link's counters (``stats.as_dict()``)."""
+        return self._session.stats
 
     def _on_frame(self, block: bytes, now: float) -> None:
         if not _is_frame(block):
@@ -385,7 +450,7 @@ class Laser:
             self.stale_frames += 1
             return
         try:
-            s = fast.decode_scan(block, self.check)
+            s = fast.decode_scan(block, self.checksums)
         except (FramingError, ProtocolError, DeviceError) as exc:
             self.dropped += 1
             log.debug("%s: frame dropped: %s", self.url, exc)
@@ -411,11 +476,18 @@ class Laser:
 
     # ---------------------------------------------------------------- closing
 
-    def close(self) -> bool:
-        """Send QT (bounded) and close the link; True when QT went out. Idempotent."""
+    def close(self, stop: bool = True) -> None:
+        """Send QT (bounded; ``stop=False``: none, the sensor keeps measuring) and close the
+        link; then the simulator of a ``sim://`` URL. Idempotent."""
         with self._lock:
             self._stream = None
-        return self._session.close((_QT,))
+        try:
+            self._session.close((_QT,) if stop else ())
+        finally:
+            close_simulator(self)
+
+    #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the laser
+    simulator: simulators.Simulator | None = None
 
     def __enter__(self) -> Laser:
         return self

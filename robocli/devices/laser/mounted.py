@@ -101,7 +101,7 @@ class MountedLaser:
         self.scans = 0  #: scans placed
         self._latest: PlacedScan | None = None
         self._cond = threading.Condition()
-        laser.on_scan(self._on_scan)
+        laser.add_listener(self._on_scan, kind="scans")
 
     def place(self, scan: Scan) -> PlacedScan:
         """``scan`` with the robot's latest pose."""
@@ -137,4 +137,4 @@ class MountedLaser:
 
     def close(self) -> None:
         """Stop listening to the laser (idempotent; the laser stays open)."""
-        self.laser.remove_scan_listener(self._on_scan)
+        self.laser.remove_listener(self._on_scan, kind="scans")

@@ -28,15 +28,23 @@ from __future__ import annotations
 
 import logging
 import math
-import threading
 import time
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from typing import Any
 
+from robocli.addresses import parse_device_url
 from robocli.core import Framer
+from robocli.devices import simulators
+from robocli.devices.base import (
+    ListenerHandle,
+    close_simulator,
+    pick_kind,
+    renamed_argument,
+)
 from robocli.devices.pioneer import link
 from robocli.devices.pioneer.commands import Commands, _finite
 from robocli.devices.pioneer.decode import Decoding
+from robocli.devices.pioneer.deprecated import DeprecatedNames
 from robocli.devices.pioneer.keepalive import (
     DEFAULT_WATCHDOG_S,
     KeepAlive,
@@ -45,7 +53,7 @@ from robocli.devices.pioneer.keepalive import (
     WatchdogTripped,
 )
 from robocli.devices.pioneer.link import PioneerStats
-from robocli.devices.pioneer.simulated import SimulatorFeatures
+from robocli.devices.pioneer.simulated import PioneerSimulator, is_simulator
 from robocli.devices.pioneer.state import Odometry, PioneerState, RobotIdentity
 from robocli.devices.session import FrameListener, Listeners, Session
 from robocli.errors import DeviceError, InvalidArgument, TimeoutError
@@ -60,15 +68,16 @@ log = logging.getLogger("robocli.devices.pioneer")
 PacketListener = FrameListener
 
 
-class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
+class Pioneer(Commands, Decoding, DeprecatedNames):
     """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
 
     Here: connecting, the state, listeners and closing. Its commands come from
     :class:`~robocli.devices.pioneer.commands.Commands`; keeping it safe and alive (set-points,
-    watchdog trips, dead-man) from :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
+    watchdog trips, dead-man) is a part it holds,
+    :class:`~robocli.devices.pioneer.keepalive.KeepAlive`; the
     frames it receives are decoded by :class:`~robocli.devices.pioneer.decode.Decoding`.
-    With a simulator also: its laser (:meth:`start_laser`, :attr:`laser`, :meth:`on_laser`)
-    and its status (:meth:`sim_status`), from :class:`SimulatorFeatures`."""
+    What only a simulator offers is a part of it, :attr:`sim` (None on a real robot): its
+    laser (``robot.sim.start_laser()``, ``robot.sim.laser``), its status, teleporting."""
 
     def __init__(
         self,
@@ -108,28 +117,18 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         self._config_raw = b""
         now = time.monotonic()
         self._last_sip = now
-        self._last_app_command = now
-        # set-points re-sent by the keep-alive: list of (command, arg) in send order
-        self._setpoints: list[tuple[int, int]] = []
-        self._setpoint_lock = threading.Lock()
-        # the last motion command asked the robot to move (cleared by a stop or a trip)
-        self._motion_commanded = False
-        self._trip_pending: WatchdogTrip | None = None  # for the next motion command
-        self._trip_unannounced: WatchdogTrip | None = None  # for the listeners
-        self._trip_listeners: Listeners[WatchdogListener] = Listeners(
-            self.stats, "pioneer watchdog trip"
-        )
         self._soc_seen = False  # a SIP reported a non-zero state of charge
         self._clamp_warned: set[str] = set()
-        self._motors_off_warned = False
-        self._enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
-        self._init_simulated()
+        #: set-points kept alive, watchdog trips, dead-man, SIP supervision: a part
+        self._keeper = KeepAlive(self)
+        self._simulated = PioneerSimulator(self)
         session.on_frame = self._on_frame
-        session.on_sent = self._on_sent  # the time of every packet sent
-        session.before_send = self._before_send
+        keeper = self._keeper
+        session.on_sent = keeper.on_sent  # the time of every packet sent
+        session.before_send = keeper.before_send
         session.silence_limit = self.watchdog  # a set-point held up past it is not sent
-        session.add_task("keepalive", self._keepalive_step)
-        self._supervisor = session.add_task("supervisor", self._supervise_step)
+        session.add_task("keepalive", keeper.keepalive_step)
+        keeper.supervisor = session.add_task("supervisor", keeper.supervise_step)
         session.start()
 
     # ------------------------------------------------------------------ connecting
@@ -141,7 +140,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         *,
         subtype: str | None = None,
         params: RobotParams | None = None,
-        baud: int = 9600,
+        baudrate: int | None = None,
         switch_baud: int | None = None,
         timeout: float = 5.0,
         sip_timeout: float = 8.0,
@@ -150,38 +149,45 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         require_config: bool = False,
         listeners: Iterable[PacketListener] = (),
         laser: bool = False,
+        baud: int | None = None,
     ) -> Pioneer:
-        """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs),
-        run the ARCOS handshake and start the reader and keep-alive threads.
+        """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs, or
+        ``sim://[SUBTYPE][?OPTION=VALUE...]``: the built-in simulator, started in-process on
+        loopback and closed with the robot; see ``docs/urls.md``), run the ARCOS handshake
+        and start the reader and keep-alive threads.
 
         ``subtype`` overrides the robot's own (conversion factors from
         :data:`robocli.robots.pioneer.ROBOT_PARAMS`); ``params`` gives them outright.
         ``timeout`` bounds each step of connecting: opening the port, each handshake reply,
         the first SIP. ``sip_timeout``: a session without SIPs for that long has lost the
         robot. ``deadman``: stop the robot when no motion command came for that many seconds.
-        Serial ports start at ``baud`` and probe the other rates when the robot stays silent;
+        Serial ports start at ``baudrate`` (default 9600; ``baud`` is its deprecated old
+        name) and probe the other rates when the robot stays silent;
         ``switch_baud`` (e.g. 38400) moves the link there with HOSTBAUD after CONFIG, when
         the robot allows it. Raises :class:`TransportError` (unreachable),
         :class:`TimeoutError` (no robot answering), :class:`DeviceError` (the robot
         refused: busy with another client), :class:`UnknownRobotError` (no parameters for
         its subtype). ``laser=True`` starts a simulator's laser with the vendor SDK's
-        defaults (:meth:`start_laser`; a :class:`DeviceError` on a real robot).
+        defaults (``robot.sim.start_laser()``; a :class:`DeviceError` on a real robot).
         """
+        rate = renamed_argument("Pioneer.connect", "baud", "baudrate", baud, baudrate, 9600)
         _check_seconds(timeout=timeout, sip_timeout=sip_timeout, keepalive=keepalive)
-        transport = open_transport(url, baudrate=baud, timeout=timeout)
-        return cls.from_transport(
-            transport,
-            subtype=subtype,
-            params=params,
-            switch_baud=switch_baud,
-            timeout=timeout,
-            sip_timeout=sip_timeout,
-            keepalive=keepalive,
-            deadman=deadman,
-            require_config=require_config,
-            listeners=listeners,
-            laser=laser,
-        )
+        where = parse_device_url(url, what="Pioneer URL")
+        options: dict[str, Any] = {
+            "subtype": subtype, "params": params, "switch_baud": switch_baud,
+            "timeout": timeout, "sip_timeout": sip_timeout, "keepalive": keepalive,
+            "deadman": deadman, "require_config": require_config, "listeners": listeners,
+            "laser": laser,
+        }  # fmt: skip
+        if where.kind == "sim":
+            return simulators.connect_to(  # type: ignore[no-any-return]
+                "pioneer", where, lambda sim: cls.connect(sim.url, **options)
+            )
+        if where.kind == "zenoh":
+            raise InvalidArgument(f"{url!r}: a Pioneer behind a Zenoh bridge is reached with "
+                                  "robocli.RemotePioneer.connect")  # fmt: skip
+        transport = open_transport(where.target, baudrate=rate, timeout=timeout)
+        return cls.from_transport(transport, **options)
 
     @classmethod
     def from_transport(
@@ -251,7 +257,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
             if robot.stats.sips == 0:  # connecting ends with the first SIP, within timeout
                 robot.wait_for_sip(timeout=max(timeout, 1.0))
             if laser:
-                robot.start_laser()
+                robot._simulated.start_laser()
         except BaseException:
             robot.close()
             raise
@@ -289,10 +295,31 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
         return self.state.battery
 
     @property
-    def connected(self) -> bool:
+    def alive(self) -> bool:
         """True while the session runs: False once the link failed, SIPs stopped or
-        :meth:`close` began."""
+        :meth:`close` began. Never blocks."""
         return self._session.alive
+
+    @property
+    def is_simulator(self) -> bool:
+        """The robot is a simulator: it says so in its name or its CONFIG serial (``SIM``),
+        the vendor SDK's test before it asks for the simulated laser."""
+        return is_simulator(self.identity.name, self.config)
+
+    @property
+    def sim(self) -> PioneerSimulator | None:
+        """What only a simulator offers (its laser, status, teleporting): a
+        :class:`~robocli.devices.pioneer.simulated.PioneerSimulator`; None on a real robot."""
+        return self._simulated if self.is_simulator else None
+
+    def _on_laser(self, ptype: int, body: bytes, now: float) -> None:
+        self._simulated._on_laser(ptype, body, now)
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended the session
+        (:class:`ConnectionLost` for a lost link or once closed). Never blocks."""
+        with self._session.cond:
+            self._session.check()
 
     def wait_for_sip(self, timeout: float | None = None) -> PioneerState:
         """Block until the next SIP arrives and return it (``timeout`` defaults to
@@ -309,7 +336,7 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
                 left = deadline - time.monotonic()
                 if left <= 0:
                     if timeout is None:  # the robot's silence limit: as the supervisor says it
-                        raise self._silence_error()
+                        raise self._keeper.silence_error()
                     raise TimeoutError(f"{self.transport.url}: no SIP within {limit:g} s")
                 cond.wait(left)
 
@@ -332,28 +359,52 @@ class Pioneer(Commands, KeepAlive, Decoding, SimulatorFeatures):
             "link": {k: stats[k] for k in ("sips", "bad_checksums", "dropped_bytes", "keepalives")},
         }
 
-    def add_listener(self, listener: PacketListener) -> None:
-        """Call ``listener(direction, payload, t)`` for every packet sent ("tx") or received
-        ("rx"). Listeners run in the thread that sent or read the packet: keep them short.
-        One that raises is logged once with its traceback, counted in
-        ``stats.listener_errors``, and never stops the client."""
-        self._session.listeners.add(listener)
+    def add_listener(self, listener: Callable[..., None], *, kind: str = "frames"
+                     ) -> ListenerHandle:  # fmt: skip
+        """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
+        takes it off: ``"frames"`` (every packet sent or received: ``(direction "tx"/"rx",
+        payload, t)``), ``"laser"`` (each complete simulated laser scan, a
+        :class:`LaserScan`) or ``"watchdog"`` (each :class:`WatchdogTrip`). Listeners run in
+        the thread that sent or read the packet: keep them short. One that raises is logged
+        once with its traceback, counted in ``stats.listener_errors``, and never stops the
+        client."""
+        registry = self._listeners_of(kind)
+        registry.add(listener)
+        return ListenerHandle(listener, lambda: registry.remove(listener))
 
-    def remove_listener(self, listener: PacketListener) -> None:
-        self._session.listeners.remove(listener)
+    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
+        self._listeners_of(kind).remove(listener)
+
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
+        pick_kind(kind, ("frames", "laser", "watchdog"), "Pioneer")
+        found: dict[str, Listeners[Any]] = {
+            "frames": self._session.listeners, "laser": self._simulated.listeners,
+            "watchdog": self._keeper.listeners,
+        }  # fmt: skip
+        return found[kind]
 
     # ------------------------------------------------------------------ closing
 
-    def close(self) -> None:
+    def close(self, *, stop: bool = True) -> None:
         """Stop the robot, disable the motors, CLOSE the session and the port, within about
-        2 s whatever state the link is in. Idempotent."""
-        self._session.close(link.STOP_SEQUENCE)
+        2 s whatever state the link is in; then the simulator of a ``sim://`` URL.
+        Idempotent. A Pioneer is always stopped (``stop=False`` is refused): its watchdog
+        would stop it anyway, 2 s later."""
+        if not stop:
+            raise InvalidArgument("a Pioneer is always stopped on close (stop=False refused)")
+        try:
+            self._session.close(link.STOP_SEQUENCE)
+        finally:
+            close_simulator(self)
 
     def __enter__(self) -> Pioneer:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+    #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the robot
+    simulator: simulators.Simulator | None = None
 
     def __repr__(self) -> str:
         i = self.identity

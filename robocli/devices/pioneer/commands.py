@@ -1,7 +1,7 @@
 """The Pioneer's commands in SI units, mixed into :class:`~robocli.devices.pioneer.Pioneer`:
 motors, velocities clamped to the robot's limits, MOVE/HEAD/DHEAD, stops, accelerations,
 sonar, odometry reset, digital and analog IO, tones, CONFIG and the simulator's pose. Motion
-commands go out through :meth:`~robocli.devices.pioneer.keepalive.KeepAlive._command_motion`.
+commands go out through :meth:`~robocli.devices.pioneer.keepalive.KeepAlive.command_motion`.
 """
 
 from __future__ import annotations
@@ -19,6 +19,7 @@ from robocli.protocols.arcos import Command
 from robocli.robots.geometry import wrap_pi
 
 if TYPE_CHECKING:
+    from robocli.devices.pioneer.keepalive import KeepAlive
     from robocli.devices.pioneer.state import Odometry
     from robocli.devices.session import Session
     from robocli.robots.pioneer import RobotParams
@@ -38,15 +39,8 @@ class Commands:
     _odo: Odometry
     _config_raw: bytes
     _clamp_warned: set[str]
-    _enable_sent: bool
+    _keeper: KeepAlive
 
-    if TYPE_CHECKING:
-
-        def _set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None: ...
-
-        def _command_motion(
-            self, setpoints: list[tuple[int, int]], once: tuple[int, int] | None = None
-        ) -> None: ...
 
     def send_command(self, command: int, arg: int | str | bytes | None = None) -> None:
         """Send one raw ARCOS command (numbers in :class:`~robocli.protocols.arcos.Command`)."""
@@ -56,12 +50,12 @@ class Commands:
         """Power the motors (ENABLE 1). A robot starts with them off, and ignores motion
         commands until they are on; the e-stop button also turns them off."""
         self.send_command(Command.ENABLE, 1)
-        self._enable_sent = True
+        self._keeper.enable_sent = True
 
     def disable_motors(self) -> None:
         """Stop keeping set-points alive and power the motors off (ENABLE 0)."""
-        self._set_setpoints([], moving=False)
-        self._enable_sent = False
+        self._keeper.set_setpoints([], moving=False)
+        self._keeper.enable_sent = False
         self.send_command(Command.ENABLE, 0)
 
     def set_velocity(self, v: float, w: float = 0.0) -> None:
@@ -79,7 +73,7 @@ class Commands:
         w = self._limited("w", w, self.max_rot_velocity, "rad/s")
         vel = _clamp_int(round(v * 1000.0))
         rvel = _clamp_int(round(math.degrees(w)))
-        self._command_motion([(Command.VEL, vel), (Command.RVEL, rvel)])
+        self._keeper.command_motion([(Command.VEL, vel), (Command.RVEL, rvel)])
 
     @property
     def max_velocity(self) -> float:
@@ -113,29 +107,29 @@ class Commands:
         hi = max(-128, min(127, round(left * 1000.0 / div)))
         lo = max(-128, min(127, round(right * 1000.0 / div)))
         value = int.from_bytes(bytes((lo & 0xFF, hi & 0xFF)), "little", signed=True)
-        self._command_motion([(Command.VEL2, value)])
+        self._keeper.command_motion([(Command.VEL2, value)])
 
     def move(self, distance: float) -> None:
         """Drive ``distance`` metres (negative: backwards) at the SETV speed, then stop."""
-        self._command_motion([], (Command.MOVE, _clamp_int(round(distance * 1000.0))))
+        self._keeper.command_motion([], (Command.MOVE, _clamp_int(round(distance * 1000.0))))
 
     def set_heading(self, th: float) -> None:
         """Turn to absolute odometry heading ``th`` (rad)."""
         deg = round(math.degrees(wrap_pi(th)))
-        self._command_motion([], (Command.HEAD, deg))
+        self._keeper.command_motion([], (Command.HEAD, deg))
 
     def turn(self, dth: float) -> None:
         """Turn by ``dth`` radians relative to the current heading (CCW +)."""
-        self._command_motion([], (Command.DHEAD, _clamp_int(round(math.degrees(dth)))))
+        self._keeper.command_motion([], (Command.DHEAD, _clamp_int(round(math.degrees(dth)))))
 
     def stop(self) -> None:
         """Stop translation and rotation with the normal deceleration (VEL 0 + RVEL 0,
         as the vendor SDK does; the zero set-points are kept alive)."""
-        self._command_motion([(Command.VEL, 0), (Command.RVEL, 0)])
+        self._keeper.command_motion([(Command.VEL, 0), (Command.RVEL, 0)])
 
     def estop(self) -> None:
         """Emergency stop: maximum deceleration."""
-        self._set_setpoints([(Command.VEL, 0), (Command.RVEL, 0)], moving=False)
+        self._keeper.set_setpoints([(Command.VEL, 0), (Command.RVEL, 0)], moving=False)
         self.send_command(Command.ESTOP)
 
     def set_max_velocity(self, v: float | None = None, w: float | None = None) -> None:
@@ -213,12 +207,6 @@ class Commands:
             raise ProtocolError(f"{self.transport.url}: the CONFIG reply did not decode")
         assert self.config is not None  # stored from this very frame by _on_frame
         return self.config
-
-    def set_simulator_pose(self, x: float, y: float, th: float) -> None:
-        """Simulators only (MobileSim, robocli sim): teleport the true pose (m, m, rad)."""
-        self._session.send(
-            arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th)))
-        )
 
 
 def _finite(name: str, value: object) -> float:

@@ -2,7 +2,7 @@
 :class:`~robocli.devices.pioneer.Pioneer`: SIPs (odometry and sonar at once, the
 :class:`~robocli.devices.pioneer.state.PioneerState` when the program asks), CONFIG, IO,
 encoder and battery packets; laser packets go on to
-:class:`~robocli.devices.pioneer.simulated.SimulatorFeatures`. Runs in the reader thread or
+:class:`~robocli.devices.pioneer.simulated.PioneerSimulator`. Runs in the reader thread or
 in a caller reading its own reply.
 """
 

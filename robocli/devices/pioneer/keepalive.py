@@ -1,18 +1,20 @@
 """What keeps a commanded Pioneer safe and alive, mixed into
 :class:`~robocli.devices.pioneer.Pioneer`: the set-points the keep-alive re-sends (PULSE
 when there are none), the watchdog trip of a program that stalled (:class:`WatchdogTrip`,
-:class:`WatchdogTripped`, :meth:`KeepAlive.on_watchdog_trip`), the dead-man and the SIP
-supervisor. Every motion command goes out through :meth:`KeepAlive._command_motion`.
+:class:`WatchdogTripped`, ``robot.add_listener(f, kind="watchdog")``), the dead-man and the SIP
+supervisor. Every motion command goes out through :meth:`KeepAlive.command_motion`.
 """
 
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
+from robocli.devices.listeners import Listeners
 from robocli.devices.pioneer import link
 from robocli.devices.pioneer.state import sip_motors_on
 from robocli.errors import EXIT_FAILURE, RobocliError, TimeoutError
@@ -20,10 +22,8 @@ from robocli.protocols import arcos
 from robocli.protocols.arcos import Command
 
 if TYPE_CHECKING:
-    import threading
-
     from robocli.devices.pioneer.link import PioneerStats
-    from robocli.devices.session import Listeners, PeriodicTask, Session
+    from robocli.devices.session import PeriodicTask, Session
     from robocli.transports import Transport
 
 log = logging.getLogger("robocli.devices.pioneer")
@@ -72,11 +72,9 @@ class WatchdogTripped(RobocliError):
         self.trip = trip
 
 
-class KeepAlive:
-    """Set-points kept alive, watchdog trips, dead-man and SIP supervision (see the module
-    docstring)."""
+class _Robot(Protocol):
+    """What :class:`KeepAlive` uses of the Pioneer it belongs to."""
 
-    # provided by Pioneer
     _session: Session
     transport: Transport
     stats: PioneerStats
@@ -86,46 +84,51 @@ class KeepAlive:
     watchdog: float
     _sip: tuple[bytes, float, tuple[int, int]] | None
     _last_sip: float
-    _last_app_command: float
-    _setpoints: list[tuple[int, int]]
-    _setpoint_lock: threading.Lock
-    _motion_commanded: bool
-    _trip_pending: WatchdogTrip | None
-    _trip_unannounced: WatchdogTrip | None
-    _trip_listeners: Listeners[WatchdogListener]
-    _motors_off_warned: bool
-    _enable_sent: bool
-    _supervisor: PeriodicTask
 
-    if TYPE_CHECKING:
+    def stop(self) -> None: ...
 
-        def stop(self) -> None: ...
 
-    def on_watchdog_trip(self, listener: WatchdogListener) -> None:
-        """Call ``listener(trip)`` with each :class:`WatchdogTrip` (this program stalled past
-        the robot's watchdog while the robot was commanded to move), once the stop that
-        replaced the stale set-points went out; in the thread that found the trip (the
-        keep-alive, or the program's own). One that raises is logged once, counted in
-        ``stats.listener_errors``, and never stops the keep-alive."""
-        self._trip_listeners.add(listener)
+class KeepAlive:
+    """Set-points kept alive, watchdog trips, dead-man and SIP supervision (see the module
+    docstring): a part of the :class:`~robocli.devices.pioneer.Pioneer` it is made by,
+    holding the set-points and the trip state; the robot's commands go through
+    :meth:`command_motion` and :meth:`set_setpoints`, its session calls
+    :meth:`before_send`, :meth:`on_sent`, :meth:`keepalive_step` and
+    :meth:`supervise_step`."""
 
-    def remove_watchdog_trip_listener(self, listener: WatchdogListener) -> None:
-        self._trip_listeners.remove(listener)
+    def __init__(self, robot: _Robot) -> None:
+        self._robot = robot
+        self._session = robot._session
+        self.last_app_command = time.monotonic()
+        # set-points re-sent by the keep-alive: list of (command, arg) in send order
+        self._setpoints: list[tuple[int, int]] = []
+        self._setpoint_lock = threading.Lock()
+        # the last motion command asked the robot to move (cleared by a stop or a trip)
+        self._motion_commanded = False
+        self._trip_pending: WatchdogTrip | None = None  # for the next motion command
+        self._trip_unannounced: WatchdogTrip | None = None  # for the listeners
+        #: the watchdog trips' listeners (``robot.add_listener(f, kind="watchdog")``)
+        self.listeners: Listeners[WatchdogListener] = Listeners(
+            robot.stats, "pioneer watchdog trip"
+        )
+        self._motors_off_warned = False
+        self.enable_sent = False  # ENABLE 1 went out (the next SIPs may not show it yet)
+        self.supervisor: PeriodicTask | None = None  # the session's task of supervise_step
 
     def _judge_silence(self) -> None:
         """Before a command that changes the set-points: after a silence longer than the
         watchdog, a PULSE first, so that a trip is judged on what the robot was doing
         during the silence, not on what the command asks."""
-        if time.monotonic() - self._session.last_tx > self.watchdog:
+        if time.monotonic() - self._session.last_tx > self._robot.watchdog:
             self._session.send(_PULSE)
 
-    def _set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None:
+    def set_setpoints(self, setpoints: list[tuple[int, int]], moving: bool) -> None:
         self._judge_silence()
         with self._setpoint_lock:
             self._setpoints = setpoints
             self._motion_commanded = moving
 
-    def _command_motion(
+    def command_motion(
         self, setpoints: list[tuple[int, int]], once: tuple[int, int] | None = None
     ) -> None:
         """Send motion commands now; ``setpoints`` are then kept alive, ``once`` is not.
@@ -144,52 +147,53 @@ class KeepAlive:
                 self._motion_commanded = moving
         if trip is not None:
             raise WatchdogTripped(
-                f"{self.transport.url}: this program sent nothing for {trip.silence:.1f} s, "
+                f"{self._robot.transport.url}: this program sent nothing for {trip.silence:.1f} s, "
                 f"past the robot's {trip.watchdog:g} s watchdog (it was stopped, suspended or "
                 "paused): the robot was stopped and its set-points cleared; this command was "
                 "not sent, the next one moves the robot again",
                 trip,
             )
-        self._last_app_command = time.monotonic()
-        if not (self._motors_off_warned or self._enable_sent or self._motors_on()):
+        self.last_app_command = time.monotonic()
+        if not (self._motors_off_warned or self.enable_sent or self._motors_on()):
             self._motors_off_warned = True
             log.warning(
                 "%s: the motors are disabled, so the robot will not move: call "
                 "enable_motors() first (state.motors_enabled tells; warned once)",
-                self.transport.url,
+                self._robot.transport.url,
             )
         packets = [arcos.encode_command(cmd, arg) for cmd, arg in setpoints]
         if once is not None:
             packets.append(arcos.encode_command(*once))
         session.send_many(packets)  # one write: a stall cannot fall between them
-        if self.deadman is not None:
-            self._supervisor.wake()
+        if self._robot.deadman is not None:
+            if self.supervisor is not None:
+                self.supervisor.wake()
 
     def _motors_on(self) -> bool:
         """The motors flag of the latest SIP (no decode: one byte of the body)."""
-        sip = self._sip
+        sip = self._robot._sip
         if sip is None:
             return True
         return sip_motors_on(sip[0])
 
-    def _keepalive_step(self) -> float:
+    def keepalive_step(self) -> float:
         """Re-send the set-points (PULSE when there are none) once nothing was sent for
         ``keepalive`` s; sleep until then."""
         now = time.monotonic()
-        due = self._session.last_tx + self.keepalive
+        due = self._session.last_tx + self._robot.keepalive
         if now < due:
             return due - now
         with self._setpoint_lock:
             setpoints = list(self._setpoints)
-        self.stats.add("keepalives")
-        self.stats.keepalive_times.append(now)
+        self._robot.stats.add("keepalives")
+        self._robot.stats.keepalive_times.append(now)
         if setpoints:  # one write: after a stall, _before_send replaces all of them
             self._session.send_many([arcos.encode_command(cmd, arg) for cmd, arg in setpoints])
         else:
             self._session.send(_PULSE)
-        return self.keepalive
+        return self._robot.keepalive
 
-    def _before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
+    def before_send(self, packets: Sequence[bytes], silence: float) -> Sequence[bytes]:
         """Every write, right before it goes out (and right after it, with no packets:
         see :meth:`Session._send`): after ``silence`` s without a packet, longer than the
         watchdog, while the robot was commanded to move, the program stalled and the
@@ -202,58 +206,58 @@ class KeepAlive:
             if any(_moves(p) for p in packets):
                 return [p for p in packets if not _moves(p)]
             return packets
-        if silence <= self.watchdog:
+        if silence <= self._robot.watchdog:
             return packets
         with self._setpoint_lock:
             if not self._motion_commanded:  # another thread found it first
                 return packets
-            trip = WatchdogTrip(time.monotonic(), silence, self.watchdog)
+            trip = WatchdogTrip(time.monotonic(), silence, self._robot.watchdog)
             self._setpoints = []
             self._motion_commanded = False
             self._trip_pending = self._trip_unannounced = trip
-        self.stats.add("watchdog_trips")
+        self._robot.stats.add("watchdog_trips")
         log.warning(
             "%s: nothing was sent for %.1f s, past the robot's %g s watchdog (this program "
             "stalled): the robot was stopped; set-points cleared, it moves again only on a "
-            "new command", self.transport.url, silence, self.watchdog,
+            "new command", self._robot.transport.url, silence, self._robot.watchdog,
         )  # fmt: skip
         kept = [p for p in packets if not _moves(p)]
         return [*link.EMERGENCY_STOP, *kept]
 
-    def _on_sent(self, now: float) -> None:
+    def on_sent(self, now: float) -> None:
         """After each packet written: its time; a watchdog trip to announce."""
-        self.stats.tx_times.append(now)
+        self._robot.stats.tx_times.append(now)
         if self._trip_unannounced is not None:
             with self._setpoint_lock:
                 trip, self._trip_unannounced = self._trip_unannounced, None
             if trip is not None:
-                self._trip_listeners.notify(trip)
+                self.listeners.notify(trip)
 
-    def _silence_error(self) -> TimeoutError:
+    def silence_error(self) -> TimeoutError:
         """What a robot silent for ``sip_timeout`` is said to be, whoever notices first."""
         return TimeoutError(
-            f"{self.transport.url}: no SIP for {self.sip_timeout:g} s "
+            f"{self._robot.transport.url}: no SIP for {self._robot.sip_timeout:g} s "
             "(robot off, cable unplugged, or session closed)"
         )
 
-    def _supervise_step(self) -> float:
+    def supervise_step(self) -> float:
         """No SIP for ``sip_timeout``: fail (the session stops the robot). With a dead-man:
         stop a moving robot ``deadman`` s after the last motion command."""
         now = time.monotonic()
-        silent_at = self._last_sip + self.sip_timeout
+        silent_at = self._robot._last_sip + self._robot.sip_timeout
         if now > silent_at:
-            self._session.fail(self._silence_error())
-            return self.sip_timeout
+            self._session.fail(self.silence_error())
+            return self._robot.sip_timeout
         wait = silent_at - now
-        if self.deadman is not None:
+        if self._robot.deadman is not None:
             with self._setpoint_lock:
                 moving = any(arg != 0 for _, arg in self._setpoints)
-            due = self._last_app_command + self.deadman
+            due = self.last_app_command + self._robot.deadman
             if moving and now >= due:
                 log.warning("dead-man: no motion command for %.2f s, stopping", now - due
-                            + self.deadman)  # fmt: skip
-                self.stats.add("deadman_stops")
-                self.stop()
+                            + self._robot.deadman)  # fmt: skip
+                self._robot.stats.add("deadman_stops")
+                self._robot.stop()
             elif moving:
                 wait = min(wait, due - now)
         return max(0.001, wait)

@@ -1,12 +1,12 @@
 """What a Pioneer client can do with a simulator (MobileSim, AMRISim, ``robocli sim``): its
-simulated laser and its status (true pose, GPS). Mixed into
-:class:`~robocli.devices.pioneer.Pioneer`; the laser and SIMSTAT packets are decoded by
-:mod:`robocli.devices.pioneer.laser`.
+simulated laser, its status (true pose, GPS), teleporting the robot. A part of
+:class:`~robocli.devices.pioneer.Pioneer`, reached as ``robot.sim`` (None on a real robot);
+the laser and SIMSTAT packets are decoded by :mod:`robocli.devices.pioneer.laser`.
 
->>> with Pioneer.connect("tcp://127.0.0.1:8101", laser=True) as robot:   # doctest: +SKIP
-...     scan = robot.wait_for_laser()
+>>> with Pioneer.connect("sim://", laser=True) as robot:   # doctest: +SKIP
+...     scan = robot.sim.wait_for_laser()
 ...     scan.nearest()                      # (range m, bearing rad) of the closest return
-...     robot.sim_status().true_pose        # where the simulator really has the robot
+...     robot.sim.status().true_pose        # where the simulator really has the robot
 """
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from robocli.devices.pioneer.laser import (
     LaserScan,
@@ -34,7 +34,24 @@ if TYPE_CHECKING:
     from robocli.devices.session import Session
     from robocli.transports import Transport
 
-__all__ = ["LaserListener", "SimulatorFeatures"]
+
+class _Robot(Protocol):
+    """What :class:`PioneerSimulator` uses of the Pioneer it belongs to."""
+
+    _session: Session
+    _sip: Any
+    identity: RobotIdentity
+    config: dict[str, Any] | None
+    transport: Transport
+    stats: PioneerStats
+    sip_timeout: float
+
+    @property
+    def is_simulator(self) -> bool: ...
+
+    def _current_state(self) -> PioneerState: ...
+
+__all__ = ["LaserListener", "PioneerSimulator", "is_simulator"]
 
 #: Laser listener signature: called with each complete scan, in the thread that read it.
 LaserListener = Callable[[LaserScan], None]
@@ -48,33 +65,32 @@ _NEW = (Command.SIM_LRF_ENABLE, Command.SIM_LRF_FOV_START, Command.SIM_LRF_FOV_E
         Command.SIM_LRF_RES)  # fmt: skip
 
 
-class SimulatorFeatures:
-    """Simulated laser and simulator status (see the module docstring)."""
+def is_simulator(name: str, config: dict[str, Any] | None) -> bool:
+    """A robot is a simulator when it says so in its name or its CONFIG serial (``SIM``),
+    the vendor SDK's test before it asks for the simulated laser."""
+    return name in SIMULATOR_NAMES or (config or {}).get("serial") == "SIM"
 
-    # provided by Pioneer
-    _session: Session
-    identity: RobotIdentity
-    config: dict[str, Any] | None
-    transport: Transport
-    stats: PioneerStats
-    sip_timeout: float
-    _sip: Any
 
-    def _current_state(self) -> PioneerState:
-        raise NotImplementedError
+class PioneerSimulator:
+    """``robot.sim``: the simulated laser, the simulator's status, teleporting (see the
+    module). Made by the :class:`~robocli.devices.pioneer.Pioneer` it belongs to."""
 
-    def _init_simulated(self) -> None:
+    def __init__(self, robot: _Robot) -> None:
+        self._robot = robot
+        self._session = robot._session
         self._laser: LaserScan | None = None
         self._laser_settings = LaserSettings()
-        self._scans = ScanAssembler(self.stats.add)
-        self._laser_listeners: Listeners[LaserListener] = Listeners(self.stats, "pioneer laser")
+        self._scans = ScanAssembler(robot.stats.add)
+        #: the laser's listeners (``robot.add_listener(f, kind="laser")``)
+        self.listeners: Listeners[LaserListener] = Listeners(robot.stats, "pioneer laser")
 
-    @property
-    def is_simulator(self) -> bool:
-        """The robot is a simulator: it says so in its name or its CONFIG serial (``SIM``),
-        the vendor SDK's test before it asks for the simulated laser."""
-        serial = (self.config or {}).get("serial")
-        return self.identity.name in SIMULATOR_NAMES or serial == "SIM"
+    def _check_simulator(self, what: str) -> None:
+        robot = self._robot
+        if not robot.is_simulator:
+            raise DeviceError(
+                f"{robot.transport.url}: {robot.identity.name} is not a simulator (serial "
+                f"{(robot.config or {}).get('serial')!r}); {what}"
+            )
 
     # ------------------------------------------------------------------ laser
 
@@ -83,15 +99,6 @@ class SimulatorFeatures:
         """The latest complete laser scan (None before the first one)."""
         with self._session.cond:
             return self._laser
-
-    def on_laser(self, listener: LaserListener) -> None:
-        """Call ``listener(scan)`` with every complete scan, in the reader thread (keep it
-        short). One that raises is logged once, counted in ``stats.listener_errors`` and
-        never stops the client."""
-        self._laser_listeners.add(listener)
-
-    def remove_laser_listener(self, listener: LaserListener) -> None:
-        self._laser_listeners.remove(listener)
 
     def start_laser(
         self, start: float = -math.pi / 2, end: float = math.pi / 2,
@@ -103,7 +110,7 @@ class SimulatorFeatures:
         reflectance) or plain ones (0x60). ``max_range`` (m): longer readings count as no
         return. By default the commands the vendor SDK sends (36, 37, 38, 35), else the newer
         230-233 (MobileSim >= 0.6). Scans then arrive after every SIP (:attr:`laser`,
-        :meth:`on_laser`, :meth:`wait_for_laser`).
+        ``robot.add_listener(f, kind="laser")``, :meth:`wait_for_laser`).
 
         Raises :class:`DeviceError` on a real robot (its 35-38 are ADSEL, gripper and gyro
         commands; a real laser has its own port) and :class:`InvalidArgument` for a field of
@@ -120,11 +127,7 @@ class SimulatorFeatures:
         res_cdeg = round(math.degrees(resolution) * 100)
         if not 1 <= res_cdeg <= 18000 or max_range <= 0:
             raise InvalidArgument("resolution must be 0.01..180 deg and max_range > 0")
-        if not self.is_simulator:
-            raise DeviceError(
-                f"{self.transport.url}: {self.identity.name} is not a simulator (serial "
-                f"{(self.config or {}).get('serial')!r}); a real laser connects on its own port"
-            )
+        self._check_simulator("a real laser connects on its own port")
         enable, cmd_start, cmd_end, cmd_res = _NEW if new_commands else _OLD
         s0, s1 = round(math.degrees(start)), round(math.degrees(end))
         settings = LaserSettings(s0, s1, res_cdeg, max_range)
@@ -144,7 +147,7 @@ class SimulatorFeatures:
     def wait_for_laser(self, timeout: float | None = None) -> LaserScan:
         """Block until the next complete scan arrives and return it (``timeout`` defaults to
         ``sip_timeout``); :class:`TimeoutError` if none comes."""
-        limit = self.sip_timeout if timeout is None else timeout
+        limit = self._robot.sip_timeout if timeout is None else timeout
         deadline = time.monotonic() + limit
         cond = self._session.cond
         with cond:
@@ -155,33 +158,41 @@ class SimulatorFeatures:
                     return self._laser
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise TimeoutError(f"{self.transport.url}: no laser scan within {limit:g} s")
+                    url = self._robot.transport.url
+                    raise TimeoutError(f"{url}: no laser scan within {limit:g} s")
                 cond.wait(left)
 
     def _on_laser(self, ptype: int, body: bytes, now: float) -> None:
         """A laser packet (reader thread or a waiting caller): assemble, publish, notify."""
+        robot = self._robot
         with self._session.cond:
-            pose = self._current_state().pose if self._sip is not None else (0.0, 0.0, 0.0)
+            pose = robot._current_state().pose if robot._sip is not None else (0.0, 0.0, 0.0)
             settings = self._laser_settings
         scan = self._scans.feed(ptype, body, now, pose, settings)
         if scan is not None:
             with self._session.cond:
                 self._laser = scan
                 self._session.cond.notify_all()
-            self._laser_listeners.notify(scan)
+            self.listeners.notify(scan)
 
     # ------------------------------------------------------------------ status
 
-    def sim_status(self, timeout: float = 2.0) -> SimStatus:
+    def status(self, timeout: float = 2.0) -> SimStatus:
         """Ask the simulator for its status (SIM_STAT 1 -> 0x62): true pose, step timing,
         GPS fix with a georeferenced map. Raises :class:`DeviceError` on a real robot and
         :class:`TimeoutError` when no reply comes (a simulator without SIMSTAT)."""
-        if not self.is_simulator:
-            raise DeviceError(f"{self.transport.url}: {self.identity.name} is not a simulator")
+        self._check_simulator("it has no simulator status")
         frame = self._session.request(
             arcos.encode_command(Command.SIM_STAT, 1), _is_simstat, timeout
         )
         return parse_simstatus(frame[4:-2], time.monotonic())
+
+
+    def set_pose(self, x: float, y: float, th: float) -> None:
+        """Teleport the robot's true pose (m, m, rad), as MobileSim's SIM_SET_POSE does."""
+        self._session.send(
+            arcos.encode_sim_pose(round(x * 1000), round(y * 1000), round(math.degrees(th)))
+        )
 
 
 def _is_simstat(frame: bytes) -> bool:

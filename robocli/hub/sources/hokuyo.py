@@ -70,7 +70,7 @@ class HokuyoSource(Source):
             interval = min(9, max(0, round(1.0 / (self.rate * info.period)) - 1))
             first = max(info.amin, info.afrt - (MAX_BEAMS - 1) // 2)
             last = min(info.amax, first + MAX_BEAMS - 1)
-            laser.on_scan(self._push)
+            laser.add_listener(self._push, kind="scans")
             laser.start(first, last, interval=interval)
         except BaseException:
             laser.close()

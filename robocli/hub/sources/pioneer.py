@@ -55,7 +55,7 @@ class PioneerLink:
         from robocli.devices.pioneer import Pioneer
 
         with self._lock:
-            if self._robot is None or not self._robot.connected:
+            if self._robot is None or not self._robot.alive:
                 self._robot = Pioneer.connect(self.url)
             self._users += 1
             return self._robot

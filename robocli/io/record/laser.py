@@ -21,7 +21,7 @@ __all__ = ["LaserDecoder", "attach_laser"]
 def attach_laser(rec: Sink, laser: Laser, name: str | None, *, parent: str | None = None,
                  mount: Mount | None = None) -> str:  # fmt: skip
     """``name``: the default ``laser`` (numbered), or the name of a link made with
-    :meth:`Recorder.listener` (protocol ``scip2``) and given to ``Laser.connect(listener=)``,
+    :meth:`Recorder.listener` (protocol ``scip2``) and given to ``Laser.connect(listeners=)``,
     so that the handshake is recorded too. The scans recorded are the streamed ones
     (``laser.start()``, :meth:`Laser.scans`). ``parent``: the frame the laser is mounted on
     (a Pioneer's ``pioneer/base_link``), placed there at ``mount`` by a ``/NAME/tf``
@@ -42,8 +42,8 @@ def attach_laser(rec: Sink, laser: Laser, name: str | None, *, parent: str | Non
     def listener(scan: Scan) -> None:
         put(on_scan, (scan,), 8 * len(scan.ranges))
 
-    laser.on_scan(listener)
-    rec.on_close(lambda: laser.remove_scan_listener(listener))
+    laser.add_listener(listener, kind="scans")
+    rec.on_close(lambda: laser.remove_listener(listener, kind="scans"))
     return name
 
 

@@ -50,8 +50,8 @@ def attach_pioneer(rec: Sink, robot: Pioneer, name: str | None) -> str:
     def laser(scan: LaserScan) -> None:
         put(on_scan, (scan,), 8 * len(scan.ranges))
 
-    robot.on_laser(laser)
-    rec.on_close(lambda: robot.remove_laser_listener(laser))
+    robot.add_listener(laser, kind="laser")
+    rec.on_close(lambda: robot.remove_listener(laser, kind="laser"))
     return name
 
 

@@ -1,0 +1,130 @@
+"""The one surface every device client has: :class:`Device`.
+
+``Pioneer``, ``Arm``, ``Hub`` (and ``ZenohHub``), ``Laser`` and ``RemotePioneer`` all follow
+it, so that a script learnt on one reads the others::
+
+    with Laser.connect("sim://") as laser:               # a URL: docs/urls.md
+        handle = laser.add_listener(print)                # every frame: (direction, bytes, t)
+        laser.alive, laser.stats.as_dict()
+        handle.remove()
+    laser.close()                                         # twice is fine
+
+``connect(url, ...)`` (a classmethod) opens the device; ``close(*, stop=True)`` returns None,
+is bounded in time and idempotent (``stop``: stop what the device does for this client:
+the robot, the trajectory, the hub's buffers, the laser's emission); :attr:`alive` never
+blocks; :meth:`check` raises the typed error that ended the link
+(:class:`~robocli.errors.ConnectionLost` for a dead one); ``stats.as_dict()`` gives the
+counters; ``add_listener(callback, kind=...)`` returns a :class:`ListenerHandle` whose
+``remove()`` takes the callback off again. Renamed arguments and methods keep working for
+one release through :func:`deprecated`, which warns once per name.
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from collections.abc import Callable
+from types import TracebackType
+from typing import Any, Protocol, runtime_checkable
+
+from robocli.errors import InvalidArgument
+
+__all__ = ["Device", "ListenerHandle", "Stats", "deprecated", "renamed_argument"]
+
+
+@runtime_checkable
+class Stats(Protocol):
+    """A device's counters."""
+
+    def as_dict(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class Device(Protocol):
+    """What every device client offers (see the module)."""
+
+    @property
+    def alive(self) -> bool: ...
+
+    @property
+    def stats(self) -> Stats: ...
+
+    def check(self) -> None: ...
+
+    def add_listener(self, listener: Callable[..., None], *, kind: str = ...) -> ListenerHandle: ...
+
+    def remove_listener(self, listener: Callable[..., None], *, kind: str = ...) -> None: ...
+
+    def close(self, *, stop: bool = True) -> None: ...
+
+    def __enter__(self) -> Any: ...
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None, /) -> None: ...  # fmt: skip
+
+
+class ListenerHandle:
+    """What ``add_listener`` returns: :meth:`remove` takes the listener off (idempotent);
+    also a context manager that removes it on exit."""
+
+    def __init__(self, listener: Callable[..., None], remove: Callable[[], None]) -> None:
+        self.listener = listener
+        self._remove: Callable[[], None] | None = remove
+        self._lock = threading.Lock()
+
+    def remove(self) -> None:
+        with self._lock:
+            remove, self._remove = self._remove, None
+        if remove is not None:
+            remove()
+
+    def __enter__(self) -> ListenerHandle:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.remove()
+
+    def __repr__(self) -> str:
+        state = "removed" if self._remove is None else "active"
+        return f"<ListenerHandle {self.listener!r} {state}>"
+
+
+def pick_kind(kind: str, kinds: tuple[str, ...], device: str) -> str:
+    """``kind`` if it is one of ``kinds``; else :class:`InvalidArgument` naming them."""
+    if kind not in kinds:
+        raise InvalidArgument(f"{device} listeners are of kind {', '.join(map(repr, kinds))}, "
+                              f"not {kind!r}")  # fmt: skip
+    return kind
+
+
+_warned: set[str] = set()
+_warned_lock = threading.Lock()
+
+
+def deprecated(old: str, new: str, stacklevel: int = 3) -> None:
+    """Warn once per process (a :class:`DeprecationWarning`, one line) that ``old`` is now
+    spelt ``new``; ``old`` keeps working for one release."""
+    with _warned_lock:
+        if old in _warned:
+            return
+        _warned.add(old)
+    warnings.warn(f"{old} is deprecated; use {new}", DeprecationWarning, stacklevel=stacklevel)
+
+
+def renamed_argument(where: str, old: str, new: str, old_value: Any, new_value: Any,
+                     default: Any) -> Any:  # fmt: skip
+    """The value of an argument renamed ``old`` -> ``new``: ``old_value`` (with a one-time
+    warning) when given, else ``new_value``; both given and different: InvalidArgument."""
+    if old_value is None:
+        return default if new_value is None else new_value
+    deprecated(f"{where}({old}=)", f"{where}({new}=)", stacklevel=4)
+    if new_value is not None and new_value != old_value:
+        raise InvalidArgument(f"{where}: give {new}= only ({old}= is its old name)")
+    return old_value
+
+
+def close_simulator(device: Any) -> None:
+    """Close the simulator a ``sim://`` device owns (after its link), if any."""
+    simulator = getattr(device, "simulator", None)
+    if simulator is not None:
+        simulator.close()
