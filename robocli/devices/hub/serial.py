@@ -56,6 +56,7 @@ MAX_BUFFER = 1 << 20
 :attr:`VirtualSerial.overflowed`); with ``on_data`` nothing is kept."""
 RESUME_S = 30.0  #: how long a lost line tries to connect again by default
 RETRY_S = 0.5  #: between two attempts
+CLOSE_WAIT_S = 2.0  #: the most close() waits for the hub to end the stream
 _STOP_TENTHS = {1: 10, 1.5: 15, 2: 20}
 
 
@@ -328,8 +329,18 @@ class VirtualSerial:
             self._watch.join(self.timeout + RETRY_S)  # it may be connecting: then it stops
         session = self._session  # the watcher's last link, if it made one
         if session is not None:
-            session.close((header_only(MsgType.SERIAL_CLOSE, self._client_id),
-                           header_only(MsgType.QUIT, self._client_id)))  # fmt: skip
+            goodbye = (header_only(MsgType.SERIAL_CLOSE, self._client_id),
+                       header_only(MsgType.QUIT, self._client_id))  # fmt: skip
+            try:
+                session.send_many(goodbye, CLOSE_WAIT_S)
+                goodbye = ()
+                # the hub ends the stream, then closes the connection on QUIT: once it has,
+                # the port is free for the next client (close() returning means just that)
+                with session.cond:
+                    session.cond.wait_for(lambda: not session.alive, CLOSE_WAIT_S)
+            except (RobocliError, OSError):
+                pass  # the link is gone already: so is the stream, with the connection
+            session.close(goodbye)
 
     def __enter__(self) -> VirtualSerial:
         return self
