@@ -98,6 +98,8 @@ _LAZY = {
     "StillMoving": "robocli.devices.arm", "TooFewSamples": "robocli.devices.arm",
     "Hub": "robocli.devices.hub.client", "Reading": "robocli.devices.hub.decode",
     "ZenohHub": "robocli.devices.hub.over_zenoh",
+    "VirtualSerial": "robocli.devices.hub.serial",
+    "Create": "robocli.devices.create", "CreateState": "robocli.devices.create",
     "Laser": "robocli.devices.laser", "LaserInfo": "robocli.devices.laser",
     "Scan": "robocli.devices.laser", "MountedLaser": "robocli.devices.laser",
     "PlacedScan": "robocli.devices.laser", "SensorClock": "robocli.devices.laser",
@@ -113,23 +115,24 @@ _LAZY = {
         "UnknownRobotError")},
     # simulators, the hub, recording, models
     "PioneerSim": "robocli.sim.pioneer.server", "AbbSim": "robocli.sim.abb.server",
-    "HokuyoSim": "robocli.sim.hokuyo.server", "World": "robocli.sim.world",
+    "HokuyoSim": "robocli.sim.hokuyo.server", "CreateSim": "robocli.sim.create",
+    "World": "robocli.sim.world",
     "HubServer": "robocli.hub.server", "Recorder": "robocli.io.record.recorder",
     "LiveView": "robocli.io.record.live", "RobotModel": "robocli.kinematics.model",
     "RobotParams": "robocli.robots.pioneer",
 }  # fmt: skip
 
 __all__ = [
-    "AbbSim", "Arm", "ArmBridge", "ArmStatus", "ChecksumError", "ConnectionLost", "Device",
-    "DeviceError", "DeviceURL", "FramingError", "GpsFix", "HokuyoSim", "Hub", "HubServer",
-    "InvalidArgument", "InvalidURL", "JointSample", "Laser", "LaserInfo", "LaserScan", "LinkStats",
-    "ListenerHandle", "LiveView", "MountedLaser", "Pioneer", "PioneerBridge", "PioneerSim",
-    "PioneerSimulator", "PioneerState", "PioneerStats", "PlacedScan", "Point", "ProtocolError",
-    "Reading", "Recorder", "RemotePioneer", "RobocliError", "RobotIdentity", "RobotModel",
-    "RobotParams", "Scan", "SensorClock", "SimStatus", "Simulator", "StaleWrite", "Stats",
-    "StillMoving", "TimeoutError",
-    "TooFewSamples", "Transport", "TransportError", "UnknownRobotError", "WatchdogTrip",
-    "WatchdogTripped", "World", "ZenohHub", "__version__", "parse_device_url",
+    "AbbSim", "Arm", "ArmBridge", "ArmStatus", "ChecksumError", "ConnectionLost", "Create",
+    "CreateSim", "CreateState", "Device", "DeviceError", "DeviceURL", "FramingError", "GpsFix",
+    "HokuyoSim", "Hub", "HubServer", "InvalidArgument", "InvalidURL", "JointSample", "Laser",
+    "LaserInfo", "LaserScan", "LinkStats", "ListenerHandle", "LiveView", "MountedLaser", "Pioneer",
+    "PioneerBridge", "PioneerSim", "PioneerSimulator", "PioneerState", "PioneerStats",
+    "PlacedScan", "Point", "ProtocolError", "Reading", "Recorder", "RemotePioneer", "RobocliError",
+    "RobotIdentity", "RobotModel", "RobotParams", "Scan", "SensorClock", "SimStatus", "Simulator",
+    "StaleWrite", "Stats", "StillMoving", "TimeoutError", "TooFewSamples", "Transport",
+    "TransportError", "UnknownRobotError", "VirtualSerial", "WatchdogTrip", "WatchdogTripped",
+    "World", "ZenohHub", "__version__", "parse_device_url",
 ]
 
 

@@ -15,10 +15,12 @@ import robocli
 #: packages whose public classes users reach through ``robocli``
 PACKAGES = [
     "robocli.devices.pioneer", "robocli.devices.arm", "robocli.devices.hub",
-    "robocli.devices.laser", "robocli.devices.base", "robocli.errors", "robocli.bridge",
+    "robocli.devices.laser", "robocli.devices.base", "robocli.devices.create", "robocli.errors",
+    "robocli.bridge",
 ]  # fmt: skip
 #: (package, name) taken at the top by another class of that name, reachable in its package
-SHADOWED = {("robocli.devices.arm", "Recorder"), ("robocli.devices.pioneer", "LinkStats")}
+SHADOWED = {("robocli.devices.arm", "Recorder"), ("robocli.devices.pioneer", "LinkStats"),
+            ("robocli.devices.create", "Odometry")}
 
 
 def test_all_lists_exactly_what_resolves() -> None:
