@@ -147,8 +147,49 @@ class Mapper:
                                  []))  # fmt: skip
         estop, stall = bool(s.get("estop")), bool(s.get("stall_left") or s.get("stall_right"))
         level, text = (2, "emergency stop") if estop else (1, "stalled") if stall else (0, "ok")
-        keys = ("motors_enabled", "estop", "stall_left", "stall_right", "bumpers_front",
-                "bumpers_rear", "digin", "digout", "analog", "battery", "sip_count")
+        keys = (
+            "motors_enabled",
+            "estop",
+            "stall_left",
+            "stall_right",
+            "bumpers_front",
+            "bumpers_rear",
+            "digin",
+            "digout",
+            "analog",
+            "battery",
+            "sip_count",
+        )
+        out.append(self._diagnostics(ns, name, level, text, s, keys))
+        return out
+
+    def create_state(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
+        """An iRobot Create's stream frame: odometry (its pose; no velocity in the frame),
+        its battery and its bumpers, wheel drops and OI mode as diagnostics."""
+        base = topic.rsplit("/", 1)[0]
+        name = base.lstrip("/")
+        out = [self._one(
+            f"{base}/odom", "nav_msgs/msg/Odometry", ns,
+            header=self.header(ns, f"{name}/odom"), child_frame_id=self.frame(f"{name}/base_link"),
+            pose=_pose_cov(_pose(s.get("x", _NAN), s.get("y", _NAN), 0.0,
+                                 _quat_z(float(s.get("th", _NAN))))),
+            twist=_twist_cov(_twist(_NAN, _NAN)))]  # fmt: skip
+        charge, capacity = float(s.get("charge", _NAN)), float(s.get("capacity", _NAN))
+        soc = charge / capacity if capacity > 0 else _NAN
+        out.append(self._battery(f"{base}/battery", ns, name, s.get("voltage", _NAN),
+                                 s.get("current", _NAN), soc, []))  # fmt: skip
+        drop = bool(s.get("wheel_drop_left") or s.get("wheel_drop_right"))
+        bump = bool(s.get("bump_left") or s.get("bump_right"))
+        level, text = (2, "wheel dropped") if drop else (1, "bumped") if bump else (0, "ok")
+        keys = (
+            "mode",
+            "bump_left",
+            "bump_right",
+            "wheel_drop_left",
+            "wheel_drop_right",
+            "charging_state",
+            "frame_count",
+        )
         out.append(self._diagnostics(ns, name, level, text, s, keys))
         return out
 
@@ -210,8 +251,15 @@ class Mapper:
         name = topic.rsplit("/", 1)[0].lstrip("/")
         bad = s.get("in_error") or s.get("e_stopped")
         text = "in error" if s.get("in_error") else "emergency stop" if bad else "ok"
-        keys = ("drives_powered", "e_stopped", "in_error", "in_motion", "motion_possible",
-                "mode", "error_code")
+        keys = (
+            "drives_powered",
+            "e_stopped",
+            "in_error",
+            "in_motion",
+            "motion_possible",
+            "mode",
+            "error_code",
+        )
         return [self._diagnostics(ns, name, 2 if bad else 0, text, s, keys)]
 
     def imu(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
@@ -257,14 +305,20 @@ class Mapper:
 
     def gps(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
         status = T.message("sensor_msgs/msg/NavSatStatus", status=0, service=1)
-        return [self._one(topic, "sensor_msgs/msg/NavSatFix", ns,
-                          header=self.header(ns, s["frame_id"]), status=status,
-                          latitude=float(s.get("latitude", _NAN)),
-                          longitude=float(s.get("longitude", _NAN)),
-                          altitude=float(s.get("altitude", _NAN)),
-                          position_covariance=np.asarray(
-                              s.get("position_covariance") or [0.0] * 9, _F8),
-                          position_covariance_type=int(s.get("position_covariance_type", 0)))]
+        return [
+            self._one(
+                topic,
+                "sensor_msgs/msg/NavSatFix",
+                ns,
+                header=self.header(ns, s["frame_id"]),
+                status=status,
+                latitude=float(s.get("latitude", _NAN)),
+                longitude=float(s.get("longitude", _NAN)),
+                altitude=float(s.get("altitude", _NAN)),
+                position_covariance=np.asarray(s.get("position_covariance") or [0.0] * 9, _F8),
+                position_covariance_type=int(s.get("position_covariance_type", 0)),
+            )
+        ]
 
     def compressed(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
         import base64
@@ -300,6 +354,7 @@ class Mapper:
 
 _HANDLERS = {
     "robocli.pioneer.State": Mapper.pioneer_state,
+    "robocli.create.State": Mapper.create_state,
     "foxglove.FrameTransform": Mapper.transforms,
     "foxglove.FrameTransforms": Mapper.transforms,
     "foxglove.PoseInFrame": Mapper.pose,

@@ -30,11 +30,29 @@ def _decoded(kind: str, topic: str, sample: dict, **kw: bool) -> dict[str, tuple
 
 
 def _state() -> dict:
-    return {"timestamp": STAMP, "x": 1.5, "y": -0.25, "th": math.pi / 2, "v": 0.3, "w": -0.1,
-            "left_velocity": 0.2, "right_velocity": 0.4, "battery": 12.6, "motors_enabled": True,
-            "estop": False, "stall_left": True, "stall_right": False, "bumpers_front": 3,
-            "bumpers_rear": 0, "sonar": [0.5] * 16, "sonar_known": [True] * 16, "digin": 1,
-            "digout": 0, "analog": 1.25, "sip_count": 7}
+    return {
+        "timestamp": STAMP,
+        "x": 1.5,
+        "y": -0.25,
+        "th": math.pi / 2,
+        "v": 0.3,
+        "w": -0.1,
+        "left_velocity": 0.2,
+        "right_velocity": 0.4,
+        "battery": 12.6,
+        "motors_enabled": True,
+        "estop": False,
+        "stall_left": True,
+        "stall_right": False,
+        "bumpers_front": 3,
+        "bumpers_rear": 0,
+        "sonar": [0.5] * 16,
+        "sonar_known": [True] * 16,
+        "digin": 1,
+        "digout": 0,
+        "analog": 1.25,
+        "sip_count": 7,
+    }
 
 
 def test_pioneer_state_is_odometry_battery_and_diagnostics() -> None:
@@ -57,6 +75,26 @@ def test_pioneer_state_is_odometry_battery_and_diagnostics() -> None:
     assert status["level"] == 1 and status["message"] == "stalled"  # WARN
     values = {v["key"]: v["value"] for v in status["values"]}
     assert values["stall_left"] == "true" and values["bumpers_front"] == "3"
+
+
+def test_create_state_is_odometry_battery_and_diagnostics() -> None:
+    state = {"timestamp": STAMP, "x": 0.5, "y": 0.25, "th": 0.0, "bump_left": False,
+             "bump_right": True, "wheel_drop_left": False, "wheel_drop_right": False,
+             "voltage": 15.2, "current": -0.4, "charge": 1.5, "capacity": 3.0,
+             "charging_state": 0, "mode": 2, "frame_count": 12}  # fmt: skip
+    out = _decoded("robocli.create.State", "/create/state", state)
+    kind, odom = out["/create/odom"]
+    assert kind == "nav_msgs/msg/Odometry" and odom["child_frame_id"] == "base_link"
+    assert (odom["pose"]["pose"]["position"]["x"], odom["pose"]["pose"]["position"]["y"]) == (
+        0.5,
+        0.25,
+    )
+    assert math.isnan(odom["twist"]["twist"]["linear"]["x"])  # the frame has no velocity
+    battery = out["/create/battery"][1]
+    assert battery["voltage"] == pytest.approx(15.2) and battery["percentage"] == 0.5
+    status = out["/diagnostics"][1]["status"][0]
+    assert status["level"] == 1 and status["message"] == "bumped"
+    assert {v["key"]: v["value"] for v in status["values"]}["mode"] == "2"
 
 
 def test_estop_is_an_error_and_a_missing_number_is_nan() -> None:
@@ -84,7 +122,9 @@ def test_transforms_go_to_tf_and_frames_follow_rep105_or_keep_their_prefix() -> 
                                             S.quaternion_z(0.1))]}  # fmt: skip
     _, msg = _decoded("foxglove.FrameTransforms", "/arm/tf", arm)["/tf"]
     assert [(t["header"]["frame_id"], t["child_frame_id"]) for t in msg["transforms"]] == [
-        ("base", "link_1"), ("link_1", "link_2")]  # ROS-Industrial's names
+        ("base", "link_1"),
+        ("link_1", "link_2"),
+    ]  # ROS-Industrial's names
 
 
 def test_laser_scan_has_ros_conventions() -> None:
@@ -175,8 +215,14 @@ def test_images_and_raw_frames_keep_their_bytes() -> None:
     kind, msg = _decoded("foxglove.RawImage", "/hub/depth/image", depth)["/hub/depth/image"]
     assert kind == "sensor_msgs/msg/Image" and msg["encoding"] == "16UC1"
     assert (msg["width"], msg["height"], msg["step"], msg["data"]) == (2, 1, 4, b"\x01\x02\x03\x04")
-    raw = {"timestamp": STAMP, "link": "pioneer", "protocol": "arcos", "direction": "rx",
-           "port": "", "data": base64.b64encode(b"\xfa\xfb\x03\x00\x00\x00").decode()}
+    raw = {
+        "timestamp": STAMP,
+        "link": "pioneer",
+        "protocol": "arcos",
+        "direction": "rx",
+        "port": "",
+        "data": base64.b64encode(b"\xfa\xfb\x03\x00\x00\x00").decode(),
+    }
     kind, msg = _decoded("robocli.RawFrame", "/pioneer/raw/rx", raw)["/pioneer/raw/rx"]
     assert kind == RAW_FRAME and msg["data"] == b"\xfa\xfb\x03\x00\x00\x00"
     assert (msg["link"], msg["protocol"], msg["direction"]) == ("pioneer", "arcos", "rx")
@@ -201,14 +247,19 @@ def test_a_malformed_sample_is_a_typed_error() -> None:
 def test_type_hashes_are_ros2s() -> None:
     # as ROS 2 Jazzy/Kilted ship them (share/sensor_msgs/msg/LaserScan.json, ...)
     assert type_hash("sensor_msgs/msg/LaserScan") == (
-        "RIHS01_64c191398013af96509d518dac71d5164f9382553fce5c1f8cca5be7924bd828")
+        "RIHS01_64c191398013af96509d518dac71d5164f9382553fce5c1f8cca5be7924bd828"
+    )
     assert type_hash(RAW_FRAME).startswith("RIHS01_") and len(type_hash(RAW_FRAME)) == 71
 
 
 def test_mapper_frames() -> None:
     m = Mapper()
     assert [m.frame(f) for f in ("pioneer/odom", "arm/base", "laser/laser", "odom")] == [
-        "odom", "base", "laser", "odom"]
+        "odom",
+        "base",
+        "laser",
+        "odom",
+    ]
     assert Mapper(prefix_frames=True).frame("arm/base") == "arm/base"
 
 
