@@ -23,8 +23,12 @@ from tests.io import mcapbuild as b
 
 GIB = 1 << 30
 #: Runs a command in a child that reports its own peak resident memory on its last line.
-_PEAK = ("import resource, sys\nfrom robocli.cli import main\ncode = main(sys.argv[1:])\n"
-         "print(f'PEAK {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}', file=sys.stderr)\n"
+# The child's own peak: VmHWM belongs to the process image, which exec starts afresh; the
+# rusage maximum does not (Linux keeps it across exec, so a fork of a big pytest worker
+# reported the worker's 256 MB).
+_PEAK = ("import re, sys\nfrom robocli.cli import main\ncode = main(sys.argv[1:])\n"
+         "hwm = re.search(r'VmHWM:\\s+(\\d+)', open('/proc/self/status').read()).group(1)\n"
+         "print(f'PEAK {hwm}', file=sys.stderr)\n"
          "sys.exit(code)")  # fmt: skip
 
 
