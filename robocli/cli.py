@@ -161,6 +161,13 @@ def main(argv: list[str] | None = None) -> int:
         return code if isinstance(code, int) else 0
     except typer.Exit as exc:
         return int(exc.exit_code)
+    except ImportError as exc:  # an optional extra that is not installed: which one
+        extra = _EXTRAS.get((exc.name or "").partition(".")[0])
+        if extra is None:
+            raise
+        typer.echo(f"robocli: this needs the {exc.name} package, from the {extra} extra: "
+                   f"pip install 'robocli[{extra}]'", err=True)  # fmt: skip
+        return 1
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
@@ -180,6 +187,13 @@ def main(argv: list[str] | None = None) -> int:
         message += _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
+
+
+#: The extra (pyproject.toml) that brings each optional package.
+_EXTRAS = {
+    "mcap": "record", "zstandard": "record", "lz4": "record", "matplotlib": "plot",
+    "websockets": "foxglove", "zenoh": "zenoh", "cv2": "camera", "PIL": "camera",
+}  # fmt: skip
 
 
 def _command_of(args: list[str]) -> str:

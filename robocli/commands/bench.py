@@ -1,5 +1,5 @@
 """``robocli bench rtt|jitter|sip``: latency and timing statistics, against the built-in
-simulators unless ``--url`` names a real robot.
+simulators unless a URL names a real device.
 
 Every bench stops within about a second on Ctrl-C (or SIGTERM), prints what it collected
 so far and exits 130. On a terminal, runs longer than about 2 s show a progress bar on
@@ -23,6 +23,7 @@ from robocli.commands._common import (
     print_json,
     sigterm_as_interrupt,
 )
+from robocli.commands._options import count_option, json_option
 
 if TYPE_CHECKING:
     from robocli.bench.stats import Run
@@ -33,12 +34,15 @@ JitterTargetOpt = typer.Option(
     "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
 )
 SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
-UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
-JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
+UrlOpt = typer.Argument(None, metavar="[URL]", show_default=False,
+                        help="A real device's URL (default: a built-in simulator).")  # fmt: skip
+JsonOpt = json_option()
 OrderOpt = typer.Option(
     None, "--byte-order", help="arm: little (ABB, the default) or big (Fanuc, FS100)."
 )
 RealOpt = typer.Option(None, "--real-size", help="arm: bytes per real, 4 (default) or 8 (FLOAT64).")
+ByteOrder = Literal["little", "big"]
+RealSize = Literal[4, 8]
 EXIT_INTERRUPTED = 130
 #: Multiples of the same-CPU floor (median, p99) the client must stay under.
 RESPONDER_TARGETS = (3.0, 6.0)
@@ -126,7 +130,7 @@ def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
 def rtt(
     target: Literal["pioneer", "arm", "hub"] = TargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(1000, "--n", "-n", min=10, max=1_000_000, help="Round trips."),
+    n: int = count_option(1000, "Round trips.", min=10, max=1_000_000),
     floor_n: int | None = typer.Option(  # noqa: UP007
         None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
     ),
@@ -135,13 +139,13 @@ def rtt(
     ),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: str | None = OrderOpt,  # noqa: UP007
-    real_size: int | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
+    real_size: RealSize | None = RealOpt,  # noqa: UP007
 ) -> None:
     """Request/acknowledge round trips through the real client, as multiples of the C
     ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
 
-    Without --url: a bare Python socket, then the client, against a minimal C ARCOS
+    Without a URL: a bare Python socket, then the client, against a minimal C ARCOS
     responder (the client's own cost), then the client against the built-in simulator
     running in its own process; all pinned to one CPU.
     """
@@ -273,11 +277,11 @@ def _finish(interrupted: bool) -> None:
 def jitter(
     target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
+    n: int = count_option(300, "SIP periods.", min=10),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: str | None = OrderOpt,  # noqa: UP007
-    real_size: int | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
+    real_size: RealSize | None = RealOpt,  # noqa: UP007
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it); laser: the
     scan period as received and as stamped, the stamp-to-reception delay, the decode time."""
@@ -300,7 +304,7 @@ def jitter(
 def sip(
     target: Literal["pioneer"] = SipTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(300, "--n", "-n", min=10, help="SIPs to collect."),
+    n: int = count_option(300, "SIPs to collect.", min=10),
     json_out: bool = JsonOpt,
 ) -> None:
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
@@ -393,7 +397,7 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
     from robocli.devices.arm import Arm
 
     if url is not None and paper:
-        raise typer.BadParameter("--paper-model configures the built-in simulator; not with --url")
+        raise typer.BadParameter("--paper-model configures the built-in simulator; not with a URL")
     same, other = _cpus(cpu) if kind == "rtt" else (None, None)
     progress, runs, interrupted = _Progress(), [], False
     variant = "" if wire == ("little", 4) else f", {wire[0]}-endian, {wire[1] * 8}-bit reals"

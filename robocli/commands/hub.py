@@ -24,6 +24,14 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._options import (
+    SENSORS,
+    SensorName,
+    count_option,
+    device_argument,
+    duration_option,
+    json_option,
+)
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
 
@@ -38,15 +46,9 @@ HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
 HubOpt = typer.Option(
     None, "--hub", help=HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True
 )
-HubArg = typer.Argument(
-    ..., help="Hub address HOST[:PORT].", show_default=False, envvar=HUB_ENV, show_envvar=True
-)
-FORMATS = ("table", "csv", "jsonl")
+HubArg = device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
-SENSOR_HELP = (
-    "adc, imu, gps, battery, sysinfo (or computer), laser (or hokuyo), camera, "
-    "stereo (or camera_stereo), depth (or kinect)"
-)
+SENSOR_HELP = ", ".join(SENSORS)
 TokenOpt = typer.Option(
     None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
     show_envvar=False, show_default=False,
@@ -109,7 +111,7 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: str = typer.Argument(..., help=SENSOR_HELP + ".", show_default=False),
+    sensor: SensorName = typer.Argument(..., help="The sensor.", show_default=False),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
     hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     buffer: int | None = typer.Option(  # noqa: UP007
@@ -124,13 +126,12 @@ def subscribe(
         "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
     ),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
-    duration: float | None = typer.Option(  # noqa: UP007
-        None, "--duration", min=0, help="Stop after S seconds."
+    duration: float | None = duration_option(min=0),  # noqa: UP007
+    count: int | None = count_option(None, "Stop after N samples.", min=1),  # noqa: UP007
+    fmt: Literal["table", "csv"] | None = typer.Option(  # noqa: UP007
+        None, "--format", "-f", help="Text output (default: table on a terminal, else csv)."
     ),
-    count: int | None = typer.Option(None, "--count", "-n", min=1, help="Stop after N samples."),  # noqa: UP007
-    fmt: Literal["table", "csv", "jsonl"] | None = typer.Option(  # noqa: UP007
-        None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
-    ),
+    json_out: bool = json_option(),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
     zenoh: str | None = zenoh_option("client"),  # noqa: UP007
@@ -144,9 +145,9 @@ def subscribe(
 
     if duration is not None and count is not None:
         raise typer.BadParameter("give --duration or --count, not both")
-    fmt = fmt or ("table" if sys.stdout.isatty() else "csv")
-    if fmt not in FORMATS:
-        raise typer.BadParameter(f"--format: choose from {', '.join(FORMATS)}")
+    if json_out and fmt is not None:
+        raise typer.BadParameter("give --format or --json, not both")
+    fmt = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
     try:
         kind = sensor_type(sensor)
     except InvalidArgument:
@@ -201,6 +202,15 @@ class _Losses:
         )
 
 
+#: JSON is SI: the IMU's g, deg/s and uT (as the hub sends them; the table and CSV keep
+#: them) become m/s^2, rad/s and T, as in recordings and exports.
+TO_SI = {
+    **dict.fromkeys(("ax", "ay", "az"), 9.80665),
+    **dict.fromkeys(("gx", "gy", "gz"), math.pi / 180),
+    **dict.fromkeys(("mx", "my", "mz"), 1e-6),
+}
+
+
 def _json_value(value: float, integer: bool) -> float | int | None:
     """A field as JSON has it: an integer field as an int, a float32 one at its 7 digits,
     NaN (no reading, e.g. no CPU temperature sensor) as null (JSON has no NaN)."""
@@ -243,8 +253,10 @@ class _Output:
             from robocli.devices.hub.tools import INTEGER_COLUMNS
 
             ints = [c in INTEGER_COLUMNS for c in self.cols[1:]]
+            scale = [TO_SI.get(c, 1.0) for c in self.cols[1:]]
             for row in rows.tolist():  # the precision of the wire: float32 fields, us times
-                values = [round(row[0], 6), *map(_json_value, row[1:], ints)]
+                si = [v * k for v, k in zip(row[1:], scale, strict=True)]
+                values = [round(row[0], 6), *map(_json_value, si, ints)]
                 buf.write(json.dumps(dict(zip(self.cols, values, strict=True))) + "\n")
         elif self.live is None:
             np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
@@ -280,7 +292,7 @@ class _Output:
 def connect(
     host: str = HubArg,
     once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
@@ -299,10 +311,8 @@ def connect(
                 if view is not None:
                     view.add(client)
                 while True:
-                    info = survey(client, window)
-                    if json_out and once:
-                        print_json(info)
-                    elif json_out:  # one compact object per survey (JSON Lines)
+                    info = survey(client, window, SENSORS)
+                    if json_out:  # one compact object per survey (JSON Lines)
                         print_json_line(info)
                     else:
                         _print_survey(info)
@@ -376,14 +386,15 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
 
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
-    url: str | None = typer.Option(  # noqa: UP007
-        None, "--url", help="A running hub HOST[:PORT] (default: a simulated hub process)."
-    ),
+    url: str | None = typer.Argument(  # noqa: UP007
+        None, metavar="[URL]", show_default=False,
+        help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
+    ),  # fmt: skip
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
     sensors: str = typer.Option(
         "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
     ),
-    seconds: float = typer.Option(10.0, "--seconds", min=0.5, max=3600, help="Measured time."),
+    seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
     workers: int | None = typer.Option(  # noqa: UP007
         None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
