@@ -31,7 +31,7 @@ def test_help_and_version() -> None:
     "args",
     [
         ("connect", "pioneer"),  # missing PORT
-        ("bench", "rtt", "--n", "x"),  # not a number
+        ("bench", "rtt", "--count", "x"),  # not a number
         ("bench", "rtt", "--target", "toaster"),  # unknown target
         ("sim", "pioneer", "--sip-ms", "0"),  # out of range
         ("sim", "pioneer", "--subtype", "box"),  # no parameters for it

@@ -19,7 +19,7 @@ from typing import Any, Literal, get_args
 import typer
 
 #: Help panels of ``robocli -h``, by what users do.
-ROBOTS, SENSORS, RECORDING, LAB, TOOLS = (
+PANELS = ROBOTS, SENSORS, RECORDING, LAB, TOOLS = (
     "Robots", "Sensors", "Recording and replay", "Lab", "Tools",
 )  # fmt: skip
 
@@ -75,7 +75,7 @@ def json_option(help: str = "JSON Lines: one object per line, t in Unix seconds,
 #: ``camera_stereo``, stay on the wire: :mod:`robocli.protocols.ros4mat` maps them).
 SensorName = Literal["adc", "imu", "gps", "battery", "sysinfo", "laser", "camera", "stereo",
                      "depth"]  # fmt: skip
-SENSORS: tuple[str, ...] = get_args(SensorName)
+SENSOR_NAMES: tuple[str, ...] = get_args(SensorName)
 #: The wire names, kept working for one release (RENAMED).
 _WIRE_SENSOR_NAMES = {"computer": "sysinfo", "hokuyo": "laser", "kinect": "depth",
                       "camera_stereo": "stereo"}  # fmt: skip

@@ -25,7 +25,7 @@ from robocli.commands._common import (
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._options import (
-    SENSORS,
+    SENSOR_NAMES,
     SensorName,
     count_option,
     device_argument,
@@ -48,7 +48,7 @@ HubOpt = typer.Option(
 )
 HubArg = device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
-SENSOR_HELP = ", ".join(SENSORS)
+SENSOR_HELP = ", ".join(SENSOR_NAMES)
 TokenOpt = typer.Option(
     None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
     show_envvar=False, show_default=False,
@@ -311,7 +311,7 @@ def connect(
                 if view is not None:
                     view.add(client)
                 while True:
-                    info = survey(client, window, SENSORS)
+                    info = survey(client, window, SENSOR_NAMES)
                     if json_out:  # one compact object per survey (JSON Lines)
                         print_json_line(info)
                     else:

@@ -42,7 +42,7 @@ def test_upload_records_its_own_connection(tmp_path: Path) -> None:
         motion, state = (port_of(u) for u in sim.serve_tcp("127.0.0.1", 0, 0))
         # a second client on the state port is what `record --arm` beside an upload was
         proc = run("upload", "arm", "127.0.0.1", "--motion-port", str(motion), "--state-port",
-                   str(state), "--shape", "circle", "--points", "20", "--record", str(path),
+                   str(state), "--shape", "circle", "--count", "20", "--record", str(path),
                    timeout=120)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert "recording to" in proc.stderr and "recorded" in proc.stderr

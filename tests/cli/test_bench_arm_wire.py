@@ -40,7 +40,7 @@ def big_float64() -> Iterator[int]:
 @pytest.mark.parametrize("kind", ["rtt", "jitter"])
 def test_the_arm_benches_reach_a_big_endian_float64_controller(kind: str, big_float64: int) -> None:
     extra = ["--floor-n", "10"] if kind == "rtt" else []
-    proc = run("bench", kind, "--target", "arm", "--url", f"127.0.0.1:{big_float64}",
+    proc = run("bench", kind, "--target", "arm", f"127.0.0.1:{big_float64}",
                "--byte-order", "big", "--real-size", "8", "-n", "10", "--json", *extra,
                timeout=120)  # fmt: skip
     assert proc.returncode == 0, proc.stderr

@@ -114,7 +114,7 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("monitor", "arm", "127.0.0.1", "--state-port", "{free}", "--duration", "1",
             "-o", "{tmp}/missing/x.json", hint=False),  # fmt: skip
         run("upload", "arm", "127.0.0.1", "--motion-port", "{free}", "--state-port", "{free}",
-            "--shape", "circle", "--monitor", "{tmp}/missing/x.json", hint=False),  # fmt: skip
+            "--shape", "circle", "--output", "{tmp}/missing/x.json", hint=False),  # fmt: skip
         run("traj", "circle", "-o", "{tmp}/missing/x.json", hint=False),
     ],
     (2, "an output file that exists (without `--overwrite`) or is a symbolic link (said before "

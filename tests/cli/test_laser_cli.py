@@ -39,7 +39,7 @@ def test_connect_sim_once_json_is_si() -> None:
 
 
 def test_connect_jsonl_streams_scans_of_a_step_range(sim_url: str) -> None:
-    proc = run("connect", "laser", sim_url, "--format", "jsonl", "-n", "3",
+    proc = run("connect", "laser", sim_url, "--json", "-n", "3",
                "--start", "530", "--end", "550", "--cluster", "3")  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     lines = [json.loads(line) for line in proc.stdout.splitlines()]
@@ -102,7 +102,7 @@ def test_dump_laser_shows_every_line_both_ways_decoded(sim_url: str, tmp_path: P
 
 
 def test_bench_jitter_laser_reports_the_scan_period(sim_url: str) -> None:
-    proc = run("bench", "jitter", "--target", "laser", "--url", sim_url, "-n", "20", "--json")
+    proc = run("bench", "jitter", "--target", "laser", sim_url, "-n", "20", "--json")
     assert proc.returncode == 0, proc.stderr
     names = json.dumps(json.loads(proc.stdout))
     assert "scan period (stamped)" in names and "decode one frame" in names

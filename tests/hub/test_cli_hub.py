@@ -66,7 +66,7 @@ def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: Hu
 
 def test_count_jsonl_channel_mask_compressed(server: HubServer) -> None:
     proc = cli("subscribe", "adc", "--rate", "200", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "25", "--format", "jsonl", "--channels", "0x5", "--compress")  # fmt: skip
+               "--count", "25", "--json", "--channels", "0x5", "--compress")  # fmt: skip
     code, out, err = finish(proc)
     assert code == 0, err
     rows = [json.loads(line) for line in out.splitlines()]
@@ -79,7 +79,7 @@ def test_plain_sensor_names_and_jsonl_at_the_wires_precision(server: HubServer) 
     (no 0.0018077874556183815 for a float32 0.0018077875)."""
     hub = f"127.0.0.1:{server.port}"
     code, out, err = finish(cli("subscribe", "imu", "--rate", "50", "--hub", hub,
-                                "--count", "5", "--format", "jsonl"))  # fmt: skip
+                                "--count", "5", "--json"))  # fmt: skip
     assert code == 0, err
     for row in map(json.loads, out.splitlines()):
         for key, value in row.items():
@@ -115,8 +115,8 @@ def test_no_hub_exits_3_with_a_hint() -> None:
 
 @pytest.mark.parametrize("args", [
     ("dump", "hub", "127.0.0.1:1", "--listen", "127.0.0.1:0"),
-    ("bench", "rtt", "--target", "hub", "--url", "127.0.0.1:1"),
-    ("bench", "throughput", "--url", "127.0.0.1:1"),
+    ("bench", "rtt", "--target", "hub", "127.0.0.1:1"),
+    ("bench", "throughput", "127.0.0.1:1"),
     ("connect", "hub", "127.0.0.1:1", "--once"),
 ])  # fmt: skip
 def test_every_hub_command_says_how_to_start_a_hub(args: tuple[str, ...]) -> None:
@@ -239,7 +239,7 @@ def test_bench_commands_against_a_hub_process() -> None:
     assert code == 0, err
     (rtt,) = json.loads(out)
     assert rtt["n"] == 50 and 0 < rtt["median"] < 1e6
-    code, out, err = finish(cli("bench", "throughput", "--clients", "2", "--seconds", "1",
+    code, out, err = finish(cli("bench", "throughput", "--clients", "2", "--duration", "1",
                                 "--sensors", "imu,adc", "--json"))  # fmt: skip
     assert code == 0, err
     report = json.loads(out)
@@ -318,7 +318,7 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
     they stay quiet and the parent stops them."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "robocli", "bench", "throughput", "--clients", "2",
-         "--seconds", "30", "--sensors", "imu"],
+         "--duration", "30", "--sensors", "imu"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
         start_new_session=True,
     )  # fmt: skip
@@ -452,7 +452,7 @@ def test_jsonl_rows_are_strict_json_with_integers_as_ints(server: HubServer) -> 
     hub = f"127.0.0.1:{server.port}"
     for sensor, key in (("camera", "height"), ("sysinfo", "mem_used"), ("laser", "beams")):
         code, out, err = finish(cli("subscribe", sensor, "--rate", "5", "--hub", hub,
-                                    "--count", "1", "--format", "jsonl"))  # fmt: skip
+                                    "--count", "1", "--json"))  # fmt: skip
         assert code == 0, err
         row = json.loads(out.splitlines()[0], parse_constant=_not_json)
         assert isinstance(row[key], int), row

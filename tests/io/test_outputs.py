@@ -41,10 +41,10 @@ WRITERS = {
     "record-hub": (("record", "--hub", "ADDR", "-d", "0.5", "-o", "OUT"), ".mcap"),
     "record-arm": (("record", "--arm", "ADDR", "-n", "20", "-o", "OUT"), ".mcap"),
     "dump": (("dump", "pioneer", "ADDR", "-n", "3", "-o", "OUT"), ".jsonl"),
-    "monitor": (("monitor", "arm", "ADDR", "--samples", "3", "-o", "OUT"), ".json"),
-    "upload-monitor": (("upload", "arm", "ADDR", "--shape", "circle", "--points", "5",
-                        "--monitor", "OUT"), ".json"),  # fmt: skip
-    "upload-record": (("upload", "arm", "ADDR", "--shape", "circle", "--points", "5",
+    "monitor": (("monitor", "arm", "ADDR", "--count", "3", "-o", "OUT"), ".json"),
+    "upload-monitor": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
+                        "--output", "OUT"), ".json"),  # fmt: skip
+    "upload-record": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
                        "--record", "OUT"), ".mcap"),  # fmt: skip
     "traj": (("traj", "circle", "-n", "20", "-o", "OUT"), ".csv"),
     "traj-plot": (("traj", "circle", "-n", "20", "-o", "TMP/x.json", "--plot", "OUT"), ".png"),
