@@ -29,10 +29,10 @@ def doctor(
         help=f"Pioneer to probe (default ${PIONEER_ENV}, else {PIONEER_URL}).",
     ),  # fmt: skip
     arm: str | None = typer.Option(  # noqa: UP007
-        None, "--arm", metavar="HOST", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
+        None, "--arm", metavar="URL", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
     ),
     hub: str | None = typer.Option(  # noqa: UP007
-        None, "--hub", metavar="HOST[:PORT]",
+        None, "--hub", metavar="URL",
         help=f"Hub to probe (default ${HUB_ENV}, else {HUB_ADDRESS}).",
     ),  # fmt: skip
     motion_port: int = typer.Option(

@@ -44,7 +44,8 @@ if TYPE_CHECKING:
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
 HubOpt = typer.Option(
-    None, "--hub", help=HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True
+    None, "--hub", metavar="URL", help=HUB_HELP, show_default=False, envvar=HUB_ENV,
+    show_envvar=True,
 )
 HubArg = device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"

@@ -26,7 +26,7 @@ class SerialCommand(PlainCommand):
 def serial(
     ctx: typer.Context,
     hub: str = typer.Argument(
-        ..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.", metavar="[HUB]",
+        ..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.", metavar="[URL]",
         show_default=False, envvar=HUB_ENV, show_envvar=True,
     ),  # fmt: skip
     port: str | None = typer.Argument(  # noqa: UP007
