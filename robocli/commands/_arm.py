@@ -142,7 +142,7 @@ def connected(host: str, link: ArmLink, stream: bool = False, **options: Any) ->
     :meth:`Arm.connect`'s (``listeners``: a recorder's, from each port's first byte)."""
     with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
                                           link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream), link.motion) as address:  # fmt: skip
+                                          sim_profile(stream)) as address:  # fmt: skip
         with connect_at(address, link, **options) as arm:
             yield arm
 

@@ -112,7 +112,9 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: SensorName = typer.Argument(..., help="The sensor.", show_default=False),
+    sensor: SensorName = typer.Argument(
+        ..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.", show_default=False
+    ),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
     hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     buffer: int | None = typer.Option(  # noqa: UP007

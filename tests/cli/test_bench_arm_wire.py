@@ -64,7 +64,7 @@ def test_the_bench_simulator_speaks_the_variant_asked_for() -> None:
         (("jitter", "--byte-order", "big"), "--byte-order is for --target arm"),
         (("rtt", "--target", "hub", "--real-size", "8"), "--real-size is for --target arm"),
         (("jitter", "--target", "arm", "--byte-order", "middle"), "'middle'"),
-        (("rtt", "--target", "arm", "--real-size", "2"), "--real-size is 4 or 8"),
+        (("rtt", "--target", "arm", "--real-size", "2"), "'2' is not one of '4', '8'"),
     ],
 )
 def test_wire_options_outside_an_arm_target_are_usage_errors(

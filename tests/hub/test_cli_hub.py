@@ -156,7 +156,8 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     assert info["protocol_version"] == 3 and info["client_id"] >= 1
     imu = info["sensors"]["imu"]
     assert imu["active"] and 50 <= imu["rate_hz"] <= 200
-    assert info["sensors"]["camera_stereo"]["active"] is False
+    assert info["sensors"]["stereo"]["active"] is False  # robocli's names, not the wire's
+    assert not {"camera_stereo", "computer", "hokuyo", "kinect"} & set(info["sensors"])
     assert "kinect_ir" not in info["sensors"]  # 0x28: no pull, no hub serves it
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
@@ -409,16 +410,19 @@ def test_poll_is_an_integer_in_hz_as_the_protocol_field_is(server: HubServer) ->
     assert code == 2 and err.count("\n") == 1 and "--poll" in err, err
 
 
-def test_subscribe_names_the_aliases_and_refuses_kinect_ir_and_an_empty_mask() -> None:
+def test_subscribe_names_the_sensors_and_refuses_kinect_ir_and_an_empty_mask() -> None:
+    """One set of sensor names (issue 22): help says robocli's, the wire's stay on the wire."""
     code, out, err = finish(cli("subscribe", "--help"))
     assert code == 0, err
-    for alias in ("computer", "hokuyo", "camera_stereo", "kinect"):
-        assert alias in out, out
+    for name in ("sysinfo", "laser", "stereo", "depth"):
+        assert name in out, out
+    for wire in ("computer", "hokuyo", "camera_stereo", "kinect"):
+        assert wire not in out, out
     for args in (("kinect_ir", "--rate", "5"), ("adc", "--rate", "5", "--channels", "0")):
         code, out, err = finish(cli("subscribe", *args, "--hub", "127.0.0.1:1"))
         assert code == 2 and err.count("\n") == 1, err  # refused before connecting
     code, _, err = finish(cli("subscribe", "sonar", "--rate", "5", "--hub", "127.0.0.1:1"))
-    assert "kinect_ir" not in err and "hokuyo" in err, err
+    assert "kinect_ir" not in err and "laser" in err and "hokuyo" not in err, err
 
 
 def test_connect_hub_output_without_data_and_json_lines_when_repeating() -> None:
