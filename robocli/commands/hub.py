@@ -150,7 +150,7 @@ def subscribe(
         raise typer.BadParameter("give --duration or --count, not both")
     if json_out and fmt is not None:
         raise typer.BadParameter("give --format or --json, not both")
-    fmt = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
+    shape: str = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
     try:
         kind = sensor_type(sensor)
     except InvalidArgument:
@@ -165,7 +165,7 @@ def subscribe(
         try:
             with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
                 client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
-                out = _Output(fmt, columns_of(sensor, mask))
+                out = _Output(shape, columns_of(sensor, mask))
                 losses = _Losses(sensor, buffer or rate)
                 for reading in stream(client, sensor, pulls, duration=duration, count=count):
                     out.write(rows_of(reading, mask))
