@@ -169,43 +169,6 @@ def pioneer_url(port: str, **sim_options: Any) -> Iterator[str]:
 
 
 @contextlib.contextmanager
-def pioneer_sim_process(cpu: int | None = None, timeout: float = 20.0) -> Iterator[str]:
-    """Yield the URL of a Pioneer simulator running in its own process (pinned to ``cpu``
-    when given), so that a benchmark measures the client against a server that does not
-    share its interpreter. The child ignores Ctrl-C (the parent stops it: end of its stdin,
-    then SIGTERM, then SIGKILL, each bounded)."""
-    from robocli.bench.harness import child_process
-    from robocli.errors import TransportError
-
-    code = "from robocli.commands._common import sim_child_main; sim_child_main()"
-    with child_process(code, "" if cpu is None else str(cpu), timeout=timeout) as (_, line):
-        if not line.startswith("tcp://"):
-            raise TransportError(
-                f"the simulator process did not start within {timeout:g} s"
-                + (f": {line}" if line else "")
-            )
-        yield line
-
-
-def sim_child_main() -> None:
-    """The process of :func:`pioneer_sim_process`: ``argv[1]`` is the CPU to pin to (or
-    empty); prints the simulator's URL, serves until its stdin ends."""
-    import os
-    import sys
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent; it stops us
-    cpu = sys.argv[1] if len(sys.argv) > 1 else ""
-    if cpu and hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {int(cpu)})  # before any thread starts: they all inherit it
-    from robocli.bench.harness import wait_for_stdin_eof
-    from robocli.sim.pioneer.server import PioneerSim
-
-    with PioneerSim() as simulator:
-        print(simulator.serve_tcp("127.0.0.1", 0), flush=True)
-        wait_for_stdin_eof()  # until the parent closes the pipe (or dies)
-
-
-@contextlib.contextmanager
 def sigterm_as_interrupt() -> Iterator[None]:
     """Let `kill` (SIGTERM) stop a command the way Ctrl-C does: robots stop, ports close."""
 

@@ -3,7 +3,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import math
@@ -11,7 +10,7 @@ import os
 import sys
 import time
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -38,7 +37,6 @@ from robocli.defaults import HUB_ENV
 if TYPE_CHECKING:
     import numpy as np
 
-    from robocli.bench.hub import HubProcess
     from robocli.devices.hub.client import Hub
 
 EXIT_INTERRUPTED = 130
@@ -343,35 +341,14 @@ def _print_survey(info: dict[str, Any]) -> None:
             typer.echo(f"  {name:<14} idle     ({s['reason']})")
 
 
-@contextlib.contextmanager
-def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
-    """(address, None) for ``url``, else a simulated hub in its own process."""
-    from robocli.bench.hub import hub_process
-
-    if url is not None:
-        from robocli.devices.hub.client import parse_hub
-        from robocli.transports import format_address
-
-        yield format_address(*parse_hub(url)), None
-        return
-    with hub_process() as proc:
-        yield proc.address, proc
-
-
 def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
     """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
-    from robocli.bench import hub as hub_bench
+    from robocli.bench import runs
     from robocli.bench import stats as bs
 
-    run = bs.Run("hub empty pull", n)
-    interrupted = False
     with sigterm_as_interrupt():
-        try:
-            with _bench_hub(url) as (address, _proc):
-                run.where = f"hub {address}" + ("" if url else " (simulated, own process)")
-                hub_bench.rtt(address, run)
-        except KeyboardInterrupt:
-            interrupted = True
+        out = runs.hub_rtt(url, n)
+    run = out.runs[0][0]
     if run.count:
         result = bs.report(run.name, run.values, where=run.where)
         if json_out:
@@ -383,7 +360,7 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
                 f"{run.name:<22}{result['n']:>7}" + "".join(f"{result[k]:>9.1f}" for k in keys)
             )
             typer.echo(f"  {run.where}")
-    if interrupted:
+    if out.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
 
@@ -402,28 +379,17 @@ def throughput(
     workers: int | None = typer.Option(  # noqa: UP007
         None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
     ),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
     lost samples, and the hub's CPU and peak memory (when it runs here)."""
-    from robocli.bench import hub as hub_bench
+    from robocli.bench import runs
 
     if target != "hub":
         raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")
-    names = tuple(s.strip() for s in sensors.split(",") if s.strip())
-    unknown = [s for s in names if s not in hub_bench.BENCH_SENSORS]
-    if unknown or not names:
-        raise typer.BadParameter(
-            f"--sensors: {unknown[0] if unknown else sensors!r} unknown; choose from "
-            + ", ".join(hub_bench.BENCH_SENSORS)
-        )
     with sigterm_as_interrupt():
         try:
-            with _bench_hub(url) as (address, proc):
-                report = hub_bench.throughput(
-                    address, clients=clients, sensors=names, seconds=seconds, pull_hz=pull_hz,
-                    workers=workers, hub=proc, served=hub_bench.served_sensors(address),
-                )  # fmt: skip
+            report = runs.hub_throughput(url, clients, sensors, seconds, pull_hz, workers)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
     if json_out:
