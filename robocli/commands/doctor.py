@@ -7,6 +7,7 @@ from typing import Any
 import typer
 
 from robocli.commands._common import print_json, rounded
+from robocli.commands._options import json_option
 from robocli.defaults import (
     ARM_ENV,
     ARM_HOST,
@@ -20,7 +21,7 @@ from robocli.defaults import (
 
 
 def doctor(
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
     timeout: float = typer.Option(
         1.0, "--timeout", min=0.05, max=10.0, help="Seconds each probe may wait."
     ),

@@ -32,7 +32,7 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
-from robocli.commands._options import DEVICE_FORMS
+from robocli.commands._options import DEVICE_FORMS, json_option
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 
@@ -56,7 +56,7 @@ def pioneer(
         0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
     ),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None,
         "--output",
@@ -229,7 +229,7 @@ def arm(
     ),  # fmt: skip
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
     ),
@@ -390,7 +390,7 @@ def hub(
     ),
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", help="Also record the session (.jsonl capture)."
     ),

@@ -34,7 +34,7 @@ StartOpt = typer.Option(
 )
 CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
 PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
-JsonOpt = json_option("Print a JSON summary (one line) instead of text.")
+JsonOpt = json_option("One line: a JSON summary instead of text.")
 
 
 def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:

@@ -56,6 +56,8 @@ def test_every_option_follows_the_grammar(path: str) -> None:
                 assert short in names, f"{path}: {long} without {short}"
             elif short in names:
                 raise AssertionError(f"{path}: {short} is {long} everywhere, not {names}")
+        if "--json" in names:  # one meaning: a line per object
+            assert "JSON Lines" in (param.help or "") or "One line" in (param.help or ""), path
         if names & ENUMERATED:
             td = param.type_descriptor
             assert td.choices, f"{path}: {names} is not a choice"
