@@ -31,7 +31,7 @@ JitterTargetOpt = typer.Option(
     "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
 )
 SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
-UrlOpt = typer.Argument(None, metavar="[URL]", show_default=False,
+UrlOpt = typer.Argument(None, metavar="URL", show_default=False,
                         help="A real device's URL (default: a built-in simulator).")  # fmt: skip
 JsonOpt = json_option()
 OrderOpt = typer.Option(

@@ -367,7 +367,7 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
     url: str | None = typer.Argument(  # noqa: UP007
-        None, metavar="[URL]", show_default=False,
+        None, metavar="URL", show_default=False,
         help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
     ),  # fmt: skip
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
