@@ -146,3 +146,19 @@ def test_choices_complete_in_every_shell(shell: str, words: str, expected: set[s
     got = " ".join(_complete(words, shell))
     for value in expected:
         assert value in got, (shell, words, got)
+
+
+def test_the_choices_are_the_librarys() -> None:
+    """A choice spelled in the CLI (for completion) names what the library accepts."""
+    from typing import get_args
+
+    from robocli.commands import export, hub, laser, record
+    from robocli.io.export import FORMATS
+    from robocli.io.record import COMPRESSIONS
+    from robocli.protocols.ros4mat import sensor_type
+
+    assert get_args(export.Format) == FORMATS
+    assert get_args(record.Compression) == COMPRESSIONS
+    assert get_args(laser.Model) == laser.MODELS
+    for name in hub.SENSOR_NAMES:
+        sensor_type(name)  # each is a sensor the protocol knows
