@@ -409,14 +409,22 @@ def describe(arm: Arm) -> dict[str, Any]:
 
 
 def _line(d: dict[str, Any]) -> str:
-    deg = " ".join(f"{v:8.3f}" for v in d["joints_deg"])
-    rad = " ".join(f"{v:8.5f}" for v in d["joints_rad"])
+    """One state in one terminal line (under 100 characters): joints (deg), TCP (m) and
+    roll-pitch-yaw (deg), and only the status flags that are set (``--json``: everything)."""
+    deg = " ".join(f"{v:.1f}" for v in d["joints_deg"])
     x, y, z = d["tcp_m"]
     roll, pitch, yaw = d["tcp_rpy_deg"]
     st = d["status"] or {}
-    flags = " ".join(f"{k}={v}" for k, v in st.items())
-    return (f"joints deg [{deg}]  rad [{rad}]  tcp ({x:.4f}, {y:.4f}, {z:.4f}) m "
-            f"rpy ({roll:.2f}, {pitch:.2f}, {yaw:.2f}) deg  {flags}")
+    flags = [word for key, word in _FLAGS.items() if st.get(key) is True]
+    flags += [str(st["mode"])] if st.get("mode") else []
+    flags += [f"error {st['error_code']}"] if st.get("error_code") else []
+    return (f"deg [{deg}]  tcp {x:.3f} {y:.3f} {z:.3f} m  rpy {roll:.0f} {pitch:.0f} {yaw:.0f}"
+            f"  {' '.join(flags)}")
+
+
+#: The status flags a text line shows when set, and their words there.
+_FLAGS = {"drives_powered": "powered", "motion_possible": "ready", "in_motion": "moving",
+          "in_error": "ERROR", "e_stopped": "E-STOP"}  # fmt: skip
 
 
 @arm_link(motion=False)

@@ -76,3 +76,12 @@ def test_an_old_spelling_works_and_says_the_new_one(tmp_path: Path) -> None:
         "robocli: --out is now --output (the old spelling goes in the next release)",
         "robocli: --points is now --count (the old spelling goes in the next release)",
     ]
+
+
+def test_connect_arm_text_fits_a_terminal_line() -> None:
+    """The live view printed about 300 characters a state, 10 a second (issue 22): one
+    state is now one line of a terminal's width; --json keeps every field."""
+    done = run("connect", "arm", "sim", "--count", "3")
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert len(lines) == 3 and all(len(line) < 100 and "tcp" in line for line in lines), lines
