@@ -437,12 +437,14 @@ def connect(
     foxglove_host: str = FoxgloveHostOpt,
     link: ArmLink = LINK,
 ) -> None:
-    """Show the arm's live joints (deg, rad), TCP position and status (--foxglove: also
-    to Foxglove, with every link's frame)."""
+    """Show the arm's live joints (deg), TCP position and status until q (on a terminal)
+    or Ctrl-C (--json: every field, rad too; --foxglove: also to Foxglove, with every
+    link's frame)."""
     from robocli.commands._live import live_view
+    from robocli.commands._screens import keyboard
 
     with reader_may_leave(), live_view(foxglove, foxglove_host) as view, \
-            connected(host, link) as arm:  # fmt: skip
+            connected(host, link) as arm, keyboard() as read_key:  # fmt: skip
         if view is not None:
             view.add(arm)
         arm.wait_for_state()
@@ -460,4 +462,6 @@ def connect(
                 shown, last = shown + 1, d["t"]
             if count is not None and shown >= count:
                 return
+            if read_key is not None and read_key(0) in ("q", "Q", "esc"):
+                return  # as the Pioneer's view
             arm.wait_for_state(link.timeout)

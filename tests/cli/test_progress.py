@@ -42,3 +42,20 @@ def test_record_is_quiet_in_a_pipe(tmp_path: Path) -> None:
     proc = run("record", "--pioneer", "sim", "-n", "400", "-o", str(tmp_path / "r.mcap"))
     assert proc.returncode == 0, proc.stderr
     assert "msg/s" not in proc.stderr and "\x1b" not in proc.stderr
+
+
+def test_q_quits_connect_arm_as_it_quits_the_pioneers_view() -> None:
+    master, slave = pty.openpty()  # stdin a terminal: the view reads keys
+    proc = subprocess.Popen([*ROBOCLI, "connect", "arm", "sim"], stdin=slave,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)  # fmt: skip
+    os.close(slave)
+    try:
+        assert proc.stdout is not None
+        assert "tcp" in proc.stdout.readline().decode()  # the view runs
+        os.write(master, b"q")
+        assert proc.wait(60) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(10)
+        os.close(master)
