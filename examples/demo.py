@@ -46,8 +46,8 @@ def arm_circle(out: Path) -> int:
     sim_log, real_log = str(out / "sim.json"), str(out / "real.json")
     figure = out / "arm_circle.png"
     steps = [
-        ["traj", "circle", "--points", "100", "--out", sim_log, "--overwrite"],
-        ["upload", "arm", "sim", "--file", sim_log, "--monitor", real_log, "--overwrite"],
+        ["traj", "circle", "--count", "100", "--output", sim_log, "--overwrite"],
+        ["upload", "arm", "sim", "--file", sim_log, "--output", real_log, "--overwrite"],
         ["validate", sim_log, real_log, *(["--plot", str(figure), "--overwrite"] if PLOT else [])],
     ]
     for argv in steps:
@@ -67,7 +67,7 @@ def explain_delay(sim_log: str, real_log: str) -> None:
     from robocli.kinematics.validate import validate
 
     delay_ms = validate(read_log(sim_log), read_log(real_log)).delay_s * 1e3
-    print(f"the time shift, {delay_ms:.0f} ms, is the download: `upload --monitor` starts\n"
+    print(f"the time shift, {delay_ms:.0f} ms, is the download: `upload --output` starts\n"
           "recording, then sends the 100 points, one round trip each, and the controller\n"
           "starts the circle when the last one (-3) is acknowledged. The simulator adds no\n"
           "lag of its own; a loaded machine makes the download, and so the shift, longer.")
@@ -207,8 +207,8 @@ def run(out: Path = OUT) -> int:
         if robocli(["dump", "pioneer", url, "--count", "12"]) != 0:
             return 1
 
-        step(f"robocli bench rtt --url {url} --n 300")
-        if robocli(["bench", "rtt", "--url", url, "--n", "300"]) != 0:
+        step(f"robocli bench rtt {url} --count 300")
+        if robocli(["bench", "rtt", url, "--count", "300"]) != 0:
             return 1
     if arm_circle(out) != 0 or sensor_hub() != 0 or look(out) != 0:
         return 1

@@ -11,6 +11,7 @@ import sys
 from typing import Any
 
 import typer
+from typer.core import TyperGroup
 
 from robocli._version import __version__
 from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
@@ -29,7 +30,27 @@ from robocli.commands import serial as serial_command
 from robocli.commands import serve as serve_command
 from robocli.commands import teleop as teleop_commands
 from robocli.commands._common import PlainCommand
+from robocli.commands._options import LAB, PANELS, RECORDING, ROBOTS, SENSORS, TOOLS
 from robocli.commands._zenoh import ZenohCommand
+
+
+class PanelGroup(TyperGroup):
+    """A group whose -h lists its commands under the panels of what users do
+    (:data:`~robocli.commands._options.PANELS`), each with its whole short help (never cut
+    with "...")."""
+
+    def format_commands(self, ctx: Any, formatter: Any) -> None:
+        panels: dict[str, list[tuple[str, str]]] = {}
+        for name in self.list_commands(ctx):
+            cmd = self.get_command(ctx, name)
+            if cmd is None or cmd.hidden:
+                continue
+            panel = PANEL_OF.get(name, "Commands")
+            panels.setdefault(panel, []).append((name, cmd.get_short_help_str(limit=10_000)))
+        for panel in (*PANELS, "Commands"):
+            if panels.get(panel):
+                with formatter.section(panel):
+                    formatter.write_dl(panels[panel])
 
 
 class _Typer(typer.Typer):
@@ -41,6 +62,7 @@ class _Typer(typer.Typer):
 
 
 app = _Typer(
+    cls=PanelGroup,
     name="robocli",
     help="Drive robots and read their sensors from a laptop, byte for byte: Pioneer mobile "
     "robots (ARCOS), ABB and other industrial arms (ROS-Industrial Simple Message), the ros4mat "
@@ -77,7 +99,8 @@ def _root(
 
 
 def _group(name: str, help_text: str) -> typer.Typer:
-    group = _Typer(name=name, help=help_text, no_args_is_help=True, rich_markup_mode=None)
+    group = _Typer(name=name, help=help_text, no_args_is_help=True, rich_markup_mode=None,
+                   cls=PanelGroup)  # fmt: skip
     app.add_typer(group)
     return group
 
@@ -140,6 +163,76 @@ app.command("list", cls=ZenohCommand)(router_commands.list_)
 app.command("urdf", cls=PlainCommand)(model_commands.urdf)
 
 
+#: Where ``robocli -h`` lists each command, by what users do.
+PANEL_OF = {
+    **dict.fromkeys(("connect", "teleop", "upload", "monitor", "traj", "bridge"), ROBOTS),
+    **dict.fromkeys(("subscribe", "serial", "serve"), SENSORS),
+    **dict.fromkeys(("record", "info", "plot", "export", "recover", "dump"), RECORDING),
+    **dict.fromkeys(("sim", "bench", "router", "list", "validate"), LAB),
+    **dict.fromkeys(("doctor", "ports"), TOOLS),
+}
+#: Each command's line in its group's -h: set here, whole (Typer would cut the docstring's
+#: first sentence with "...").
+SHORT_HELP = {
+    "ports": "List serial ports, with their description and hardware id.",
+    "validate": "Compare a measured arm run with its simulation: RMSE, MAE, TCP error.",
+    "subscribe": "Stream a hub sensor's timestamped samples to stdout.",
+    "serial": "Write to and read from a serial port on the hub.",
+    "serve": "Run the sensor hub (ros4mat v3), optionally on Zenoh and Foxglove.",
+    "doctor": "Check this machine for robocli: versions, C core, serial access, devices.",
+    "record": "Record robots, arms, a hub and a laser into one MCAP file.",
+    "info": "Summarise a recording: duration, channels, counts and rates.",
+    "plot": "Draw a recording's channels into a PNG.",
+    "export": "Export a recording to CSV, JSON Lines, NPZ or an IRB120 log.",
+    "recover": "Rewrite what is readable of a recording cut short.",
+    "router": "Run a Zenoh router (the lab server's), until Ctrl-C.",
+    "list": "List the hubs and robots that are up on Zenoh.",
+    "connect pioneer": "Show a Pioneer's identity and live state.",
+    "connect arm": "Show an arm's live joints, TCP pose and status.",
+    "connect hub": "Survey a hub: running sensors, rates, round trip, clock offset.",
+    "connect laser": "Show a Hokuyo laser's identity and live scans.",
+    "teleop pioneer": "Drive a Pioneer from the keyboard.",
+    "teleop arm": "Jog an arm from the keyboard.",
+    "dump pioneer": "Every ARCOS packet both ways, named and decoded.",
+    "dump arm": "Every Simple Message frame of both ports, named and decoded.",
+    "dump hub": "Every ros4mat message both ways, named and decoded.",
+    "dump laser": "Every SCIP line both ways, named and decoded.",
+    "sim pioneer": "Run a Pioneer simulator (ARCOS, like MobileSim).",
+    "sim abb": "Run an ABB controller simulator (Simple Message: motion, state).",
+    "sim laser": "Run a Hokuyo laser simulator (SCIP 2.0).",
+    "bench rtt": "Round-trip statistics, beside the C floor measured in the same run.",
+    "bench jitter": "Period statistics: SIPs, arm states or laser scans.",
+    "bench sip": "Client work per SIP and the keep-alive period.",
+    "bench throughput": "Many clients pulling many hub sensors: rates, latency, losses.",
+    "traj circle": "A circle in a plane, sampled ideally, to a log.",
+    "traj rectangle": "A rectangle in a plane, sampled ideally, to a log.",
+    "traj ptp-joint": "A point-to-point move in joint space, to a log.",
+    "traj ptp-cartesian": "A straight TCP move to a point, to a log.",
+    "traj file": "A trajectory through a file's waypoints, to a log.",
+    "upload arm": "Upload a trajectory to an arm and wait for its end.",
+    "monitor arm": "Record an arm's state stream to a log.",
+    "bridge pioneer": "Put a Pioneer on Zenoh: state for many, commands from one.",
+    "bridge arm": "Put an arm on Zenoh: state for many, commands from one.",
+}
+
+
+def _set_short_help(group: Any, path: str = "") -> None:
+    """Give every command its :data:`SHORT_HELP` line (a test checks that none is missing)."""
+    for name, cmd in getattr(group, "commands", {}).items():
+        full = f"{path} {name}".strip()
+        if hasattr(cmd, "commands"):
+            _set_short_help(cmd, full)
+        elif full in SHORT_HELP:
+            cmd.short_help = SHORT_HELP[full]
+
+
+def build_command() -> Any:
+    """The Click command of :data:`app`, every command's short help set."""
+    command = typer.main.get_command(app)
+    _set_short_help(command)
+    return command
+
+
 def _hoist_verbose(argv: list[str]) -> list[str]:
     """``-v``/``-vv``/``--verbose`` anywhere before ``--`` count as the root option, so
     ``robocli connect pioneer sim -v`` works like ``robocli -v connect pioneer sim``."""
@@ -161,12 +254,19 @@ def main(argv: list[str] | None = None) -> int:
     try:
         # Typer returns (rather than raises) the code of an Exit, including 130 for Ctrl-C
         with recover_command.truncation_notes():  # a recording cut short: one note line
-            code = app(args=args, prog_name="robocli", standalone_mode=False)
+            code = build_command().main(args=args, prog_name="robocli", standalone_mode=False)
         if code == EXIT_INTERRUPTED:
             typer.echo("robocli: interrupted", err=True)
         return code if isinstance(code, int) else 0
     except typer.Exit as exc:
         return int(exc.exit_code)
+    except ImportError as exc:  # an optional extra that is not installed: which one
+        extra = _EXTRAS.get((exc.name or "").partition(".")[0])
+        if extra is None:
+            raise
+        typer.echo(f"robocli: this needs the {exc.name} package, from the {extra} extra: "
+                   f"pip install 'robocli-robots[{extra}]'", err=True)  # fmt: skip
+        return 1
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("robocli: interrupted", err=True)
         return EXIT_INTERRUPTED
@@ -186,6 +286,13 @@ def main(argv: list[str] | None = None) -> int:
         message += _given_value(exc, args)
         typer.echo(f"robocli: {message}.{_help_hint(exc)}", err=True)
         return int(exc.exit_code)
+
+
+#: The extra (pyproject.toml) that brings each optional package.
+_EXTRAS = {
+    "mcap": "record", "zstandard": "record", "lz4": "record", "matplotlib": "plot",
+    "websockets": "foxglove", "zenoh": "zenoh", "cv2": "camera", "PIL": "camera",
+}  # fmt: skip
 
 
 def _command_of(args: list[str]) -> str:

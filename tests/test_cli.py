@@ -39,7 +39,7 @@ def test_version_is_the_installed_distributions() -> None:
     "args",
     [
         ("connect", "pioneer"),  # missing PORT
-        ("bench", "rtt", "--n", "x"),  # not a number
+        ("bench", "rtt", "--count", "x"),  # not a number
         ("bench", "rtt", "--target", "toaster"),  # unknown target
         ("sim", "pioneer", "--sip-ms", "0"),  # out of range
         ("sim", "pioneer", "--subtype", "box"),  # no parameters for it

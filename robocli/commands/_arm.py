@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import SIM, bundled, sigterm_as_interrupt
+from robocli.commands._options import device_argument
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
 
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         envvar=ARM_ENV, show_envvar=True)  # fmt: skip
+HostArg = device_argument("arm", ARM_ENV)
 MotionPortOpt = typer.Option(11000, "--motion-port", min=1, max=65535, help="Motion port.")
 StatePortOpt = typer.Option(11002, "--state-port", min=1, max=65535, help="State port.")
 #: Choices of options (Literal: Typer checks them, lists them in -h and completes them).
@@ -31,7 +31,7 @@ Profile = Literal["abb", "generic"]
 Shape = Literal["circle", "rectangle"]
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
 RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
-RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
+RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
 
 EMBEDDED_STATE_MS = 5.0
@@ -46,21 +46,20 @@ def arm_host(
     real_size: int = 4,
     robot: str = "irb120",
     profile: str = "abb",
-    motion_option: bool = True,
 ) -> Iterator[tuple[str, int, int]]:
     """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
     ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
     ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
-    needs: an ABB never executes streamed points). ``motion_option``: the command has a
-    --motion-port (a bad HOST's error names the port options the command has)."""
+    needs: an ABB never executes streamed points)."""
     if host != SIM:
         from robocli.transports import InvalidURL, parse_host
 
+        host = host.removeprefix("tcp://").rstrip("/")
         try:
             host = parse_host(host, what="HOST")
         except InvalidURL as exc:  # the ports have their own options
-            ports = "ports: --motion-port, --state-port" if motion_option else "port: --state-port"
-            raise InvalidURL(f"HOST {host!r}: {exc.reason} ({ports})", exc.reason) from None
+            ports = "ports: --motion-port, --state-port"
+            raise InvalidURL(f"URL {host!r}: {exc.reason} ({ports})", exc.reason) from None
         yield host, motion_port, state_port
         return
     from robocli.sim.abb.server import AbbSim
@@ -119,13 +118,20 @@ def arm_link(motion: bool = True) -> Callable[[Callable[..., None]], Callable[..
     --motion-port (not with ``motion`` false: the state port alone), --state-port,
     --byte-order, --real-size, --robot, --timeout; they reach it checked, as an
     :class:`ArmLink`."""
-    options = [p for p in _LINK_OPTIONS if motion or p.name != "motion_port"]
-    return bundled("link", options, functools.partial(_link, motion))
+    return bundled("link", _LINK_OPTIONS, functools.partial(_link, motion))
 
 
 def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
-    """The options as an :class:`ArmLink` (without --motion-port: the default, not opened)."""
+    """The options as an :class:`ArmLink` (``motion`` false: the motion port is not opened).
+    The two ports must differ: one port cannot carry both links."""
     check_wire(wire["byte_order"], wire["real_size"])
+    if motion_port == wire["state_port"]:
+        from robocli.errors import InvalidArgument
+
+        raise InvalidArgument(
+            f"--motion-port and --state-port are both {motion_port}: the arm has two ports "
+            "(ABB: 11000 and 11002)"
+        )
     return ArmLink(motion_port, motion=motion, **wire)
 
 
@@ -136,7 +142,7 @@ def connected(host: str, link: ArmLink, stream: bool = False, **options: Any) ->
     :meth:`Arm.connect`'s (``listeners``: a recorder's, from each port's first byte)."""
     with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
                                           link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream), link.motion) as address:  # fmt: skip
+                                          sim_profile(stream)) as address:  # fmt: skip
         with connect_at(address, link, **options) as arm:
             yield arm
 

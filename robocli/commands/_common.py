@@ -71,8 +71,19 @@ class PlainCommand(TyperCommand):
         """First, a number option given ``nan`` or ``inf`` is refused as not a finite number
         (the range check would say ``nan`` is above the maximum)."""
         if not ctx.resilient_parsing:
+            from robocli.commands._options import renamed
+
+            args = renamed(" ".join(ctx.command_path.split()[1:]), list(args))
             _check_finite(self, ctx, args)
         return super().parse_args(ctx, args)
+
+    def invoke(self, ctx: Any) -> Any:
+        """Run the command; a reader of stdout that left (``| head -n 2``) ends it quietly
+        with exit code 0, whichever command printed (Typer would exit 1 without a word)."""
+        with reader_may_leave():
+            result = super().invoke(ctx)
+            sys.stdout.flush()  # what is buffered meets the closed pipe here, not at exit
+        return result
 
     def format_help(self, ctx: Any, formatter: Any) -> None:
         super().format_help(ctx, formatter)
@@ -135,43 +146,6 @@ def bundled(
         return command
 
     return decorate
-
-
-@contextlib.contextmanager
-def pioneer_sim_process(cpu: int | None = None, timeout: float = 20.0) -> Iterator[str]:
-    """Yield the URL of a Pioneer simulator running in its own process (pinned to ``cpu``
-    when given), so that a benchmark measures the client against a server that does not
-    share its interpreter. The child ignores Ctrl-C (the parent stops it: end of its stdin,
-    then SIGTERM, then SIGKILL, each bounded)."""
-    from robocli.bench.harness import child_process
-    from robocli.errors import TransportError
-
-    code = "from robocli.commands._common import sim_child_main; sim_child_main()"
-    with child_process(code, "" if cpu is None else str(cpu), timeout=timeout) as (_, line):
-        if not line.startswith("tcp://"):
-            raise TransportError(
-                f"the simulator process did not start within {timeout:g} s"
-                + (f": {line}" if line else "")
-            )
-        yield line
-
-
-def sim_child_main() -> None:
-    """The process of :func:`pioneer_sim_process`: ``argv[1]`` is the CPU to pin to (or
-    empty); prints the simulator's URL, serves until its stdin ends."""
-    import os
-    import sys
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent; it stops us
-    cpu = sys.argv[1] if len(sys.argv) > 1 else ""
-    if cpu and hasattr(os, "sched_setaffinity"):
-        os.sched_setaffinity(0, {int(cpu)})  # before any thread starts: they all inherit it
-    from robocli.bench.harness import wait_for_stdin_eof
-    from robocli.sim.pioneer.server import PioneerSim
-
-    with PioneerSim() as simulator:
-        print(simulator.serve_tcp("127.0.0.1", 0), flush=True)
-        wait_for_stdin_eof()  # until the parent closes the pipe (or dies)
 
 
 @contextlib.contextmanager
@@ -241,15 +215,21 @@ def reader_may_leave() -> Iterator[None]:
     """Around output to a pipe: when its reader goes away (``robocli dump ... | head``),
     stop quietly with exit code 0 (stdout goes to /dev/null, so that the final flush
     does not complain)."""
-    import os
-
     try:
         yield
     except BrokenPipeError:
-        with contextlib.suppress(OSError, ValueError):
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, sys.stdout.fileno())
+        stdout_to_devnull()
         raise typer.Exit(0) from None
+
+
+def stdout_to_devnull() -> None:
+    """Point stdout at /dev/null, so that the interpreter's last flush of what a reader that
+    left did not take neither fails nor says so."""
+    import os
+
+    with contextlib.suppress(OSError, ValueError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
 
 
 @contextlib.contextmanager
@@ -305,8 +285,9 @@ def unix_stamped(data: dict[str, Any], key: str = "t") -> dict[str, Any]:
 
 
 def print_json(data: Any) -> None:
-    """Pretty JSON of ``data`` on stdout (round floats first with :func:`rounded`)."""
-    typer.echo(json.dumps(data, indent=2, default=_json_default, allow_nan=True))
+    """``data`` as one line of JSON on stdout (``--json`` is JSON Lines everywhere, ``--once``
+    included; round floats first with :func:`rounded`)."""
+    typer.echo(json.dumps(data, default=_json_default, allow_nan=True))
 
 
 def print_json_line(data: Any) -> None:

@@ -4,19 +4,14 @@ pioneer|arm|hub`` and ``serve`` (:class:`robocli.io.record.live.LiveView`)."""
 from __future__ import annotations
 
 import contextlib
-import logging
-import threading
 from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
 import typer
 
 if TYPE_CHECKING:
-    from robocli.devices.hub.client import Hub
     from robocli.hub import HubServer
     from robocli.io.record.live import LiveView
-
-log = logging.getLogger("robocli.commands")
 
 FoxgloveOpt = typer.Option(
     None, "--foxglove", min=0, max=65535, metavar="PORT",
@@ -56,31 +51,11 @@ def hub_live_view(port: int | None, host: str, srv: HubServer,
     if port is None:
         yield
         return
-    from robocli.devices.hub.client import Hub
     from robocli.hub.server import EXPOSED_BINDS
+    from robocli.io.record.live import following_hub
 
     with live_view(port, host) as view:
         assert view is not None
         address = "127.0.0.1" if srv.bind in EXPOSED_BINDS else srv.bind
-        hub = Hub.connect(address, srv.port, token=token)
-        view.add(hub)
-        stop = threading.Event()
-        thread = threading.Thread(target=_follow, args=(hub, stop), name="hub-live", daemon=True)
-        thread.start()
-        try:
+        with following_hub(view, address, srv.port, token):
             yield
-        finally:
-            stop.set()
-            thread.join(10)
-            hub.close()
-
-
-def _follow(hub: Hub, stop: threading.Event) -> None:
-    from robocli.errors import RobocliError
-    from robocli.io.record.live import follow_hub
-
-    try:
-        follow_hub(hub, stop.is_set)
-    except RobocliError as exc:  # the hub is closing: the view shows nothing more
-        if not stop.is_set():
-            log.warning("live view: following the hub stopped: %s", exc)

@@ -11,6 +11,7 @@ import sys
 from typing import TYPE_CHECKING, Any
 
 from robocli.commands._common import rounded
+from robocli.commands._options import WIRE_DIR
 from robocli.devices.pioneer.simulated import SIMULATOR_NAMES
 from robocli.errors import ProtocolError
 from robocli.io.capture import CaptureWriter
@@ -113,7 +114,8 @@ class PacketView:
         if self.writer is not None:
             self.writer.write(t or 0.0, direction, arcos.frame(payload))
         if self.json_out:
-            record = {**self.stamp(t), "dir": direction, "type": payload[0], "name": name,
+            record = {**self.stamp(t), "dir": WIRE_DIR.get(direction, direction),
+                      "type": payload[0], "name": name,
                       "fields": fields}  # fmt: skip
             sys.stdout.write(json.dumps(rounded(record), default=str) + "\n")
         else:
@@ -247,7 +249,8 @@ class ArmPacketView(PacketView):
         if self.writer is not None:
             self.writer.write(t or 0.0, way, payload, port or None)
         if self.json_out:
-            record = {**self.stamp(t), "port": port or None, "dir": way, "name": name,
+            record = {**self.stamp(t), "port": port or None, "dir": WIRE_DIR.get(way, way),
+                      "name": name,
                       "fields": fields}  # fmt: skip
             if self.hex_out:
                 record["hex"] = payload.hex()
@@ -286,7 +289,7 @@ class HubPacketView(PacketView):
         name, fields = describe(payload)
         if self.writer is not None:
             self.writer.write(t or 0.0, direction, payload)
-        way = "c2s" if direction == "tx" else "s2c"
+        way = WIRE_DIR[direction]
         if self.json_out:
             record = {**self.stamp(t), "dir": way, "name": name, **fields}
             record.update(rounded(self.stamp(t)))  # a field of the message never hides it

@@ -128,7 +128,7 @@ def zenoh_hub(
 Ros2Opt = typer.Option(
     False, "--ros2",
     help="Also appear as a ROS 2 node on the same Zenoh session, as rmw_zenoh_cpp lays ROS 2 "
-    "topics (needs robocli[ros2]; see docs/ros2.md).",
+    "topics (needs robocli-robots[ros2]; see docs/ros2.md).",
 )  # fmt: skip
 Ros2DomainOpt = typer.Option(
     0, "--ros2-domain", min=0, max=232, metavar="ID", envvar="ROS_DOMAIN_ID",
@@ -155,4 +155,4 @@ def ros2_check(ros2: bool, zenoh: str | None) -> None:
     except ImportError:
         from robocli.ros2.types import Ros2Unavailable
 
-        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli[ros2]'") from None
+        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli-robots[ros2]'") from None

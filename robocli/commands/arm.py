@@ -47,6 +47,7 @@ from robocli.commands._common import (
     unix_stamped,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._options import count_option, duration_option, json_option, output_option
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
 
 if TYPE_CHECKING:
@@ -224,14 +225,14 @@ class _Progress:
 def upload(
     host: str = HostArg,
     shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
-    points: int = typer.Option(
-        100, "--points", "-n", min=1, max=100_000, help="Points of the --shape."
-    ),
+    points: int = count_option(100, "Points of the --shape.", min=1, max=100_000),
     file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
-    duration: float | None = typer.Option(None, "--duration", help="Shape duration, s."),  # noqa: UP007
+    duration: float | None = duration_option(None, "Shape duration, s."),  # noqa: UP007
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
     center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),  # noqa: UP007
-    monitor: Path | None = typer.Option(None, "--monitor", help="Record the run to this log."),  # noqa: UP007
+    monitor: Path | None = output_option(  # noqa: UP007
+        None, "Log the run's states to this file (.json/.csv/.npz)."
+    ),
     record_to: Path | None = typer.Option(  # noqa: UP007
         None, "--record", metavar="FILE.mcap", dir_okay=False,
         help="Record this upload's connection (both ports, every frame) to an MCAP file.",
@@ -251,7 +252,7 @@ def upload(
     from robocli.io.trajlog import check_writable
 
     if monitor is not None and wait == 0:
-        raise typer.BadParameter("--monitor records until the end: give --wait > 0")
+        raise typer.BadParameter("--output logs until the end: give --wait > 0")
     if monitor is not None:
         check_writable(monitor, overwrite)  # before the arm moves: not after the whole run
     traj = _trajectory(link.robot, shape, points, file, duration, radius, center)
@@ -356,22 +357,22 @@ def _write_recording(rec: Recorder, out: Path, overwrite: bool) -> None:
 @arm_link(motion=False)
 def monitor(
     host: str = HostArg,
-    out: Path = typer.Option(Path("real.json"), "--out", "-o", help="Log to write."),
+    out: Path = output_option(Path("real.json"), "Log to write (.json/.csv/.npz)."),
     overwrite: bool = OverwriteOpt,
-    samples: int | None = typer.Option(  # noqa: UP007
-        None, "--samples", min=2, max=1_000_000, help="States to record (default: until Ctrl-C)."
+    samples: int | None = count_option(  # noqa: UP007
+        None, "States to record (default: until Ctrl-C).", min=2, max=1_000_000
     ),
-    duration: float | None = typer.Option(  # noqa: UP007
-        None, "--duration", min=0.5, max=86_400.0, help="Seconds to record (a few states)."
+    duration: float | None = duration_option(  # noqa: UP007
+        None, "Seconds to record (a few states).", min=0.5, max=86_400.0
     ),
     link: ArmLink = LINK,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log, for
-    --samples, --duration or until Ctrl-C; the log is written however it ends."""
+    --count, --duration or until Ctrl-C; the log is written however it ends."""
     from robocli.io.trajlog import check_writable
 
     if samples is not None and duration is not None:
-        raise typer.BadParameter("give --samples or --duration, not both")
+        raise typer.BadParameter("give --count or --duration, not both")
     check_writable(out, overwrite)  # before recording: not after the whole --duration
     with connected(host, link) as arm, \
             recording(arm, out, samples and 2 * samples, overwrite=overwrite) as rec:  # fmt: skip
@@ -410,32 +411,42 @@ def describe(arm: Arm) -> dict[str, Any]:
 
 
 def _line(d: dict[str, Any]) -> str:
-    deg = " ".join(f"{v:8.3f}" for v in d["joints_deg"])
-    rad = " ".join(f"{v:8.5f}" for v in d["joints_rad"])
+    """One state in one terminal line (under 100 characters): joints (deg), TCP (m) and
+    roll-pitch-yaw (deg), and only the status flags that are set (``--json``: everything)."""
+    deg = " ".join(f"{v:.1f}" for v in d["joints_deg"])
     x, y, z = d["tcp_m"]
     roll, pitch, yaw = d["tcp_rpy_deg"]
     st = d["status"] or {}
-    flags = " ".join(f"{k}={v}" for k, v in st.items())
-    return (f"joints deg [{deg}]  rad [{rad}]  tcp ({x:.4f}, {y:.4f}, {z:.4f}) m "
-            f"rpy ({roll:.2f}, {pitch:.2f}, {yaw:.2f}) deg  {flags}")
+    flags = [word for key, word in _FLAGS.items() if st.get(key) is True]
+    flags += [str(st["mode"])] if st.get("mode") else []
+    flags += [f"error {st['error_code']}"] if st.get("error_code") else []
+    return (f"deg [{deg}]  tcp {x:.3f} {y:.3f} {z:.3f} m  rpy {roll:.0f} {pitch:.0f} {yaw:.0f}"
+            f"  {' '.join(flags)}")
+
+
+#: The status flags a text line shows when set, and their words there.
+_FLAGS = {"drives_powered": "powered", "motion_possible": "ready", "in_motion": "moving",
+          "in_error": "ERROR", "e_stopped": "E-STOP"}  # fmt: skip
 
 
 @arm_link(motion=False)
 def connect(
     host: str = HostArg,
     once: bool = typer.Option(False, "--once", help="Print one state and exit."),
-    json_out: bool = typer.Option(False, "--json", help="JSON (JSON Lines unless --once)."),
-    count: int | None = typer.Option(None, "--count", min=1, help="Stop after N states."),  # noqa: UP007
+    json_out: bool = json_option(),
+    count: int | None = count_option(None, "Stop after N states.", min=1),  # noqa: UP007
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
     foxglove_host: str = FoxgloveHostOpt,
     link: ArmLink = LINK,
 ) -> None:
-    """Show the arm's live joints (deg, rad), TCP position and status (--foxglove: also
-    to Foxglove, with every link's frame)."""
+    """Show the arm's live joints (deg), TCP position and status until q (on a terminal)
+    or Ctrl-C (--json: every field, rad too; --foxglove: also to Foxglove, with every
+    link's frame)."""
     from robocli.commands._live import live_view
+    from robocli.commands._screens import keyboard
 
     with reader_may_leave(), live_view(foxglove, foxglove_host) as view, \
-            connected(host, link) as arm:  # fmt: skip
+            connected(host, link) as arm, keyboard() as read_key:  # fmt: skip
         if view is not None:
             view.add(arm)
         arm.wait_for_state()
@@ -453,4 +464,6 @@ def connect(
                 shown, last = shown + 1, d["t"]
             if count is not None and shown >= count:
                 return
+            if read_key is not None and read_key(0) in ("q", "Q", "esc"):
+                return  # as the Pioneer's view
             arm.wait_for_state(link.timeout)

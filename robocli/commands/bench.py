@@ -1,5 +1,5 @@
 """``robocli bench rtt|jitter|sip``: latency and timing statistics, against the built-in
-simulators unless ``--url`` names a real robot.
+simulators unless a URL names a real device.
 
 Every bench stops within about a second on Ctrl-C (or SIGTERM), prints what it collected
 so far and exits 130. On a terminal, runs longer than about 2 s show a progress bar on
@@ -8,7 +8,6 @@ stderr (stdout stays clean for ``--json``).
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -18,13 +17,13 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import (
-    pioneer_sim_process,
     print_json,
     sigterm_as_interrupt,
 )
+from robocli.commands._options import count_option, json_option
 
 if TYPE_CHECKING:
-    from robocli.bench.stats import Run
+    pass
 
 TARGETS = ("pioneer",)
 TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
@@ -32,16 +31,16 @@ JitterTargetOpt = typer.Option(
     "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
 )
 SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
-UrlOpt = typer.Option(None, "--url", help="A real robot's URL (default: embedded simulator).")
-JsonOpt = typer.Option(False, "--json", help="Machine-readable output.")
+UrlOpt = typer.Argument(None, metavar="URL", show_default=False,
+                        help="A real device's URL (default: a built-in simulator).")  # fmt: skip
+JsonOpt = json_option()
 OrderOpt = typer.Option(
     None, "--byte-order", help="arm: little (ABB, the default) or big (Fanuc, FS100)."
 )
 RealOpt = typer.Option(None, "--real-size", help="arm: bytes per real, 4 (default) or 8 (FLOAT64).")
+ByteOrder = Literal["little", "big"]
+RealSize = Literal[4, 8]
 EXIT_INTERRUPTED = 130
-#: Multiples of the same-CPU floor (median, p99) the client must stay under.
-RESPONDER_TARGETS = (3.0, 6.0)
-SIM_TARGETS = (6.0, 15.0)
 #: A run shows progress once it has lasted this long (seconds), on a terminal only.
 PROGRESS_AFTER = 2.0
 
@@ -107,25 +106,10 @@ class _Progress:
                 self._bar = None
 
 
-def _cpus(cpu: int | None) -> tuple[int | None, int | None]:
-    """(the CPU both ends share, another CPU for the cross-CPU floor), None where pinning is
-    impossible (another platform, or a single allowed CPU for the second)."""
-    from robocli.bench import harness as bh
-
-    allowed = bh.allowed_cpus()
-    if not allowed:
-        return None, None
-    if cpu is not None and cpu not in allowed:
-        raise typer.BadParameter(f"CPU {cpu} is not available; allowed: {allowed}")
-    same = allowed[0] if cpu is None else cpu
-    other = next((c for c in allowed if c != same), None)
-    return same, other
-
-
 def rtt(
     target: Literal["pioneer", "arm", "hub"] = TargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(1000, "--n", "-n", min=10, max=1_000_000, help="Round trips."),
+    n: int = count_option(1000, "Round trips.", min=10, max=1_000_000),
     floor_n: int | None = typer.Option(  # noqa: UP007
         None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
     ),
@@ -134,18 +118,17 @@ def rtt(
     ),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: str | None = OrderOpt,  # noqa: UP007
-    real_size: int | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
+    real_size: RealSize | None = RealOpt,  # noqa: UP007
 ) -> None:
     """Request/acknowledge round trips through the real client, as multiples of the C
     ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
 
-    Without --url: a bare Python socket, then the client, against a minimal C ARCOS
+    Without a URL: a bare Python socket, then the client, against a minimal C ARCOS
     responder (the client's own cost), then the client against the built-in simulator
     running in its own process; all pinned to one CPU.
     """
-    from robocli.bench import harness as bh
-    from robocli.bench import pioneer as bp
+    from robocli.bench import runs
     from robocli.bench import stats as bs
 
     _check_paper_model(target, paper)
@@ -157,104 +140,28 @@ def rtt(
     if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5)
         return _arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
     _check_target(target, also=("arm", "hub"))
-    same, other = _cpus(cpu)
-    at = bh.cpu_label
-    progress = _Progress()
-    runs: list[tuple[Run, tuple[float, float] | None]] = []
-    interrupted = False
-
-    def stage(
-        name: str, where: str, targets: tuple[float, float] | None = None, count: int = n
-    ) -> Run:
-        run = bs.Run(name, count, where)
-        runs.append((run, targets))
-        return run
-
     with sigterm_as_interrupt():
-        try:
-            fn = floor_n or n
-            run = stage("C floor, same CPU", f"both ends on {at(same)}", count=fn)
-            with progress.stage(run.name, fn) as update:
-                bh.c_floor(run, same, same, progress=update)
-            if other is not None:
-                where = f"ends on {at(same)} and {at(other)}"
-                run = stage("C floor, different CPUs", where, count=fn)
-                with progress.stage(run.name, fn) as update:
-                    bh.c_floor(run, same, other, progress=update)
-            if url is not None:
-                run = stage(f"{target} CONFIG, {url}", f"client on {at(same)}")
-                with progress.stage(run.name, n) as update, bh.pinned(same):
-                    with bp.pioneer_at(url) as robot:
-                        bp.pioneer_rtt(robot, run, progress=update)
-            else:
-                run = stage("bare socket vs C responder", f"both on {at(same)}")
-                with progress.stage(run.name, n) as update, bh.pinned(same):
-                    with bp.arcos_responder(same) as responder:
-                        bp.bare_rtt(responder.port, run, progress=update)
-                run = stage(
-                    "client vs C responder", f"client, responder on {at(same)}", RESPONDER_TARGETS
-                )
-                with progress.stage(run.name, n) as update, bh.pinned(same):
-                    with bp.arcos_responder(same) as responder:
-                        with bp.pioneer_on_responder(responder) as robot:
-                            bp.pioneer_rtt(robot, run, progress=update)
-                run = stage(
-                    "client vs simulator process",
-                    f"client, simulator on {at(same)}",
-                    SIM_TARGETS,
-                )
-                with progress.stage(run.name, n) as update, bh.pinned(same):
-                    with pioneer_sim_process(same) as sim_url, bp.pioneer_at(sim_url) as robot:
-                        bp.pioneer_rtt(robot, run, progress=update)
-        except KeyboardInterrupt:
-            interrupted = True
-    floor_run = runs[0][0]
+        out = runs.pioneer_rtt(url, n, floor_n, cpu, stage=_Progress().stage)
+    floor_run = out.runs[0][0]
     floor = bs.Stats.of(floor_run.values) if floor_run.count else None
     results = [
         bs.report(run.name, run.values, floor if i else None, targets, run.where)
-        for i, (run, targets) in enumerate(runs)
+        for i, (run, targets) in enumerate(out.runs)
         if run.count
     ]
-    hist = {run.name: run.values for run, _ in runs if run.count and "floor" not in run.name}
+    hist = {run.name: run.values for run, _ in out.runs if run.count and "floor" not in run.name}
     _show(results, hist, json_out, floor_note="x floor = multiple of the same-CPU C floor median")
-    if interrupted:
-        typer.echo(
-            f"interrupted: partial results ({sum(r.count for r, _ in runs)} samples)", err=True
-        )
-        raise typer.Exit(EXIT_INTERRUPTED)
-
-
-def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
-    """SIP timing through the client; on Ctrl-C, what was collected and True."""
-    from robocli.bench import pioneer as bp
-
-    timing: dict[str, Any] = {}
-    progress = _Progress()
-    with sigterm_as_interrupt():
-        try:
-            with progress.stage("SIPs", n) as update:
-                bp.pioneer_sip_timing(url or "sim://", n, progress=update, into=timing)
-        except KeyboardInterrupt:
-            return timing, True
-    return timing, False
+    _finish(out.interrupted, out.samples)
 
 
 def _laser_jitter(url: str | None, n: int, json_out: bool) -> None:
     """``bench jitter --target laser``: streamed scans of a laser (default: the embedded
     UTM-30LX simulator, 25 ms)."""
+    from robocli.bench import runs
     from robocli.bench import stats as bs
-    from robocli.bench.laser import laser_scan_timing
-    from robocli.commands.laser import laser_url
 
-    timing: dict[str, Any] = {}
-    interrupted = False
-    progress = _Progress()
     with sigterm_as_interrupt():
-        try:
-            with laser_url(url or "sim") as where, progress.stage("scans", n) as update:
-                laser_scan_timing(where, n, progress=update, into=timing)
-        except KeyboardInterrupt:
-            interrupted = True
+        timing, interrupted = runs.laser_timing(url, n, stage=_Progress().stage)
     names = {"period": "scan period (received)", "stamp_period": "scan period (stamped)",
              "delay": "stamp to reception", "decode": "decode one frame"}  # fmt: skip
     results = [bs.report(names[k], v) for k, v in timing.items() if v.size]
@@ -263,20 +170,28 @@ def _laser_jitter(url: str | None, n: int, json_out: bool) -> None:
     _finish(interrupted)
 
 
-def _finish(interrupted: bool) -> None:
+def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
+    from robocli.bench import runs
+
+    with sigterm_as_interrupt():
+        return runs.sip_timing(url, n, stage=_Progress().stage)
+
+
+def _finish(interrupted: bool, samples: int | None = None) -> None:
     if interrupted:
-        typer.echo("interrupted: partial results", err=True)
+        typer.echo("interrupted: partial results" + (f" ({samples} samples)" if samples else ""),
+                   err=True)  # fmt: skip
         raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def jitter(
     target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(300, "--n", "-n", min=10, help="SIP periods."),
+    n: int = count_option(300, "SIP periods.", min=10),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: str | None = OrderOpt,  # noqa: UP007
-    real_size: int | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
+    real_size: RealSize | None = RealOpt,  # noqa: UP007
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it); laser: the
     scan period as received and as stamped, the stamp-to-reception delay, the decode time."""
@@ -299,7 +214,7 @@ def jitter(
 def sip(
     target: Literal["pioneer"] = SipTargetOpt,
     url: str | None = UrlOpt,  # noqa: UP007
-    n: int = typer.Option(300, "--n", "-n", min=10, help="SIPs to collect."),
+    n: int = count_option(300, "SIPs to collect.", min=10),
     json_out: bool = JsonOpt,
 ) -> None:
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
@@ -387,36 +302,13 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
     simulator in its own process (``paper``: its paper-like model), beside Table 5.
     ``wire``: (byte order, real size) of the controller, and of that simulator."""
     from robocli.bench import arm as ab
-    from robocli.bench import harness as bh
+    from robocli.bench import runs as bench_runs
     from robocli.bench import stats as bs
-    from robocli.devices.arm import Arm
 
-    if url is not None and paper:
-        raise typer.BadParameter("--paper-model configures the built-in simulator; not with --url")
-    same, other = _cpus(cpu) if kind == "rtt" else (None, None)
-    progress, runs, interrupted = _Progress(), [], False
-    variant = "" if wire == ("little", 4) else f", {wire[0]}-endian, {wire[1] * 8}-bit reals"
-    where = (url or f"ABB simulator process{', paper model' if paper else ''}") + variant
-    name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
     with sigterm_as_interrupt():
-        try:
-            if kind == "rtt":
-                for label, echo in (("same CPU", same), ("different CPUs", other)):
-                    if label == "same CPU" or other is not None:
-                        runs.append(bs.Run(f"C floor, {label}", floor_n or n))
-                        with progress.stage(runs[-1].name, runs[-1].n) as update:
-                            bh.c_floor(runs[-1], same, echo, progress=update)
-            runs.append(bs.Run(name, n, f"{where}; client on {bh.cpu_label(same)}"))
-            with contextlib.ExitStack() as stack:
-                stack.enter_context(bh.pinned(same))
-                h, mp, sp = (ab.parse_url(url) if url is not None else
-                             stack.enter_context(ab.sim_process(paper, cpu=same, wire=wire)))
-                arm = stack.enter_context(Arm.connect(h, mp, sp, motion=kind == "rtt",
-                                                      byte_order=wire[0], real_size=wire[1]))
-                update = stack.enter_context(progress.stage(name, n))
-                (ab.rtt if kind == "rtt" else ab.state_periods)(arm, runs[-1], progress=update)
-        except KeyboardInterrupt:
-            interrupted = True
+        out = bench_runs.arm_bench(kind, url, n, paper, floor_n, cpu, wire, _Progress().stage)
+    runs, interrupted = [run for run, _ in out.runs], out.interrupted
+    name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
     floor = bs.Stats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
     results = [bs.report(r.name, r.values, floor if "floor" not in r.name else None,
                         where=r.where) for r in runs if r.count]  # fmt: skip
@@ -430,7 +322,5 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
     if not json_out:
         typer.echo("paper's Table 5 (IRB120, ms): " +
                    "  ".join(f"{k} {v:g}" for k, v in paper_row.items()))  # fmt: skip
-    if interrupted:
-        typer.echo(f"interrupted: partial results ({sum(r.count for r in runs)} samples)",
-                   err=True)  # fmt: skip
-        raise typer.Exit(EXIT_INTERRUPTED)
+    _finish(interrupted, out.samples)
+

@@ -7,6 +7,7 @@ from typing import Any
 import typer
 
 from robocli.commands._common import print_json, rounded
+from robocli.commands._options import json_option
 from robocli.defaults import (
     ARM_ENV,
     ARM_HOST,
@@ -20,7 +21,7 @@ from robocli.defaults import (
 
 
 def doctor(
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
     timeout: float = typer.Option(
         1.0, "--timeout", min=0.05, max=10.0, help="Seconds each probe may wait."
     ),
@@ -29,10 +30,10 @@ def doctor(
         help=f"Pioneer to probe (default ${PIONEER_ENV}, else {PIONEER_URL}).",
     ),  # fmt: skip
     arm: str | None = typer.Option(  # noqa: UP007
-        None, "--arm", metavar="HOST", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
+        None, "--arm", metavar="URL", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
     ),
     hub: str | None = typer.Option(  # noqa: UP007
-        None, "--hub", metavar="HOST[:PORT]",
+        None, "--hub", metavar="URL",
         help=f"Hub to probe (default ${HUB_ENV}, else {HUB_ADDRESS}).",
     ),  # fmt: skip
     motion_port: int = typer.Option(

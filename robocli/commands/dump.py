@@ -26,13 +26,13 @@ import typer
 
 from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands._common import (
-    PORT_HELP,
     OverwriteOpt,
     from_env,
     listening,
     reader_may_leave,
     sigterm_as_interrupt,
 )
+from robocli.commands._options import DEVICE_FORMS, json_option
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 
@@ -48,14 +48,15 @@ REORDER = 0.05
 def pioneer(
     ctx: typer.Context,
     port: str | None = typer.Argument(  # noqa: UP007
-        None, help=PORT_HELP + " Omit with --file.", show_default=False, metavar="PORT",
+        None, help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit with --file.",
+        show_default=False, metavar="URL",
         envvar=PIONEER_ENV, show_envvar=True,
     ),  # fmt: skip
     count: int = typer.Option(
         0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
     ),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per packet (JSON Lines)."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None,
         "--output",
@@ -223,12 +224,12 @@ class _Feed:
 def arm(
     ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
-        None, help="Controller address, 'sim' for an embedded simulator; omit with --file.",
-        show_default=False, metavar="HOST", envvar=ARM_ENV, show_envvar=True,
+        None, help=f"The arm: {DEVICE_FORMS['arm']}; omit with --file.",
+        show_default=False, metavar="URL", envvar=ARM_ENV, show_envvar=True,
     ),  # fmt: skip
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
     ),
@@ -381,15 +382,15 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
 def hub(
     ctx: typer.Context,
     host: str | None = typer.Argument(  # noqa: UP007
-        None, help="Hub address HOST[:PORT]; omit with --file.", show_default=False,
-        metavar="HOST", envvar=HUB_ENV, show_envvar=True,
+        None, help=f"The hub: {DEVICE_FORMS['hub']}; omit with --file.", show_default=False,
+        metavar="URL", envvar=HUB_ENV, show_envvar=True,
     ),  # fmt: skip
     listen: str = typer.Option(
         "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
     ),
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per message."),
+    json_out: bool = json_option(),
     output: Path | None = typer.Option(  # noqa: UP007
         None, "--output", "-o", help="Also record the session (.jsonl capture)."
     ),

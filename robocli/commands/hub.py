@@ -3,7 +3,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import math
@@ -11,7 +10,7 @@ import os
 import sys
 import time
 from collections import deque
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -24,29 +23,31 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._options import (
+    SENSOR_NAMES,
+    SensorName,
+    count_option,
+    device_argument,
+    duration_option,
+    json_option,
+)
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
 
 if TYPE_CHECKING:
     import numpy as np
 
-    from robocli.bench.hub import HubProcess
     from robocli.devices.hub.client import Hub
 
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
 HubOpt = typer.Option(
-    None, "--hub", help=HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True
+    None, "--hub", metavar="URL", help=HUB_HELP, show_default=False, envvar=HUB_ENV,
+    show_envvar=True,
 )
-HubArg = typer.Argument(
-    ..., help="Hub address HOST[:PORT].", show_default=False, envvar=HUB_ENV, show_envvar=True
-)
-FORMATS = ("table", "csv", "jsonl")
+HubArg = device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
-SENSOR_HELP = (
-    "adc, imu, gps, battery, sysinfo (or computer), laser (or hokuyo), camera, "
-    "stereo (or camera_stereo), depth (or kinect)"
-)
+SENSOR_HELP = ", ".join(SENSOR_NAMES)
 TokenOpt = typer.Option(
     None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
     show_envvar=False, show_default=False,
@@ -109,7 +110,9 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: str = typer.Argument(..., help=SENSOR_HELP + ".", show_default=False),
+    sensor: SensorName = typer.Argument(
+        ..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.", show_default=False
+    ),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
     hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
     buffer: int | None = typer.Option(  # noqa: UP007
@@ -124,13 +127,12 @@ def subscribe(
         "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
     ),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
-    duration: float | None = typer.Option(  # noqa: UP007
-        None, "--duration", min=0, help="Stop after S seconds."
+    duration: float | None = duration_option(min=0),  # noqa: UP007
+    count: int | None = count_option(None, "Stop after N samples.", min=1),  # noqa: UP007
+    fmt: Literal["table", "csv"] | None = typer.Option(  # noqa: UP007
+        None, "--format", "-f", help="Text output (default: table on a terminal, else csv)."
     ),
-    count: int | None = typer.Option(None, "--count", "-n", min=1, help="Stop after N samples."),  # noqa: UP007
-    fmt: Literal["table", "csv", "jsonl"] | None = typer.Option(  # noqa: UP007
-        None, "--format", "-f", help="table, csv or jsonl (default: table on a terminal, else csv)."
-    ),
+    json_out: bool = json_option(),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
     zenoh: str | None = zenoh_option("client"),  # noqa: UP007
@@ -144,9 +146,9 @@ def subscribe(
 
     if duration is not None and count is not None:
         raise typer.BadParameter("give --duration or --count, not both")
-    fmt = fmt or ("table" if sys.stdout.isatty() else "csv")
-    if fmt not in FORMATS:
-        raise typer.BadParameter(f"--format: choose from {', '.join(FORMATS)}")
+    if json_out and fmt is not None:
+        raise typer.BadParameter("give --format or --json, not both")
+    shape: str = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
     try:
         kind = sensor_type(sensor)
     except InvalidArgument:
@@ -161,7 +163,7 @@ def subscribe(
         try:
             with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
                 client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
-                out = _Output(fmt, columns_of(sensor, mask))
+                out = _Output(shape, columns_of(sensor, mask))
                 losses = _Losses(sensor, buffer or rate)
                 for reading in stream(client, sensor, pulls, duration=duration, count=count):
                     out.write(rows_of(reading, mask))
@@ -199,6 +201,15 @@ class _Losses:
             "--buffer or pull more often (--poll)",
             err=True,
         )
+
+
+#: JSON is SI: the IMU's g, deg/s and uT (as the hub sends them; the table and CSV keep
+#: them) become m/s^2, rad/s and T, as in recordings and exports.
+TO_SI = {
+    **dict.fromkeys(("ax", "ay", "az"), 9.80665),
+    **dict.fromkeys(("gx", "gy", "gz"), math.pi / 180),
+    **dict.fromkeys(("mx", "my", "mz"), 1e-6),
+}
 
 
 def _json_value(value: float, integer: bool) -> float | int | None:
@@ -243,8 +254,10 @@ class _Output:
             from robocli.devices.hub.tools import INTEGER_COLUMNS
 
             ints = [c in INTEGER_COLUMNS for c in self.cols[1:]]
+            scale = [TO_SI.get(c, 1.0) for c in self.cols[1:]]
             for row in rows.tolist():  # the precision of the wire: float32 fields, us times
-                values = [round(row[0], 6), *map(_json_value, row[1:], ints)]
+                si = [v * k for v, k in zip(row[1:], scale, strict=True)]
+                values = [round(row[0], 6), *map(_json_value, si, ints)]
                 buf.write(json.dumps(dict(zip(self.cols, values, strict=True))) + "\n")
         elif self.live is None:
             np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
@@ -280,7 +293,7 @@ class _Output:
 def connect(
     host: str = HubArg,
     once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,  # noqa: UP007
     foxglove: int | None = FoxgloveOpt,  # noqa: UP007
@@ -299,10 +312,8 @@ def connect(
                 if view is not None:
                     view.add(client)
                 while True:
-                    info = survey(client, window)
-                    if json_out and once:
-                        print_json(info)
-                    elif json_out:  # one compact object per survey (JSON Lines)
+                    info = survey(client, window, SENSOR_NAMES)
+                    if json_out:  # one compact object per survey (JSON Lines)
                         print_json_line(info)
                     else:
                         _print_survey(info)
@@ -330,35 +341,14 @@ def _print_survey(info: dict[str, Any]) -> None:
             typer.echo(f"  {name:<14} idle     ({s['reason']})")
 
 
-@contextlib.contextmanager
-def _bench_hub(url: str | None) -> Iterator[tuple[str, HubProcess | None]]:
-    """(address, None) for ``url``, else a simulated hub in its own process."""
-    from robocli.bench.hub import hub_process
-
-    if url is not None:
-        from robocli.devices.hub.client import parse_hub
-        from robocli.transports import format_address
-
-        yield format_address(*parse_hub(url)), None
-        return
-    with hub_process() as proc:
-        yield proc.address, proc
-
-
 def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
     """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
-    from robocli.bench import hub as hub_bench
+    from robocli.bench import runs
     from robocli.bench import stats as bs
 
-    run = bs.Run("hub empty pull", n)
-    interrupted = False
     with sigterm_as_interrupt():
-        try:
-            with _bench_hub(url) as (address, _proc):
-                run.where = f"hub {address}" + ("" if url else " (simulated, own process)")
-                hub_bench.rtt(address, run)
-        except KeyboardInterrupt:
-            interrupted = True
+        out = runs.hub_rtt(url, n)
+    run = out.runs[0][0]
     if run.count:
         result = bs.report(run.name, run.values, where=run.where)
         if json_out:
@@ -370,46 +360,36 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
                 f"{run.name:<22}{result['n']:>7}" + "".join(f"{result[k]:>9.1f}" for k in keys)
             )
             typer.echo(f"  {run.where}")
-    if interrupted:
+    if out.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
-    url: str | None = typer.Option(  # noqa: UP007
-        None, "--url", help="A running hub HOST[:PORT] (default: a simulated hub process)."
-    ),
+    url: str | None = typer.Argument(  # noqa: UP007
+        None, metavar="URL", show_default=False,
+        help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
+    ),  # fmt: skip
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
     sensors: str = typer.Option(
         "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
     ),
-    seconds: float = typer.Option(10.0, "--seconds", min=0.5, max=3600, help="Measured time."),
+    seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
     workers: int | None = typer.Option(  # noqa: UP007
         None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
     ),
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
     lost samples, and the hub's CPU and peak memory (when it runs here)."""
-    from robocli.bench import hub as hub_bench
+    from robocli.bench import runs
 
     if target != "hub":
         raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")
-    names = tuple(s.strip() for s in sensors.split(",") if s.strip())
-    unknown = [s for s in names if s not in hub_bench.BENCH_SENSORS]
-    if unknown or not names:
-        raise typer.BadParameter(
-            f"--sensors: {unknown[0] if unknown else sensors!r} unknown; choose from "
-            + ", ".join(hub_bench.BENCH_SENSORS)
-        )
     with sigterm_as_interrupt():
         try:
-            with _bench_hub(url) as (address, proc):
-                report = hub_bench.throughput(
-                    address, clients=clients, sensors=names, seconds=seconds, pull_hz=pull_hz,
-                    workers=workers, hub=proc, served=hub_bench.served_sensors(address),
-                )  # fmt: skip
+            report = runs.hub_throughput(url, clients, sensors, seconds, pull_hz, workers)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
     if json_out:

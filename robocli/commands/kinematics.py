@@ -17,23 +17,24 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import OverwriteOpt, print_json
+from robocli.commands._options import count_option, duration_option, json_option, output_option
 
 if TYPE_CHECKING:
     from robocli.io.trajlog import TrajectoryLog
     from robocli.kinematics.model import RobotModel
 
-RobotOpt = typer.Option("irb120", "--robot", "-r", help="Robot model name or model file.")
-PointsOpt = typer.Option(100, "--points", "-n", min=2, max=100_000, help="Number of points.")
-OutOpt = typer.Option(Path("sim.json"), "--out", "-o", help="Log to write (.json, .csv or .npz).")
+RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
+PointsOpt = count_option(100, "Number of points.", min=2, max=100_000)
+OutOpt = output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
 PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli-robots[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
-DurationOpt = typer.Option(None, "--duration", help="Total duration, s (instead of --speed).")
+DurationOpt = duration_option(None, "Total duration, s (instead of --speed).")
 StartOpt = typer.Option(
     None, "--start", help="Start pose, comma-separated joint angles in deg (default: work pose)."
 )
 CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
 PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
-JsonOpt = typer.Option(False, "--json", help="Print a JSON summary instead of text.")
+JsonOpt = json_option("One line: a JSON summary instead of text.")
 
 
 def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:
@@ -245,11 +246,11 @@ def validate(
     sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz, .mcap)."),
     real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz, .mcap)."),
     robot: str = typer.Option(
-        "irb120", "--robot", "-r", help="Model for the TCP error when a log has no TCP column."
+        "irb120", "--robot", help="Model for the TCP error when a log has no TCP column."
     ),
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),  # noqa: UP007
     overwrite: bool = OverwriteOpt,
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.export import read_any_log

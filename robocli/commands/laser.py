@@ -14,7 +14,7 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -22,35 +22,24 @@ from robocli.commands._common import (
     SIM,
     bind_address,
     listening,
-    print_json,
     print_json_line,
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
 )
+from robocli.commands._options import count_option, device_argument, json_option
 
 if TYPE_CHECKING:
     from robocli.devices.laser import Laser, Scan
 
-LASER_HELP = (
-    "Laser port or URL: /dev/ttyACM0, COM3, tcp://192.168.0.10:10940, a pyserial URL, "
-    "or 'sim' for an embedded simulator."
-)
 MODELS = ("urg-04lx", "utm-30lx", "ust-10lx")
+Model = Literal["urg-04lx", "utm-30lx", "ust-10lx"]
 #: JSON decimals by field: 1 mm ranges, angles to 1e-6 rad (a step is 4.4e-3 rad).
 LASER_RESOLUTION = {"t": 6, "received": 6, "ranges": 3, "angles": 6, "intensities": 0}
 
 
-def _check_model(value: str) -> str:
-    if value not in MODELS:
-        raise typer.BadParameter(f"unknown laser model {value!r}; known: {', '.join(MODELS)}")
-    return value
-
-
-ModelOpt = typer.Option(
-    "utm-30lx", "--model", metavar="MODEL", callback=_check_model,
-    help="Simulated model: urg-04lx, utm-30lx or ust-10lx.",
-)  # fmt: skip
+ModelOpt = typer.Option("utm-30lx", "--model", help="The simulated model.")
+LaserArg = device_argument("laser")
 TimeoutOpt = typer.Option(
     2.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
     help="Seconds to wait for each reply (scans: at least 16 scan periods).",
@@ -90,28 +79,23 @@ def scan_json(laser: Laser, scan: Scan) -> dict[str, Any]:
 
 
 def connect(
-    port: str = typer.Argument(..., help=LASER_HELP, show_default=False, metavar="PORT"),
+    port: str = LaserArg,
     once: bool = typer.Option(False, "--once", help="Print the identity and one scan, exit."),
-    json_out: bool = typer.Option(
-        False, "--json", help="JSON: one object with --once, else one line per scan."
-    ),
-    fmt: str = typer.Option(
-        "text", "--format", "-f", metavar="FORMAT", help="text or jsonl (one scan per line)."
-    ),
+    json_out: bool = json_option(),
     start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),  # noqa: UP007
     end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),  # noqa: UP007
     cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
     intensity: bool = typer.Option(False, "--intensity", help="Ranges and intensities (ME)."),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N scans (0: none)."),
-    model: str = ModelOpt,
+    count: int = count_option(0, "Stop after N scans (0: none).", min=0),
+    model: Model = ModelOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
     """Connect to a Hokuyo laser: its identity, then its scans live until Ctrl-C
-    (--once: one scan; --json / --format jsonl: machine-readable, SI units)."""
-    if fmt not in ("text", "jsonl"):
-        raise typer.BadParameter(f"{fmt!r}: expected text or jsonl", param_hint="'--format'")
-    jsonl = fmt == "jsonl" or (json_out and not once)
+    (--once: one scan; --json: JSON Lines, SI units)."""
+    if start is not None and end is not None and end < start:
+        raise typer.BadParameter(f"--end {end} is before --start {start}")
+    jsonl = json_out
     area: dict[str, Any] = {"start": start, "end": end, "cluster": cluster}
     with connected(port, model, baudrate=baud, timeout=timeout) as laser:
         info = laser.info
@@ -119,7 +103,7 @@ def connect(
         if once:
             scan = laser.scan(intensity=intensity, **area)
             if json_out:
-                print_json({"identity": rounded(info.as_dict()), **scan_json(laser, scan)})
+                print_json_line({"identity": rounded(info.as_dict()), **scan_json(laser, scan)})
             else:
                 _print_identity(laser)
                 typer.echo(scan_line(scan))
@@ -180,7 +164,7 @@ def scan_line(scan: Scan) -> str:
 
 
 def simulate(
-    model: str = ModelOpt,
+    model: Model = ModelOpt,
     port: int | None = typer.Option(  # noqa: UP007
         None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
     ),

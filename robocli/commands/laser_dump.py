@@ -13,6 +13,7 @@ from __future__ import annotations
 import contextlib
 import json
 import threading
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
@@ -20,22 +21,34 @@ from typing import IO, Any
 import typer
 
 from robocli.commands._common import print_json_line, reader_may_leave, sigterm_as_interrupt
-from robocli.commands.laser import LASER_HELP, BaudOpt, ModelOpt, TimeoutOpt, laser_url
+from robocli.commands._options import WIRE_DIR, count_option, device_argument, json_option
+from robocli.commands.laser import BaudOpt, Model, ModelOpt, TimeoutOpt, laser_url
 
 MAX_CAPTURE_LINE = 1 << 20  #: longest .jsonl line read
 MAX_GAP = 16 << 20  #: bytes read without a block before giving up (as robocli.io.capture)
 
 
 class _View:
-    """Prints the lines of requests (``tx``) and replies (``rx``), one output line each."""
+    """Prints the lines of requests (``tx``) and replies (``rx``), one output line each.
+    JSON: ``t`` Unix time (``offset`` added to a frame's time; None when unknown), ``t_rel``
+    seconds since the first line, ``dir`` ``c2s``/``s2c`` as in capture files. A reader that
+    left (``| head``) is noted in :attr:`reader_left` (this runs in the link's thread)."""
 
-    def __init__(self, json_out: bool) -> None:
+    def __init__(self, json_out: bool, offset: float | None = None) -> None:
         self.json_out = json_out
+        self.offset = offset
         self.t0: float | None = None
         self.lock = threading.Lock()
         self.scans = 0
+        self.reader_left = threading.Event()
 
     def show(self, direction: str, payload: bytes, t: float) -> None:
+        try:
+            self._show(direction, payload, t)
+        except BrokenPipeError:
+            self.reader_left.set()
+
+    def _show(self, direction: str, payload: bytes, t: float) -> None:
         from robocli.devices.laser.describe import describe_reply, describe_request
 
         if self.t0 is None:
@@ -51,20 +64,17 @@ class _View:
         with self.lock:
             for line in lines:
                 if self.json_out:
-                    print_json_line({"t": round(rel, 6), "dir": direction,
+                    unix = None if self.offset is None else round(t + self.offset, 6)
+                    print_json_line({"t": unix, "t_rel": round(rel, 6), "dir": WIRE_DIR[direction],
                                      "line": line.text, "what": line.what})  # fmt: skip
                 else:
                     typer.echo(f"{rel:10.6f} {arrow} {line.text[:70]:<70} {line.what}")
 
 
 def dump(
-    port: str | None = typer.Argument(  # noqa: UP007
-        None, help=LASER_HELP + " Omit with --file.", show_default=False, metavar="PORT"
-    ),
-    count: int = typer.Option(
-        3, "--count", "-n", min=0, metavar="N", help="Scans to stream live (0: until Ctrl-C)."
-    ),
-    json_out: bool = typer.Option(False, "--json", help="One JSON object per line (JSON Lines)."),
+    port: str | None = device_argument("laser", default=None),  # noqa: UP007
+    count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
+    json_out: bool = json_option(),
     file: Path | None = typer.Option(  # noqa: UP007
         None,
         "--file",
@@ -74,13 +84,13 @@ def dump(
         dir_okay=False,
         help="Decode a capture (.jsonl chunks, a .mcap recording or raw sensor bytes).",
     ),  # fmt: skip
-    model: str = ModelOpt,
+    model: Model = ModelOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
     """Show every SCIP line of a laser session both ways, named and decoded."""
     if (port is None) == (file is None):
-        raise typer.BadParameter("give a PORT or --file CAPTURE (one of them)")
+        raise typer.BadParameter("give a URL or --file CAPTURE (one of them)")
     view = _View(json_out)
     with reader_may_leave(), sigterm_as_interrupt():
         if file is not None:
@@ -89,10 +99,13 @@ def dump(
         assert port is not None
         from robocli.devices.laser import Laser
 
+        view.offset = time.time() - time.monotonic()  # the link stamps on time.monotonic()
         with laser_url(port, model) as url:
             with Laser.connect(url, baudrate=baud, timeout=timeout, listeners=[view.show]) as laser:
                 with contextlib.closing(laser.scans(None)) as scans:  # QT now, not at collection
                     for n, _ in enumerate(scans, 1):
+                        if view.reader_left.is_set():  # printed in the link's thread
+                            raise BrokenPipeError
                         if count and n >= count:
                             break
 
@@ -111,7 +124,7 @@ def _dump_file(view: _View, file: Path) -> None:
     rx, tx = fast.reply_framer(), RequestFramer()
     shown = gap = 0
     with file.open("rb") as stream:
-        for t, direction, data, size in _chunks(stream, file.suffix == ".jsonl"):
+        for t, direction, data, size in _chunks(view, stream, file.suffix == ".jsonl"):
             framer: Any = tx if direction == "tx" else rx
             frames = framer.feed(data)
             for frame in frames:
@@ -131,9 +144,10 @@ def _dump_file(view: _View, file: Path) -> None:
 def _dump_recording(view: _View, file: Path) -> None:
     """Show the lines of a recording's raw ``scip2`` channels (``record --laser``)."""
     from robocli.io.capture import CaptureStats
-    from robocli.io.record import raw_frames
+    from robocli.io.record import info, raw_frames
 
     stats = CaptureStats()
+    view.offset = info(file).start_ns / 1e9  # raw_frames: seconds since the first message
     for t, direction, frame in raw_frames(file, "scip2", stats):
         view.show(direction, frame, t)
     if stats.dropped_bytes:
@@ -141,7 +155,7 @@ def _dump_recording(view: _View, file: Path) -> None:
                    "bytes dropped", err=True)  # fmt: skip
 
 
-def _chunks(stream: IO[bytes], jsonl: bool) -> Iterator[tuple[float, str, bytes, int]]:
+def _chunks(view: _View, stream: IO[bytes], jsonl: bool) -> Iterator[tuple[float, str, bytes, int]]:
     """``(t, direction, bytes, bytes read)`` of a capture: raw bytes (the sensor's side), or
     the records of a ``.jsonl`` capture (a line that is no record gives no bytes)."""
     if not jsonl:
@@ -156,12 +170,17 @@ def _chunks(stream: IO[bytes], jsonl: bool) -> Iterator[tuple[float, str, bytes,
             size += len(more)
             raw = b""
         rec = _record(raw) if raw else None
+        if rec is not None and rec[1] == "start":  # {"event": "start", "unix_time": ...}
+            view.offset = rec[0]
+            rec = None
         yield (*rec, size) if rec is not None else (0.0, "rx", b"", size)
 
 
 def _record(raw: bytes) -> tuple[float, str, bytes] | None:
     try:
         obj = json.loads(raw)
+        if obj.get("event") == "start":
+            return float(obj["unix_time"]), "start", b""
         data = bytes.fromhex(obj["hex"])
         direction = {"c2s": "tx", "s2c": "rx"}[obj["dir"]]
         return float(obj.get("t", 0.0)), direction, data

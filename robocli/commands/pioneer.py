@@ -19,7 +19,6 @@ from typing import TYPE_CHECKING, Any
 import typer
 
 from robocli.commands._common import (
-    PORT_HELP,
     bind_address,
     explain_refusal,
     listening,
@@ -31,6 +30,7 @@ from robocli.commands._common import (
     unix_stamped,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._options import device_argument
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
@@ -50,9 +50,7 @@ def _check_subtype(value: str | None) -> str | None:
     return value
 
 
-PortArg = typer.Argument(
-    ..., help=PORT_HELP, show_default=False, metavar="PORT", envvar=PIONEER_ENV, show_envvar=True
-)
+PortArg = device_argument("pioneer", PIONEER_ENV)
 SubtypeOpt = typer.Option(
     None, "--subtype", metavar="NAME", callback=_check_subtype,
     help="Override the robot's subtype (p3dx, p3at, ...).",

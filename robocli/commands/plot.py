@@ -9,6 +9,7 @@ from pathlib import Path
 import typer
 
 from robocli.commands._common import OverwriteOpt, print_json
+from robocli.commands._options import json_option
 
 
 def plot(
@@ -35,7 +36,7 @@ def plot(
     ),  # fmt: skip
     title: str | None = typer.Option(None, "--title", help="A title over the figure."),  # noqa: UP007
     overwrite: bool = OverwriteOpt,
-    json_out: bool = typer.Option(False, "--json", help="Say what was drawn, as JSON."),
+    json_out: bool = json_option(),
 ) -> None:
     """Draw a recording's channels into a PNG: a Pioneer's path with its sonar or laser
     returns, an arm's joints against time, or any numeric field against time."""

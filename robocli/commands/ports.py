@@ -7,6 +7,7 @@ from typing import Any
 import typer
 
 from robocli.commands._common import print_json
+from robocli.commands._options import json_option
 
 
 def list_serial_ports() -> list[dict[str, Any]]:
@@ -21,7 +22,7 @@ def list_serial_ports() -> list[dict[str, Any]]:
 
 
 def ports(
-    json_out: bool = typer.Option(False, "--json", help="A JSON list instead of a table."),
+    json_out: bool = json_option("One line: a JSON list of the ports."),
 ) -> None:
     """List serial ports (a Pioneer's USB-serial adapter shows as /dev/ttyUSB0, COM3...)."""
     found = list_serial_ports()

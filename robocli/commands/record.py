@@ -16,7 +16,7 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
@@ -29,6 +29,9 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
+from robocli.commands._options import count_option, duration_option, json_option
+
+Compression = Literal["zstd", "lz4", "none"]
 
 if TYPE_CHECKING:
     from robocli.io.record import Recorder, RecordingInfo
@@ -76,23 +79,20 @@ def record(
         [], "--pioneer", metavar="URL", help="A Pioneer (port, URL or 'sim'); repeatable."
     ),
     arm: list[str] = typer.Option(  # noqa: B008
-        [], "--arm", metavar="HOST", help="An arm controller (or 'sim'); repeatable."
+        [], "--arm", metavar="URL", help="An arm controller (HOST, tcp://HOST or 'sim'; its state "
+        "port: --state-port); repeatable."
     ),
     hub: str | None = typer.Option(  # noqa: UP007
-        None, "--hub", metavar="HOST[:PORT]", help="A sensor hub (or 'sim')."
+        None, "--hub", metavar="URL", help="A sensor hub: HOST[:PORT], tcp://HOST:PORT or 'sim'."
     ),
     sensors: str = typer.Option(
         "imu,adc", "--sensors", metavar="NAME[:HZ],...",
         help="Hub sensors: " + ", ".join(HUB_DEFAULTS) + " (rate in Hz after a colon).",
     ),  # fmt: skip
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
-    duration: float | None = typer.Option(  # noqa: UP007
-        None, "--duration", "-d", min=0.0, max=1e6, help="Stop after S seconds."
-    ),
-    count: int | None = typer.Option(  # noqa: UP007
-        None, "--count", "-n", min=1, help="Stop after N messages recorded."
-    ),
-    compression: str = typer.Option("zstd", "--compression", help="zstd, lz4 or none."),
+    duration: float | None = duration_option(min=0.0, max=1e6),  # noqa: UP007
+    count: int | None = count_option(help="Stop after N messages recorded.", min=1),  # noqa: UP007
+    compression: Compression = typer.Option("zstd", "--compression", help="Chunk compression."),
     laser: str | None = typer.Option(  # noqa: UP007
         None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
     ),
@@ -170,6 +170,8 @@ def close_recording(rec: Recorder, seconds: float) -> None:
         rec.close()
     finally:
         if rec.begun:
+            if sys.stderr.isatty():
+                sys.stderr.write("\r\x1b[K")  # the progress line goes
             st = rec.stats
             lost = f", {st.lost} not written (writing failed)" if st.lost else ""
             why = "not written" if rec.error is not None else "the disk was too slow"
@@ -178,14 +180,41 @@ def close_recording(rec: Recorder, seconds: float) -> None:
                        f"{rec.path}{lost}{dropped}", err=True)  # fmt: skip
 
 
+def progress_line(rec: Recorder, start: float, every: float = 0.5) -> Callable[[], None]:
+    """A function that rewrites one status line on stderr (a terminal's): messages, bytes
+    written and the message rate, at most every ``every`` seconds."""
+    import os
+
+    last = [0.0]
+
+    def show() -> None:
+        now = time.monotonic()
+        if now - last[0] < every:
+            return
+        last[0] = now
+        try:
+            size = os.stat(rec.path).st_size
+        except OSError:
+            size = 0
+        n, seconds = rec.stats.added, max(now - start, 1e-9)
+        sys.stderr.write(f"\r\x1b[K{n} messages, {_size(size)}, {n / seconds:.0f} msg/s, "
+                         f"{seconds:.0f} s")  # fmt: skip
+        sys.stderr.flush()
+
+    return show
+
+
 def _until(rec: Recorder, start: float, duration: float | None, count: int | None,
            devices: dict[str, Any]) -> Callable[[], bool]:  # fmt: skip
     """A ``done()`` for the recording loop: True once the duration or count is reached;
     raises the error of a device whose link was lost."""
     end = start + duration if duration is not None else math.inf
+    show = progress_line(rec, start) if sys.stderr.isatty() else None  # quiet in a pipe
 
     def done() -> bool:
         rec.check()  # the disk is full: stop now, what was written stays readable
+        if show is not None:
+            show()
         for name, device in devices.items():
             if name.startswith("pioneer") and not device.alive:
                 device.wait_for_sip(0)  # raises why the session ended
@@ -222,8 +251,8 @@ def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], ar
             robot.sim.start_laser()
     for host in arms:
         address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
-                                               link.byte_order, link.real_size, link.robot,
-                                               motion_option=False))  # fmt: skip
+                                               link.byte_order, link.real_size,
+                                               link.robot))  # fmt: skip
         name, links = arm_links(rec, "arm", byte_order=link.byte_order,
                                 real_size=link.real_size, ports="state")  # fmt: skip
         device = stack.enter_context(connect_at(address, link, stop_on_failure=False,
@@ -293,7 +322,7 @@ def _hub_address(hub: str) -> Iterator[str]:
 def info(
     file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
                                 help="A recording (.mcap)."),  # fmt: skip
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option(),
 ) -> None:
     """Summarise a recording like ros2 bag info: duration, start and end, each channel
     with its schema, count, mean rate and largest gap (from the summary section; a file

@@ -10,6 +10,7 @@ from pathlib import Path
 import typer
 
 from robocli.commands._common import print_json, sigterm_as_interrupt
+from robocli.commands._options import json_option
 from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
 
 EXIT_INTERRUPTED = 130
@@ -67,7 +68,7 @@ def router(
 
 def list_(
     zenoh: str | None = zenoh_option("client"),  # noqa: UP007
-    json_out: bool = typer.Option(False, "--json", help="Machine-readable output."),
+    json_out: bool = json_option("One line: a JSON list of what is up."),
     timeout: float = typer.Option(2.0, "--timeout", min=0.1, max=60, help="Wait for answers, s."),
 ) -> None:
     """List the hubs and robots that are up on Zenoh (their liveliness tokens), connecting

@@ -30,7 +30,7 @@ class SerialCommand(PlainCommand):
 def serial(
     ctx: typer.Context,
     hub: str = typer.Argument(
-        ..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.", metavar="[HUB]",
+        ..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.", metavar="[URL]",
         show_default=False, envvar=HUB_ENV, show_envvar=True,
     ),  # fmt: skip
     port: str | None = typer.Argument(  # noqa: UP007
@@ -57,7 +57,7 @@ def serial(
     zenoh: str | None = typer.Option(  # noqa: UP007
         None, "--zenoh", metavar="CONFIG",
         help="With --pty: through the hub's Zenoh front-end, HUB being its name (the CONFIG "
-        "file's user streams the port). Needs robocli[zenoh].",
+        "file's user streams the port). Needs robocli-robots[zenoh].",
     ),  # fmt: skip
 ) -> None:
     """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD); with --pty, a

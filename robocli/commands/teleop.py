@@ -17,6 +17,7 @@ import typer
 
 from robocli.commands._arm import LINK, ArmLink, arm_link
 from robocli.commands._arm import connected as connected_arm
+from robocli.commands._options import device_argument
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
@@ -30,9 +31,7 @@ from robocli.defaults import ARM_ENV
 if TYPE_CHECKING:
     from robocli.commands._screens import KeyReader
 
-HostArg = typer.Argument(..., help="Controller address, or 'sim' for an embedded simulator.",
-                         show_default=False, metavar="HOST", envvar=ARM_ENV,
-                         show_envvar=True)  # fmt: skip
+HostArg = device_argument("arm", ARM_ENV)
 
 
 def pioneer(

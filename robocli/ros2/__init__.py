@@ -5,7 +5,7 @@
 >>> for m in to_ros2("foxglove.LaserScan", "/laser/scan", scan):
 ...     publish(m.topic, type_hash(m.msgtype), m.data, m.t_ns)
 
-Needs the ``rosbags`` package (``pip install 'robocli[record]'``): without it, the first
+Needs the ``rosbags`` package (``pip install 'robocli-robots[record]'``): without it, the first
 call raises :class:`~.types.Ros2Unavailable`.
 """
 

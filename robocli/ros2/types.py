@@ -2,7 +2,7 @@
 the ``rosbags`` package ships them, and robocli's own ``robocli_msgs/msg/RawFrame``.
 
 ``rosbags`` (pure Python, Apache-2.0) is the optional dependency (``pip install
-'robocli[record]'``); this module imports it on first use and says what to install when it
+'robocli-robots[record]'``); this module imports it on first use and says what to install when it
 is missing. Everything here is pure: no I/O.
 
 - :func:`message` builds a message object of a type (``sensor_msgs/msg/LaserScan``...);
@@ -51,7 +51,7 @@ def typestore() -> Any:
         from rosbags.typesys import Stores, get_types_from_msg, get_typestore
     except ImportError:
         raise Ros2Unavailable("ROS 2 bags need the rosbags package: "
-                              "pip install 'robocli[record]'") from None  # fmt: skip
+                              "pip install 'robocli-robots[record]'") from None  # fmt: skip
     store = get_typestore(Stores.ROS2_KILTED)
     store.register(get_types_from_msg(RAW_FRAME_MSG, RAW_FRAME))
     return store

@@ -170,4 +170,4 @@ def close_session(session: Any) -> None:
 def _first_line(exc: BaseException) -> str:
     """Zenoh's message without the Rust source location it appends."""
     text = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-    return re.sub(r"\s+at /\S+\.rs:\d+\.?$", "", text).rstrip(". ")
+    return re.sub(r"\s+at /\S+?\.rs:\d+\.?", "", text).rstrip(". ")  # at its end, or before a ]

@@ -34,7 +34,7 @@ def by_name(results: list[dict[str, Any]], name: str) -> dict[str, Any]:
 
 
 def test_rtt_json_has_table5_fields_and_the_floor() -> None:
-    code, results, err = bench("rtt", "--n", "30", "--floor-n", "30")
+    code, results, err = bench("rtt", "--count", "30", "--floor-n", "30")
     assert code == 0, err
     r = by_name(results, "JOINT_TRAJ_PT -> reply")
     assert TABLE5 <= set(r) and r["n"] == 30 and r["unit"] == "us"
@@ -46,7 +46,7 @@ def test_rtt_json_has_table5_fields_and_the_floor() -> None:
 
 
 def test_paper_model_gives_its_latency_floor() -> None:
-    code, results, err = bench("rtt", "--n", "10", "--floor-n", "10", "--paper-model")
+    code, results, err = bench("rtt", "--count", "10", "--floor-n", "10", "--paper-model")
     assert code == 0, err
     r = by_name(results, "JOINT_TRAJ_PT -> reply")
     assert r["min"] >= 20_000  # the model's 20 ms latency, plus its gamma-distributed jitter
@@ -54,7 +54,7 @@ def test_paper_model_gives_its_latency_floor() -> None:
 
 
 def test_jitter_json_is_the_state_period() -> None:
-    code, results, err = bench("jitter", "--n", "15")
+    code, results, err = bench("jitter", "--count", "15")
     assert code == 0, err
     r = by_name(results, "state period")
     assert TABLE5 <= set(r) and r["n"] == 15
@@ -81,8 +81,8 @@ def _sim_on_adjacent_ports(**kw: Any) -> tuple[AbbSim, int]:
 def test_url_runs_against_that_controller() -> None:
     sim, port = _sim_on_adjacent_ports()
     with sim:
-        code, results, err = bench("rtt", "--n", "12", "--floor-n", "10",
-                                   "--url", f"tcp://127.0.0.1:{port}")  # fmt: skip
+        code, results, err = bench("rtt", "--count", "12", "--floor-n", "10",
+                                   f"tcp://127.0.0.1:{port}")  # fmt: skip
         assert code == 0, err
         assert f"127.0.0.1:{port}" in by_name(results, "JOINT_TRAJ_PT -> reply")["where"]
         state = sim.snapshot()
@@ -120,11 +120,11 @@ def test_parse_url_refuses(url: str) -> None:
 
 
 def test_bad_arguments_one_line() -> None:
-    done = subprocess.run([*BENCH, "rtt", "--target", "arm", "--paper-model", "--url", "x"],
+    done = subprocess.run([*BENCH, "rtt", "--target", "arm", "--paper-model", "x"],
                           capture_output=True, text=True, timeout=30)  # fmt: skip
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
     assert "--paper-model" in done.stderr
-    done = subprocess.run([*BENCH, "jitter", "--target", "arm", "--url", "h:x"],
+    done = subprocess.run([*BENCH, "jitter", "--target", "arm", "h:x"],
                           capture_output=True, text=True, timeout=30)  # fmt: skip
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
 

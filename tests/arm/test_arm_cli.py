@@ -48,9 +48,9 @@ def test_traj_upload_monitor_validate_against_sim_process(tmp_path: Path, capsys
     """The issue's 'done when': max joint RMSE <= 1e-6 rad with the model off."""
     mp, sp = sim_process
     sim_json, real_json = tmp_path / "sim.json", tmp_path / "real.json"
-    assert run(capsys, "traj", "circle", "--duration", "3", "--out", str(sim_json))[0] == 0
+    assert run(capsys, "traj", "circle", "--duration", "3", "--output", str(sim_json))[0] == 0
     code, out, err = run(capsys, "upload", "arm", "127.0.0.1", "--motion-port", str(mp),
-                         "--state-port", str(sp), "--file", str(sim_json), "--monitor",
+                         "--state-port", str(sp), "--file", str(sim_json), "--output",
                          str(real_json))  # fmt: skip
     assert code == 0, err
     assert "acknowledged 100/100" in out and "arm idle" in out
@@ -78,7 +78,7 @@ def test_connect_and_monitor_embedded_sim(tmp_path: Path, capsys) -> None:
     code, out, _ = run(capsys, "connect", "arm", "sim", "--json", "--count", "3")
     assert code == 0 and len(out.strip().splitlines()) == 3
     log = tmp_path / "m.csv"
-    code, _, err = run(capsys, "monitor", "arm", "sim", "--samples", "10", "--out", str(log))
+    code, _, err = run(capsys, "monitor", "arm", "sim", "--count", "10", "--output", str(log))
     assert code == 0 and log.exists() and "recorded" in err
 
 
@@ -93,7 +93,7 @@ def _bad_log(tmp_path: Path, q_row: list[float]) -> Path:
 def test_bad_input_one_line_exit_2(case: str, tmp_path: Path, capsys) -> None:
     args = ["upload", "arm", "sim"]
     if case == "101":
-        args += ["--shape", "circle", "--points", "101"]
+        args += ["--shape", "circle", "--count", "101"]
     elif case == "nan":
         (tmp_path / "n.json").write_text('{"time": [0, 1], "joints_positions": '
                                          '[[0,0,0,0,0,NaN],[0,0,0,0,0,0]]}')
@@ -125,10 +125,10 @@ def test_upload_stream_to_sim_starts_the_streaming_profile(tmp_path: Path, capsy
     from robocli.io.trajlog import read_log
 
     sim_json, real_json = tmp_path / "sim.json", tmp_path / "real.json"
-    assert run(capsys, "traj", "circle", "--points", "20", "--duration", "1", "--out",
+    assert run(capsys, "traj", "circle", "--count", "20", "--duration", "1", "--output",
                str(sim_json))[0] == 0  # fmt: skip
     code, out, err = run(capsys, "upload", "arm", "sim", "--stream", "--file", str(sim_json),
-                         "--monitor", str(real_json), "--wait", "20")  # fmt: skip
+                         "--output", str(real_json), "--wait", "20")  # fmt: skip
     assert code == 0, err
     assert "acknowledged 20/20" in out and "arm idle" in out
     planned, measured = read_log(sim_json), read_log(real_json)
@@ -146,7 +146,7 @@ def test_a_refused_upload_sends_nothing_not_even_the_approach(
     args = ["upload", "arm", "127.0.0.1", "--motion-port", str(motion), "--state-port",
             str(state)]  # fmt: skip
     if case == "101":
-        args += ["--shape", "circle", "--points", "101"]
+        args += ["--shape", "circle", "--count", "101"]
     else:
         args += ["--file", str(_bad_log(tmp_path, [0.0, 0.0, 1.5, 0.0, 0.0, 0.0]))]
     code, out, err = run(capsys, *args)

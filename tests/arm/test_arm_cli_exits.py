@@ -47,7 +47,7 @@ def test_wait_0_leaves_the_trajectory_running(make_sim, capsys) -> None:
 def test_wait_with_monitor_needs_time(make_sim, tmp_path: Path, capsys) -> None:
     sim, mp, sp = make_sim()
     code, _, err = run(capsys, "upload", "arm", *ports(mp, sp), "--shape", "circle", "--wait",
-                       "0", "--monitor", str(tmp_path / "r.json"))  # fmt: skip
+                       "0", "--output", str(tmp_path / "r.json"))  # fmt: skip
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert sim.snapshot().motion_accepted == 0
 
@@ -79,7 +79,7 @@ def test_monitor_output_checked_before_recording(where: str, make_sim, tmp_path:
 def test_upload_monitor_path_checked_before_moving(make_sim, tmp_path: Path, capsys) -> None:
     sim, mp, sp = make_sim()
     code, _, err = run(capsys, "upload", "arm", *ports(mp, sp), "--shape", "circle",
-                       "--monitor", str(tmp_path / "nonexistent" / "r.json"))  # fmt: skip
+                       "--output", str(tmp_path / "nonexistent" / "r.json"))  # fmt: skip
     assert code == 2 and "cannot write" in err, err
     snap = sim.snapshot()
     assert snap.points_received == 0 and snap.motion_accepted == 0
@@ -157,7 +157,7 @@ def test_streaming_to_an_abb_fails_when_nothing_moved(make_sim, tmp_path: Path,
 
     sim, mp, sp = make_sim(time_scale=1.0)
     sim_json = tmp_path / "sim.json"
-    assert run(capsys, "traj", "circle", "--points", "20", "--duration", "1", "--out",
+    assert run(capsys, "traj", "circle", "--count", "20", "--duration", "1", "--output",
                str(sim_json))[0] == 0  # fmt: skip
     code, out, err = run(capsys, "upload", "arm", *ports(mp, sp), "--stream", "--file",
                          str(sim_json))  # fmt: skip

@@ -30,7 +30,7 @@ def test_live_json_lines_in_time_order() -> None:
     assert done.returncode == 0, done.stderr
     records = [json.loads(line) for line in done.stdout.splitlines()]
     assert len(records) == 9 and done.stderr == ""
-    assert {r["port"] for r in records} == {"state"} and {r["dir"] for r in records} == {"rx"}
+    assert {r["port"] for r in records} == {"state"} and {r["dir"] for r in records} == {"s2c"}
     assert [r["name"] for r in records[:2]] == ["JOINT_POSITION", "STATUS"]
     assert all(a["t"] <= b["t"] for a, b in zip(records, records[1:], strict=False))
     first = records[0]["fields"]
@@ -89,7 +89,7 @@ def test_traces_decode_in_every_variant(variant: str, options: list[str]) -> Non
     assert "undecodable" not in names
     assert {"PING req", "PING SUCCESS", "JOINT_TRAJ_PT req", "JOINT_TRAJ_PT SUCCESS"} <= names
     stop = [r for r in records if r["fields"].get("sequence") == "-4(STOP)"]
-    assert stop and stop[0]["dir"] == "tx"
+    assert stop and stop[0]["dir"] == "c2s"
 
 
 def test_a_closed_pipe_ends_quietly() -> None:
@@ -116,7 +116,7 @@ def test_ctrl_c_exits_130_with_one_line() -> None:
     (["sim", "--ports", "x"], 2, "'x' is not one of 'both', 'motion', 'state'"),
     ([], 2, "give HOST or --file"),
     (["sim", "--output", "x.txt"], 2, ".jsonl"),
-    (["127.0.0.1", "--motion-port", "1", "--state-port", "1"], 3, "connection refused"),
+    (["127.0.0.1", "--motion-port", "1", "--state-port", "2"], 3, "connection refused"),
     (["sim", "--listen", "127.0.0.1:x"], 2, "--listen is [ADDR:]PORT"),
     (["sim", "--listen", "65534"], 2, "--listen is [ADDR:]PORT"),
 ])  # fmt: skip
@@ -187,7 +187,7 @@ def test_listen_records_another_programs_upload(make_sim: Any) -> None:
     out, err = proc.communicate(timeout=20)
     assert proc.returncode == 130 and err.splitlines() == ["robocli: interrupted"], err
     records = [json.loads(line) for line in out.splitlines()]
-    requests = [r for r in records if (r["port"], r["dir"]) == ("motion", "tx")]
+    requests = [r for r in records if (r["port"], r["dir"]) == ("motion", "c2s")]
     replies = [r for r in records if r["name"] == "JOINT_TRAJ_PT SUCCESS"]
     assert len(requests) == len(replies) == sent
     assert requests[0]["fields"]["sequence"] == "-1(start)"

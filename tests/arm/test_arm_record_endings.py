@@ -107,7 +107,7 @@ def test_upload_monitor_keeps_its_log(sim: tuple[AbbSim, str, str], tmp_path: Pa
     wait = ["--wait", "1"] if ending == "wait" else []
     got, err = _run(["upload", "arm", "127.0.0.1", "--motion-port", motion_port,
                      "--state-port", state_port, "--shape", "circle", "--duration", "20",
-                     "--monitor", str(out), *wait],
+                     "--output", str(out), *wait],
                     simulator, lambda s: s.points_received >= 100 and s.in_motion,
                     ending)  # fmt: skip
     _check(out, got, err, code)

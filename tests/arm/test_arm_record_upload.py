@@ -42,7 +42,7 @@ def test_upload_records_its_own_connection(tmp_path: Path) -> None:
         motion, state = (port_of(u) for u in sim.serve_tcp("127.0.0.1", 0, 0))
         # a second client on the state port is what `record --arm` beside an upload was
         proc = run("upload", "arm", "127.0.0.1", "--motion-port", str(motion), "--state-port",
-                   str(state), "--shape", "circle", "--points", "20", "--record", str(path),
+                   str(state), "--shape", "circle", "--count", "20", "--record", str(path),
                    timeout=120)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     assert "recording to" in proc.stderr and "recorded" in proc.stderr
@@ -80,11 +80,12 @@ def test_record_takes_every_arm_link_option(tmp_path: Path, order: str, real: in
 
 def test_record_names_only_options_it_has(tmp_path: Path) -> None:
     helped = run("record", "-h").stdout
-    for option in ("--state-port", "--byte-order", "--real-size", "--robot", "--timeout"):
+    for option in ("--motion-port", "--state-port", "--byte-order", "--real-size", "--robot",
+                   "--timeout"):  # both ports, as every arm command (issue 22)
         assert option in helped
     bad = run("record", "--arm", "127.0.0.1:11002", "-o", str(tmp_path / "x.mcap"))
     line = one_line_error(bad, 2)
-    assert "--state-port" in line and "--motion-port" not in line
+    assert "--state-port" in line and "--motion-port" in line
     wrong = run("record", "--arm", "sim", "--real-size", "5", "-o", str(tmp_path / "x.mcap"))
     assert wrong.returncode == 2 and "--real-size" in wrong.stderr
     assert not (tmp_path / "x.mcap").exists()

@@ -45,7 +45,7 @@ def hub6() -> Iterator[int]:
         (("subscribe", "adc", "--rate", "10", "--count", "1", "--hub", "127.0.0.1:11500:99"),
          "'127.0.0.1:11500:99'"),  # was read as port 99 of '127.0.0.1:11500'
         (("connect", "hub", "hub.local:1500:1"), "'hub.local:1500:1'"),
-        (("bench", "throughput", "--url", "127.0.0.1:1:2"), "'127.0.0.1:1:2'"),
+        (("bench", "throughput", "127.0.0.1:1:2"), "'127.0.0.1:1:2'"),
         (("dump", "hub", "127.0.0.1", "--listen", "[::1"), "'[::1'"),
         (("connect", "pioneer", "127.0.0.1:8101:1"), "'127.0.0.1:8101:1'"),
         (("connect", "pioneer", "bad url"), "'bad url'"),

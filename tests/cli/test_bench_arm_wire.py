@@ -40,7 +40,7 @@ def big_float64() -> Iterator[int]:
 @pytest.mark.parametrize("kind", ["rtt", "jitter"])
 def test_the_arm_benches_reach_a_big_endian_float64_controller(kind: str, big_float64: int) -> None:
     extra = ["--floor-n", "10"] if kind == "rtt" else []
-    proc = run("bench", kind, "--target", "arm", "--url", f"127.0.0.1:{big_float64}",
+    proc = run("bench", kind, "--target", "arm", f"127.0.0.1:{big_float64}",
                "--byte-order", "big", "--real-size", "8", "-n", "10", "--json", *extra,
                timeout=120)  # fmt: skip
     assert proc.returncode == 0, proc.stderr
@@ -64,7 +64,7 @@ def test_the_bench_simulator_speaks_the_variant_asked_for() -> None:
         (("jitter", "--byte-order", "big"), "--byte-order is for --target arm"),
         (("rtt", "--target", "hub", "--real-size", "8"), "--real-size is for --target arm"),
         (("jitter", "--target", "arm", "--byte-order", "middle"), "'middle'"),
-        (("rtt", "--target", "arm", "--real-size", "2"), "--real-size is 4 or 8"),
+        (("rtt", "--target", "arm", "--real-size", "2"), "'2' is not one of '4', '8'"),
     ],
 )
 def test_wire_options_outside_an_arm_target_are_usage_errors(

@@ -88,7 +88,7 @@ def test_a_robot_that_resets_the_handshake_is_busy_for_every_command() -> None:
     threading.Thread(target=reset_each, daemon=True).start()
     url = f"tcp://127.0.0.1:{srv.getsockname()[1]}"
     try:
-        for args in (("connect", "pioneer", url, "--once"), ("bench", "jitter", "--url", url)):
+        for args in (("connect", "pioneer", url, "--once"), ("bench", "jitter", url)):
             proc = run(*args)
             assert proc.returncode == 4 and "robot is busy" in proc.stderr, (args, proc.stderr)
     finally:

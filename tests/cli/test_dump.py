@@ -184,7 +184,7 @@ def test_json_lines_rounded() -> None:
     assert [r["name"] for r in records[:6]] == [
         "SYNC0", "SYNC0-reply", "SYNC1", "SYNC1-reply", "SYNC2", "SYNC2-reply",
     ]  # fmt: skip
-    assert records[5]["fields"]["subtype"] == "p3dx" and records[5]["dir"] == "rx"
+    assert records[5]["fields"]["subtype"] == "p3dx" and records[5]["dir"] == "s2c"
     sip = next(r["fields"] for r in records if r["name"] == "SIP")
     assert sip["battery"] == 130 and len(sip["sonar"]) == 16
     assert all(len(str(r["t_rel"]).split(".")[-1]) <= 6 for r in records)

@@ -114,8 +114,8 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("dump", "hub", "127.0.0.1:{free}", "-o", "{tmp}/missing/x.jsonl", hint=False),
         run("monitor", "arm", "127.0.0.1", "--state-port", "{free}", "--duration", "1",
             "-o", "{tmp}/missing/x.json", hint=False),  # fmt: skip
-        run("upload", "arm", "127.0.0.1", "--motion-port", "{free}", "--state-port", "{free}",
-            "--shape", "circle", "--monitor", "{tmp}/missing/x.json", hint=False),  # fmt: skip
+        run("upload", "arm", "127.0.0.1", "--motion-port", "{free}",
+            "--shape", "circle", "--output", "{tmp}/missing/x.json", hint=False),  # fmt: skip
         run("traj", "circle", "-o", "{tmp}/missing/x.json", hint=False),
     ],
     (2, "an output file that exists (without `--overwrite`) or is a symbolic link (said before "

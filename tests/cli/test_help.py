@@ -68,7 +68,7 @@ def test_every_option_has_a_description_in_one_column(words: tuple[str, ...]) ->
 
 
 CHOICES = [  # (command, its arguments, option, choices)
-    (("subscribe",), ("adc",), "--format", ["table", "csv", "jsonl"]),
+    (("subscribe",), ("adc",), "--format", ["table", "csv"]),
     (("bench", "rtt"), (), "--target", ["pioneer", "arm", "hub"]),
     (("bench", "jitter"), (), "--target", ["pioneer", "arm", "laser"]),
     (("bench", "throughput"), (), "--target", ["hub"]),

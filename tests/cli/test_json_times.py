@@ -71,7 +71,7 @@ def test_connect_pioneer_and_arm() -> None:
 
 
 def test_subscribe(hub: str) -> None:
-    check("subscribe", "imu", "--hub", hub, "--rate", "50", "--format", "jsonl", "--count", "3")
+    check("subscribe", "imu", "--hub", hub, "--rate", "50", "--json", "--count", "3")
 
 
 def test_dump_live_and_from_files(tmp_path: Path, hub: str) -> None:

@@ -39,7 +39,7 @@ def test_connect_sim_once_json_is_si() -> None:
 
 
 def test_connect_jsonl_streams_scans_of_a_step_range(sim_url: str) -> None:
-    proc = run("connect", "laser", sim_url, "--format", "jsonl", "-n", "3",
+    proc = run("connect", "laser", sim_url, "--json", "-n", "3",
                "--start", "530", "--end", "550", "--cluster", "3")  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     lines = [json.loads(line) for line in proc.stdout.splitlines()]
@@ -58,11 +58,11 @@ def test_connect_text_shows_identity_then_scans(sim_url: str) -> None:
 
 
 def test_connect_errors_are_one_line_with_exit_codes() -> None:
-    assert "unknown laser model" in one_line_error(
+    assert "is not one of 'urg-04lx'" in one_line_error(
         run("connect", "laser", "sim", "--model", "x"), 2
     )
     assert "refused" in one_line_error(run("connect", "laser", "tcp://127.0.0.1:1"), 3)
-    assert "--format" in one_line_error(run("connect", "laser", "sim", "-f", "xml"), 2)
+    assert "-f" in one_line_error(run("connect", "laser", "sim", "-f", "xml"), 2)  # now --json
 
 
 def test_sim_laser_over_a_pty_serves_the_client() -> None:
@@ -94,7 +94,7 @@ def test_dump_laser_shows_every_line_both_ways_decoded(sim_url: str, tmp_path: P
     proc = run("dump", "laser", "--file", str(capture), "--json")
     assert proc.returncode == 0, proc.stderr
     rows = [json.loads(line) for line in proc.stdout.splitlines()]
-    assert rows[0]["dir"] == "tx" and rows[0]["what"] == "GD start 384 end 386 cluster 1"
+    assert rows[0]["dir"] == "c2s" and rows[0]["what"] == "GD start 384 end 386 cluster 1"
     assert rows[-1]["what"].startswith("= GD 3 values, steps 384..386")
     junk = tmp_path / "junk.bin"
     junk.write_bytes(b"\x00" * 100)
@@ -102,7 +102,7 @@ def test_dump_laser_shows_every_line_both_ways_decoded(sim_url: str, tmp_path: P
 
 
 def test_bench_jitter_laser_reports_the_scan_period(sim_url: str) -> None:
-    proc = run("bench", "jitter", "--target", "laser", "--url", sim_url, "-n", "20", "--json")
+    proc = run("bench", "jitter", "--target", "laser", sim_url, "-n", "20", "--json")
     assert proc.returncode == 0, proc.stderr
     names = json.dumps(json.loads(proc.stdout))
     assert "scan period (stamped)" in names and "decode one frame" in names

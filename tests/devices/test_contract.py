@@ -33,7 +33,7 @@ def _remote_pioneer() -> Any:
     """A RemotePioneer on zenoh/r1: a Pioneer on its simulator behind a bridge in this
     process, on a Zenoh server session listening on an ephemeral loopback port; the test
     kills the link by closing the bridge (its liveliness token goes)."""
-    pytest.importorskip("zenoh", reason="needs robocli[zenoh] (eclipse-zenoh)")
+    pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
     from robocli.bridge.pioneer import PioneerBridge
     from robocli.zenoh.session import close_session, open_session
 
@@ -53,7 +53,7 @@ def _remote_pioneer() -> Any:
 def _zenoh_hub() -> Any:
     """A ZenohHub on the Zenoh front-end of a simulated hub in this process; the test kills
     the link by closing the front-end (its liveliness token goes)."""
-    pytest.importorskip("zenoh", reason="needs robocli[zenoh] (eclipse-zenoh)")
+    pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
     from robocli.hub.frontends.zenoh import ZenohFrontend
     from robocli.zenoh.session import close_session, open_session
 

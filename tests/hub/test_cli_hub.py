@@ -66,7 +66,7 @@ def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: Hu
 
 def test_count_jsonl_channel_mask_compressed(server: HubServer) -> None:
     proc = cli("subscribe", "adc", "--rate", "200", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "25", "--format", "jsonl", "--channels", "0x5", "--compress")  # fmt: skip
+               "--count", "25", "--json", "--channels", "0x5", "--compress")  # fmt: skip
     code, out, err = finish(proc)
     assert code == 0, err
     rows = [json.loads(line) for line in out.splitlines()]
@@ -79,7 +79,7 @@ def test_plain_sensor_names_and_jsonl_at_the_wires_precision(server: HubServer) 
     (no 0.0018077874556183815 for a float32 0.0018077875)."""
     hub = f"127.0.0.1:{server.port}"
     code, out, err = finish(cli("subscribe", "imu", "--rate", "50", "--hub", hub,
-                                "--count", "5", "--format", "jsonl"))  # fmt: skip
+                                "--count", "5", "--json"))  # fmt: skip
     assert code == 0, err
     for row in map(json.loads, out.splitlines()):
         for key, value in row.items():
@@ -115,8 +115,8 @@ def test_no_hub_exits_3_with_a_hint() -> None:
 
 @pytest.mark.parametrize("args", [
     ("dump", "hub", "127.0.0.1:1", "--listen", "127.0.0.1:0"),
-    ("bench", "rtt", "--target", "hub", "--url", "127.0.0.1:1"),
-    ("bench", "throughput", "--url", "127.0.0.1:1"),
+    ("bench", "rtt", "--target", "hub", "127.0.0.1:1"),
+    ("bench", "throughput", "127.0.0.1:1"),
     ("connect", "hub", "127.0.0.1:1", "--once"),
 ])  # fmt: skip
 def test_every_hub_command_says_how_to_start_a_hub(args: tuple[str, ...]) -> None:
@@ -156,7 +156,8 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     assert info["protocol_version"] == 3 and info["client_id"] >= 1
     imu = info["sensors"]["imu"]
     assert imu["active"] and 50 <= imu["rate_hz"] <= 200
-    assert info["sensors"]["camera_stereo"]["active"] is False
+    assert info["sensors"]["stereo"]["active"] is False  # robocli's names, not the wire's
+    assert not {"camera_stereo", "computer", "hokuyo", "kinect"} & set(info["sensors"])
     assert "kinect_ir" not in info["sensors"]  # 0x28: no pull, no hub serves it
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
@@ -239,7 +240,7 @@ def test_bench_commands_against_a_hub_process() -> None:
     assert code == 0, err
     (rtt,) = json.loads(out)
     assert rtt["n"] == 50 and 0 < rtt["median"] < 1e6
-    code, out, err = finish(cli("bench", "throughput", "--clients", "2", "--seconds", "1",
+    code, out, err = finish(cli("bench", "throughput", "--clients", "2", "--duration", "1",
                                 "--sensors", "imu,adc", "--json"))  # fmt: skip
     assert code == 0, err
     report = json.loads(out)
@@ -318,7 +319,7 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
     they stay quiet and the parent stops them."""
     proc = subprocess.Popen(
         [sys.executable, "-m", "robocli", "bench", "throughput", "--clients", "2",
-         "--seconds", "30", "--sensors", "imu"],
+         "--duration", "30", "--sensors", "imu"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, stdin=subprocess.DEVNULL, text=True,
         start_new_session=True,
     )  # fmt: skip
@@ -409,16 +410,19 @@ def test_poll_is_an_integer_in_hz_as_the_protocol_field_is(server: HubServer) ->
     assert code == 2 and err.count("\n") == 1 and "--poll" in err, err
 
 
-def test_subscribe_names_the_aliases_and_refuses_kinect_ir_and_an_empty_mask() -> None:
+def test_subscribe_names_the_sensors_and_refuses_kinect_ir_and_an_empty_mask() -> None:
+    """One set of sensor names (issue 22): help says robocli's, the wire's stay on the wire."""
     code, out, err = finish(cli("subscribe", "--help"))
     assert code == 0, err
-    for alias in ("computer", "hokuyo", "camera_stereo", "kinect"):
-        assert alias in out, out
+    for name in ("sysinfo", "laser", "stereo", "depth"):
+        assert name in out, out
+    for wire in ("computer", "hokuyo", "camera_stereo", "kinect"):
+        assert wire not in out, out
     for args in (("kinect_ir", "--rate", "5"), ("adc", "--rate", "5", "--channels", "0")):
         code, out, err = finish(cli("subscribe", *args, "--hub", "127.0.0.1:1"))
         assert code == 2 and err.count("\n") == 1, err  # refused before connecting
     code, _, err = finish(cli("subscribe", "sonar", "--rate", "5", "--hub", "127.0.0.1:1"))
-    assert "kinect_ir" not in err and "hokuyo" in err, err
+    assert "kinect_ir" not in err and "laser" in err and "hokuyo" not in err, err
 
 
 def test_connect_hub_output_without_data_and_json_lines_when_repeating() -> None:
@@ -452,7 +456,7 @@ def test_jsonl_rows_are_strict_json_with_integers_as_ints(server: HubServer) -> 
     hub = f"127.0.0.1:{server.port}"
     for sensor, key in (("camera", "height"), ("sysinfo", "mem_used"), ("laser", "beams")):
         code, out, err = finish(cli("subscribe", sensor, "--rate", "5", "--hub", hub,
-                                    "--count", "1", "--format", "jsonl"))  # fmt: skip
+                                    "--count", "1", "--json"))  # fmt: skip
         assert code == 0, err
         row = json.loads(out.splitlines()[0], parse_constant=_not_json)
         assert isinstance(row[key], int), row

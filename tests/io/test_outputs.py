@@ -41,10 +41,10 @@ WRITERS = {
     "record-hub": (("record", "--hub", "ADDR", "-d", "0.5", "-o", "OUT"), ".mcap"),
     "record-arm": (("record", "--arm", "ADDR", "-n", "20", "-o", "OUT"), ".mcap"),
     "dump": (("dump", "pioneer", "ADDR", "-n", "3", "-o", "OUT"), ".jsonl"),
-    "monitor": (("monitor", "arm", "ADDR", "--samples", "3", "-o", "OUT"), ".json"),
-    "upload-monitor": (("upload", "arm", "ADDR", "--shape", "circle", "--points", "5",
-                        "--monitor", "OUT"), ".json"),  # fmt: skip
-    "upload-record": (("upload", "arm", "ADDR", "--shape", "circle", "--points", "5",
+    "monitor": (("monitor", "arm", "ADDR", "--count", "3", "-o", "OUT"), ".json"),
+    "upload-monitor": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
+                        "--output", "OUT"), ".json"),  # fmt: skip
+    "upload-record": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
                        "--record", "OUT"), ".mcap"),  # fmt: skip
     "traj": (("traj", "circle", "-n", "20", "-o", "OUT"), ".csv"),
     "traj-plot": (("traj", "circle", "-n", "20", "-o", "TMP/x.json", "--plot", "OUT"), ".png"),
@@ -109,8 +109,8 @@ def test_a_source_that_fails_leaves_the_file_as_it_was(
             else f"127.0.0.1:{_free_port()}" if name == "record-hub" else "127.0.0.1"  # fmt: skip
     args = _args(name, out, made, addr)
     if addr == "127.0.0.1":  # an arm: its ports have options
-        port = str(_free_port())
-        args += ["--state-port", port] + (["--motion-port", port] if "upload" in name else [])
+        port = _free_port()  # and one above it, for the other port (two ports differ)
+        args += ["--state-port", str(port), "--motion-port", str(port + 1)]
     proc = run(*args, "--overwrite")
     one_line_error(proc, code)
     assert out.read_bytes() == PRECIOUS

@@ -84,7 +84,7 @@ def test_dump_reads_a_recording_as_the_live_capture(tmp_path: Path) -> None:
                     robot.wait_for_sip()
     from_mcap = _json_dump("pioneer", "--file", str(mcap))
     from_jsonl = _json_dump("pioneer", "--file", str(jsonl))
-    for way in ("tx", "rx"):
+    for way in ("c2s", "s2c"):  # as capture files say it
         ours = [(p["type"], p["name"], p["fields"]) for p in from_mcap if p["dir"] == way]
         live_ = [(p["type"], p["name"], p["fields"]) for p in from_jsonl if p["dir"] == way]
         assert ours == live_ and len(ours) > 5
@@ -97,7 +97,7 @@ def test_dump_arm_reads_a_recording_with_its_ports(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stderr
     packets = _json_dump("arm", "--file", str(path), "-n", "20")
     assert len(packets) == 20
-    assert {p["port"] for p in packets} == {"state"} and {p["dir"] for p in packets} == {"rx"}
+    assert {p["port"] for p in packets} == {"state"} and {p["dir"] for p in packets} == {"s2c"}
     assert {"JOINT_POSITION", "STATUS", "JOINT_FEEDBACK"} <= {p["name"] for p in packets}
 
 

@@ -100,10 +100,10 @@ def test_record_laser_cli_then_dump_laser_file(tmp_path: Path) -> None:
     dump = run("dump", "laser", "--file", str(path), "--json", timeout=60)
     assert dump.returncode == 0, dump.stderr
     lines = [json.loads(line) for line in dump.stdout.splitlines()]
-    requests = [x["line"] for x in lines if x["dir"] == "tx"]
+    requests = [x["line"] for x in lines if x["dir"] == "c2s"]
     assert requests[:4] == ["QT", "VV", "PP", "II"]
     assert any(r.startswith("MD") for r in requests) and requests[-1] == "QT"
-    frames = [x for x in lines if x["dir"] == "rx" and x["line"].startswith("MD")]
+    frames = [x for x in lines if x["dir"] == "s2c" and x["line"].startswith("MD")]
     assert len(frames) >= len(topics["/laser/scan"])
 
 

@@ -33,7 +33,7 @@ def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
 
 
 def test_traj_circle_writes_the_log_then_validate_against_itself(tmp_path: Path) -> None:
-    proc = run(tmp_path, "traj", "circle", "--points", "100")
+    proc = run(tmp_path, "traj", "circle", "--count", "100")
     assert proc.returncode == 0, proc.stderr
     assert "irb120 circle: 100 points" in proc.stdout
     log = read_log(tmp_path / "sim.json")
@@ -46,7 +46,7 @@ def test_traj_circle_writes_the_log_then_validate_against_itself(tmp_path: Path)
 
 
 def test_validate_table_reports_a_known_delay(tmp_path: Path) -> None:
-    assert run(tmp_path, "traj", "rectangle", "--out", "sim.npz").returncode == 0
+    assert run(tmp_path, "traj", "rectangle", "--output", "sim.npz").returncode == 0
     sim = read_log(tmp_path / "sim.npz")
     write_log(shifted(sim, 0.75, pad_s=1.0, noise_rad=0.001), tmp_path / "real.csv")
     proc = run(tmp_path, "validate", "sim.npz", "real.csv")
@@ -87,7 +87,7 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
 def test_traj_file_from_csv_waypoints(tmp_path: Path) -> None:
     (tmp_path / "w.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n"
                                     "0,10,10,0,70,0\n20,15,5,0,60,10\n")
-    proc = run(tmp_path, "traj", "file", "w.csv", "--duration", "2", "--out", "w.json")
+    proc = run(tmp_path, "traj", "file", "w.csv", "--duration", "2", "--output", "w.json")
     assert proc.returncode == 0, proc.stderr
     log = read_log(tmp_path / "w.json")
     np.testing.assert_allclose(np.degrees(log.positions[-1]), [20, 15, 5, 0, 60, 10])
@@ -123,13 +123,13 @@ def test_waypoints_csv_with_a_byte_order_mark(tmp_path: Path) -> None:
     """Excel writes UTF-8 CSV with a byte-order mark."""
     rows = ["q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg", "0,10,10,0,70,0", "20,10,10,0,70,0"]
     (tmp_path / "wp.csv").write_bytes(b"\xef\xbb\xbf" + "\r\n".join(rows).encode() + b"\r\n")
-    proc = run(tmp_path, "traj", "file", "wp.csv", "--duration", "3", "--out", "f.json")
+    proc = run(tmp_path, "traj", "file", "wp.csv", "--duration", "3", "--output", "f.json")
     assert proc.returncode == 0, proc.stderr
     assert len(read_log(tmp_path / "f.json")) >= 2
 
 
 def test_validate_a_one_sample_log(tmp_path: Path) -> None:
-    assert run(tmp_path, "traj", "circle", "--out", "sim.json").returncode == 0
+    assert run(tmp_path, "traj", "circle", "--output", "sim.json").returncode == 0
     sim = read_log(tmp_path / "sim.json")
     write_log(TrajectoryLog.from_positions(sim.time[:1], sim.positions[:1]), tmp_path / "one.json")
     proc = run(tmp_path, "validate", "sim.json", "one.json")
@@ -138,7 +138,7 @@ def test_validate_a_one_sample_log(tmp_path: Path) -> None:
 
 
 def test_validate_table_title_fits_80_columns(tmp_path: Path) -> None:
-    assert run(tmp_path, "traj", "circle", "--out", "sim.json").returncode == 0
+    assert run(tmp_path, "traj", "circle", "--output", "sim.json").returncode == 0
     sim = read_log(tmp_path / "sim.json")
     write_log(shifted(sim, 13624.0681, pad_s=1.0), tmp_path / "real.json")
     proc = run(tmp_path, "validate", "sim.json", "real.json", env={"COLUMNS": "80"})

@@ -94,7 +94,7 @@ def test_subscribe_prints_the_rows_of_a_hub_serving_on_zenoh() -> None:
         assert abs(t[-1] - time.time()) < 10.0
         assert "lost" not in out.stderr, out.stderr
         named = robocli("subscribe", "imu", "--rate", "200", "--zenoh", ep, "--hub", "lab1",
-                        "--count", "5", "-f", "jsonl")  # fmt: skip
+                        "--count", "5", "--json")  # fmt: skip
         assert named.returncode == 0, named.stderr
         assert len(named.stdout.splitlines()) == 5 and '"ax"' in named.stdout
         nobody = robocli("subscribe", "adc", "--rate", "10", "--zenoh", ep, "--hub", "other",

@@ -26,8 +26,8 @@ from robocli.ros2.rmw import (
     topic_key,
 )
 
-pytest.importorskip("rosbags", reason="needs robocli[ros2] (rosbags)")
-pytest.importorskip("xxhash", reason="needs robocli[ros2] (xxhash)")
+pytest.importorskip("rosbags", reason="needs robocli-robots[ros2] (rosbags)")
+pytest.importorskip("xxhash", reason="needs robocli-robots[ros2] (xxhash)")
 
 STRING_HASH = "RIHS01_df668c740482bbd48fb39d76a70dfd4bd59db1288021743503259e948f6b1a18"
 # rmw_zenoh docs/design.md, "Topic and Service name mapping" and "Graph Cache"

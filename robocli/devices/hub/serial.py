@@ -329,8 +329,8 @@ class VirtualSerial:
             self._watch.join(self.timeout + RETRY_S)  # it may be connecting: then it stops
         session = self._session  # the watcher's last link, if it made one
         if session is not None:
-            goodbye = (header_only(MsgType.SERIAL_CLOSE, self._client_id),
-                       header_only(MsgType.QUIT, self._client_id))  # fmt: skip
+            goodbye: tuple[bytes, ...] = (header_only(MsgType.SERIAL_CLOSE, self._client_id),
+                                          header_only(MsgType.QUIT, self._client_id))  # fmt: skip
             try:
                 session.send_many(goodbye, CLOSE_WAIT_S)
                 goodbye = ()

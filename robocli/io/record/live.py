@@ -30,7 +30,7 @@ import logging
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError, TransportError
@@ -281,3 +281,32 @@ def follow_hub(hub: Hub, done: Callable[[], bool], period: float = 0.1,
             except DeviceError:  # stopped since: look for it again at the next scan
                 running.discard(name)
         time.sleep(period)
+
+
+@contextlib.contextmanager
+def following_hub(view: LiveView, host: str, port: int,
+                  token: bytes | None = None) -> Iterator[None]:  # fmt: skip
+    """Inside, a client of the hub at ``host:port`` follows every sensor it runs for its
+    clients (:func:`follow_hub`), in a thread of its own, and ``view`` serves them; the
+    thread and the client stop on the way out (the thread joined within 10 s)."""
+    from robocli.devices.hub.client import Hub
+
+    hub = Hub.connect(host, port, token=token)
+    view.add(hub)
+    stop = threading.Event()
+
+    def follow() -> None:
+        try:
+            follow_hub(hub, stop.is_set)
+        except RobocliError as exc:  # the hub is closing: the view shows nothing more
+            if not stop.is_set():
+                log.warning("live view: following the hub stopped: %s", exc)
+
+    thread = threading.Thread(target=follow, name="hub-live", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(10)
+        hub.close()

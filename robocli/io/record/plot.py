@@ -207,6 +207,8 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
     fields = list(fields)
     if not topics:
         raise InvalidArgument("name at least one channel to plot")
+    if Path(output).suffix.lower() != ".png":  # matplotlib would pick a format by it
+        raise InvalidArgument(f"{output}: a plot is written as PNG; give a name ending in .png")
     check_output(output, overwrite)
     plt = _pyplot()
     schemas, records = _read(recording, topics)
