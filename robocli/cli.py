@@ -167,9 +167,9 @@ app.command("urdf", cls=PlainCommand)(model_commands.urdf)
 PANEL_OF = {
     **dict.fromkeys(("connect", "teleop", "upload", "monitor", "traj", "bridge"), ROBOTS),
     **dict.fromkeys(("subscribe", "serial", "serve"), SENSORS),
-    **dict.fromkeys(("record", "info", "plot", "export", "recover", "dump"), RECORDING),
+    **dict.fromkeys(("record", "info", "plot", "export", "recover", "convert", "dump"), RECORDING),
     **dict.fromkeys(("sim", "bench", "router", "list", "validate"), LAB),
-    **dict.fromkeys(("doctor", "ports"), TOOLS),
+    **dict.fromkeys(("doctor", "ports", "urdf"), TOOLS),
 }
 #: Each command's line in its group's -h: set here, whole (Typer would cut the docstring's
 #: first sentence with "...").
@@ -185,6 +185,8 @@ SHORT_HELP = {
     "plot": "Draw a recording's channels into a PNG.",
     "export": "Export a recording to CSV, JSON Lines, NPZ or an IRB120 log.",
     "recover": "Rewrite what is readable of a recording cut short.",
+    "convert": "Turn a robocli recording into a ROS 2 bag (--ros2).",
+    "urdf": "Print a robot's URDF model, generated from robocli's own model of it.",
     "router": "Run a Zenoh router (the lab server's), until Ctrl-C.",
     "list": "List the hubs and robots that are up on Zenoh.",
     "connect pioneer": "Show a Pioneer's identity and live state.",
@@ -200,6 +202,7 @@ SHORT_HELP = {
     "sim pioneer": "Run a Pioneer simulator (ARCOS, like MobileSim).",
     "sim abb": "Run an ABB controller simulator (Simple Message: motion, state).",
     "sim laser": "Run a Hokuyo laser simulator (SCIP 2.0).",
+    "sim create": "Run an iRobot Create 2 simulator (Open Interface) on a pty or a port.",
     "bench rtt": "Round-trip statistics, beside the C floor measured in the same run.",
     "bench jitter": "Period statistics: SIPs, arm states or laser scans.",
     "bench sip": "Client work per SIP and the keep-alive period.",

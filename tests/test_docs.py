@@ -58,7 +58,7 @@ def test_the_cli_reference_is_every_commands_help() -> None:
     for command in ("robocli", "robocli connect pioneer", "robocli sim abb", "robocli record",
                     "robocli bench rtt", "robocli traj circle", "robocli bridge arm"):  # fmt: skip
         assert command in titles
-    assert "Usage: robocli connect pioneer [OPTIONS] PORT" in page
+    assert "Usage: robocli connect pioneer [OPTIONS] URL" in page
     assert "--once" in page.split("`robocli connect pioneer`", 1)[1].split("\n#", 1)[0]
 
 

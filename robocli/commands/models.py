@@ -8,12 +8,13 @@ from pathlib import Path
 import typer
 
 from robocli.commands._common import OverwriteOpt
+from robocli.commands._options import output_option
 
 
 def urdf(
     name: str = typer.Argument(..., help="Robot: a Pioneer subtype (p3dx...) or an arm model "
                                "(irb120...)."),  # fmt: skip
-    out: Path | None = typer.Option(None, "--out", "-o", help="Write to FILE (default: stdout)."),  # noqa: UP007
+    out: Path | None = output_option(None, "Write to FILE (default: stdout)."),
     prefix: str = typer.Option("", "--prefix", help="Before every link name (e.g. 'pioneer/')."),
     overwrite: bool = OverwriteOpt,
 ) -> None:
