@@ -141,8 +141,10 @@ def main() -> None:
         without = hub_cores(a.seconds, False)
         unread = hub_cores(a.seconds, True, ros_reader=False)
         read = hub_cores(a.seconds, True)
-        print(f"hub full set: {without:.3f} cores without --ros2; with --ros2 {unread:.3f} "
-              f"(no ROS 2 subscriber), {read:.3f} (a subscriber of every ROS 2 topic)")
+        print(
+            f"hub full set: {without:.3f} cores without --ros2; with --ros2 {unread:.3f} "
+            f"(no ROS 2 subscriber), {read:.3f} (a subscriber of every ROS 2 topic)"
+        )
 
 
 if __name__ == "__main__":

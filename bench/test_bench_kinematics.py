@@ -46,9 +46,14 @@ def _dh_loop(model: RobotModel, q: np.ndarray) -> np.ndarray:
             th = q[k, i] + model.offset[i]
             ct, st = math.cos(th), math.sin(th)
             ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
-            t = t @ np.array([[ct, -st * ca, st * sa, model.a[i] * ct],
-                              [st, ct * ca, -ct * sa, model.a[i] * st],
-                              [0.0, sa, ca, model.d[i]], [0.0, 0.0, 0.0, 1.0]])
+            t = t @ np.array(
+                [
+                    [ct, -st * ca, st * sa, model.a[i] * ct],
+                    [st, ct * ca, -ct * sa, model.a[i] * st],
+                    [0.0, sa, ca, model.d[i]],
+                    [0.0, 0.0, 0.0, 1.0],
+                ]
+            )
         out[k] = t
     return out
 
@@ -70,8 +75,9 @@ def test_fk_per_pose_python_loop(benchmark: Any, irb120: RobotModel, poses: np.n
 
 def test_fk_positions_vectorised(benchmark: Any, irb120: RobotModel, poses: np.ndarray) -> None:
     """1 M poses -> 1 M x 3 flange positions."""
-    out = benchmark.pedantic(lambda: fk_positions(irb120, poses), rounds=5, iterations=1,
-                             warmup_rounds=1)
+    out = benchmark.pedantic(
+        lambda: fk_positions(irb120, poses), rounds=5, iterations=1, warmup_rounds=1
+    )
     assert out.shape == (N_FK, 3)
     rate = _rate(benchmark, N_FK, "poses_per_s")
     if "loop_poses_per_s" in _RATES:
@@ -90,8 +96,10 @@ def test_fk_matrices_vectorised(benchmark: Any, irb120: RobotModel, poses: np.nd
 def test_fk_robotics_toolbox(benchmark: Any, irb120: RobotModel, poses: np.ndarray) -> None:
     """Robotics Toolbox for Python's DH fkine, one pose per call (when installed)."""
     rtb = pytest.importorskip("roboticstoolbox")
-    links = [rtb.RevoluteDH(a=irb120.a[i], d=irb120.d[i], alpha=irb120.alpha[i],
-                            offset=irb120.offset[i]) for i in range(6)]
+    links = [
+        rtb.RevoluteDH(a=irb120.a[i], d=irb120.d[i], alpha=irb120.alpha[i], offset=irb120.offset[i])
+        for i in range(6)
+    ]
     robot = rtb.DHRobot(links, name="irb120")
     q = poses[:N_LOOP]
     out = benchmark.pedantic(lambda: [robot.fkine(row).A for row in q], rounds=3, iterations=1)

@@ -24,10 +24,10 @@ import pytest
 
 pytest.importorskip("mcap")
 
-from robocli.io.capture import read_capture  # noqa: E402
-from robocli.io.record import Recorder  # noqa: E402
-from robocli.io.record.pioneer import PioneerDecoder  # noqa: E402
-from robocli.robots.pioneer import ROBOT_PARAMS  # noqa: E402
+from robocli.io.capture import read_capture
+from robocli.io.record import Recorder
+from robocli.io.record.pioneer import PioneerDecoder
+from robocli.robots.pioneer import ROBOT_PARAMS
 
 TRACE = Path(__file__).resolve().parents[1] / "tests/data/arcos/b_simpleMotionCommands.jsonl"
 N = 20_000
@@ -71,9 +71,9 @@ def _writer_per_sip(sips: list[bytes], baseline: bool) -> float:
     decoder = PioneerDecoder(rec, "pioneer", ROBOT_PARAMS["p3dx"])
     link.decoder = decoder
     if baseline:
-        rec._add_message = rec._writer.add_message  # type: ignore[method-assign]  # noqa: SLF001
-        decoder._state = decoder._state_dict  # type: ignore[method-assign]  # noqa: SLF001
-    handle = link._handle  # noqa: SLF001 - what the writer thread calls per queued frame
+        rec._add_message = rec._writer.add_message  # type: ignore[method-assign]
+        decoder._state = decoder._state_dict  # type: ignore[method-assign]
+    handle = link._handle
     try:
         start = time.thread_time()
         for i, payload in enumerate(sips):
@@ -186,9 +186,9 @@ def test_camera_write_throughput(benchmark: Any, compression: str) -> None:
         rec = Recorder(io.BytesIO(), compression=compression, chunk_seconds=3600)
         try:
             rec.add(hub)
-            link = next(x for x in hub.session.listeners._items  # noqa: SLF001
+            link = next(x for x in hub.session.listeners._items
                         if isinstance(x, RawLink))  # fmt: skip
-            handle = link._handle  # noqa: SLF001 - what the writer thread calls
+            handle = link._handle
 
             def write() -> float:
                 start, size = time.perf_counter(), 0

@@ -16,9 +16,9 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from robocli.io import schemas as S  # noqa: E402
-from robocli.ros2 import laser_scan_cdr, serialize, to_ros2  # noqa: E402
-from robocli.ros2.types import message  # noqa: E402
+from robocli.io import schemas as S
+from robocli.ros2 import laser_scan_cdr, serialize, to_ros2
+from robocli.ros2.types import message
 
 BEAMS = 1081
 NS = 1_764_000_000_123_456_789

@@ -67,10 +67,12 @@ def explain_delay(sim_log: str, real_log: str) -> None:
     from robocli.kinematics.validate import validate
 
     delay_ms = validate(read_log(sim_log), read_log(real_log)).delay_s * 1e3
-    print(f"the time shift, {delay_ms:.0f} ms, is the download: `upload --output` starts\n"
-          "recording, then sends the 100 points, one round trip each, and the controller\n"
-          "starts the circle when the last one (-3) is acknowledged. The simulator adds no\n"
-          "lag of its own; a loaded machine makes the download, and so the shift, longer.")
+    print(
+        f"the time shift, {delay_ms:.0f} ms, is the download: `upload --output` starts\n"
+        "recording, then sends the 100 points, one round trip each, and the controller\n"
+        "starts the circle when the last one (-3) is acknowledged. The simulator adds no\n"
+        "lag of its own; a loaded machine makes the download, and so the shift, longer."
+    )
 
 
 def sensor_hub() -> int:
@@ -129,14 +131,26 @@ def recording(path: Path, robot: Pioneer) -> Any:
 def look(out: Path) -> int:
     """What was recorded: `robocli info`, `robocli plot`, and a hub recorded by the CLI."""
     if not RECORD:
-        print("no recordings: the record extra is not installed"
-              " (pip install 'robocli-robots[record]')")
+        print(
+            "no recordings: the record extra is not installed"
+            " (pip install 'robocli-robots[record]')"
+        )
         return 0
     wander_rec, hub_rec = str(out / "wander.mcap"), str(out / "hub.mcap")
     steps = [
         ["info", wander_rec],
-        ["record", "--hub", "sim", "--sensors", "imu,adc:200", "-d", "2", "-o", hub_rec,
-         "--overwrite"],
+        [
+            "record",
+            "--hub",
+            "sim",
+            "--sensors",
+            "imu,adc:200",
+            "-d",
+            "2",
+            "-o",
+            hub_rec,
+            "--overwrite",
+        ],
     ]
     if PLOT:
         steps += [
@@ -193,8 +207,10 @@ def run(out: Path = OUT) -> int:
                   if near else "laser: no return within 32 m")  # fmt: skip
 
             where = f", recorded to {out / 'wander.mcap'}" if RECORD else ""
-            step(f"examples/wander.py: the robot explores the room for {WANDER_SIPS // 10} s of "
-                 f"simulated time, turning away from what its sonar and laser see{where}")
+            step(
+                f"examples/wander.py: the robot explores the room for {WANDER_SIPS // 10} s of "
+                f"simulated time, turning away from what its sonar and laser see{where}"
+            )
             with recording(out / "wander.mcap", robot):
                 result = wander(robot, WANDER_SIPS)
             print(
@@ -218,9 +234,11 @@ def run(out: Path = OUT) -> int:
     for path in sorted(out.iterdir()):
         print(f"  {shown / path.name}")
     if RECORD:
-        print(f"look again: robocli info {shown / 'wander.mcap'}; open the .mcap files in "
-              "Foxglove (Open local file): the 3D panel shows the path, the laser and, once\n"
-              "/robot_description is ticked in its topics, the P3-DX (docs/models.md)")
+        print(
+            f"look again: robocli info {shown / 'wander.mcap'}; open the .mcap files in "
+            "Foxglove (Open local file): the 3D panel shows the path, the laser and, once\n"
+            "/robot_description is ticked in its topics, the P3-DX (docs/models.md)"
+        )
     return 0
 
 

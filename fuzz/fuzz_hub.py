@@ -113,6 +113,7 @@ def reply_frame(data: bytes) -> tuple[int, bytes]:
 
 _HEADER = struct.Struct("<bbIIIIbd")  # msgHeader
 
+
 def fuzz_hub_reply(data: bytes) -> None:
     """One input: one reply to a pull, through the client's whole receive path."""
     global _rig

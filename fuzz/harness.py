@@ -37,8 +37,12 @@ def seeds(kinds: Iterable[str]) -> list[bytes]:
     return frames
 
 
-def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes],
-        options: dict[str, str] | None = None) -> None:
+def run(
+    name: str,
+    test_one_input: Callable[[bytes], None],
+    corpus: list[bytes],
+    options: dict[str, str] | None = None,
+) -> None:
     """Fuzz ``test_one_input`` with atheris (libFuzzer options from ``sys.argv[1:]``, then
     the target's ``options``, then :data:`DEFAULTS`).
 
@@ -57,8 +61,7 @@ def run(name: str, test_one_input: Callable[[bytes], None], corpus: list[bytes],
         artifacts.mkdir(parents=True, exist_ok=True)
         opts = [a for a in sys.argv[1:] if a.startswith("-")]
         given = {a.split("=", 1)[0] for a in opts}
-        extra = [f"{k}={v}" for k, v in {**DEFAULTS, **(options or {})}.items()
-                 if k not in given]
+        extra = [f"{k}={v}" for k, v in {**DEFAULTS, **(options or {})}.items() if k not in given]
         if "-artifact_prefix" not in given:
             extra.append(f"-artifact_prefix={artifacts}/{name}-")
         dirs = [a for a in sys.argv[1:] if not a.startswith("-")] or [str(seed_dir)]
@@ -73,5 +76,6 @@ def instrumented(extra: Iterable[str] = ()) -> Any:
     packages named in ``extra`` imported inside it are instrumented for coverage."""
     import atheris
 
-    return atheris.instrument_imports(include=["robocli.protocols", "reference", "construct",
-                                               *extra])
+    return atheris.instrument_imports(
+        include=["robocli.protocols", "reference", "construct", *extra]
+    )

@@ -21,4 +21,3 @@ def _installed_version() -> str:
 
 
 __version__ = _installed_version()
-

@@ -60,9 +60,13 @@ def diagnose(
         "extras": _extras(requirements),
         "serial": _serial(),
         "addresses": probe_addresses(
-            pioneer=pioneer, arm=arm, hub=hub, motion_port=motion_port,
-            state_port=state_port, timeout=timeout,
-        ),  # fmt: skip
+            pioneer=pioneer,
+            arm=arm,
+            hub=hub,
+            motion_port=motion_port,
+            state_port=state_port,
+            timeout=timeout,
+        ),
     }
     report["problems"] = _problems(report)
     return report
@@ -141,7 +145,7 @@ def _c_core() -> dict[str, Any]:
         return {"loaded": False, "path": None, "error": f"{type(exc).__name__}: {exc}"}
     try:  # one known answer: the checksum of a CONFIG reply's first bytes (0x20 0x01 0x02)
         working = arcos_checksum(b"\x20\x01\x02") == 0x2003
-    except Exception as exc:  # noqa: BLE001 - a broken build must be reported, not raised
+    except Exception as exc:
         return {"loaded": True, "path": _core.__file__, "error": f"{type(exc).__name__}: {exc}"}
     return {"loaded": working, "path": _core.__file__,
             "error": None if working else "wrong checksum: the build is broken"}  # fmt: skip
@@ -156,7 +160,7 @@ def _serial() -> dict[str, Any]:
         from serial.tools import list_ports
 
         found = sorted(list_ports.comports(), key=lambda p: p.device)
-    except Exception as exc:  # noqa: BLE001 - pyserial's scanners raise what the OS gives
+    except Exception as exc:
         return {"ports": [], "error": f"{type(exc).__name__}: {exc}", "group": None}
     ports = [
         {"device": p.device, "description": p.description, "hwid": p.hwid,
@@ -274,7 +278,7 @@ def _run(job: Callable[[], tuple[bool | None, str]], entry: dict[str, Any]) -> N
         answers, detail = False, str(exc)
     except OSError as exc:
         answers, detail = False, _why(exc)
-    except Exception as exc:  # noqa: BLE001 - a probe reports, never raises
+    except Exception as exc:
         answers, detail = False, f"{type(exc).__name__}: {exc}"
     entry.update(answers=answers, detail=detail,
                  ms=round((time.perf_counter() - start) * 1e3, 3))  # fmt: skip

@@ -77,7 +77,7 @@ class InvalidArgument(RobocliError, ValueError):
     exit_code = EXIT_USAGE
 
 
-class TimeoutError(RobocliError, builtins.TimeoutError):  # noqa: A001 - deliberate: also the builtin
+class TimeoutError(RobocliError, builtins.TimeoutError):
     """A device did not answer in time. Also a :class:`builtins.TimeoutError`."""
 
     exit_code = EXIT_UNREACHABLE

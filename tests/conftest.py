@@ -12,7 +12,7 @@ from hypothesis import HealthCheck, settings
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-import hardware  # noqa: E402, F401 - reads ROBOCLI_PIONEER/ARM/HUB, then clears them
+import hardware  # noqa: F401 - reads ROBOCLI_PIONEER/ARM/HUB, then clears them
 
 # Hypothesis checks properties, not speed: on a loaded 2-vCPU machine one example can take
 # longer than its default 200 ms deadline, which would make a correct test flaky.

@@ -153,6 +153,7 @@ def test_one_writer_many_readers_without_a_caller_lock() -> None:
     assert errors == []
     assert r.pushed == n
 
+
 OPS = st.lists(
     st.one_of(
         st.tuples(st.just("push"), st.integers(0, 3)),

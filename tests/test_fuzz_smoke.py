@@ -14,14 +14,14 @@ from hypothesis import strategies as st
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "fuzz"))
 
-import fuzz_capture  # noqa: E402
-import fuzz_create  # noqa: E402
-import fuzz_decoders  # noqa: E402
-import fuzz_files  # noqa: E402
-import fuzz_framers  # noqa: E402
-import fuzz_hub  # noqa: E402
-import fuzz_recordings  # noqa: E402
-import run  # noqa: E402
+import fuzz_capture
+import fuzz_create
+import fuzz_decoders
+import fuzz_files
+import fuzz_framers
+import fuzz_hub
+import fuzz_recordings
+import run
 
 ROOT = Path(__file__).resolve().parent.parent
 

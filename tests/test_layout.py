@@ -20,6 +20,7 @@ def _modules() -> dict[str, Path]:
 def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
     """The robocli modules that ``name`` imports anywhere in its file (a package's own
     ``__init__`` is not counted: importing a submodule runs it anyway)."""
+
     def resolve(target: str) -> str | None:
         while target and target not in modules:
             target = target.rpartition(".")[0]

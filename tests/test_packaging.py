@@ -99,7 +99,7 @@ def _unpack(tarball: Path, dest: Path) -> Path:
         if hasattr(tarfile, "data_filter"):
             tar.extractall(dest, filter="data")
         else:  # pragma: no cover - Python without the extraction filters
-            tar.extractall(dest)  # noqa: S202 - our own sdist
+            tar.extractall(dest)
     (top,) = dest.iterdir()
     return top
 

@@ -19,8 +19,11 @@ PACKAGES = [
     "robocli.bridge",
 ]  # fmt: skip
 #: (package, name) taken at the top by another class of that name, reachable in its package
-SHADOWED = {("robocli.devices.arm", "Recorder"), ("robocli.devices.pioneer", "LinkStats"),
-            ("robocli.devices.create", "Odometry")}
+SHADOWED = {
+    ("robocli.devices.arm", "Recorder"),
+    ("robocli.devices.pioneer", "LinkStats"),
+    ("robocli.devices.create", "Odometry"),
+}
 
 
 def test_all_lists_exactly_what_resolves() -> None:

@@ -19,8 +19,8 @@ from robocli import Pioneer
 from robocli.sim.pioneer.server import PioneerSim
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
-from demo import WANDER_SIPS  # noqa: E402
-from wander import wander  # noqa: E402
+from demo import WANDER_SIPS
+from wander import wander
 
 
 def run(sips: int, laser: bool) -> list[tuple[float, float]]:

@@ -109,8 +109,14 @@ def sim_process(paper: bool = False, state_ms: float = BENCH_STATE_MS, profile: 
     (pinned to ``cpu`` when given; ``paper``: the paper-like controller model; ``wire``:
     its byte order, ``"little"`` or ``"big"``, and real size, 4 or 8). The child stops at
     the end of its stdin; it is terminated, then killed, if it does not."""
-    options = {"paper": paper, "state_ms": state_ms, "profile": profile, "cpu": cpu,
-               "byteorder": ">" if wire[0] == "big" else "<", "real": 8 if wire[1] == 8 else 4}
+    options = {
+        "paper": paper,
+        "state_ms": state_ms,
+        "profile": profile,
+        "cpu": cpu,
+        "byteorder": ">" if wire[0] == "big" else "<",
+        "real": 8 if wire[1] == 8 else 4,
+    }
     code = "from robocli.bench.arm import _child_main; _child_main()"
     with child_process(code, json.dumps(options), timeout=timeout) as (_, first):
         line = first.split()

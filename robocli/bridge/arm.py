@@ -156,14 +156,14 @@ class ArmBridge:
             if callable(query):
                 try:
                     query()
-                except Exception:  # noqa: BLE001 - one bad upload never ends this thread
+                except Exception:
                     log.error("%s: upload failed", self.name, exc_info=True)
                 continue
             try:
                 n = self._download(query)
             except RobocliError as exc:
                 reply(query, {"error": str(exc)}, error=True)
-            except Exception as exc:  # noqa: BLE001 - one bad upload never ends this thread
+            except Exception as exc:
                 log.error("%s: upload failed", self.name, exc_info=True)
                 reply(query, {"error": f"upload failed: {exc}"}, error=True)
             else:

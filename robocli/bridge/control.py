@@ -182,7 +182,7 @@ class ControlGate:
         """Put ``{"t": epoch s, "event": kind, **fields}`` on the event key (never raises)."""
         try:
             self._events.put(encode({"t": time.time(), "event": kind, **fields}))
-        except Exception:  # noqa: BLE001 - a lost session must not stop a stop
+        except Exception:
             log.debug("event %s not put", kind, exc_info=True)
 
     # ------------------------------------------------------------------ closing
@@ -240,7 +240,7 @@ class ControlGate:
             answer = self._answer(request, holder)
         except RobocliError as exc:
             reply(query, {"error": str(exc)}, error=True)
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread unanswered
+        except Exception as exc:
             log.error("%s: control request failed", self.robot, exc_info=True)
             reply(query, {"error": f"control request failed: {exc}"}, error=True)
         else:
@@ -292,7 +292,7 @@ class ControlGate:
             if current != holder and self._grant is not None:
                 try:
                     self._grant(holder)
-                except Exception as exc:  # noqa: BLE001 - the robot cannot be prepared
+                except Exception as exc:
                     with self._cond:
                         self.holder = None
                     reason = f"{self.robot} cannot be driven: {exc}"
@@ -353,7 +353,7 @@ class ControlGate:
                 return
             try:
                 self._stop(reason)
-            except Exception as exc:  # noqa: BLE001 - the gate's thread must go on
+            except Exception as exc:
                 self.counts["stop_errors"] += 1
                 log.error("%s: stopping (%s) failed: %s", self.robot, reason, exc)
                 self.event("fault", holder=holder, reason=f"stopping failed: {exc}")

@@ -128,7 +128,7 @@ def reply(query: Any, data: dict[str, Any], *, error: bool = False) -> None:
             query.reply_err(encode(data), encoding=JSON_ENCODING)
         else:
             query.reply(query.key_expr, encode(data), encoding=JSON_ENCODING)
-    except Exception:  # noqa: BLE001 - the querier or the session may be gone
+    except Exception:
         logging.getLogger(__name__).debug("reply failed", exc_info=True)
 
 

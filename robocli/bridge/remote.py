@@ -69,7 +69,7 @@ def default_holder() -> str:
     """``user-host-pid``: a holder name that tells a class who drives."""
     try:
         user = getpass.getuser()
-    except Exception:  # noqa: BLE001 - no user name in this environment
+    except Exception:
         user = "user"
     raw = f"{user}-{socket.gethostname().split('.')[0]}-{os.getpid()}"
     return re.sub(r"[^A-Za-z0-9_.\-]", "-", raw)[:63].lstrip(".-") or f"robocli-{os.getpid()}"
@@ -295,7 +295,7 @@ class RemotePioneer:
             return
         try:
             self.release()
-        except Exception:  # noqa: BLE001 - the bridge may be gone: the token's end stops it
+        except Exception:
             log.debug("%s: release failed", self.url, exc_info=True)
         with self._cond:
             self._closed = True
@@ -347,7 +347,7 @@ class RemotePioneer:
                     continue
             try:
                 self._send(point)
-            except Exception:  # noqa: BLE001 - a closed session ends with close()
+            except Exception:
                 log.debug("%s: re-send failed", self.url, exc_info=True)
 
     def _new_epoch(self, epoch: object, grant: bool = False) -> None:

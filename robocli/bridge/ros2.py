@@ -60,8 +60,7 @@ if TYPE_CHECKING:
     from robocli.bridge.control import ControlGate
     from robocli.bridge.pioneer import PioneerBridge
 
-__all__ = ["ROS_HOLDER", "Ros2Bridge", "ros2_arm", "ros2_node", "ros2_pioneer",
-           "trajectory_arrays"]
+__all__ = ["ROS_HOLDER", "Ros2Bridge", "ros2_arm", "ros2_node", "ros2_pioneer", "trajectory_arrays"]
 
 log = logging.getLogger("robocli.bridge")
 

@@ -103,8 +103,12 @@ RENAMED: dict[str, dict[str, str]] = {
     "bench sip": _BENCH,
     "bench throughput": {"--seconds": "--duration", "--url": ""},
     "subscribe": {"-f jsonl": "--json", "--format jsonl": "--json", **_WIRE_SENSOR_NAMES},
-    "connect laser": {"-f jsonl": "--json", "--format jsonl": "--json", "-f text": "",
-                      "--format text": ""},  # fmt: skip
+    "connect laser": {
+        "-f jsonl": "--json",
+        "--format jsonl": "--json",
+        "-f text": "",
+        "--format text": "",
+    },
 }
 
 

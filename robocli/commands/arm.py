@@ -65,7 +65,7 @@ def simulate(
     state_port: int = typer.Option(
         11002, "--state-port", min=0, max=65535, help="State server's TCP port (0: any)."
     ),
-    state_ms: float | None = typer.Option(  # noqa: UP007
+    state_ms: float | None = typer.Option(
         None,
         "--state-ms",
         min=0.5,
@@ -109,8 +109,8 @@ def simulate(
         1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
     ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
-    replay: Path | None = ReplayOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt,  # noqa: UP007
+    replay: Path | None = ReplayOpt,
+    speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
@@ -224,28 +224,34 @@ class _Progress:
 @arm_link()
 def upload(
     host: str = HostArg,
-    shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),  # noqa: UP007
+    shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),
     points: int = count_option(100, "Points of the --shape.", min=1, max=100_000),
-    file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),  # noqa: UP007
-    duration: float | None = duration_option(None, "Shape duration, s."),  # noqa: UP007
+    file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),
+    duration: float | None = duration_option(None, "Shape duration, s."),
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
-    center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),  # noqa: UP007
-    monitor: Path | None = output_option(  # noqa: UP007
+    center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),
+    monitor: Path | None = output_option(
         None, "Log the run's states to this file (.json/.csv/.npz)."
     ),
-    record_to: Path | None = typer.Option(  # noqa: UP007
-        None, "--record", metavar="FILE.mcap", dir_okay=False,
+    record_to: Path | None = typer.Option(
+        None,
+        "--record",
+        metavar="FILE.mcap",
+        dir_okay=False,
         help="Record this upload's connection (both ports, every frame) to an MCAP file.",
-    ),  # fmt: skip
+    ),
     ros2: bool = typer.Option(False, "--ros2", help="--record a ROS 2 bag (docs/ros2-bags.md)."),
     overwrite: bool = OverwriteOpt,
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
     link: ArmLink = LINK,
     wait: float = typer.Option(
-        600.0, "--wait", min=0.0, max=86_400.0,
+        600.0,
+        "--wait",
+        min=0.0,
+        max=86_400.0,
         help="Seconds to wait for the end (0: do not wait; the arm moves on).",
-    ),  # fmt: skip
+    ),
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
     from robocli.devices.arm import StillMoving
@@ -284,8 +290,10 @@ def upload(
                 arm.wait_until_idle(wait)
             except StillMoving:
                 arm.close(stop=False)  # --wait bounds the waiting, not the motion
-                raise StillMoving(f"uploaded {sent} points; the arm is still moving after "
-                                  f"{wait:g} s and keeps moving (not waiting longer)") from None
+                raise StillMoving(
+                    f"uploaded {sent} points; the arm is still moving after "
+                    f"{wait:g} s and keeps moving (not waiting longer)"
+                ) from None
     typer.echo(f"uploaded {sent} points; arm idle")
 
 
@@ -305,8 +313,9 @@ def _recorded(path: Path | None, link: ArmLink, overwrite: bool,
 
     if path.suffix != ".mcap":
         raise typer.BadParameter(f"--record {path}: a recording needs a .mcap name")
-    rec = Recorder(path, overwrite=overwrite, deferred=True,
-                   ros2=ros2)  # refused now (and a missing rosbags said): before connecting
+    rec = Recorder(
+        path, overwrite=overwrite, deferred=True, ros2=ros2
+    )  # refused now (and a missing rosbags said): before connecting
     name, links = arm_links(rec, "arm", byte_order=link.byte_order, real_size=link.real_size)
     assert name == "arm"
     start = time.monotonic()
@@ -359,10 +368,10 @@ def monitor(
     host: str = HostArg,
     out: Path = output_option(Path("real.json"), "Log to write (.json/.csv/.npz)."),
     overwrite: bool = OverwriteOpt,
-    samples: int | None = count_option(  # noqa: UP007
+    samples: int | None = count_option(
         None, "States to record (default: until Ctrl-C).", min=2, max=1_000_000
     ),
-    duration: float | None = duration_option(  # noqa: UP007
+    duration: float | None = duration_option(
         None, "Seconds to record (a few states).", min=0.5, max=86_400.0
     ),
     link: ArmLink = LINK,
@@ -420,8 +429,10 @@ def _line(d: dict[str, Any]) -> str:
     flags = [word for key, word in _FLAGS.items() if st.get(key) is True]
     flags += [str(st["mode"])] if st.get("mode") else []
     flags += [f"error {st['error_code']}"] if st.get("error_code") else []
-    return (f"deg [{deg}]  tcp {x:.3f} {y:.3f} {z:.3f} m  rpy {roll:.0f} {pitch:.0f} {yaw:.0f}"
-            f"  {' '.join(flags)}")
+    return (
+        f"deg [{deg}]  tcp {x:.3f} {y:.3f} {z:.3f} m  rpy {roll:.0f} {pitch:.0f} {yaw:.0f}"
+        f"  {' '.join(flags)}"
+    )
 
 
 #: The status flags a text line shows when set, and their words there.
@@ -434,8 +445,8 @@ def connect(
     host: str = HostArg,
     once: bool = typer.Option(False, "--once", help="Print one state and exit."),
     json_out: bool = json_option(),
-    count: int | None = count_option(None, "Stop after N states.", min=1),  # noqa: UP007
-    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    count: int | None = count_option(None, "Stop after N states.", min=1),
+    foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
     link: ArmLink = LINK,
 ) -> None:

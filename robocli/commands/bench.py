@@ -108,18 +108,18 @@ class _Progress:
 
 def rtt(
     target: Literal["pioneer", "arm", "hub"] = TargetOpt,
-    url: str | None = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,
     n: int = count_option(1000, "Round trips.", min=10, max=1_000_000),
-    floor_n: int | None = typer.Option(  # noqa: UP007
+    floor_n: int | None = typer.Option(
         None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
     ),
-    cpu: int | None = typer.Option(  # noqa: UP007
+    cpu: int | None = typer.Option(
         None, "--cpu", min=0, help="CPU for the same-CPU floor and the client (default: first)."
     ),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
-    real_size: RealSize | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,
+    real_size: RealSize | None = RealOpt,
 ) -> None:
     """Request/acknowledge round trips through the real client, as multiples of the C
     ping-pong floor with both ends on one CPU (the floor across two CPUs is shown too).
@@ -186,12 +186,12 @@ def _finish(interrupted: bool, samples: int | None = None) -> None:
 
 def jitter(
     target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
-    url: str | None = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,
     n: int = count_option(300, "SIP periods.", min=10),
     json_out: bool = JsonOpt,
     paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
-    byte_order: ByteOrder | None = OrderOpt,  # noqa: UP007
-    real_size: RealSize | None = RealOpt,  # noqa: UP007
+    byte_order: ByteOrder | None = OrderOpt,
+    real_size: RealSize | None = RealOpt,
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it); laser: the
     scan period as received and as stamped, the stamp-to-reception delay, the decode time."""
@@ -213,7 +213,7 @@ def jitter(
 
 def sip(
     target: Literal["pioneer"] = SipTargetOpt,
-    url: str | None = UrlOpt,  # noqa: UP007
+    url: str | None = UrlOpt,
     n: int = count_option(300, "SIPs to collect.", min=10),
     json_out: bool = JsonOpt,
 ) -> None:
@@ -317,10 +317,13 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
         results.append({"name": f"paper Table 5: {name}", "unit": "us", "reference": True,
                         **{k: v * 1e3 for k, v in paper_row.items()}})  # fmt: skip
     hist = {name: runs[-1].values} if runs and runs[-1].count else {}
-    _show(results, {} if json_out else hist, json_out,
-          floor_note="x floor = multiple of the same-CPU C floor median" if floor else "")
+    _show(
+        results,
+        {} if json_out else hist,
+        json_out,
+        floor_note="x floor = multiple of the same-CPU C floor median" if floor else "",
+    )
     if not json_out:
         typer.echo("paper's Table 5 (IRB120, ms): " +
                    "  ".join(f"{k} {v:g}" for k, v in paper_row.items()))  # fmt: skip
     _finish(interrupted, out.samples)
-

@@ -42,9 +42,9 @@ SilenceOpt = typer.Option(
 def pioneer(
     port: str = PortArg,
     zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
-    name: str | None = NameOpt,  # noqa: UP007
+    name: str | None = NameOpt,
     silence: float = SilenceOpt,
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
     ros2: bool = Ros2Opt,
@@ -85,7 +85,7 @@ def pioneer(
 def arm(
     host: str = HostArg,
     zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
-    name: str | None = NameOpt,  # noqa: UP007
+    name: str | None = NameOpt,
     link: ArmLink = LINK,
     ros2: bool = Ros2Opt,
     ros2_domain: int = Ros2DomainOpt,

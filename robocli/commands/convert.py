@@ -9,10 +9,16 @@ import typer
 
 
 def convert(
-    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="IN.mcap",
-                                help="The robocli recording; never written to."),
-    out: Path = typer.Argument(..., metavar="OUT",
-                               help="OUT.mcap: one file; another name: a bag folder."),
+    file: Path = typer.Argument(
+        ...,
+        exists=True,
+        dir_okay=False,
+        metavar="IN.mcap",
+        help="The robocli recording; never written to.",
+    ),
+    out: Path = typer.Argument(
+        ..., metavar="OUT", help="OUT.mcap: one file; another name: a bag folder."
+    ),
     ros2: bool = typer.Option(False, "--ros2", help="Write a ROS 2 bag (the only target)."),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT.mcap if it exists."),
 ) -> None:

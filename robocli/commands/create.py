@@ -22,13 +22,13 @@ def simulate(
     pty: bool = typer.Option(
         False, "--pty", help="Serve on a pseudo-terminal, as a serial port (the default)."
     ),
-    port: int | None = typer.Option(  # noqa: UP007
+    port: int | None = typer.Option(
         None, "--port", "-p", min=0, max=65535, help="Serve on this TCP port instead (0: any)."
     ),
-    map_file: Path | None = typer.Option(  # noqa: UP007
+    map_file: Path | None = typer.Option(
         None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
     ),
-    pose: str | None = typer.Option(  # noqa: UP007
+    pose: str | None = typer.Option(
         None, "--pose", metavar="X,Y,TH", help="Start pose in the map: m, m, rad."
     ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on (TCP)."),

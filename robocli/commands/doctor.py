@@ -25,17 +25,21 @@ def doctor(
     timeout: float = typer.Option(
         1.0, "--timeout", min=0.05, max=10.0, help="Seconds each probe may wait."
     ),
-    pioneer: str | None = typer.Option(  # noqa: UP007
-        None, "--pioneer", metavar="URL",
+    pioneer: str | None = typer.Option(
+        None,
+        "--pioneer",
+        metavar="URL",
         help=f"Pioneer to probe (default ${PIONEER_ENV}, else {PIONEER_URL}).",
-    ),  # fmt: skip
-    arm: str | None = typer.Option(  # noqa: UP007
+    ),
+    arm: str | None = typer.Option(
         None, "--arm", metavar="URL", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
     ),
-    hub: str | None = typer.Option(  # noqa: UP007
-        None, "--hub", metavar="URL",
+    hub: str | None = typer.Option(
+        None,
+        "--hub",
+        metavar="URL",
         help=f"Hub to probe (default ${HUB_ENV}, else {HUB_ADDRESS}).",
-    ),  # fmt: skip
+    ),
     motion_port: int = typer.Option(
         ARM_MOTION_PORT, "--motion-port", min=1, max=65535, help="The arm's motion port."
     ),

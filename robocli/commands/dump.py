@@ -47,29 +47,32 @@ REORDER = 0.05
 
 def pioneer(
     ctx: typer.Context,
-    port: str | None = typer.Argument(  # noqa: UP007
-        None, help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit with --file.",
-        show_default=False, metavar="URL",
-        envvar=PIONEER_ENV, show_envvar=True,
-    ),  # fmt: skip
+    port: str | None = typer.Argument(
+        None,
+        help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit with --file.",
+        show_default=False,
+        metavar="URL",
+        envvar=PIONEER_ENV,
+        show_envvar=True,
+    ),
     count: int = typer.Option(
         0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
     ),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(  # noqa: UP007
+    output: Path | None = typer.Option(
         None,
         "--output",
         "-o",
         metavar="FILE.jsonl",
         dir_okay=False,
         help="Also record the packets to a .jsonl capture (what --file reads).",
-    ),  # fmt: skip
+    ),
     overwrite: bool = OverwriteOpt,
     laser: bool = typer.Option(
         False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
     ),
-    file: Path | None = typer.Option(  # noqa: UP007
+    file: Path | None = typer.Option(
         None,
         "--file",
         "-f",
@@ -77,8 +80,8 @@ def pioneer(
         exists=True,
         dir_okay=False,
         help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    ),
+    subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
@@ -223,28 +226,34 @@ class _Feed:
 @arm_link()
 def arm(
     ctx: typer.Context,
-    host: str | None = typer.Argument(  # noqa: UP007
-        None, help=f"The arm: {DEVICE_FORMS['arm']}; omit with --file.",
-        show_default=False, metavar="URL", envvar=ARM_ENV, show_envvar=True,
-    ),  # fmt: skip
+    host: str | None = typer.Argument(
+        None,
+        help=f"The arm: {DEVICE_FORMS['arm']}; omit with --file.",
+        show_default=False,
+        metavar="URL",
+        envvar=ARM_ENV,
+        show_envvar=True,
+    ),
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(  # noqa: UP007
+    output: Path | None = typer.Option(
         None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
     ),
     overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(  # noqa: UP007
+    file: Path | None = typer.Option(
         None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
     ),
     ports: Literal["both", "motion", "state"] = typer.Option(
         "both", "--ports", help="both (two clients), motion or state."
     ),
-    listen: str | None = typer.Option(  # noqa: UP007
-        None, "--listen", metavar="[ADDR:]PORT",
+    listen: str | None = typer.Option(
+        None,
+        "--listen",
+        metavar="[ADDR:]PORT",
         help="Be a recording proxy: other programs connect to the motion port PORT and the "
         "state port PORT+2 (0: ephemeral) instead of the controller.",
-    ),  # fmt: skip
+    ),
     link: ArmLink = LINK,
 ) -> None:
     """Print every Simple Message on the motion and state ports, in time order, named and
@@ -381,24 +390,33 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
 
 def hub(
     ctx: typer.Context,
-    host: str | None = typer.Argument(  # noqa: UP007
-        None, help=f"The hub: {DEVICE_FORMS['hub']}; omit with --file.", show_default=False,
-        metavar="URL", envvar=HUB_ENV, show_envvar=True,
-    ),  # fmt: skip
+    host: str | None = typer.Argument(
+        None,
+        help=f"The hub: {DEVICE_FORMS['hub']}; omit with --file.",
+        show_default=False,
+        metavar="URL",
+        envvar=HUB_ENV,
+        show_envvar=True,
+    ),
     listen: str = typer.Option(
         "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
     ),
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
     hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(  # noqa: UP007
+    output: Path | None = typer.Option(
         None, "--output", "-o", help="Also record the session (.jsonl capture)."
     ),
     overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(  # noqa: UP007
-        None, "--file", "-f", metavar="CAPTURE", exists=True, dir_okay=False,
+    file: Path | None = typer.Option(
+        None,
+        "--file",
+        "-f",
+        metavar="CAPTURE",
+        exists=True,
+        dir_okay=False,
         help="Decode a capture (dump hub -o, or a record .mcap) instead.",
-    ),  # fmt: skip
+    ),
 ) -> None:
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
     printed, named and decoded, and passed on unchanged. --file decodes a capture."""

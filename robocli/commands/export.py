@@ -20,7 +20,7 @@ def export(
         ..., exists=True, dir_okay=False, metavar="FILE", help="An MCAP recording."
     ),
     fmt: Format = typer.Option(..., "--format", "-f", help="What to write."),
-    out: Path | None = typer.Option(  # noqa: UP007
+    out: Path | None = typer.Option(
         None,
         "--output",
         "-o",

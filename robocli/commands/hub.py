@@ -42,7 +42,12 @@ if TYPE_CHECKING:
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
 HubOpt = typer.Option(
-    None, "--hub", metavar="URL", help=HUB_HELP, show_default=False, envvar=HUB_ENV,
+    None,
+    "--hub",
+    metavar="URL",
+    help=HUB_HELP,
+    show_default=False,
+    envvar=HUB_ENV,
     show_envvar=True,
 )
 HubArg = device_argument("hub", HUB_ENV)
@@ -114,28 +119,28 @@ def subscribe(
         ..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.", show_default=False
     ),
     rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
-    hub: str | None = HubOpt,  # noqa: UP007 - Typer needs Optional on 3.10
-    buffer: int | None = typer.Option(  # noqa: UP007
+    hub: str | None = HubOpt,
+    buffer: int | None = typer.Option(
         None, "--buffer", min=1, help="Samples the hub keeps for us (default: 1 s)."
     ),
-    poll: int | None = typer.Option(  # noqa: UP007
+    poll: int | None = typer.Option(
         None,
         "--poll",
         min=1,
         max=65535,
         help="Pulls per second, Hz: also the hub's batch rate of adc, imu, gps, battery "
         "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
-    ),  # fmt: skip
+    ),
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
-    duration: float | None = duration_option(min=0),  # noqa: UP007
-    count: int | None = count_option(None, "Stop after N samples.", min=1),  # noqa: UP007
-    fmt: Literal["table", "csv"] | None = typer.Option(  # noqa: UP007
+    duration: float | None = duration_option(min=0),
+    count: int | None = count_option(None, "Stop after N samples.", min=1),
+    fmt: Literal["table", "csv"] | None = typer.Option(
         None, "--format", "-f", help="Text output (default: table on a terminal, else csv)."
     ),
     json_out: bool = json_option(),
     compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
-    token_file: Path | None = TokenOpt,  # noqa: UP007
-    zenoh: str | None = zenoh_option("client"),  # noqa: UP007
+    token_file: Path | None = TokenOpt,
+    zenoh: str | None = zenoh_option("client"),
 ) -> None:
     """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
     --count. Times are on this machine's clock (the hub's offset is estimated). With
@@ -295,8 +300,8 @@ def connect(
     once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
     json_out: bool = json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
-    token_file: Path | None = TokenOpt,  # noqa: UP007
-    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    token_file: Path | None = TokenOpt,
+    foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
 ) -> None:
     """Survey a hub over ros4mat: running sensors and their rates, round trip, clock offset,
@@ -366,17 +371,19 @@ def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
 
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
-    url: str | None = typer.Argument(  # noqa: UP007
-        None, metavar="URL", show_default=False,
+    url: str | None = typer.Argument(
+        None,
+        metavar="URL",
+        show_default=False,
         help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
-    ),  # fmt: skip
+    ),
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
     sensors: str = typer.Option(
         "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
     ),
     seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
-    workers: int | None = typer.Option(  # noqa: UP007
+    workers: int | None = typer.Option(
         None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
     ),
     json_out: bool = json_option(),

@@ -248,7 +248,7 @@ def validate(
     robot: str = typer.Option(
         "irb120", "--robot", help="Model for the TCP error when a log has no TCP column."
     ),
-    plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),  # noqa: UP007
+    plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),
     overwrite: bool = OverwriteOpt,
     json_out: bool = json_option(),
 ) -> None:

@@ -82,8 +82,8 @@ def connect(
     port: str = LaserArg,
     once: bool = typer.Option(False, "--once", help="Print the identity and one scan, exit."),
     json_out: bool = json_option(),
-    start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),  # noqa: UP007
-    end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),  # noqa: UP007
+    start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),
+    end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),
     cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
     intensity: bool = typer.Option(False, "--intensity", help="Ranges and intensities (ME)."),
     count: int = count_option(0, "Stop after N scans (0: none).", min=0),
@@ -165,14 +165,14 @@ def scan_line(scan: Scan) -> str:
 
 def simulate(
     model: Model = ModelOpt,
-    port: int | None = typer.Option(  # noqa: UP007
+    port: int | None = typer.Option(
         None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
     ),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
-    map_file: Path | None = typer.Option(  # noqa: UP007
+    map_file: Path | None = typer.Option(
         None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
     ),
-    pose: str | None = typer.Option(  # noqa: UP007
+    pose: str | None = typer.Option(
         None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
     ),
     bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),

@@ -72,10 +72,10 @@ class _View:
 
 
 def dump(
-    port: str | None = device_argument("laser", default=None),  # noqa: UP007
+    port: str | None = device_argument("laser", default=None),
     count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
     json_out: bool = json_option(),
-    file: Path | None = typer.Option(  # noqa: UP007
+    file: Path | None = typer.Option(
         None,
         "--file",
         "-f",
@@ -83,7 +83,7 @@ def dump(
         exists=True,
         dir_okay=False,
         help="Decode a capture (.jsonl chunks, a .mcap recording or raw sensor bytes).",
-    ),  # fmt: skip
+    ),
     model: Model = ModelOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,

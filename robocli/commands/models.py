@@ -12,8 +12,9 @@ from robocli.commands._options import output_option
 
 
 def urdf(
-    name: str = typer.Argument(..., help="Robot: a Pioneer subtype (p3dx...) or an arm model "
-                               "(irb120...)."),  # fmt: skip
+    name: str = typer.Argument(
+        ..., help="Robot: a Pioneer subtype (p3dx...) or an arm model (irb120...)."
+    ),
     out: Path | None = output_option(None, "Write to FILE (default: stdout)."),
     prefix: str = typer.Option("", "--prefix", help="Before every link name (e.g. 'pioneer/')."),
     overwrite: bool = OverwriteOpt,

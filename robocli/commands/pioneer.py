@@ -59,7 +59,11 @@ BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial bau
 #: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
 ZenohClientOpt = zenoh_option("client")
 TimeoutOpt = typer.Option(
-    5.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
+    5.0,
+    "--timeout",
+    min=0.1,
+    max=3600.0,
+    metavar="SECONDS",
     help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
 )
 
@@ -85,20 +89,23 @@ def connect(
     json_out: bool = typer.Option(
         False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
     ),
-    laser: str | None = typer.Option(  # noqa: UP007
-        None, "--laser", metavar="URL", show_default=False,
+    laser: str | None = typer.Option(
+        None,
+        "--laser",
+        metavar="URL",
+        show_default=False,
         help="A Hokuyo laser on the robot (placed as the robot model says): serial device, "
         "pyserial URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot.",
-    ),  # fmt: skip
+    ),
     no_laser: bool = typer.Option(
         False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
     ),
-    subtype: str | None = SubtypeOpt,  # noqa: UP007 - Typer needs Optional on 3.10
+    subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
-    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    zenoh: str | None = ZenohClientOpt,  # noqa: UP007
+    zenoh: str | None = ZenohClientOpt,
 ) -> None:
     """Connect to a Pioneer and show its live state until q or Ctrl-C (--once: one
     snapshot; --json: machine-readable, SI units; --foxglove: also to Foxglove). PORT
@@ -191,7 +198,7 @@ def simulate(
     port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
-    map_file: Path | None = typer.Option(  # noqa: UP007
+    map_file: Path | None = typer.Option(
         None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
     ),
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
@@ -203,14 +210,14 @@ def simulate(
     laser: bool = typer.Option(
         True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
     ),
-    georef: str | None = typer.Option(  # noqa: UP007
+    georef: str | None = typer.Option(
         None,
         "--georef",
         metavar="LAT,LON[,ALT]",
         help="Map origin in degrees (and metres), for SIMSTAT's GPS fix.",
     ),
-    replay: Path | None = ReplayOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt,  # noqa: UP007
+    replay: Path | None = ReplayOpt,
+    speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""

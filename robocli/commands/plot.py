@@ -15,26 +15,26 @@ from robocli.commands._options import json_option
 def plot(
     file: Path = typer.Argument(
         ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
-    ),  # fmt: skip
-    channel: list[str] = typer.Option(  # noqa: B008
+    ),
+    channel: list[str] = typer.Option(
         ...,
         "--channel",
         "-c",
         metavar="TOPIC",
         help="A channel to draw (repeatable): a pose (the path, with the scan channels given "
         "beside it), joint states, or any channel with --field.",
-    ),  # fmt: skip
-    field: list[str] = typer.Option(  # noqa: B008
+    ),
+    field: list[str] = typer.Option(
         [],
         "--field",
         "-f",
         metavar="A.B",
         help="A numeric field to draw against time (repeatable), e.g. linear_acceleration.z.",
-    ),  # fmt: skip
+    ),
     output: Path = typer.Option(
         ..., "--output", "-o", dir_okay=False, metavar="OUT.png", help="The figure (PNG)."
-    ),  # fmt: skip
-    title: str | None = typer.Option(None, "--title", help="A title over the figure."),  # noqa: UP007
+    ),
+    title: str | None = typer.Option(None, "--title", help="A title over the figure."),
     overwrite: bool = OverwriteOpt,
     json_out: bool = json_option(),
 ) -> None:

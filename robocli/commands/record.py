@@ -73,30 +73,36 @@ def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
 
 @arm_link(motion=False)
 def record(
-    output: Path = typer.Option(..., "--output", "-o", dir_okay=False, metavar="FILE.mcap",
-                                help="The recording (MCAP)."),  # fmt: skip
-    pioneer: list[str] = typer.Option(  # noqa: B008
+    output: Path = typer.Option(
+        ..., "--output", "-o", dir_okay=False, metavar="FILE.mcap", help="The recording (MCAP)."
+    ),
+    pioneer: list[str] = typer.Option(
         [], "--pioneer", metavar="URL", help="A Pioneer (port, URL or 'sim'); repeatable."
     ),
-    arm: list[str] = typer.Option(  # noqa: B008
-        [], "--arm", metavar="URL", help="An arm controller (HOST, tcp://HOST or 'sim'; its state "
-        "port: --state-port); repeatable."
+    arm: list[str] = typer.Option(
+        [],
+        "--arm",
+        metavar="URL",
+        help="An arm controller (HOST, tcp://HOST or 'sim'; its state "
+        "port: --state-port); repeatable.",
     ),
-    hub: str | None = typer.Option(  # noqa: UP007
+    hub: str | None = typer.Option(
         None, "--hub", metavar="URL", help="A sensor hub: HOST[:PORT], tcp://HOST:PORT or 'sim'."
     ),
     sensors: str = typer.Option(
-        "imu,adc", "--sensors", metavar="NAME[:HZ],...",
+        "imu,adc",
+        "--sensors",
+        metavar="NAME[:HZ],...",
         help="Hub sensors: " + ", ".join(HUB_DEFAULTS) + " (rate in Hz after a colon).",
-    ),  # fmt: skip
+    ),
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
-    duration: float | None = duration_option(min=0.0, max=1e6),  # noqa: UP007
-    count: int | None = count_option(help="Stop after N messages recorded.", min=1),  # noqa: UP007
+    duration: float | None = duration_option(min=0.0, max=1e6),
+    count: int | None = count_option(help="Stop after N messages recorded.", min=1),
     compression: Compression = typer.Option("zstd", "--compression", help="Chunk compression."),
-    laser: str | None = typer.Option(  # noqa: UP007
+    laser: str | None = typer.Option(
         None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
     ),
-    create: list[str] = typer.Option(  # noqa: B008
+    create: list[str] = typer.Option(
         [], "--create", metavar="URL", help="An iRobot Create 2 (port, URL or 'sim'); repeatable."
     ),
     no_laser: bool = typer.Option(
@@ -104,10 +110,14 @@ def record(
     ),
     overwrite: bool = OverwriteOpt,
     link: ArmLink = LINK,
-    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    ros2: bool = typer.Option(False, "--ros2", help="Write a ROS 2 bag: standard messages "
-                              "in CDR that ros2 bag play reads (see docs/ros2-bags.md)."),
+    ros2: bool = typer.Option(
+        False,
+        "--ros2",
+        help="Write a ROS 2 bag: standard messages "
+        "in CDR that ros2 bag play reads (see docs/ros2-bags.md).",
+    ),
 ) -> None:
     """Record Pioneers, arms (their state port), a hub, a Hokuyo laser and iRobot Creates
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
@@ -320,8 +330,9 @@ def _hub_address(hub: str) -> Iterator[str]:
 
 
 def info(
-    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
-                                help="A recording (.mcap)."),  # fmt: skip
+    file: Path = typer.Argument(
+        ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
+    ),
     json_out: bool = json_option(),
 ) -> None:
     """Summarise a recording like ros2 bag info: duration, start and end, each channel

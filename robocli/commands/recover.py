@@ -13,10 +13,20 @@ import typer
 
 
 def recover(
-    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
-                                help="The recording to recover (.mcap); never written to."),
-    out: Path | None = typer.Option(None, "--output", "-o", metavar="OUT",  # noqa: UP007
-                                    help="File to write (default: FILE's name + .recovered)."),
+    file: Path = typer.Argument(
+        ...,
+        exists=True,
+        dir_okay=False,
+        metavar="FILE",
+        help="The recording to recover (.mcap); never written to.",
+    ),
+    out: Path | None = typer.Option(
+        None,
+        "--output",
+        "-o",
+        metavar="OUT",
+        help="File to write (default: FILE's name + .recovered).",
+    ),
     overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT if it exists."),
 ) -> None:
     """Rewrite every complete chunk and record of a recording that was killed or whose disk

@@ -17,27 +17,27 @@ EXIT_INTERRUPTED = 130
 
 
 def router(
-    config: Path | None = typer.Option(  # noqa: UP007
+    config: Path | None = typer.Option(
         None,
         "--config",
         dir_okay=False,
         metavar="FILE",
         help="A Zenoh JSON5 configuration (access control, TLS...); run in router mode.",
-    ),  # fmt: skip
-    listen: str | None = typer.Option(  # noqa: UP007
+    ),
+    listen: str | None = typer.Option(
         None,
         "--listen",
         "--zenoh",
         metavar="ENDPOINT",
         help="Listen on ENDPOINT (default tcp/127.0.0.1:7447; with --config: added to it).",
-    ),  # fmt: skip
-    users: Path | None = typer.Option(  # noqa: UP007
+    ),
+    users: Path | None = typer.Option(
         None,
         "--users",
         dir_okay=False,
         metavar="FILE",
         help="Accept only clients with a user:password line of FILE (zenoh usrpwd).",
-    ),  # fmt: skip
+    ),
     acl: bool = typer.Option(
         False,
         "--acl",
@@ -67,7 +67,7 @@ def router(
 
 
 def list_(
-    zenoh: str | None = zenoh_option("client"),  # noqa: UP007
+    zenoh: str | None = zenoh_option("client"),
     json_out: bool = json_option("One line: a JSON list of what is up."),
     timeout: float = typer.Option(2.0, "--timeout", min=0.1, max=60, help="Wait for answers, s."),
 ) -> None:

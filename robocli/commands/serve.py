@@ -82,24 +82,24 @@ def serve(
     gpsd: str | None = typer.Option(
         None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
     ),
-    serial: list[str] = typer.Option(  # noqa: B008
+    serial: list[str] = typer.Option(
         [], "--serial", metavar="PORT", help="A serial port clients may use (repeatable)."
     ),
-    token_file: Path | None = typer.Option(  # noqa: UP007
+    token_file: Path | None = typer.Option(
         None,
         "--token-file",
         dir_okay=False,
         metavar="FILE",
         help="Require this file's token to change settings or write to a serial port.",
-    ),  # fmt: skip
+    ),
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
-    foxglove: int | None = FoxgloveOpt,  # noqa: UP007
+    foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    replay: Path | None = ReplayOpt,  # noqa: UP007
-    speed: float | None = SpeedOpt,  # noqa: UP007
+    replay: Path | None = ReplayOpt,
+    speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
-    zenoh: str | None = zenoh_option("server"),  # noqa: UP007
-    name: str | None = typer.Option(  # noqa: UP007
+    zenoh: str | None = zenoh_option("server"),
+    name: str | None = typer.Option(
         None,
         "--name",
         help="The hub's name on Zenoh (default: the --zenoh configuration's user, else this "
@@ -110,7 +110,7 @@ def serve(
         "--publish",
         metavar="SENSOR[=RATE],...",
         help="Sensors published on Zenoh from the start (others once a client asks).",
-    ),  # fmt: skip
+    ),
     tcp: bool = typer.Option(True, "--tcp/--no-tcp", help="Serve ros4mat on TCP (--port)."),
     ros2: bool = Ros2Opt,
     ros2_domain: int = Ros2DomainOpt,

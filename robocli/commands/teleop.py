@@ -46,7 +46,7 @@ def pioneer(
         max=5.0,
         metavar="RAD/S",
         help="Top turn rate, rad/s (shown in deg/s).",
-    ),  # fmt: skip
+    ),
     release: float = typer.Option(
         0.45,
         "--release",
@@ -54,11 +54,11 @@ def pioneer(
         max=0.5,
         metavar="SECONDS",
         help="Stop this long after the last key, s.",
-    ),  # fmt: skip
-    subtype: str | None = SubtypeOpt,  # noqa: UP007
+    ),
+    subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
-    zenoh: str | None = ZenohClientOpt,  # noqa: UP007
+    zenoh: str | None = ZenohClientOpt,
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot.
     PORT zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), with --zenoh."""

@@ -52,7 +52,7 @@ class Listeners(Generic[F]):
         for listener in self._items:
             try:
                 listener(*args)
-            except Exception:  # noqa: BLE001 - the isolation policy above: count, log, go on
+            except Exception:
                 self._stats.add("listener_errors")
                 if id(listener) not in self._failed:
                     self._failed.add(id(listener))

@@ -401,7 +401,7 @@ class Session:
         except RobocliError as exc:
             if not self._closing:
                 self.fail(exc)
-        except BaseException as exc:  # noqa: BLE001 - a bug: fail closed, the caller sees it
+        except BaseException as exc:
             self.fail(exc)
 
     # ------------------------------------------------------------------ failing, closing

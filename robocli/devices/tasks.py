@@ -53,7 +53,7 @@ class PeriodicTask:
                     return
             try:
                 delay = self._step()
-            except BaseException as exc:  # noqa: BLE001 - handed on: the session fails closed
+            except BaseException as exc:
                 if not self._stop.is_set():
                     self._on_error(exc)
                 return

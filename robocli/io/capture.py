@@ -134,7 +134,6 @@ def read_capture(
         raise CaptureFileError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
-
 #: How often a read from a pipe wakes to let a pending Ctrl-C through (s).
 PIPE_WAKE = 0.2
 
@@ -181,6 +180,7 @@ def _open(path: Path) -> IO[bytes]:
     if stat.S_ISREG(mode) or stat.S_ISBLK(mode):
         return io.BufferedReader(raw)
     return io.BufferedReader(_WakingPipe(raw))
+
 
 class _Gap:
     """Gives up reading after ``limit`` bytes of the file without a frame."""

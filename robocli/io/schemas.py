@@ -151,15 +151,22 @@ _BASE64 = {"type": "string", "contentEncoding": "base64"}
 
 FOXGLOVE: dict[str, dict[str, Any]] = {
     "foxglove.PoseInFrame": _stamped(
-        "foxglove.PoseInFrame", "A pose in a frame of reference",
+        "foxglove.PoseInFrame",
+        "A pose in a frame of reference",
         {"frame_id": _string("Frame of reference of the pose"), "pose": _POSE},
     ),
     "foxglove.FrameTransform": _FRAME_TRANSFORM,
     "foxglove.FrameTransforms": _object(
-        "foxglove.FrameTransforms", "Several frame transforms at once",
-        {"transforms": {"type": "array", "items": _FRAME_TRANSFORM,
-                        "description": "The transforms"}},
-    ),  # fmt: skip
+        "foxglove.FrameTransforms",
+        "Several frame transforms at once",
+        {
+            "transforms": {
+                "type": "array",
+                "items": _FRAME_TRANSFORM,
+                "description": "The transforms",
+            }
+        },
+    ),
     "foxglove.LaserScan": _stamped(
         "foxglove.LaserScan",
         "A planar scan: ranges at equally spaced bearings from start_angle to end_angle "
@@ -175,7 +182,8 @@ FOXGLOVE: dict[str, dict[str, Any]] = {
         },
     ),
     "foxglove.CompressedImage": _stamped(
-        "foxglove.CompressedImage", "A compressed image",
+        "foxglove.CompressedImage",
+        "A compressed image",
         {
             "frame_id": _string("Camera frame"),
             "data": dict(_BASE64, description="Compressed image bytes, base64"),
@@ -183,7 +191,8 @@ FOXGLOVE: dict[str, dict[str, Any]] = {
         },
     ),
     "foxglove.RawImage": _stamped(
-        "foxglove.RawImage", "An uncompressed image",
+        "foxglove.RawImage",
+        "An uncompressed image",
         {
             "frame_id": _string("Camera frame"),
             "width": _integer("Width, pixels"),
@@ -194,18 +203,24 @@ FOXGLOVE: dict[str, dict[str, Any]] = {
         },
     ),
     "foxglove.LocationFix": _stamped(
-        "foxglove.LocationFix", "A satellite navigation fix",
+        "foxglove.LocationFix",
+        "A satellite navigation fix",
         {
             "frame_id": _string("Frame of the receiver"),
             "latitude": _number("Latitude, degrees"),
             "longitude": _number("Longitude, degrees"),
             "altitude": _number("Altitude, m"),
-            "position_covariance": {"type": "array", "items": {"type": "number"},
-                                    "minItems": 9, "maxItems": 9,
-                                    "description": "ENU covariance, m^2, row-major"},
-            "position_covariance_type": _integer("0 unknown, 1 approximated, 2 diagonal known, "
-                                                 "3 known"),
-        },  # fmt: skip
+            "position_covariance": {
+                "type": "array",
+                "items": {"type": "number"},
+                "minItems": 9,
+                "maxItems": 9,
+                "description": "ENU covariance, m^2, row-major",
+            },
+            "position_covariance_type": _integer(
+                "0 unknown, 1 approximated, 2 diagonal known, 3 known"
+            ),
+        },
     ),
 }
 
@@ -217,10 +232,12 @@ _XYZ_MAG = _vector3("Magnetic field", "T")
 
 ROBOCLI: dict[str, dict[str, Any]] = {
     "robocli.pioneer.State": _robocli(
-        "robocli.pioneer.State", "One Pioneer SIP in SI units (odometry pose unwrapped); a "
+        "robocli.pioneer.State",
+        "One Pioneer SIP in SI units (odometry pose unwrapped); a "
         "number without a value is left out",
         {
-            "x": _number("Odometry x, m"), "y": _number("Odometry y, m"),
+            "x": _number("Odometry x, m"),
+            "y": _number("Odometry y, m"),
             "th": _number("Odometry heading, rad, in [-pi, pi)"),
             "v": _number("Translational velocity, m/s"),
             "w": _number("Rotational velocity, rad/s, counter-clockwise positive"),
@@ -234,19 +251,24 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "bumpers_front": _integer("Front bumper switches, bit mask"),
             "bumpers_rear": _integer("Rear bumper switches, bit mask"),
             "sonar": _numbers("Latest range per sonar index, m (0: none yet, see sonar_known)"),
-            "sonar_known": {"type": "array", "items": {"type": "boolean"},
-                            "description": "Per sonar index: it has reported a range"},
+            "sonar_known": {
+                "type": "array",
+                "items": {"type": "boolean"},
+                "description": "Per sonar index: it has reported a range",
+            },
             "digin": _integer("Digital inputs, bit mask"),
             "digout": _integer("Digital outputs, bit mask"),
             "analog": _number("Selected analog input, V"),
             "sip_count": _integer("SIPs decoded by the recorder"),
-        },  # fmt: skip
+        },
     ),
     "robocli.create.State": _robocli(
-        "robocli.create.State", "One iRobot Create 2 stream frame in SI units (odometry pose "
+        "robocli.create.State",
+        "One iRobot Create 2 stream frame in SI units (odometry pose "
         "summed from the distance and angle packets since the recording began)",
         {
-            "x": _number("Odometry x, m"), "y": _number("Odometry y, m"),
+            "x": _number("Odometry x, m"),
+            "y": _number("Odometry y, m"),
             "th": _number("Odometry heading, rad, in [-pi, pi]"),
             "bump_left": _boolean("Left bumper pressed"),
             "bump_right": _boolean("Right bumper pressed"),
@@ -259,7 +281,7 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "charging_state": _integer("Charging state code (0: not charging)"),
             "mode": _integer("OI mode: 0 off, 1 passive, 2 safe, 3 full"),
             "frame_count": _integer("Stream frames decoded by the recorder"),
-        },  # fmt: skip
+        },
     ),
     "robocli.JointState": _robocli(
         "robocli.JointState",
@@ -270,13 +292,14 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "velocity": _numbers("Velocities, rad/s"),
             "effort": _numbers("Efforts, N m"),
             "source": _string("joint_position or joint_feedback"),
-            "robot_time": _number("The controller's own clock, s (JOINT_FEEDBACK; absent: "
-                                  "not sent)"),
-        },  # fmt: skip
+            "robot_time": _number(
+                "The controller's own clock, s (JOINT_FEEDBACK; absent: not sent)"
+            ),
+        },
     ),
     "robocli.arm.Status": _robocli(
-        "robocli.arm.Status", "The controller's STATUS (a flag it reports as unknown is left "
-        "out)",
+        "robocli.arm.Status",
+        "The controller's STATUS (a flag it reports as unknown is left out)",
         {
             "drives_powered": _boolean("Drives powered"),
             "e_stopped": _boolean("Emergency stop"),
@@ -285,11 +308,12 @@ ROBOCLI: dict[str, dict[str, Any]] = {
             "motion_possible": _boolean("Can move"),
             "mode": _string("MANUAL, AUTO or UNKNOWN"),
             "error_code": _integer("Controller error code"),
-        },  # fmt: skip
+        },
         unknown=("drives_powered", "e_stopped", "in_error", "in_motion", "motion_possible"),
     ),
     "robocli.Imu": _robocli(
-        "robocli.Imu", "One IMU sample, shaped like sensor_msgs/Imu (no orientation)",
+        "robocli.Imu",
+        "One IMU sample, shaped like sensor_msgs/Imu (no orientation)",
         {
             "frame_id": _string("IMU frame"),
             "linear_acceleration": _XYZ_ACCEL,
@@ -298,30 +322,42 @@ ROBOCLI: dict[str, dict[str, Any]] = {
         },
     ),
     "robocli.Adc": _robocli(
-        "robocli.Adc", "One sample of the hub's 8-channel ADC",
+        "robocli.Adc",
+        "One sample of the hub's 8-channel ADC",
         {"channels": _numbers("Channels 0..7, V")},
     ),
     "robocli.Battery": _robocli(
-        "robocli.Battery", "One battery sample",
+        "robocli.Battery",
+        "One battery sample",
         {
-            "voltage": _number("Pack voltage, V"), "current": _number("Current, A"),
+            "voltage": _number("Pack voltage, V"),
+            "current": _number("Current, A"),
             "cells": _numbers("Cell voltages, V"),
             "state": _integer("Charge state code"),
             "state_of_charge": _number("State of charge, 0..1"),
-        },  # fmt: skip
+        },
     ),
     "robocli.SysInfo": _robocli(
-        "robocli.SysInfo", "The hub computer's load, memory and temperature",
+        "robocli.SysInfo",
+        "The hub computer's load, memory and temperature",
         {
             "cpu_temperature": _number("CPU temperature, deg C (absent: no sensor)"),
             "load": _numbers("Unix load averages over 1, 5, 15 min"),
-            "cpu": {"type": "object", "description": "CPU time split, %",
-                    "properties": {k: _number(f"{k}, %") for k in
-                                   ("user", "sys", "nice", "idle", "iowait", "hirq", "sirq")}},
-            "memory": {"type": "object", "description": "Memory, kB",
-                       "properties": {k: _number(f"{k}, kB") for k in ("used", "free", "buffers")}},
+            "cpu": {
+                "type": "object",
+                "description": "CPU time split, %",
+                "properties": {
+                    k: _number(f"{k}, %")
+                    for k in ("user", "sys", "nice", "idle", "iowait", "hirq", "sirq")
+                },
+            },
+            "memory": {
+                "type": "object",
+                "description": "Memory, kB",
+                "properties": {k: _number(f"{k}, kB") for k in ("used", "free", "buffers")},
+            },
             "state": _integer("Source state code"),
-        },  # fmt: skip
+        },
     ),
     "robocli.RawFrame": _robocli(
         "robocli.RawFrame",
@@ -342,7 +378,8 @@ ROBOCLI: dict[str, dict[str, Any]] = {
 #: ``std_msgs/msg/String``) only.
 ROS: dict[str, dict[str, Any]] = {
     "std_msgs/String": _object(
-        "std_msgs/String", "Text, shaped like std_msgs/String: here a robot's URDF",
+        "std_msgs/String",
+        "Text, shaped like std_msgs/String: here a robot's URDF",
         {"data": _string("The text (a robot description: URDF XML)")},
     ),
 }

@@ -79,8 +79,9 @@ class TrajectoryLog:
         return int(self.positions.shape[1])
 
     @classmethod
-    def from_positions(cls, time: npt.ArrayLike, positions: npt.ArrayLike,
-                       tcp: npt.ArrayLike | None = None) -> TrajectoryLog:
+    def from_positions(
+        cls, time: npt.ArrayLike, positions: npt.ArrayLike, tcp: npt.ArrayLike | None = None
+    ) -> TrajectoryLog:
         """A log whose velocities are finite differences of the positions (second order)."""
         t = np.asarray(time, dtype=float)
         q = np.asarray(positions, dtype=float)
@@ -131,8 +132,11 @@ def write_log(log: TrajectoryLog, path: str | Path, overwrite: bool = False) -> 
     suffix = _suffix(out)
     with replace_output(out, overwrite, text=suffix != ".npz") as fh:
         if suffix == ".npz":
-            arrays = {"time": log.time, "joints_positions": log.positions,
-                      "joints_velocities": log.velocities}
+            arrays = {
+                "time": log.time,
+                "joints_positions": log.positions,
+                "joints_velocities": log.velocities,
+            }
             if log.tcp is not None:
                 arrays["tcp"] = log.tcp
             if log.origin is not None:
@@ -147,6 +151,7 @@ def write_log(log: TrajectoryLog, path: str | Path, overwrite: bool = False) -> 
 
 def _write_json(log: TrajectoryLog, fh: io.TextIOBase | Any) -> None:
     """Stream the JSON one row at a time (no whole-document string in memory)."""
+
     def rows(name: str, arr: FloatArray, last: bool) -> None:
         fh.write(f'  "{name}": [')
         for i, row in enumerate(arr):
@@ -228,8 +233,11 @@ def _read_json(src: Path, fh: Any) -> TrajectoryLog:
             raise LogFormatError(f"{src}: missing key {key!r}")
     time = _array(src, "time", doc["time"], 1)
     q = _array(src, "joints_positions", doc["joints_positions"], 2)
-    qd = (_array(src, "joints_velocities", doc["joints_velocities"], 2)
-          if doc.get("joints_velocities") is not None else None)
+    qd = (
+        _array(src, "joints_velocities", doc["joints_velocities"], 2)
+        if doc.get("joints_velocities") is not None
+        else None
+    )
     tcp = _array(src, "tcp", doc["tcp"], 2) if doc.get("tcp") is not None else None
     return _build(src, time, q, qd, tcp, _origin(src, doc.get("time_origin")))
 
@@ -290,11 +298,17 @@ def _read_csv(src: Path, fh: Any) -> TrajectoryLog:
         try:
             rows.append([float(v) for v in row])
         except ValueError:
-            raise LogFormatError(f"{src}: line {lineno} holds something that is not a number"
-                                 ) from None
+            raise LogFormatError(
+                f"{src}: line {lineno} holds something that is not a number"
+            ) from None
     data = np.asarray(rows, dtype=float).reshape(len(rows), len(names))
-    return _build(src, data[:, 0], data[:, qcols], data[:, dcols] if dcols else None,
-                  data[:, tcols] if tcols else None)
+    return _build(
+        src,
+        data[:, 0],
+        data[:, qcols],
+        data[:, dcols] if dcols else None,
+        data[:, tcols] if tcols else None,
+    )
 
 
 def _read_npz(src: Path) -> TrajectoryLog:
@@ -317,9 +331,14 @@ def _read_npz(src: Path) -> TrajectoryLog:
         raise LogFormatError(f"{src}: not a valid NPZ log ({exc})") from None
     if origin is not None and origin.shape not in ((), (1,)):
         raise LogFormatError(f"{src}: 'time_origin' must be one number")
-    return _build(src, arrays["time"], arrays["joints_positions"],
-                  arrays.get("joints_velocities"), arrays.get("tcp"),
-                  _origin(src, None if origin is None else origin.reshape(-1)[0].item()))
+    return _build(
+        src,
+        arrays["time"],
+        arrays["joints_positions"],
+        arrays.get("joints_velocities"),
+        arrays.get("tcp"),
+        _origin(src, None if origin is None else origin.reshape(-1)[0].item()),
+    )
 
 
 def _check_npz_members(src: Path, zf: zipfile.ZipFile) -> None:
@@ -351,8 +370,14 @@ def _check_npz_members(src: Path, zf: zipfile.ZipFile) -> None:
             raise LogFormatError(f"{src}: {name!r} is truncated (its header says {shape})")
 
 
-def _build(src: Path, time: FloatArray, q: FloatArray, qd: FloatArray | None,
-           tcp: FloatArray | None, origin: float | None = None) -> TrajectoryLog:
+def _build(
+    src: Path,
+    time: FloatArray,
+    q: FloatArray,
+    qd: FloatArray | None,
+    tcp: FloatArray | None,
+    origin: float | None = None,
+) -> TrajectoryLog:
     where = str(src)
     if q.ndim != 2 or time.ndim != 1:
         raise LogFormatError(f"{where}: 'time' is a list and 'joints_positions' a list of rows")

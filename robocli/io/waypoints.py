@@ -59,7 +59,7 @@ def read_waypoints(path: str | Path) -> Waypoints:
             raise LogFormatError(f"{src}: {name} hold a NaN or an infinity")
     if wp.points is not None and (wp.points.ndim != 2 or wp.points.shape[1] != 3):
         raise LogFormatError(f"{src}: points are rows of x, y, z")
-    rows = (wp.joints if wp.joints is not None else wp.points)
+    rows = wp.joints if wp.joints is not None else wp.points
     if rows is None or rows.shape[0] < 2:
         raise LogFormatError(f"{src}: at least two waypoints are needed")
     if wp.time is not None and wp.time.shape != (rows.shape[0],):

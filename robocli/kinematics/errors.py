@@ -26,8 +26,12 @@ class UnreachableError(KinematicsError):
     ``position`` the target position in metres.
     """
 
-    def __init__(self, message: str, index: int | None = None,
-                 position: tuple[float, float, float] | None = None) -> None:
+    def __init__(
+        self,
+        message: str,
+        index: int | None = None,
+        position: tuple[float, float, float] | None = None,
+    ) -> None:
         super().__init__(message)
         self.index = index
         self.position = position

@@ -92,18 +92,26 @@ def analytic_solutions(model: RobotModel, poses: npt.ArrayLike) -> tuple[FloatAr
         th6 = np.where(singular, _singular_th6(m, c5, s4, s5, th4), th6)
     th5 = np.arctan2(sn5, c5)
     shape = sn5.shape
-    theta = np.stack([
-        np.broadcast_to(th1[:, :, None, None], shape), np.broadcast_to(th2[..., None], shape),
-        np.broadcast_to(th3[..., None], shape), th4, th5, th6,
-    ], axis=-1).reshape(-1, 8, 6)
+    theta = np.stack(
+        [
+            np.broadcast_to(th1[:, :, None, None], shape),
+            np.broadcast_to(th2[..., None], shape),
+            np.broadcast_to(th3[..., None], shape),
+            th4,
+            th5,
+            th6,
+        ],
+        axis=-1,
+    ).reshape(-1, 8, 6)
     q = _wrap(theta - model.offset)
     valid = ok_shoulder[:, None, None, None] & ok_elbow[:, :, None, None]
     valid = valid & np.ones(shape, dtype=bool)
     return q, valid.reshape(-1, 8)
 
 
-def _singular_th6(m: FloatArray, c5: FloatArray, s4: float, s5: float,
-                  th4: FloatArray) -> FloatArray:
+def _singular_th6(
+    m: FloatArray, c5: FloatArray, s4: float, s5: float, th4: FloatArray
+) -> FloatArray:
     """Wrist axes 4 and 6 aligned: with theta4 given, Rz(theta6) = A0 Rz(theta4)^T M."""
     a0 = np.stack([c5, -s4 * s5 * np.ones_like(c5)], axis=-1)
     r = np.swapaxes(_rz(th4), -1, -2) @ m
@@ -114,8 +122,9 @@ def _wrap(x: FloatArray) -> FloatArray:
     return np.asarray((x + math.pi) % (2 * math.pi) - math.pi, dtype=float)
 
 
-def _closest(model: RobotModel, cands: FloatArray,
-             prev: FloatArray) -> tuple[FloatArray, FloatArray]:
+def _closest(
+    model: RobotModel, cands: FloatArray, prev: FloatArray
+) -> tuple[FloatArray, FloatArray]:
     """For candidates B x n, pick each joint's turn (+-2 pi) inside the limits closest to
     ``prev``; return the candidates and their squared distance (inf when a joint fits no turn)."""
     lo, hi = model.limits[:, 0], model.limits[:, 1]
@@ -127,8 +136,9 @@ def _closest(model: RobotModel, cands: FloatArray,
     return chosen, np.sum(gap * gap, axis=-1)
 
 
-def ik_path(model: RobotModel, poses: npt.ArrayLike, q_start: npt.ArrayLike | None = None
-            ) -> FloatArray:
+def ik_path(
+    model: RobotModel, poses: npt.ArrayLike, q_start: npt.ArrayLike | None = None
+) -> FloatArray:
     """Joint angles (N x n rad) reaching flange poses N x 4 x 4 in order, each point on the
     solution closest to the previous one (the first closest to ``q_start``, default the
     model's work pose). Raises :class:`UnreachableError` naming the first bad point."""
@@ -157,15 +167,15 @@ def ik_path(model: RobotModel, poses: npt.ArrayLike, q_start: npt.ArrayLike | No
     return out
 
 
-def ik(model: RobotModel, pose: npt.ArrayLike,
-       q_near: npt.ArrayLike | None = None) -> FloatArray:
+def ik(model: RobotModel, pose: npt.ArrayLike, q_near: npt.ArrayLike | None = None) -> FloatArray:
     """Joint angles (n rad) reaching one flange pose (4 x 4), closest to ``q_near``."""
     out: FloatArray = ik_path(model, np.asarray(pose, dtype=float)[None], q_near)[0]
     return out
 
 
-def _fix_singular_wrist(model: RobotModel, target: FloatArray, q: FloatArray,
-                        prev: FloatArray) -> FloatArray:
+def _fix_singular_wrist(
+    model: RobotModel, target: FloatArray, q: FloatArray, prev: FloatArray
+) -> FloatArray:
     """At a wrist singularity only theta4 + theta6 is defined: keep joint 4 where it was."""
     if abs(math.sin(q[4] + model.offset[4])) >= _EPS_WRIST or not model.spherical_wrist:
         return q
@@ -179,15 +189,20 @@ def _fix_singular_wrist(model: RobotModel, target: FloatArray, q: FloatArray,
     return cands[0] if np.isfinite(dist[0]) else q
 
 
-def _unreachable(model: RobotModel, t: FloatArray, k: int, reach: bool,
-                 index: int | None = None) -> UnreachableError:
+def _unreachable(
+    model: RobotModel, t: FloatArray, k: int, reach: bool, index: int | None = None
+) -> UnreachableError:
     pos = tuple(float(v) for v in t[k, :3, 3])
     k = k if index is None else index
-    why = (f"every solution leaves the joint limits of {model.name}" if reach
-           else f"outside the workspace of {model.name}")
+    why = (
+        f"every solution leaves the joint limits of {model.name}"
+        if reach
+        else f"outside the workspace of {model.name}"
+    )
     where = "({:.4f}, {:.4f}, {:.4f}) m".format(*pos)
-    return UnreachableError(f"point {k} at {where} is unreachable: {why}", index=k,
-                            position=(pos[0], pos[1], pos[2]))
+    return UnreachableError(
+        f"point {k} at {where} is unreachable: {why}", index=k, position=(pos[0], pos[1], pos[2])
+    )
 
 
 def _pose_and_jacobian(model: RobotModel, q: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -215,15 +230,22 @@ def _pose_and_jacobian(model: RobotModel, q: FloatArray) -> tuple[FloatArray, Fl
     jac = np.empty((6, model.n_joints))
     for i, (ax, o) in enumerate(zip(zs, origins, strict=True)):
         dx, dy, dz = p[0] - o[0], p[1] - o[1], p[2] - o[2]
-        jac[:, i] = (ax[1] * dz - ax[2] * dy, ax[2] * dx - ax[0] * dz, ax[0] * dy - ax[1] * dx,
-                     ax[0], ax[1], ax[2])
+        jac[:, i] = (
+            ax[1] * dz - ax[2] * dy,
+            ax[2] * dx - ax[0] * dz,
+            ax[0] * dy - ax[1] * dx,
+            ax[0],
+            ax[1],
+            ax[2],
+        )
     return pose, jac
 
 
 def _error(pose: FloatArray, target: FloatArray) -> FloatArray:
     """Position error (m) and rotation error (axis x angle, rad) from ``pose`` to ``target``."""
-    return np.concatenate([target[:3, 3] - pose[:3, 3],
-                           _log_rotation(target[:3, :3] @ pose[:3, :3].T)])
+    return np.concatenate(
+        [target[:3, 3] - pose[:3, 3], _log_rotation(target[:3, :3] @ pose[:3, :3].T)]
+    )
 
 
 def _log_rotation(r: FloatArray) -> FloatArray:
@@ -271,8 +293,9 @@ def dls(model: RobotModel, target: npt.ArrayLike, q_seed: npt.ArrayLike) -> Floa
     return cands[0] if np.isfinite(dist[0]) else None
 
 
-def _dls_with_restarts(model: RobotModel, target: FloatArray, prev: FloatArray,
-                       k: int) -> FloatArray:
+def _dls_with_restarts(
+    model: RobotModel, target: FloatArray, prev: FloatArray, k: int
+) -> FloatArray:
     def seeds() -> Iterator[FloatArray]:  # random restarts drawn only when needed
         yield from (prev, model.work, model.home)
         rng = np.random.default_rng(k)

@@ -146,20 +146,31 @@ def parse_model(raw: bytes, where: str) -> RobotModel:
         for i, ref in enumerate(doc.get("reference_poses", [])):
             if not isinstance(ref, dict):
                 raise ModelFileError(f"{where}: reference_poses[{i}] is not an object")
-            refs.append(ReferencePose(
-                joints=np.radians(_vector(ref, "joints_deg", where, n)),
-                tcp=_vector(ref, "tcp_m", where, 3),
-                source=str(ref.get("source", "")),
-            ))
+            refs.append(
+                ReferencePose(
+                    joints=np.radians(_vector(ref, "joints_deg", where, n)),
+                    tcp=_vector(ref, "tcp_m", where, 3),
+                    source=str(ref.get("source", "")),
+                )
+            )
         name = str(_get(doc, "name", str, where))
     except (TypeError, ValueError) as exc:
         if isinstance(exc, ModelFileError):
             raise
         raise ModelFileError(f"{where}: {exc}") from exc
     return RobotModel(
-        name=name, title=str(doc.get("title", name)), source=str(doc.get("source", "")),
-        a=a, d=d, alpha=alpha, offset=offset, limits=limits, max_speed=speed,
-        home=home, work=work, reference_poses=tuple(refs),
+        name=name,
+        title=str(doc.get("title", name)),
+        source=str(doc.get("source", "")),
+        a=a,
+        d=d,
+        alpha=alpha,
+        offset=offset,
+        limits=limits,
+        max_speed=speed,
+        home=home,
+        work=work,
+        reference_poses=tuple(refs),
     )
 
 

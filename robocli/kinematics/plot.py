@@ -83,8 +83,9 @@ def plot_validation(sim: TrajectoryLog, meas: TrajectoryLog, result: Validation,
         ax = axes[j // cols][j % cols]
         ax.plot(sim.time, sim.positions[:, j], label="simulated")
         ax.plot(t_meas, meas.positions[:, j], "--", label="measured")
-        ax.set(title=f"joint {j + 1}: RMSE {result.rmse[j]:.2e} rad", xlabel="time (s)",
-               ylabel="rad")
+        ax.set(
+            title=f"joint {j + 1}: RMSE {result.rmse[j]:.2e} rad", xlabel="time (s)", ylabel="rad"
+        )
         ax.legend(fontsize=7)
     last = axes[rows - 1]
     if sim_tcp is not None:

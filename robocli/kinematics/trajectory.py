@@ -59,8 +59,9 @@ def circle_path(center: npt.ArrayLike, radius: float, n: int, plane: str = "xy")
     return plane_points(center, plane, radius * np.cos(phi), radius * np.sin(phi))
 
 
-def rectangle_path(center: npt.ArrayLike, width: float, height: float, n: int,
-                   plane: str = "xy") -> FloatArray:
+def rectangle_path(
+    center: npt.ArrayLike, width: float, height: float, n: int, plane: str = "xy"
+) -> FloatArray:
     """``n`` points spread evenly by arc length on a closed rectangle (corners exact when
     they fall on a sample), starting at a corner."""
     _check_points(n)
@@ -83,8 +84,9 @@ def quintic(n: int) -> FloatArray:
     return np.asarray(tau**3 * (10 - 15 * tau + 6 * tau**2), dtype=float)
 
 
-def times_for(path: FloatArray, speed: float | None, duration: float | None,
-              uniform: bool = False) -> FloatArray:
+def times_for(
+    path: FloatArray, speed: float | None, duration: float | None, uniform: bool = False
+) -> FloatArray:
     """Sample times (s, from 0): constant TCP ``speed`` along ``path`` (N x 3), or the path
     stretched to ``duration``; ``uniform`` spaces samples evenly in time instead."""
     if speed is not None and duration is not None:
@@ -138,9 +140,15 @@ def check_limits(model: RobotModel, log: TrajectoryLog) -> None:
         )
 
 
-def cartesian(model: RobotModel, points: npt.ArrayLike, q_start: npt.ArrayLike | None = None,
-              speed: float | None = None, duration: float | None = None,
-              time: npt.ArrayLike | None = None, uniform: bool = False) -> TrajectoryLog:
+def cartesian(
+    model: RobotModel,
+    points: npt.ArrayLike,
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+    time: npt.ArrayLike | None = None,
+    uniform: bool = False,
+) -> TrajectoryLog:
     """Flange positions (N x 3 m) at the start pose's orientation, through IK, timed."""
     pts = np.asarray(points, dtype=float)
     if pts.ndim != 2 or pts.shape[1] != 3:
@@ -150,34 +158,55 @@ def cartesian(model: RobotModel, points: npt.ArrayLike, q_start: npt.ArrayLike |
     poses = np.repeat(fk(model, q0), pts.shape[0], axis=0)
     poses[:, :3, 3] = pts
     q = ik_path(model, poses, q0)
-    t = np.asarray(time, dtype=float) if time is not None else times_for(
-        pts, speed, duration, uniform)
+    t = (
+        np.asarray(time, dtype=float)
+        if time is not None
+        else times_for(pts, speed, duration, uniform)
+    )
     return simulate(model, t, q)
 
 
-def circle(model: RobotModel, n: int = DEFAULT_POINTS, radius: float = 0.05,
-           center: npt.ArrayLike | None = None, plane: str = "xy",
-           q_start: npt.ArrayLike | None = None, speed: float | None = None,
-           duration: float | None = None) -> TrajectoryLog:
+def circle(
+    model: RobotModel,
+    n: int = DEFAULT_POINTS,
+    radius: float = 0.05,
+    center: npt.ArrayLike | None = None,
+    plane: str = "xy",
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> TrajectoryLog:
     """A closed circle of ``n`` points around ``center`` (default: the start pose's TCP)."""
     q0 = _start(model, q_start)
     c = fk_positions(model, q0)[0] if center is None else np.asarray(center, dtype=float)
     return cartesian(model, circle_path(c, radius, n, plane), q0, speed, duration)
 
 
-def rectangle(model: RobotModel, n: int = DEFAULT_POINTS, width: float = 0.10,
-              height: float = 0.06, center: npt.ArrayLike | None = None, plane: str = "xy",
-              q_start: npt.ArrayLike | None = None, speed: float | None = None,
-              duration: float | None = None) -> TrajectoryLog:
+def rectangle(
+    model: RobotModel,
+    n: int = DEFAULT_POINTS,
+    width: float = 0.10,
+    height: float = 0.06,
+    center: npt.ArrayLike | None = None,
+    plane: str = "xy",
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> TrajectoryLog:
     """A closed rectangle of ``n`` points around ``center`` (default: the start pose's TCP)."""
     q0 = _start(model, q_start)
     c = fk_positions(model, q0)[0] if center is None else np.asarray(center, dtype=float)
     return cartesian(model, rectangle_path(c, width, height, n, plane), q0, speed, duration)
 
 
-def ptp_joint(model: RobotModel, q_goal: npt.ArrayLike, n: int = DEFAULT_POINTS,
-              q_start: npt.ArrayLike | None = None, speed: float | None = None,
-              duration: float | None = None) -> TrajectoryLog:
+def ptp_joint(
+    model: RobotModel,
+    q_goal: npt.ArrayLike,
+    n: int = DEFAULT_POINTS,
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> TrajectoryLog:
     """Joint-space move with a quintic profile; ``speed`` is the mean TCP speed."""
     _check_points(n)
     q0 = _start(model, q_start)
@@ -186,9 +215,14 @@ def ptp_joint(model: RobotModel, q_goal: npt.ArrayLike, n: int = DEFAULT_POINTS,
     return simulate(model, times_for(fk_positions(model, q), speed, duration, True), q)
 
 
-def ptp_cartesian(model: RobotModel, goal: npt.ArrayLike, n: int = DEFAULT_POINTS,
-                  q_start: npt.ArrayLike | None = None, speed: float | None = None,
-                  duration: float | None = None) -> TrajectoryLog:
+def ptp_cartesian(
+    model: RobotModel,
+    goal: npt.ArrayLike,
+    n: int = DEFAULT_POINTS,
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> TrajectoryLog:
     """Straight TCP line to ``goal`` (m) with a quintic profile along it, through IK."""
     _check_points(n)
     q0 = _start(model, q_start)
@@ -200,10 +234,15 @@ def ptp_cartesian(model: RobotModel, goal: npt.ArrayLike, n: int = DEFAULT_POINT
     return cartesian(model, pts, q0, speed, duration, uniform=True)
 
 
-def waypoints(model: RobotModel, joints: npt.ArrayLike | None = None,
-              points: npt.ArrayLike | None = None, time: npt.ArrayLike | None = None,
-              q_start: npt.ArrayLike | None = None, speed: float | None = None,
-              duration: float | None = None) -> TrajectoryLog:
+def waypoints(
+    model: RobotModel,
+    joints: npt.ArrayLike | None = None,
+    points: npt.ArrayLike | None = None,
+    time: npt.ArrayLike | None = None,
+    q_start: npt.ArrayLike | None = None,
+    speed: float | None = None,
+    duration: float | None = None,
+) -> TrajectoryLog:
     """User waypoints: joint rows (rad) or flange positions (m), timed by ``time`` (s) when
     given, else by speed or duration."""
     if (joints is None) == (points is None):

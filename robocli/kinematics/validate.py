@@ -52,8 +52,12 @@ class Validation:
             "onset_delay_s": self.onset_delay_s,
             "samples": self.samples,
             "joints": [
-                {"joint": j + 1, "rmse_rad": float(self.rmse[j]), "mae_rad": float(self.mae[j]),
-                 "max_abs_rad": float(self.max_abs[j])}
+                {
+                    "joint": j + 1,
+                    "rmse_rad": float(self.rmse[j]),
+                    "mae_rad": float(self.mae[j]),
+                    "max_abs_rad": float(self.max_abs[j]),
+                }
                 for j in range(self.rmse.shape[0])
             ],
             "max_rmse_rad": float(np.max(self.rmse)),
@@ -76,8 +80,9 @@ def _grid_step(sim: TrajectoryLog, meas: TrajectoryLog) -> float:
 def _resample(log: TrajectoryLog, dt: float) -> FloatArray:
     n = int(math.floor((log.time[-1] - log.time[0]) / dt + 1e-9)) + 1
     grid = log.time[0] + dt * np.arange(n)
-    return np.stack([np.interp(grid, log.time, log.positions[:, j])
-                     for j in range(log.n_joints)], axis=1)
+    return np.stack(
+        [np.interp(grid, log.time, log.positions[:, j]) for j in range(log.n_joints)], axis=1
+    )
 
 
 def _onset(disp: FloatArray, threshold: float) -> int | None:
@@ -117,7 +122,7 @@ def align(sim: TrajectoryLog, meas: TrajectoryLog) -> tuple[float, float | None]
         size = 1 << int(math.ceil(math.log2(vs.shape[0] + vm.shape[0])))
         spec = np.fft.rfft(vm, size, axis=0) * np.conj(np.fft.rfft(vs, size, axis=0))
         corr = np.fft.irfft(spec.sum(axis=1), size)
-        xc = np.concatenate([corr[size - (vs.shape[0] - 1):], corr[: vm.shape[0]]])
+        xc = np.concatenate([corr[size - (vs.shape[0] - 1) :], corr[: vm.shape[0]]])
     else:
         xc = np.zeros(lags.shape[0])
     allowed = np.ones(lags.shape[0], dtype=bool)
@@ -133,6 +138,7 @@ def align(sim: TrajectoryLog, meas: TrajectoryLog) -> tuple[float, float | None]
 def _refine(s: FloatArray, m: FloatArray, lag: int) -> float:
     """Lag minimising the mean squared position difference near ``lag``, with a parabola
     through the best three for a fractional sample."""
+
     def cost(k: int) -> float:
         lo, hi = max(0, -k), min(s.shape[0], m.shape[0] - k)
         if hi - lo < 2:
@@ -150,8 +156,12 @@ def _refine(s: FloatArray, m: FloatArray, lag: int) -> float:
     return float(best + (0.5 * (c0 - c2) / denom if denom > 0 else 0.0))
 
 
-def validate(sim: TrajectoryLog, meas: TrajectoryLog, model: RobotModel | None = None,
-             delay_s: float | None = None) -> Validation:
+def validate(
+    sim: TrajectoryLog,
+    meas: TrajectoryLog,
+    model: RobotModel | None = None,
+    delay_s: float | None = None,
+) -> Validation:
     """Compare a measured run with its simulation after aligning them in time (or at a
     given ``delay_s``). TCP errors use the logs' TCP columns, else FK of ``model``."""
     onset = None
@@ -168,13 +178,15 @@ def validate(sim: TrajectoryLog, meas: TrajectoryLog, model: RobotModel | None =
     if int(inside.sum()) < 2:
         raise ValidationError("the logs do not overlap in time after alignment")
     t = np.clip(t[inside], meas.time[0], meas.time[-1])
-    q_meas = np.stack([np.interp(t, meas.time, meas.positions[:, j])
-                       for j in range(meas.n_joints)], axis=1)
+    q_meas = np.stack(
+        [np.interp(t, meas.time, meas.positions[:, j]) for j in range(meas.n_joints)], axis=1
+    )
     err = q_meas - sim.positions[inside]
     tcp_sim = sim.tcp[inside] if sim.tcp is not None else None
     if meas.tcp is not None:
         tcp_meas: FloatArray | None = np.stack(
-            [np.interp(t, meas.time, meas.tcp[:, j]) for j in range(3)], axis=1)
+            [np.interp(t, meas.time, meas.tcp[:, j]) for j in range(3)], axis=1
+        )
     elif model is not None:
         tcp_meas = fk_positions(model, q_meas)
     else:
@@ -186,16 +198,22 @@ def validate(sim: TrajectoryLog, meas: TrajectoryLog, model: RobotModel | None =
         dist = np.linalg.norm(tcp_meas - tcp_sim, axis=1) * 1e3
         tcp_stats = (float(np.sqrt(np.mean(dist**2))), float(np.mean(dist)), float(dist.max()))
     return Validation(
-        delay_s=float(delay_s), onset_delay_s=onset, samples=int(err.shape[0]),
+        delay_s=float(delay_s),
+        onset_delay_s=onset,
+        samples=int(err.shape[0]),
         start_delay_s=float(delay_s - (meas.time[0] - sim.time[0])),
-        rmse=np.sqrt(np.mean(err**2, axis=0)), mae=np.mean(np.abs(err), axis=0),
+        rmse=np.sqrt(np.mean(err**2, axis=0)),
+        mae=np.mean(np.abs(err), axis=0),
         max_abs=np.max(np.abs(err), axis=0),
-        tcp_rmse_mm=tcp_stats[0], tcp_mean_mm=tcp_stats[1], tcp_max_mm=tcp_stats[2],
+        tcp_rmse_mm=tcp_stats[0],
+        tcp_mean_mm=tcp_stats[1],
+        tcp_max_mm=tcp_stats[2],
     )
 
 
-def shifted(log: TrajectoryLog, delay_s: float, pad_s: float = 0.0,
-            noise_rad: float = 0.0, seed: int = 0) -> TrajectoryLog:
+def shifted(
+    log: TrajectoryLog, delay_s: float, pad_s: float = 0.0, noise_rad: float = 0.0, seed: int = 0
+) -> TrajectoryLog:
     """A copy of ``log`` as a controller might record it: ``pad_s`` of standing still
     before and after, the clock shifted by ``delay_s``, Gaussian joint noise ``noise_rad``.
     For tests and demonstrations."""
@@ -204,14 +222,20 @@ def shifted(log: TrajectoryLog, delay_s: float, pad_s: float = 0.0,
     before = log.time[0] - dt * np.arange(n_pad, 0, -1)
     after = log.time[-1] + dt * np.arange(1, n_pad + 1)
     time = np.concatenate([before, log.time, after]) + delay_s
-    q = np.concatenate([np.repeat(log.positions[:1], n_pad, axis=0), log.positions,
-                        np.repeat(log.positions[-1:], n_pad, axis=0)])
+    q = np.concatenate(
+        [
+            np.repeat(log.positions[:1], n_pad, axis=0),
+            log.positions,
+            np.repeat(log.positions[-1:], n_pad, axis=0),
+        ]
+    )
     if noise_rad > 0:
         q = q + np.random.default_rng(seed).normal(0.0, noise_rad, q.shape)
     tcp = None
     if log.tcp is not None and noise_rad == 0:
-        tcp = np.concatenate([np.repeat(log.tcp[:1], n_pad, axis=0), log.tcp,
-                              np.repeat(log.tcp[-1:], n_pad, axis=0)])
+        tcp = np.concatenate(
+            [np.repeat(log.tcp[:1], n_pad, axis=0), log.tcp, np.repeat(log.tcp[-1:], n_pad, axis=0)]
+        )
     return TrajectoryLog.from_positions(time, q, tcp)
 
 

@@ -20,5 +20,16 @@ from robocli.ros2.types import (
     type_hash,
 )
 
-__all__ = ["RAW_FRAME", "Mapper", "Ros2Message", "Ros2Unavailable", "deserialize",
-           "laser_scan_cdr", "msgdef", "plain", "serialize", "to_ros2", "type_hash"]
+__all__ = [
+    "RAW_FRAME",
+    "Mapper",
+    "Ros2Message",
+    "Ros2Unavailable",
+    "deserialize",
+    "laser_scan_cdr",
+    "msgdef",
+    "plain",
+    "serialize",
+    "to_ros2",
+    "type_hash",
+]

@@ -135,7 +135,7 @@ class Ros2Topics:
     def relative(self, topic: str) -> str:
         """robocli's ``/NAME/KEY`` -> ``KEY``; ``/tf`` -> ``tf`` (see the module)."""
         if topic.startswith(self._prefix):
-            return topic[len(self._prefix):]
+            return topic[len(self._prefix) :]
         return topic.lstrip("/")
 
     def publisher(self, topic: str, msgtype: str) -> Ros2Publisher:
@@ -185,7 +185,7 @@ class Ros2Topics:
             handler, args, size = item
             try:
                 handler(*args)
-            except Exception:  # noqa: BLE001 - one bad frame never ends the topics
+            except Exception:
                 self.errors += 1
                 log.error("%s: a sample could not be published", self.name, exc_info=True)
             finally:
@@ -197,7 +197,7 @@ class Ros2Topics:
         while self._closers:
             try:
                 self._closers.pop()()
-            except Exception:  # noqa: BLE001 - a device already gone
+            except Exception:
                 log.debug("detach failed", exc_info=True)
         if self._thread.is_alive():
             try:

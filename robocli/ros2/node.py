@@ -147,7 +147,7 @@ class Ros2Subscriber:
             return
         try:
             self._callback(payload, attachment)
-        except Exception:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception:
             self.failed += 1
             log.error("%s: a message could not be handled", self.topic, exc_info=True)
 
@@ -206,5 +206,5 @@ class Ros2Node:
 def _undeclare(entity: Any) -> None:
     try:
         entity.undeclare()
-    except Exception:  # noqa: BLE001 - a session already closed: nothing to undo
+    except Exception:
         log.debug("undeclare failed", exc_info=True)

@@ -60,8 +60,12 @@ def decode(msgtype: str, data: bytes | memoryview, view: bool = True) -> dict[st
     if not view:
         return msg
     if msgtype == "sensor_msgs/msg/LaserScan":
-        msg.update(start_angle=msg.get("angle_min"), end_angle=msg.get("angle_max"),
-                   frame_id=frame_id, pose=_IDENTITY)
+        msg.update(
+            start_angle=msg.get("angle_min"),
+            end_angle=msg.get("angle_max"),
+            frame_id=frame_id,
+            pose=_IDENTITY,
+        )
     elif msgtype == "nav_msgs/msg/Odometry":
         msg.update(frame_id=frame_id, pose=msg.get("pose", {}).get("pose", {}))
     elif msgtype == "geometry_msgs/msg/PoseStamped":

@@ -22,8 +22,18 @@ from typing import Any
 
 from robocli.errors import RobocliError
 
-__all__ = ["RAW_FRAME", "RAW_FRAME_MSG", "Ros2Unavailable", "deserialize", "message",
-           "msgdef", "plain", "serialize", "type_hash", "typestore"]
+__all__ = [
+    "RAW_FRAME",
+    "RAW_FRAME_MSG",
+    "Ros2Unavailable",
+    "deserialize",
+    "message",
+    "msgdef",
+    "plain",
+    "serialize",
+    "type_hash",
+    "typestore",
+]
 
 #: robocli's message for the raw bytes of a link: one whole frame as it went over the wire
 #: (framing and checksum included). ``direction``: ``tx`` (robocli sent it) or ``rx``;
@@ -75,7 +85,7 @@ def deserialize(data: bytes | memoryview, msgtype: str) -> Any:
         raise RobocliError(f"unknown ROS 2 message type {msgtype!r}")
     try:
         return store.deserialize_cdr(data, msgtype)
-    except Exception as exc:  # noqa: BLE001 - rosbags raises several kinds on bad bytes
+    except Exception as exc:
         raise RobocliError(f"a {msgtype} message does not decode ({exc})") from None
 
 
@@ -108,4 +118,3 @@ def plain(msg: Any) -> Any:
             return bytes(msg)
         return tolist()
     return msg
-

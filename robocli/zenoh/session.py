@@ -110,7 +110,7 @@ def zenoh_config(
     if target.config_file is not None:
         try:
             config: zenoh.Config = z.Config.from_file(str(target.config_file))
-        except Exception as exc:  # noqa: BLE001 - zenoh raises ZError / ValueError on bad JSON5
+        except Exception as exc:
             raise InvalidArgument(f"--zenoh {target.config_file}: {_first_line(exc)}") from None
         if role == "router":
             config.insert_json5("mode", '"router"')
@@ -156,7 +156,7 @@ def open_session(
     config = zenoh_config(target, role, extra=extra)
     try:
         session: zenoh.Session = z.open(config)
-    except Exception as exc:  # noqa: BLE001 - zenoh.ZError: not reachable, port taken, refused
+    except Exception as exc:
         verb = "connect to" if role == "client" else "listen on"
         raise TransportError(f"zenoh: cannot {verb} {target}: {_first_line(exc)}") from None
     return session

@@ -129,8 +129,9 @@ def test_bad_arguments_one_line() -> None:
     assert done.returncode == 2 and len(done.stderr.splitlines()) == 1
 
 
-@pytest.mark.parametrize(("kind", "target"),
-                         [("rtt", "pioneer"), ("rtt", "hub"), ("jitter", "pioneer")])
+@pytest.mark.parametrize(
+    ("kind", "target"), [("rtt", "pioneer"), ("rtt", "hub"), ("jitter", "pioneer")]
+)
 def test_paper_model_is_for_the_arm_only(kind: str, target: str) -> None:
     """(``bench jitter --target hub`` is refused earlier: jitter has no hub target.)"""
     done = subprocess.run([*BENCH, kind, "--target", target, "--paper-model", "-n", "10"],

@@ -95,8 +95,9 @@ def test_bad_input_one_line_exit_2(case: str, tmp_path: Path, capsys) -> None:
     if case == "101":
         args += ["--shape", "circle", "--count", "101"]
     elif case == "nan":
-        (tmp_path / "n.json").write_text('{"time": [0, 1], "joints_positions": '
-                                         '[[0,0,0,0,0,NaN],[0,0,0,0,0,0]]}')
+        (tmp_path / "n.json").write_text(
+            '{"time": [0, 1], "joints_positions": [[0,0,0,0,0,NaN],[0,0,0,0,0,0]]}'
+        )
         args += ["--file", str(tmp_path / "n.json")]
     elif case == "malformed":
         (tmp_path / "m.json").write_text('{"time": [0, 1')

@@ -56,8 +56,18 @@ def test_a_short_wait_says_the_arm_keeps_moving(make_sim, capsys) -> None:
     """``--wait`` bounds the waiting, not the motion: exit 1 (the controller answers), the
     trajectory is not stopped."""
     sim, mp, sp = make_sim(time_scale=1.0)
-    code, out, err = run(capsys, "upload", "arm", *ports(mp, sp), "--shape", "circle",
-                         "--duration", "60", "--wait", "1")  # fmt: skip (moving long after)
+    code, out, err = run(
+        capsys,
+        "upload",
+        "arm",
+        *ports(mp, sp),
+        "--shape",
+        "circle",
+        "--duration",
+        "60",
+        "--wait",
+        "1",
+    )  # fmt: skip (moving long after)
     assert code == 1, err
     assert "still moving after 1 s and keeps moving" in err
     assert len(err.strip().splitlines()) == 1 and "idle" not in out

@@ -137,7 +137,7 @@ def test_empty_capture_fails(tmp_path: Path) -> None:
 
 def test_an_invalid_header_is_shown_not_fatal(tmp_path: Path) -> None:
     capture = tmp_path / "bad.jsonl"
-    bad = "0c000000" "00000000" "01000000" "00000000"  # msg_type 0: the library refuses it
+    bad = "0c000000000000000100000000000000"  # msg_type 0: the library refuses it
     good = sm.encode(sm.MsgType.PING, sm.CommType.TOPIC).hex()
     capture.write_text(f'{{"t": 0, "dir": "s2c", "hex": "{bad}{good}"}}\n')
     done = dump("--file", str(capture), "--json")

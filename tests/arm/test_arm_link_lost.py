@@ -115,7 +115,7 @@ class CutAfterActivation:
             s.close()
 
 
-def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:  # noqa: ANN001
+def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:
     sim, mp, sp = make_sim(time_scale=2.0)
     proxy = CutAfterActivation(mp, lambda: sim.wait_until(lambda s: s.motion_clients == 0, WAIT))
     arm = Arm.connect("127.0.0.1", proxy.port, sp, timeout=WAIT)
@@ -139,7 +139,7 @@ def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:  # n
         proxy.close()
 
 
-def test_no_stop_when_nothing_was_activated(make_sim) -> None:  # noqa: ANN001
+def test_no_stop_when_nothing_was_activated(make_sim) -> None:
     """A link lost before -3 went out is a plain "link lost": nothing can be moving."""
     sim, mp, sp = make_sim(time_scale=2.0)
     proxy = CutAfterActivation(mp, lambda: None)
@@ -156,7 +156,7 @@ def test_no_stop_when_nothing_was_activated(make_sim) -> None:  # noqa: ANN001
         arm.close()
 
 
-def test_the_error_says_when_the_stop_could_not_be_sent(make_sim) -> None:  # noqa: ANN001
+def test_the_error_says_when_the_stop_could_not_be_sent(make_sim) -> None:
     """The controller cannot be reached again: the arm may be moving, and nothing stopped it."""
     sim, mp, sp = make_sim(time_scale=2.0)
     proxy: CutAfterActivation | None = None

@@ -80,8 +80,14 @@ def test_record_takes_every_arm_link_option(tmp_path: Path, order: str, real: in
 
 def test_record_names_only_options_it_has(tmp_path: Path) -> None:
     helped = run("record", "-h").stdout
-    for option in ("--motion-port", "--state-port", "--byte-order", "--real-size", "--robot",
-                   "--timeout"):  # both ports, as every arm command (issue 22)
+    for option in (
+        "--motion-port",
+        "--state-port",
+        "--byte-order",
+        "--real-size",
+        "--robot",
+        "--timeout",
+    ):  # both ports, as every arm command (issue 22)
         assert option in helped
     bad = run("record", "--arm", "127.0.0.1:11002", "-o", str(tmp_path / "x.mcap"))
     line = one_line_error(bad, 2)

@@ -96,8 +96,13 @@ def test_client_decodes_library_state_frames(variant, talking_server) -> None:
     vec = vectors(variant)
     names = ("joint_position_topic", "status_topic_manual_error", "joint_feedback_topic")
     server = talking_server(b"".join(bytes.fromhex(vec[n]["hex"]) for n in names))
-    arm = Arm.connect("127.0.0.1", state_port=server.port, motion=False,
-                      byte_order="big" if order == ">" else "little", real_size=real)
+    arm = Arm.connect(
+        "127.0.0.1",
+        state_port=server.port,
+        motion=False,
+        byte_order="big" if order == ">" else "little",
+        real_size=real,
+    )
     try:
         arm.wait_for_state()
         arm.wait_for_state()

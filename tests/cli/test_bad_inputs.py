@@ -107,10 +107,26 @@ def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
     [
         (["info", "/etc/passwd"], 2, "not an MCAP file"),
         (["connect", "laser", "sim", "--start", "900", "--end", "100"], 2, "before --start"),
-        (["upload", "arm", "sim", "--shape", "circle", "--motion-port", "28000",
-          "--state-port", "28000"], 2, "both 28000"),  # fmt: skip
-        (["monitor", "arm", "sim", "--motion-port", "28000", "--state-port", "28000"], 2,
-         "both 28000"),  # fmt: skip
+        (
+            [
+                "upload",
+                "arm",
+                "sim",
+                "--shape",
+                "circle",
+                "--motion-port",
+                "28000",
+                "--state-port",
+                "28000",
+            ],
+            2,
+            "both 28000",
+        ),
+        (
+            ["monitor", "arm", "sim", "--motion-port", "28000", "--state-port", "28000"],
+            2,
+            "both 28000",
+        ),
         (["record", "--arm", "127.0.0.1:28002", "-o", "{tmp}/a.mcap"], 2, "--motion-port"),
     ],
 )

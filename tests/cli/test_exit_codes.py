@@ -113,9 +113,9 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("dump", "arm", "sim", "-o", "{tmp}/missing/x.jsonl", hint=False),
         run("dump", "hub", "127.0.0.1:{free}", "-o", "{tmp}/missing/x.jsonl", hint=False),
         run("monitor", "arm", "127.0.0.1", "--state-port", "{free}", "--duration", "1",
-            "-o", "{tmp}/missing/x.json", hint=False),  # fmt: skip
+            "-o", "{tmp}/missing/x.json", hint=False),
         run("upload", "arm", "127.0.0.1", "--motion-port", "{free}",
-            "--shape", "circle", "--output", "{tmp}/missing/x.json", hint=False),  # fmt: skip
+            "--shape", "circle", "--output", "{tmp}/missing/x.json", hint=False),
         run("traj", "circle", "-o", "{tmp}/missing/x.json", hint=False),
     ],
     (2, "an output file that exists (without `--overwrite`) or is a symbolic link (said before "
@@ -124,7 +124,7 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("dump", "hub", "127.0.0.1:{free}", "-o", "{tmp}/old.jsonl", hint=False),
         run("traj", "circle", "-o", "{tmp}/sim.json", hint=False),
         run("upload", "arm", "sim", "--shape", "circle", "--record", "{tmp}/link.mcap",
-            "--overwrite", hint=False),  # fmt: skip
+            "--overwrite", hint=False),
     ],
     (2, "a file that cannot be read, or malformed (map, log, waypoints)"): [
         run("validate", "{tmp}/nan.json", "{tmp}/nan.json", hint=False),
@@ -161,7 +161,7 @@ CASES: dict[tuple[int, str], list[Run]] = {
         run("connect", "pioneer", "sim", "--json", how="SIGINT"),
         run("dump", "pioneer", "sim", how="SIGTERM"),
         run("-v", "monitor", "arm", "sim", "--duration", "600", "-o", "{tmp}/ctrl-c.json",
-            how="SIGINT", ready="connected"),  # fmt: skip
+            how="SIGINT", ready="connected"),
     ],
 }  # fmt: skip
 

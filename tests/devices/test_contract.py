@@ -76,8 +76,6 @@ def _free_endpoint() -> str:
         return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
-
-
 def _hub_traffic(hub: Any) -> object:
     return hub.pull("adc") if "adc" in hub._subscribed else hub.subscribe("adc", rate=50)
 

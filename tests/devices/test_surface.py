@@ -97,7 +97,8 @@ def test_an_old_spelling_works_and_warns_once_naming_the_new(
         assert scans  # the old name still does its job
     with robocli.Pioneer.connect("sim://") as robot:
         assert _warnings_of(lambda: robot.connected) == [
-            "Pioneer.connected is deprecated; use Pioneer.alive"]
+            "Pioneer.connected is deprecated; use Pioneer.alive"
+        ]
         assert robot.connected is True
     with robocli.Hub.connect(host="sim://") as hub:  # the old name of url
         assert hub.alive
@@ -141,4 +142,3 @@ def test_simulator_only_methods_are_a_part_under_robot_sim() -> None:
         robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
         robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
         assert robot.sim is None
-

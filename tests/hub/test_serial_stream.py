@@ -255,7 +255,7 @@ def test_the_line_survives_the_hub_restarting(device: Device) -> None:
         line.write(b"one")
         assert device.wait_bytes(3) == b"one"
         srv.close()
-        _wait(lambda: ("lost" in [k for k, _ in events]), "the line to say it lost the hub")
+        _wait(lambda: "lost" in [k for k, _ in events], "the line to say it lost the hub")
         srv = HubServer(port=port, sim=False, serial_ports=[device.path], token=TOKEN).start()
         _wait(lambda: line.connected and line.resumes == 1, "the line to come back")
         assert [k for k, _ in events] == ["lost", "resumed"]

@@ -62,7 +62,7 @@ def test_malformed_input_does_not_disturb_a_streaming_client(
             (
                 _header(0x03, 1, 12, 12) + bytes([0x20, 0]) + struct.pack("<II", 9, 2) + b"zz",
                 0x13,
-            ),  # wrong params size  # fmt: skip
+            ),  # wrong params size
             (_header(0x20, 1, 2, 2) + b"zz", 0x20),  # a pull with a body
             (_header(0x01, 1, 1, 1) + b"\x03", 0x11),  # short CONNECT
             (_header(0x21, 0, 5, 5, error=1) + b"oops\0", 0x21),  # an error from a client

@@ -65,7 +65,7 @@ def test_silent_pullers_are_cut_not_the_reader(raw: Any, wait: Any, token: bytes
                 target=_pull_without_reading,
                 daemon=True,
                 args=(c.sock, r4m.encode_request("camera", client_id=c.client_id), stop),
-            )  # fmt: skip
+            )
             for c in silent
         ]
         for t in threads:
@@ -89,7 +89,7 @@ def test_silent_pullers_are_cut_not_the_reader(raw: Any, wait: Any, token: bytes
             stop.set()
             for t in threads:
                 t.join(10)
-        held = srv._server.budget  # noqa: SLF001 - the hub's own accounting
+        held = srv._server.budget
         print(
             f"{replies} replies, {frames} frames to the reader; output held peak "
             f"{srv.output_peak / 1e6:.1f} MB of {budget / 1e6:.1f}; {held.evicted} cut"

@@ -223,14 +223,14 @@ def test_output_waiting_over_all_connections_is_bounded(raw: Any, wait: Any) -> 
         connected = {c.client_id for c in clients}
 
         def settled() -> bool:
-            waiting = srv._server.budget.total  # noqa: SLF001 - the hub's own accounting
+            waiting = srv._server.budget.total
             alive = {i.id for i in srv.clients if i.connected} & connected
             return waiting > 0 and len(alive) < len(clients)
 
         wait(settled, timeout=20, what="a client dropped for the budget")
         print(f"output waiting peak {srv.output_peak / 1e6:.2f} MB (budget {budget / 1e6:.1f})")
         assert srv.output_peak <= budget
-        held = srv._server.budget  # noqa: SLF001
+        held = srv._server.budget
         assert held.overflows + held.evicted >= 1
         late = raw(srv.port)  # the hub still serves
         late.connect()

@@ -8,9 +8,9 @@ import pytest
 
 pytest.importorskip("mcap")
 
-from robocli.hub import HubServer  # noqa: E402
-from robocli.sim.abb.server import AbbSim  # noqa: E402
-from robocli.sim.pioneer.server import PioneerSim  # noqa: E402
+from robocli.hub import HubServer
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.pioneer.server import PioneerSim
 
 
 @pytest.fixture

@@ -43,8 +43,14 @@ class FoxgloveClient:
         self.timeout = timeout
         self._stack = contextlib.ExitStack()
         self.ws: ClientConnection = self._stack.enter_context(
-            connect(url, subprotocols=list(SUBPROTOCOLS), open_timeout=timeout,  # type: ignore[arg-type]
-                    max_queue=max_queue, max_size=None, close_timeout=close_timeout)
+            connect(
+                url,
+                subprotocols=list(SUBPROTOCOLS),
+                open_timeout=timeout,  # type: ignore[arg-type]
+                max_queue=max_queue,
+                max_size=None,
+                close_timeout=close_timeout,
+            )
         )
         self.channels: dict[int, Channel] = {}
         self.subscriptions: dict[int, int] = {}  # subscription id -> channel id
@@ -114,8 +120,9 @@ class FoxgloveClient:
             while self.pending:
                 got, log_ns, payload = self.pending.pop(0)
                 if got == sub:
-                    data = viewer_checked(channel.schema_name, channel.schema,
-                                          json.loads(payload), channel.topic)
+                    data = viewer_checked(
+                        channel.schema_name, channel.schema, json.loads(payload), channel.topic
+                    )
                     out.append((log_ns, data))
             if len(out) < n:
                 self._handle(self._recv(deadline))

@@ -36,8 +36,10 @@ def mcap(*items: Any, closed: bool = True) -> bytes:
 
 
 def schema_and_channel(topic: str = "/t", encoding: str = "json") -> list[Any]:
-    return [Schema(id=1, name="s", encoding="jsonschema", data=b"{}"),
-            Channel(id=1, schema_id=1, topic=topic, message_encoding=encoding, metadata={})]
+    return [
+        Schema(id=1, name="s", encoding="jsonschema", data=b"{}"),
+        Channel(id=1, schema_id=1, topic=topic, message_encoding=encoding, metadata={}),
+    ]
 
 
 def message_head(data_len: int, channel_id: int = 1, t: int = 1) -> bytes:

@@ -12,14 +12,14 @@ import pytest
 
 pytest.importorskip("websockets")
 
-from websockets.exceptions import InvalidStatus  # noqa: E402
-from websockets.sync.client import connect  # noqa: E402
+from websockets.exceptions import InvalidStatus
+from websockets.sync.client import connect
 
-from robocli.io import schemas as S  # noqa: E402
-from robocli.io.record.links import json_text  # noqa: E402
-from robocli.io.record.live import LiveView  # noqa: E402
-from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient  # noqa: E402
-from tests.io.readback import wait_for  # noqa: E402
+from robocli.io import schemas as S
+from robocli.io.record.links import json_text
+from robocli.io.record.live import LiveView
+from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
+from tests.io.readback import wait_for
 
 MiB = 1 << 20
 #: one 640x480 rgb8 frame as the hub's camera channel carries it (JSON, base64: ~1.2 MB)

@@ -16,16 +16,16 @@ import pytest
 
 pytest.importorskip("websockets")
 
-from cli.helpers import one_line_error, run, running  # noqa: E402
+from cli.helpers import one_line_error, run, running
 
-from robocli.devices.arm import Arm  # noqa: E402
-from robocli.devices.hub.client import Hub  # noqa: E402
-from robocli.devices.pioneer import Pioneer  # noqa: E402
-from robocli.hub import HubServer  # noqa: E402
-from robocli.io.record import Recorder, pull_hub  # noqa: E402
-from robocli.io.record.live import LiveView  # noqa: E402
-from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient  # noqa: E402
-from tests.io.readback import by_topic, decoded, wait_for  # noqa: E402
+from robocli.devices.arm import Arm
+from robocli.devices.hub.client import Hub
+from robocli.devices.pioneer import Pioneer
+from robocli.hub import HubServer
+from robocli.io.record import Recorder, pull_hub
+from robocli.io.record.live import LiveView
+from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
+from tests.io.readback import by_topic, decoded, wait_for
 
 
 def test_a_pioneer_live(pioneer_url: str) -> None:
@@ -150,10 +150,16 @@ def _live_url(line: str) -> str:
     [
         (["connect", "pioneer", "sim", "--json"], "/pioneer/pose", "foxglove.PoseInFrame"),
         (["connect", "arm", "sim", "--json"], "/arm/tf", "foxglove.FrameTransforms"),
-        (["connect", "pioneer", "sim", "--laser", "sim", "--json"], "/laser/scan",
-         "foxglove.LaserScan"),
-        (["connect", "pioneer", "sim", "--laser", "sim", "--json"], "/laser/tf",
-         "foxglove.FrameTransform"),
+        (
+            ["connect", "pioneer", "sim", "--laser", "sim", "--json"],
+            "/laser/scan",
+            "foxglove.LaserScan",
+        ),
+        (
+            ["connect", "pioneer", "sim", "--laser", "sim", "--json"],
+            "/laser/tf",
+            "foxglove.FrameTransform",
+        ),
     ],
 )
 def test_connect_foxglove(argv: list[str], topic: str, schema: str) -> None:

@@ -42,10 +42,14 @@ WRITERS = {
     "record-arm": (("record", "--arm", "ADDR", "-n", "20", "-o", "OUT"), ".mcap"),
     "dump": (("dump", "pioneer", "ADDR", "-n", "3", "-o", "OUT"), ".jsonl"),
     "monitor": (("monitor", "arm", "ADDR", "--count", "3", "-o", "OUT"), ".json"),
-    "upload-monitor": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
-                        "--output", "OUT"), ".json"),  # fmt: skip
-    "upload-record": (("upload", "arm", "ADDR", "--shape", "circle", "--count", "5",
-                       "--record", "OUT"), ".mcap"),  # fmt: skip
+    "upload-monitor": (
+        ("upload", "arm", "ADDR", "--shape", "circle", "--count", "5", "--output", "OUT"),
+        ".json",
+    ),
+    "upload-record": (
+        ("upload", "arm", "ADDR", "--shape", "circle", "--count", "5", "--record", "OUT"),
+        ".mcap",
+    ),
     "traj": (("traj", "circle", "-n", "20", "-o", "OUT"), ".csv"),
     "traj-plot": (("traj", "circle", "-n", "20", "-o", "TMP/x.json", "--plot", "OUT"), ".png"),
     "validate-plot": (("validate", "SIM", "SIM", "--plot", "OUT"), ".png"),

@@ -16,18 +16,18 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from cli.helpers import one_line_error, run  # noqa: E402
+from cli.helpers import one_line_error, run
 
-from robocli.devices.arm import Arm  # noqa: E402
-from robocli.devices.hub.client import Hub  # noqa: E402
-from robocli.devices.pioneer import Pioneer  # noqa: E402
-from robocli.errors import InvalidArgument  # noqa: E402
-from robocli.hub import HubServer  # noqa: E402
-from robocli.io import schemas as S  # noqa: E402
-from robocli.io.record import Recorder  # noqa: E402
-from robocli.io.record.links import json_text  # noqa: E402
-from robocli.io.record.plot import plot  # noqa: E402
-from tests.io.readback import by_topic, wait_for  # noqa: E402
+from robocli.devices.arm import Arm
+from robocli.devices.hub.client import Hub
+from robocli.devices.pioneer import Pioneer
+from robocli.errors import InvalidArgument
+from robocli.hub import HubServer
+from robocli.io import schemas as S
+from robocli.io.record import Recorder
+from robocli.io.record.links import json_text
+from robocli.io.record.plot import plot
+from tests.io.readback import by_topic, wait_for
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

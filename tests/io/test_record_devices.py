@@ -115,8 +115,7 @@ def test_pioneer_raw_channels_are_the_live_dumps_packets(pioneer_url: str,
     frames = list(read_capture(path, "arcos", stats))
     assert stats.dropped_bytes == 0
     for way in ("tx", "rx"):  # byte for byte, in order, from the handshake to the CLOSE
-        assert [f.frame for f in frames if f.direction == way] == [
-            f for d, f in seen if d == way]
+        assert [f.frame for f in frames if f.direction == way] == [f for d, f in seen if d == way]
     assert frames[0].frame == arcos.frame(b"\x00")  # SYNC0 first
     times = [f.t for f in frames]
     assert times == sorted(times) and times[0] == 0.0

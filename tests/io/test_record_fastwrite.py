@@ -11,10 +11,10 @@ import pytest
 
 pytest.importorskip("mcap")
 
-from mcap.reader import make_reader  # noqa: E402
-from mcap.writer import CompressionType, Writer  # noqa: E402
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
 
-from robocli.io.record.fastwrite import MessageAdder  # noqa: E402
+from robocli.io.record.fastwrite import MessageAdder
 
 
 def _file(fast: bool, compression: CompressionType) -> bytes:
@@ -62,11 +62,11 @@ def _states(as_dict: bool) -> list[bytes]:
     trace = Path(__file__).resolve().parents[1] / "data/arcos/b_simpleMotionCommands.jsonl"
     out = io.BytesIO()
     rec = Recorder(out, compression="none")
-    rec._epoch_ns = 1_795_000_000_000_000_000  # noqa: SLF001 - both runs on one time base
+    rec._epoch_ns = 1_795_000_000_000_000_000
     link = rec.listener("pioneer", "arcos")
     decoder = PioneerDecoder(rec, "pioneer", ROBOT_PARAMS["p3dx"])
     if as_dict:
-        decoder._state = decoder._state_dict  # type: ignore[method-assign]  # noqa: SLF001
+        decoder._state = decoder._state_dict  # type: ignore[method-assign]
     link.decoder = decoder
     for i, f in enumerate(read_capture(trace)):
         if f.direction == "rx" and f.frame[3] & 0xF0 == 0x30:

@@ -45,11 +45,16 @@ def _peak_run(*args: str) -> tuple[subprocess.CompletedProcess[str], int]:
 def _readers(path: Path, out: Path) -> list[list[str]]:
     """Every command that reads a recording, on ``path``."""
     p = str(path)
-    return [["info", p], ["export", p, "-f", "jsonl", "-o", str(out)],
-            ["plot", p, "-c", "/t", "-f", "v", "-o", str(out / "t.png")],
-            ["dump", "pioneer", "--file", p], ["validate", p, p],
-            ["sim", "pioneer", "--replay", p], ["sim", "abb", "--replay", p],
-            ["serve", "--replay", p]]
+    return [
+        ["info", p],
+        ["export", p, "-f", "jsonl", "-o", str(out)],
+        ["plot", p, "-c", "/t", "-f", "v", "-o", str(out / "t.png")],
+        ["dump", "pioneer", "--file", p],
+        ["validate", p, p],
+        ["sim", "pioneer", "--replay", p],
+        ["sim", "abb", "--replay", p],
+        ["serve", "--replay", p],
+    ]
 
 
 def _bomb(declared: int, zeros: int, content_size: int | None = None) -> bytes:
@@ -96,8 +101,12 @@ def _small_recording(tmp_path: Path, compression: str = "none") -> Path:
         def write(i: int) -> None:
             cid = rec.channel("/t", "robocli.pioneer.State")
             rec.write(cid, json.dumps({"v": i, "name": "é"}).encode(), 1_000_000_000 + i)
-            raw = rec.channel("/raw", None, encoding="robocli.raw",
-                              metadata={"protocol": "arcos", "direction": "rx", "link": "p"})
+            raw = rec.channel(
+                "/raw",
+                None,
+                encoding="robocli.raw",
+                metadata={"protocol": "arcos", "direction": "rx", "link": "p"},
+            )
             rec.write(raw, bytes.fromhex("fafb0332000000"), 1_000_000_000 + i)
 
         for i in range(40):
@@ -160,8 +169,11 @@ def small(tmp_path_factory: pytest.TempPathFactory) -> dict[str, bytes]:
     return {c: _small_recording(folder, c).read_bytes() for c in ("none", "zstd")}
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow,
-                                                                    HealthCheck.data_too_large])
+@settings(
+    max_examples=150,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large],
+)
 @given(data=st.data())
 def test_any_damage_reads_or_raises_a_robocli_error(tmp_path_factory: pytest.TempPathFactory,
                                                     small: dict[str, bytes],
@@ -172,8 +184,18 @@ def test_any_damage_reads_or_raises_a_robocli_error(tmp_path_factory: pytest.Tem
     good = bytearray(small[data.draw(st.sampled_from(["none", "zstd"]))])
     for _ in range(data.draw(st.integers(1, 3))):
         at = data.draw(st.integers(8, len(good) - 1))
-        value = data.draw(st.sampled_from([b"\xff" * 8, struct.pack("<Q", 1 << 63), b"\x80",
-                                           b"\0\0\0\0", b"\xff\xfe", st.binary(max_size=9)]))
+        value = data.draw(
+            st.sampled_from(
+                [
+                    b"\xff" * 8,
+                    struct.pack("<Q", 1 << 63),
+                    b"\x80",
+                    b"\0\0\0\0",
+                    b"\xff\xfe",
+                    st.binary(max_size=9),
+                ]
+            )
+        )
         if not isinstance(value, bytes):
             value = data.draw(value)
         good[at : at + len(value)] = value
@@ -198,7 +220,8 @@ def test_channel_records_parse_with_the_package_s_own_classes(tmp_path: Path) ->
                             b.plain_chunk(b.message(b'{"v": 1}', channel_id=7))))  # fmt: skip
     summary = info(path)
     assert [(c.topic, c.schema, c.metadata, c.count) for c in summary.channels] == [
-        ("/x", "n", {"k": "v"}, 1)]
+        ("/x", "n", {"k": "v"}, 1)
+    ]
     assert list(channel_messages(path)) == [("/x", "n", 1, 1, {"v": 1})]
 
 
@@ -225,13 +248,18 @@ def test_messages_that_do_not_fit_their_schema_are_one_line(
 
     for i, data in enumerate(HOSTILE):
         path = tmp_path / f"m{i}.mcap"
-        path.write_bytes(b.mcap(Schema(id=1, name=schema, encoding="jsonschema", data=b"{}"),
-                                Channel(id=1, schema_id=1, topic=topic, message_encoding="json",
-                                        metadata={}),
-                                b.plain_chunk(b.message(data, t=1), b.message(data, t=2))))
-        for args in (["export", str(path), "-f", "csv", "-o", str(tmp_path / f"o{i}")],
-                     ["export", str(path), "-f", "irb120-json", "-o", str(tmp_path / f"o{i}")],
-                     ["plot", str(path), "-c", topic, "-o", str(tmp_path / f"p{i}.png")]):
+        path.write_bytes(
+            b.mcap(
+                Schema(id=1, name=schema, encoding="jsonschema", data=b"{}"),
+                Channel(id=1, schema_id=1, topic=topic, message_encoding="json", metadata={}),
+                b.plain_chunk(b.message(data, t=1), b.message(data, t=2)),
+            )
+        )
+        for args in (
+            ["export", str(path), "-f", "csv", "-o", str(tmp_path / f"o{i}")],
+            ["export", str(path), "-f", "irb120-json", "-o", str(tmp_path / f"o{i}")],
+            ["plot", str(path), "-c", topic, "-o", str(tmp_path / f"p{i}.png")],
+        ):
             code = main(args)
             err = capsys.readouterr().err
             assert code in (0, 1, 2), (data[:40], args, err)
@@ -241,8 +269,11 @@ def test_messages_that_do_not_fit_their_schema_are_one_line(
 def test_times_past_any_calendar_are_shown_as_numbers(tmp_path: Path) -> None:
     """Log times of 2^64 - 1 ns (year 2554) and 2^63: info counts and shows them."""
     path = tmp_path / "far.mcap"
-    path.write_bytes(b.mcap(*b.schema_and_channel(), b.plain_chunk(
-        b.message(t=(1 << 64) - 1), b.message(t=1 << 63))))
+    path.write_bytes(
+        b.mcap(
+            *b.schema_and_channel(), b.plain_chunk(b.message(t=(1 << 64) - 1), b.message(t=1 << 63))
+        )
+    )
     for args in (["info", str(path)], ["info", str(path), "--json"]):
         proc = run(*args)
         assert proc.returncode == 0 and proc.stderr == "", proc.stderr

@@ -71,8 +71,14 @@ def test_foxglove_subset_refuses_what_lichtblick_refused() -> None:
         foxglove_subset({"type": "object", "properties": {
             "x": {"type": "number", "anyOf": [{"type": "number"}]}}})  # fmt: skip
     with pytest.raises(AssertionError, match="not one of"):  # no array of arrays
-        foxglove_subset({"type": "object", "properties": {
-            "m": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}}}})
+        foxglove_subset(
+            {
+                "type": "object",
+                "properties": {
+                    "m": {"type": "array", "items": {"type": "array", "items": {"type": "number"}}}
+                },
+            }
+        )
     with pytest.raises(AssertionError, match="contentEncoding"):  # base64 or nothing
         foxglove_subset({"type": "object", "properties": {
             "b": {"type": "string", "contentEncoding": "base16"}}})  # fmt: skip
@@ -87,8 +93,14 @@ def test_what_robocli_does_not_know_is_left_out_not_null() -> None:
     assert json.loads(text) == {"x": 1.5, "cpu": {"sys": 2.0}, "flags": [True], "name": "a"}
     status = {"timestamp": {"sec": 1, "nsec": 0}, "mode": "AUTO", "error_code": 0}
     viewer_checked("robocli.arm.Status", SCHEMAS["robocli.arm.Status"], status)  # flags unknown
-    joints = {"timestamp": {"sec": 1, "nsec": 0}, "name": ["joint_1"], "position": [0.0],
-              "velocity": [], "effort": [], "source": "joint_position"}  # no robot_time
+    joints = {
+        "timestamp": {"sec": 1, "nsec": 0},
+        "name": ["joint_1"],
+        "position": [0.0],
+        "velocity": [],
+        "effort": [],
+        "source": "joint_position",
+    }  # no robot_time
     viewer_checked("robocli.JointState", SCHEMAS["robocli.JointState"], joints)
 
 

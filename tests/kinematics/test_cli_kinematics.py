@@ -17,11 +17,18 @@ from robocli.io.trajlog import TrajectoryLog, read_log, write_log
 from robocli.kinematics.validate import shifted
 
 
-def run(cwd: Path, *args: str, env: dict[str, str] | None = None
-        ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "robocli", *args], capture_output=True,
-                          text=True, timeout=60, stdin=subprocess.DEVNULL, cwd=cwd,
-                          env={**os.environ, **env} if env else None)
+def run(
+    cwd: Path, *args: str, env: dict[str, str] | None = None
+) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "robocli", *args],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        stdin=subprocess.DEVNULL,
+        cwd=cwd,
+        env={**os.environ, **env} if env else None,
+    )
 
 
 def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
@@ -72,12 +79,15 @@ def test_validate_table_reports_a_known_delay(tmp_path: Path) -> None:
         (("validate", "sim.txt", "sim.txt"), "unknown log suffix '.txt'"),
     ],
 )
-def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
-                                          message: str) -> None:
+def test_bad_input_is_one_line_and_exit_2(
+    tmp_path: Path, args: tuple[str, ...], message: str
+) -> None:
     (tmp_path / "bad.json").write_text(
-        '{"time": [0, 1], "joints_positions": [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0]]}')
+        '{"time": [0, 1], "joints_positions": [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0]]}'
+    )
     (tmp_path / "nan.json").write_text(
-        '{"time": [0, NaN], "joints_positions": [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0]]}')
+        '{"time": [0, NaN], "joints_positions": [[0, 0, 0, 0, 0, 0], [0, 0, 0, 0, 0, 0]]}'
+    )
     (tmp_path / "sim.txt").write_text("")
     line = one_line_error(run(tmp_path, *args), 2)
     assert message in line
@@ -85,8 +95,9 @@ def test_bad_input_is_one_line_and_exit_2(tmp_path: Path, args: tuple[str, ...],
 
 
 def test_traj_file_from_csv_waypoints(tmp_path: Path) -> None:
-    (tmp_path / "w.csv").write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n"
-                                    "0,10,10,0,70,0\n20,15,5,0,60,10\n")
+    (tmp_path / "w.csv").write_text(
+        "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n0,10,10,0,70,0\n20,15,5,0,60,10\n"
+    )
     proc = run(tmp_path, "traj", "file", "w.csv", "--duration", "2", "--output", "w.json")
     assert proc.returncode == 0, proc.stderr
     log = read_log(tmp_path / "w.json")
@@ -110,10 +121,17 @@ def test_without_matplotlib_the_plot_option_says_how_to_get_it(tmp_path: Path) -
     (blocker / "matplotlib").mkdir(parents=True)
     (blocker / "matplotlib" / "__init__.py").write_text("raise ImportError('hidden')\n")
     proc = subprocess.run(
-        [sys.executable, "-c",
-         f"import sys; sys.path.insert(0, {str(blocker)!r}); from robocli.cli import main; "
-         "sys.exit(main(['traj', 'circle', '--plot', 'x.png']))"],
-        capture_output=True, text=True, timeout=60, cwd=tmp_path)
+        [
+            sys.executable,
+            "-c",
+            f"import sys; sys.path.insert(0, {str(blocker)!r}); from robocli.cli import main; "
+            "sys.exit(main(['traj', 'circle', '--plot', 'x.png']))",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        cwd=tmp_path,
+    )
     line = one_line_error(proc, 1)
     assert "pip install robocli-robots[plot]" in line
     assert not (tmp_path / "x.png").exists()

@@ -31,12 +31,14 @@ def _dh_product(model: RobotModel, q: np.ndarray) -> np.ndarray:
         th = q[i] + model.offset[i]
         ct, st = math.cos(th), math.sin(th)
         ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
-        out = out @ np.array([
-            [ct, -st * ca, st * sa, model.a[i] * ct],
-            [st, ct * ca, -ct * sa, model.a[i] * st],
-            [0.0, sa, ca, model.d[i]],
-            [0.0, 0.0, 0.0, 1.0],
-        ])
+        out = out @ np.array(
+            [
+                [ct, -st * ca, st * sa, model.a[i] * ct],
+                [st, ct * ca, -ct * sa, model.a[i] * st],
+                [0.0, sa, ca, model.d[i]],
+                [0.0, 0.0, 0.0, 1.0],
+            ]
+        )
     return out
 
 

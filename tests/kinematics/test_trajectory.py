@@ -39,8 +39,9 @@ def test_circle_is_a_continuous_circle_at_constant_orientation(name: str) -> Non
     np.testing.assert_allclose(tcp[:, 2], center[2], atol=1e-9)
     np.testing.assert_allclose(tcp[0], tcp[-1], atol=1e-9)  # closed
     rot = fk(model, log.positions)[:, :3, :3]
-    np.testing.assert_allclose(rot, np.broadcast_to(fk(model, model.work)[0, :3, :3], rot.shape),
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        rot, np.broadcast_to(fk(model, model.work)[0, :3, :3], rot.shape), atol=1e-9
+    )
     # no branch flip: a 3.6 deg step along the circle moves no joint by more than 3 deg
     steps = np.abs(np.diff(log.positions, axis=0))
     assert steps.max() < math.radians(3.0)
@@ -50,8 +51,9 @@ def test_circle_keeps_its_branch_on_a_fine_path(irb120: RobotModel) -> None:
     coarse = tr.circle(irb120, n=50)
     fine = tr.circle(irb120, n=400)
     # the same branch: coarse points agree with the fine path at the same angles
-    np.testing.assert_allclose(fine.positions[::8][: len(coarse) - 1][:5],
-                               coarse.positions[:5], atol=0.05)
+    np.testing.assert_allclose(
+        fine.positions[::8][: len(coarse) - 1][:5], coarse.positions[:5], atol=0.05
+    )
     assert np.max(np.abs(np.diff(fine.positions, axis=0))) < math.radians(1.0)
 
 
@@ -81,8 +83,9 @@ def test_ptp_joint_is_quintic_with_zero_end_speeds(irb120: RobotModel) -> None:
     assert np.max(np.abs(log.velocities[[0, -1]])) < 1e-3
     # peak speed of a quintic: 15/8 of the mean
     mean = np.abs(goal - irb120.work) / 2.0
-    np.testing.assert_allclose(np.max(np.abs(log.velocities), axis=0), 1.875 * mean, rtol=1e-3,
-                               atol=1e-9)
+    np.testing.assert_allclose(
+        np.max(np.abs(log.velocities), axis=0), 1.875 * mean, rtol=1e-3, atol=1e-9
+    )
 
 
 def test_ptp_cartesian_is_a_straight_line(irb120: RobotModel) -> None:
@@ -102,8 +105,9 @@ def test_too_fast_names_joint_point_and_limit(irb120: RobotModel) -> None:
 
 
 def test_joint_beyond_its_range_is_named(irb120: RobotModel) -> None:
-    with pytest.raises(LimitError,
-                       match=r"joint 3 at point \d+ is .* beyond its range \[-110, 70\]"):
+    with pytest.raises(
+        LimitError, match=r"joint 3 at point \d+ is .* beyond its range \[-110, 70\]"
+    ):
         tr.ptp_joint(irb120, np.radians([0, 0, 80, 0, 0, 0]), duration=5.0)
 
 
@@ -116,8 +120,9 @@ def test_waypoints_from_csv_and_json(irb120: RobotModel, tmp_path: Path) -> None
     c = fk_positions(irb120, irb120.work)[0]
     pts = c + np.array([[0, 0, 0], [0.05, 0, 0], [0.05, 0.05, 0], [0, 0.05, 0.02]])
     csv_path = tmp_path / "w.csv"
-    rows = [",".join(repr(float(v)) for v in (t, *p)) for t, p in zip([0, 1, 2, 3.5], pts,
-                                                                     strict=True)]
+    rows = [
+        ",".join(repr(float(v)) for v in (t, *p)) for t, p in zip([0, 1, 2, 3.5], pts, strict=True)
+    ]
     csv_path.write_text("time,x,y,z\n" + "\n".join(rows))
     wp = read_waypoints(csv_path)
     log = tr.waypoints(irb120, wp.joints, wp.points, wp.time)
@@ -143,8 +148,9 @@ def test_waypoints_from_csv_and_json(irb120: RobotModel, tmp_path: Path) -> None
         ("h.json", "[" * 100_000, "nested too deeply"),
     ],
 )
-def test_bad_waypoint_files_give_one_line(tmp_path: Path, name: str, text: str,
-                                          message: str) -> None:
+def test_bad_waypoint_files_give_one_line(
+    tmp_path: Path, name: str, text: str, message: str
+) -> None:
     path = tmp_path / name
     path.write_text(text)
     with pytest.raises(LogFormatError, match=message) as info:

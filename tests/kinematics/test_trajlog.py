@@ -23,8 +23,12 @@ def log() -> TrajectoryLog:
 @pytest.mark.parametrize("suffix", [".json", ".csv", ".npz"])
 def test_round_trip_by_suffix_is_exact(log: TrajectoryLog, tmp_path: Path, suffix: str) -> None:
     back = read_log(write_log(log, tmp_path / f"run{suffix}"))
-    for a, b in ((log.time, back.time), (log.positions, back.positions),
-                 (log.velocities, back.velocities), (log.tcp, back.tcp)):
+    for a, b in (
+        (log.time, back.time),
+        (log.positions, back.positions),
+        (log.velocities, back.velocities),
+        (log.tcp, back.tcp),
+    ):
         np.testing.assert_array_equal(a, b)
 
 
@@ -38,8 +42,9 @@ def test_json_is_the_paper_layout(log: TrajectoryLog, tmp_path: Path) -> None:
 
 def test_measured_log_without_velocities_or_tcp(tmp_path: Path) -> None:
     path = tmp_path / "real.json"
-    path.write_text(json.dumps({"time": [0.0, 0.5, 1.0],
-                                "joints_positions": [[0.0] * 6, [0.5] * 6, [1.0] * 6]}))
+    path.write_text(
+        json.dumps({"time": [0.0, 0.5, 1.0], "joints_positions": [[0.0] * 6, [0.5] * 6, [1.0] * 6]})
+    )
     got = read_log(path)
     np.testing.assert_allclose(got.velocities, 1.0)
     assert got.tcp is None
@@ -58,7 +63,7 @@ GOOD = {"time": [0.0, 0.1], "joints_positions": [[0.0] * 6, [0.1] * 6]}
         ('{"time": [0, 0], "joints_positions": [[0], [0]]}', "'time' does not increase at sample"),
         ('{"time": [0, 1e400], "joints_positions": [[0], [0]]}', "NaN or an infinity"),
         ('{"time": [0, "a"], "joints_positions": [[0], [0]]}', "not a number"),
-        ('[1, 2]', "a JSON object"),
+        ("[1, 2]", "a JSON object"),
         ('{"time": [0, 0.1', "not valid JSON"),
         ('{"time": [0, 0.1], "joints_positions": [[0], [0]], "tcp": [[0, 0], [0, 0]]}', "tcp"),
         ("[" * 100_000, "nested too deeply"),
@@ -83,8 +88,9 @@ def test_malformed_json_gives_one_typed_line(tmp_path: Path, text: str, message:
         ("bad.txt", b"{}", "unknown log suffix"),
     ],
 )
-def test_malformed_csv_npz_and_suffix(tmp_path: Path, name: str, content: bytes,
-                                      message: str) -> None:
+def test_malformed_csv_npz_and_suffix(
+    tmp_path: Path, name: str, content: bytes, message: str
+) -> None:
     path = tmp_path / name
     path.write_bytes(content)
     with pytest.raises(LogFormatError, match=message):
@@ -98,8 +104,9 @@ def test_npz_missing_array(tmp_path: Path) -> None:
         read_log(path)
 
 
-def test_oversized_log_is_refused_before_parsing(tmp_path: Path,
-                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+def test_oversized_log_is_refused_before_parsing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     path = tmp_path / "big.json"
     path.write_text(json.dumps(GOOD) + " " * 5000)
     monkeypatch.setattr(trajlog, "MAX_LOG_BYTES", 4096)
@@ -109,8 +116,9 @@ def test_oversized_log_is_refused_before_parsing(tmp_path: Path,
     assert len(read_log(path)) == 2
 
 
-def test_a_log_without_end_is_read_in_bounded_memory(tmp_path: Path,
-                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+def test_a_log_without_end_is_read_in_bounded_memory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """``stat`` gives no size for a device or a pipe: the read itself is capped."""
     path = tmp_path / "zero.json"
     path.symlink_to("/dev/zero")
@@ -124,8 +132,9 @@ def test_missing_file_is_a_usage_error(tmp_path: Path) -> None:
         read_log(tmp_path / "nope.json")
 
 
-def test_npz_zip_bomb_refused_before_decompressing(tmp_path: Path,
-                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+def test_npz_zip_bomb_refused_before_decompressing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     """The limit applies to what the members expand to, not to the compressed file."""
     path = tmp_path / "bomb.npz"
     n = 1 << 19  # 4 MiB of float64 zeros, deflated to a few KiB

@@ -41,7 +41,8 @@ def test_known_delay_is_recovered_within_one_sample(sim: TrajectoryLog, delay: f
 
 
 def test_delay_recovered_from_a_differently_sampled_recording(
-        sim: TrajectoryLog, model: RobotModel) -> None:
+    sim: TrajectoryLog, model: RobotModel
+) -> None:
     # a state server at 20 ms, starting 1 s before the motion, 0.45 s late
     t = np.arange(-1.0, sim.time[-1] + 1.0, 0.02)
     q = np.stack([np.interp(t, sim.time, sim.positions[:, j]) for j in range(6)], axis=1)

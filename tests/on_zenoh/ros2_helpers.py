@@ -108,4 +108,3 @@ def node_names(session: Any, domain: int = 0) -> set[str]:
             if token.kind == "NN":
                 names.add(token.namespace.rstrip("/") + "/" + token.node)
     return names
-

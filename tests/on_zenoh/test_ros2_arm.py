@@ -54,6 +54,7 @@ def test_a_joint_trajectory_on_ros2_moves_the_bridged_arm(bridged) -> None:
     pub = z.ROS2Publisher("/joint_trajectory", ARM_TYPES["/joint_trajectory"], router_port=port)
     goal = [q0[0] + 0.2, *q0[1:]]
     names = [f"joint_{i}" for i in (2, 1, 3, 4, 5, 6)]  # any order: mapped by name
+
     def as_named(q: list[float]) -> Any:
         return np.array([q[1], q[0], *q[2:]], dtype=float)
 

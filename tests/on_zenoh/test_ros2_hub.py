@@ -59,8 +59,9 @@ def test_a_hub_serving_ros2_is_a_node_whose_topics_zenoh_ros2_sdk_reads(tmp_path
             assert [d.label for d in adc[0].layout.dim] == ["channel"]  # type: ignore[attr-defined]
             assert len(adc[0].data) == 8  # type: ignore[attr-defined]
             batches: list[bytes] = []  # robocli's own keys go on beside ROS 2's
-            sub = session.declare_subscriber("robocli/hub1/adc",
-                                             lambda s: batches.append(s.payload.to_bytes()))
+            sub = session.declare_subscriber(
+                "robocli/hub1/adc", lambda s: batches.append(s.payload.to_bytes())
+            )
             wait_for(lambda: batches, "a batch on robocli/hub1/adc")
             sub.undeclare()
 

@@ -22,8 +22,11 @@ ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
 
 def _forged_odom() -> bytes:
     m = T.message
-    pose = m("geometry_msgs/msg/Pose", position=m("geometry_msgs/msg/Point", x=0.0, y=0.0, z=0.0),
-             orientation=m("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0))
+    pose = m(
+        "geometry_msgs/msg/Pose",
+        position=m("geometry_msgs/msg/Point", x=0.0, y=0.0, z=0.0),
+        orientation=m("geometry_msgs/msg/Quaternion", x=0.0, y=0.0, z=0.0, w=1.0),
+    )
     odom = m(ODOM, header=m("std_msgs/msg/Header", frame_id="odom",
                             stamp=m("builtin_interfaces/msg/Time", sec=0, nanosec=0)),
              child_frame_id="forged",
@@ -48,8 +51,9 @@ def test_the_lab_acl_covers_ros2_topics(lab: Lab) -> None:  # noqa: F811 - the f
             try:
                 node = Ros2Node(alice, "alice_teleop", domain=7)  # the root namespace: her tokens
                 odoms: list[Any] = []
-                node.subscriber("/r1/odom", ODOM,
-                                lambda cdr, _a: odoms.append(T.deserialize(cdr, ODOM)))
+                node.subscriber(
+                    "/r1/odom", ODOM, lambda cdr, _a: odoms.append(T.deserialize(cdr, ODOM))
+                )
                 wait_for(lambda: odoms, "alice reads r1's odometry")
                 # bob forges r1's odometry, then probes on his own namespace's key
                 key = topic_key(7, "/r1/odom", ODOM, T.type_hash(ODOM))

@@ -75,11 +75,17 @@ def test_rclpy_decodes_what_a_bridged_pioneer_publishes(tmp_path) -> None:
             samples: dict[str, tuple[bytes, bytes | None]] = {}
             types: dict[str, str] = {}
             try:
+
                 def keep(sample: object) -> None:
                     dds = str(sample.key_expr).split("/")[-2]  # type: ignore[attr-defined]
                     raw = sample.attachment  # type: ignore[attr-defined]
-                    samples.setdefault(dds, (sample.payload.to_bytes(),  # type: ignore[attr-defined]
-                                             None if raw is None else raw.to_bytes()))
+                    samples.setdefault(
+                        dds,
+                        (
+                            sample.payload.to_bytes(),  # type: ignore[attr-defined]
+                            None if raw is None else raw.to_bytes(),
+                        ),
+                    )
 
                 session.declare_subscriber("0/**", keep)
                 wanted = {"nav_msgs::msg::dds_::Odometry_", "tf2_msgs::msg::dds_::TFMessage_"}

@@ -86,7 +86,7 @@ def test_option_value_may_be_left_out() -> None:
     app = typer.Typer()
 
     @app.command(cls=ZenohCommand)
-    def cmd(zenoh: str | None = zenoh_option("client"), other: int = 0) -> None:  # noqa: UP007
+    def cmd(zenoh: str | None = zenoh_option("client"), other: int = 0) -> None:
         typer.echo(f"zenoh={zenoh} other={other}")
 
     runner = CliRunner()

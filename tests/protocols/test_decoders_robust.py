@@ -23,7 +23,7 @@ from robocli.protocols import simple_message as sm
 from robocli.protocols.common import enum_or_int
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fuzz"))
-import fuzz_decoders  # noqa: E402
+import fuzz_decoders
 
 GOLDEN = reference.golden_frames()
 

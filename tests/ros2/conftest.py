@@ -11,16 +11,16 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cli.helpers import run  # noqa: E402
+from cli.helpers import run
 
-from robocli.devices.hub.client import Hub  # noqa: E402
-from robocli.devices.pioneer import Pioneer  # noqa: E402
-from robocli.hub import HubServer  # noqa: E402
-from robocli.io.record import Recorder  # noqa: E402
-from robocli.sim.abb.server import AbbSim  # noqa: E402
-from robocli.sim.pioneer.server import PioneerSim  # noqa: E402
-from tests.arm.conftest import port_of  # noqa: E402
-from tests.io.readback import wait_for  # noqa: E402
+from robocli.devices.hub.client import Hub
+from robocli.devices.pioneer import Pioneer
+from robocli.hub import HubServer
+from robocli.io.record import Recorder
+from robocli.sim.abb.server import AbbSim
+from robocli.sim.pioneer.server import PioneerSim
+from tests.arm.conftest import port_of
+from tests.io.readback import wait_for
 
 HUB_SENSORS = {"imu": {"rate": 100}, "adc": {"rate": 200, "channels": 0xFF},
                "camera": {"rate": 5, "resolution": "160x120"}, "laser": {"rate": 10},
@@ -89,5 +89,3 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> Iterator[dict[str, Path]]:
             return path
 
     yield Lazy()
-
-

@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("rosbags")
 pytest.importorskip("mcap_ros2")
 
-from robocli.io.record import info  # noqa: E402
+from robocli.io.record import info
 
 NODE_DIR = Path(__file__).parent / "node"
 
@@ -57,6 +57,7 @@ EXPECTED = {
         "/hub/raw/rx": "robocli_msgs/msg/RawFrame", "/hub/raw/tx": "robocli_msgs/msg/RawFrame",
     },
 }  # fmt: skip
+
 
 def _rosbags(path: Path) -> tuple[dict[str, str], Counter[str], dict[str, Any]]:
     """(type by topic, messages by topic, first message by topic) as rosbags reads them."""

@@ -14,15 +14,15 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cli.helpers import one_line_error, run, running  # noqa: E402
+from cli.helpers import one_line_error, run, running
 
-from robocli.devices.pioneer import Pioneer  # noqa: E402
-from robocli.io.capture import read_capture  # noqa: E402
-from robocli.io.export import arm_log, export  # noqa: E402
-from robocli.io.record import info, recover  # noqa: E402
-from robocli.sim.pioneer.replay import PioneerReplay  # noqa: E402
-from tests.io.readback import wait_for  # noqa: E402
-from tests.ros2.conftest import pioneer_recording  # noqa: E402
+from robocli.devices.pioneer import Pioneer
+from robocli.io.capture import read_capture
+from robocli.io.export import arm_log, export
+from robocli.io.record import info, recover
+from robocli.sim.pioneer.replay import PioneerReplay
+from tests.io.readback import wait_for
+from tests.ros2.conftest import pioneer_recording
 
 
 def _read(path: Path) -> dict[str, list[object]]:
@@ -46,8 +46,12 @@ def test_dump_file_and_replay_read_a_bag(bags: dict[str, Path]) -> None:
     seen: list[bytes] = []
     with PioneerReplay(path, speed=4.0) as replay:
         url = replay.serve_tcp("127.0.0.1", 0)
-        with Pioneer.connect(url, listeners=[lambda d, p, t: seen.append(p)
-                                             if d == "rx" and p[0] & 0xF0 == 0x30 else None]):
+        with Pioneer.connect(
+            url,
+            listeners=[
+                lambda d, p, t: seen.append(p) if d == "rx" and p[0] & 0xF0 == 0x30 else None
+            ],
+        ):
             wait_for(lambda: len(seen) >= len(sips), what="every recorded SIP")
     assert seen[: len(sips)] == sips
 
@@ -61,7 +65,8 @@ def test_export_plot_and_info_read_a_bag(bags: dict[str, Path], tmp_path: Path) 
     with (tmp_path / "pioneer_odom.csv").open() as f:
         rows = list(csv.DictReader(f))
     assert [float(r["pose.pose.position.x"]) for r in rows] == [
-        m.pose.pose.position.x for m in msgs["/pioneer/odom"]]  # type: ignore[attr-defined]
+        m.pose.pose.position.x for m in msgs["/pioneer/odom"]
+    ]  # type: ignore[attr-defined]
     first = msgs["/pioneer/odom"][0]
     stamp = first.header.stamp  # type: ignore[attr-defined]
     assert float(rows[0]["t"]) == pytest.approx(stamp.sec + stamp.nanosec / 1e9, abs=1e-6)
@@ -94,7 +99,8 @@ def test_convert_makes_a_bag_that_says_what_the_recording_says(tmp_path: Path) -
     assert len(msgs["/pioneer/odom"]) == len(msgs["/pioneer/battery"]) == states
     # the raw frames are the recording's, byte for byte: dump --file reads both alike
     assert [f.frame for f in read_capture(out, "arcos")] == [
-        f.frame for f in read_capture(src, "arcos")]
+        f.frame for f in read_capture(src, "arcos")
+    ]
     # a bag folder, as ros2 bag record makes one: metadata.yaml read by rosbags' own reader
     folder = tmp_path / "run_bag"
     assert run("convert", str(src), str(folder), "--ros2").returncode == 0

@@ -47,27 +47,71 @@ def test_the_topic_key_is_the_design_documents() -> None:
     assert topic_key(0, "/chatter", "std_msgs/msg/String", STRING_HASH) == DESIGN_KEY
     # a namespace stays as inner slashes of the key (not mangled), one leading '/' dropped
     assert topic_key(3, "/robot1/chatter", "std_msgs/msg/String", STRING_HASH) == (
-        f"3/robot1/chatter/std_msgs::msg::dds_::String_/{STRING_HASH}")
+        f"3/robot1/chatter/std_msgs::msg::dds_::String_/{STRING_HASH}"
+    )
 
 
 def test_the_node_and_entity_tokens_are_the_design_documents() -> None:
     zid_l, zid_t = "aac3178e146ba6f1fc6e6a4085e77f21", "8b20917502ee955ac4476e0266340d5c"
     assert node_token(0, zid_l, 0, "/", "listener") == DESIGN_LISTENER_NN
     assert node_token(0, zid_l, 0, "", "listener") == DESIGN_LISTENER_NN
-    assert entity_token(0, zid_t, 0, 10, "MP", "/", "talker", "/chatter",
-                        "std_msgs/msg/String", STRING_HASH, Qos(depth=7)) == DESIGN_TALKER_MP
-    assert entity_token(0, zid_l, 0, 10, "MS", "", "listener", "/chatter",
-                        "std_msgs/msg/String", STRING_HASH, DEFAULT_QOS) == DESIGN_LISTENER_MS
+    assert (
+        entity_token(
+            0,
+            zid_t,
+            0,
+            10,
+            "MP",
+            "/",
+            "talker",
+            "/chatter",
+            "std_msgs/msg/String",
+            STRING_HASH,
+            Qos(depth=7),
+        )
+        == DESIGN_TALKER_MP
+    )
+    assert (
+        entity_token(
+            0,
+            zid_l,
+            0,
+            10,
+            "MS",
+            "",
+            "listener",
+            "/chatter",
+            "std_msgs/msg/String",
+            STRING_HASH,
+            DEFAULT_QOS,
+        )
+        == DESIGN_LISTENER_MS
+    )
 
 
 def test_names_are_mangled_and_a_namespace_is_one_chunk() -> None:
     assert mangle("") == "%" and mangle("/a/b") == "%a%b"
-    token = entity_token(7, "ab", 2, 5, "MP", "/lab/p1", "p1", "/lab/p1/cmd_vel",
-                         "geometry_msgs/msg/Twist", STRING_HASH, DEFAULT_QOS)
+    token = entity_token(
+        7,
+        "ab",
+        2,
+        5,
+        "MP",
+        "/lab/p1",
+        "p1",
+        "/lab/p1/cmd_vel",
+        "geometry_msgs/msg/Twist",
+        STRING_HASH,
+        DEFAULT_QOS,
+    )
     assert token.split("/")[7:10] == ["%lab%p1", "p1", "%lab%p1%cmd_vel"]
     parsed = parse_token(token)
     assert (parsed.domain, parsed.namespace, parsed.topic, parsed.kind) == (
-        7, "/lab/p1", "/lab/p1/cmd_vel", "MP")
+        7,
+        "/lab/p1",
+        "/lab/p1/cmd_vel",
+        "MP",
+    )
     assert parsed.dds_type == "geometry_msgs::msg::dds_::Twist_"
     assert parse_token(DESIGN_TALKER_MP).qos == Qos(depth=7)
     assert parse_token(DESIGN_LISTENER_NN).topic is None
@@ -75,9 +119,16 @@ def test_names_are_mangled_and_a_namespace_is_one_chunk() -> None:
     assert qualified("/lab", "/tf") == "/tf"
 
 
-@pytest.mark.parametrize("bad", ["@ros2_lv/0/z/0/0/XX/%/%/n", "robocli/a/@alive/hub",
-                                 "@ros2_lv/x/z/0/0/NN/%/%/n", DESIGN_TALKER_MP + "/extra",
-                                 DESIGN_TALKER_MP.replace("::,7:", "::7:")])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        "@ros2_lv/0/z/0/0/XX/%/%/n",
+        "robocli/a/@alive/hub",
+        "@ros2_lv/x/z/0/0/NN/%/%/n",
+        DESIGN_TALKER_MP + "/extra",
+        DESIGN_TALKER_MP.replace("::,7:", "::7:"),
+    ],
+)
 def test_a_key_that_is_no_token_is_a_protocol_error(bad: str) -> None:
     with pytest.raises(ProtocolError):
         parse_token(bad)

@@ -193,7 +193,7 @@ class _BatchReader:
                 t = self.laptop.tally(self.sensor)
                 t.add(hub_t, received, lost, len(data))
                 t.duplicates += dup
-        except Exception as exc:  # noqa: BLE001 - never into Zenoh's thread
+        except Exception as exc:
             with self.laptop.lock:
                 if len(self.laptop.errors) < 20:
                     self.laptop.errors.append(f"{self.sensor}: {type(exc).__name__}: {exc}")

@@ -12,5 +12,14 @@ from robocli.devices.arm.state import (
     TooFewSamples,
 )
 
-__all__ = ["ABB_MAX_POINTS", "Arm", "ArmStatus", "JointSample", "Point", "Recorder",
-           "SampleListener", "StillMoving", "TooFewSamples"]
+__all__ = [
+    "ABB_MAX_POINTS",
+    "Arm",
+    "ArmStatus",
+    "JointSample",
+    "Point",
+    "Recorder",
+    "SampleListener",
+    "StillMoving",
+    "TooFewSamples",
+]

@@ -124,8 +124,10 @@ class Arm(Motion):
                 real=real_size, byteorder=order,
             )  # fmt: skip
         if where.kind != "tcp":
-            raise InvalidArgument(f"arm URL {text!r}: an arm is reached over TCP "
-                                  "(HOST, tcp://HOST?motion=PORT&state=PORT or sim://)")
+            raise InvalidArgument(
+                f"arm URL {text!r}: an arm is reached over TCP "
+                "(HOST, tcp://HOST?motion=PORT&state=PORT or sim://)"
+            )
         host = where.host
         motion_port = _one_port("motion", where.ports, motion_port, sm.PORT_MOTION)
         state_port = _one_port("state", where.ports, state_port, sm.PORT_STATE)

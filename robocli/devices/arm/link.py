@@ -29,17 +29,26 @@ __all__ = [
 ]  # fmt: skip
 
 
-def open_session(host: str, port: int, name: str, order: sm.ByteOrder, real: sm.RealSize,
-                 timeout: float, stop: list[bytes]) -> Session:
+def open_session(
+    host: str,
+    port: int,
+    name: str,
+    order: sm.ByteOrder,
+    real: sm.RealSize,
+    timeout: float,
+    stop: list[bytes],
+) -> Session:
     """One port's session (not started); its emergency stop is ``stop``."""
     try:
         transport = SocketTransport.connect(host, port, timeout)
     except TransportError as exc:
         if "connection refused" not in str(exc):
             raise
-        raise TransportError(f"cannot connect to tcp://{host}:{port}: connection refused (is "
-                             f"the controller's {name} server, or `robocli sim abb`, "
-                             "listening there?)") from None
+        raise TransportError(
+            f"cannot connect to tcp://{host}:{port}: connection refused (is "
+            f"the controller's {name} server, or `robocli sim abb`, "
+            "listening there?)"
+        ) from None
     framer = Framer("sm-le" if order == "<" else "sm-be", sm.MAX_FRAME_SIZE)
     return Session(transport, framer, on_frame=lambda f, t: None, name_of=namer(order, real),
                    emergency_stop=lambda: stop, name=f"arm-{name}")  # fmt: skip
@@ -61,6 +70,7 @@ def stop_frame(robot: RobotModel, order: sm.ByteOrder, real: sm.RealSize) -> byt
 
 def namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]:
     """The session's packet namer: the msg_type's name (``TYPE_<n>`` when unknown)."""
+
     def name_of(payload: bytes, direction: str) -> str:
         if len(payload) < 8:
             return "short"
@@ -77,8 +87,10 @@ def first_state(s: Session, timeout: float) -> None:
     """Read until the first valid state message (before the reader starts, so that a
     refusal line or another protocol is seen)."""
     url = s.transport.url
-    wrong = TransportError(f"{url}: the port answers, but not in Simple Message "
-                           "(another protocol, or the wrong byte order or real size)")
+    wrong = TransportError(
+        f"{url}: the port answers, but not in Simple Message "
+        "(another protocol, or the wrong byte order or real size)"
+    )
     try:
         s.request(None, lambda f: True, timeout)
         # a stream in the other byte order frames 3 bytes late (small ints even decode)

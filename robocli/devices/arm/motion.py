@@ -60,8 +60,15 @@ class Motion(StateTracking):
     def _on_motion_frame(self, frame: bytes, t: float) -> None:
         sm.decode(frame, byteorder=self.byteorder, real=self.real)  # unsolicited: checked only
 
-    def send_point(self, sequence: int, joints: npt.ArrayLike, *, velocity: float = 0.0,
-                   duration: float = 0.0, timeout: float | None = None) -> float:
+    def send_point(
+        self,
+        sequence: int,
+        joints: npt.ArrayLike,
+        *,
+        velocity: float = 0.0,
+        duration: float = 0.0,
+        timeout: float | None = None,
+    ) -> float:
         """Send one JOINT_TRAJ_PT as a SERVICE_REQUEST and wait for its SERVICE_REPLY; returns
         the round trip in seconds (what the paper's Table 5 measured). No model check: an
         ABB enqueues the point (``sequence`` -1 resets its buffer, -3 activates, -4 stops).
@@ -88,10 +95,13 @@ class Motion(StateTracking):
             reply = s.request(self._point_frame(seq, p), is_reply, timeout)
         except TimeoutError:
             if s.stats.decode_errors != before:
-                raise TransportError(f"{s.transport.url}: the motion port answers, but not in "
-                                     "Simple Message (another protocol?)") from None
-            raise TimeoutError(f"{s.transport.url}: no reply to point {seq} within "
-                               f"{timeout:g} s") from None
+                raise TransportError(
+                    f"{s.transport.url}: the motion port answers, but not in "
+                    "Simple Message (another protocol?)"
+                ) from None
+            raise TimeoutError(
+                f"{s.transport.url}: no reply to point {seq} within {timeout:g} s"
+            ) from None
         except ConnectionLost as exc:
             reason = find_refusal(s.raw_tail())
             if reason:
@@ -120,7 +130,8 @@ class Motion(StateTracking):
         if len(points) > ABB_MAX_POINTS and not split:
             raise InvalidArgument(
                 f"trajectory has {len(points)} points; the ABB server keeps {ABB_MAX_POINTS} "
-                "and silently drops the rest (use split=True / --split)")
+                "and silently drops the rest (use split=True / --split)"
+            )
         return points
 
     def download(self, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike], *,
@@ -149,8 +160,11 @@ class Motion(StateTracking):
                 chunk = chunk * 2  # industrial_robot_client duplicates single points
             for i, p in enumerate(chunk):
                 last = i == len(chunk) - 1
-                seq = SpecialSeq.START_TRAJECTORY_DOWNLOAD if i == 0 else (
-                    SpecialSeq.END_TRAJECTORY if last else i)
+                seq = (
+                    SpecialSeq.START_TRAJECTORY_DOWNLOAD
+                    if i == 0
+                    else (SpecialSeq.END_TRAJECTORY if last else i)
+                )
                 if last:
                     self._activated(chunk)
                 self._send_point(seq, p, wait)
@@ -159,8 +173,9 @@ class Motion(StateTracking):
                     progress(done, total)
         return done
 
-    def move_to(self, joints: npt.ArrayLike, duration: float | None = None,
-                timeout: float | None = None) -> int:
+    def move_to(
+        self, joints: npt.ArrayLike, duration: float | None = None, timeout: float | None = None
+    ) -> int:
         """Download a move from where the arm is (needs the state port) to ``joints`` (rad),
         taking ``duration`` s (default: a quarter of the speed limits, at least 0.5 s)."""
         need(self._state, "state")
@@ -237,8 +252,7 @@ class Motion(StateTracking):
 
     def stop(self, timeout: float | None = None) -> None:
         """STOP (-4): abort the running trajectory, acknowledged within ``timeout`` s."""
-        self.send_point(SpecialSeq.STOP_TRAJECTORY, (0.0,) * self.robot.n_joints,
-                        timeout=timeout)
+        self.send_point(SpecialSeq.STOP_TRAJECTORY, (0.0,) * self.robot.n_joints, timeout=timeout)
         self._activated_at, self._expected_end, self._target = None, 0.0, None
 
     def _q_now(self) -> tuple[float, ...] | None:

@@ -88,8 +88,12 @@ class Point:
     duration: float
 
 
-def prepare(model: RobotModel, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike],
-            q_now: npt.ArrayLike | None, first_duration: float | None) -> list[Point]:
+def prepare(
+    model: RobotModel,
+    traj: TrajectoryLog | tuple[npt.ArrayLike, npt.ArrayLike],
+    q_now: npt.ArrayLike | None,
+    first_duration: float | None,
+) -> list[Point]:
     """Points for ``traj`` (a log, or ``(times, positions)``), checked against ``model``:
     finite values, increasing times, joints within range, segment speeds within the limits.
 
@@ -120,7 +124,8 @@ def prepare(model: RobotModel, traj: TrajectoryLog | tuple[npt.ArrayLike, npt.Ar
             k = int(np.argmax(fraction))
             raise InvalidArgument(
                 f"trajectory: segment {k}->{k + 1} needs {100 * fraction[k]:.0f}% of a joint's "
-                f"speed limit on {model.name} (slow it down)")
+                f"speed limit on {model.name} (slow it down)"
+            )
     else:
         fraction = np.zeros(0)
     if first_duration is None:
@@ -194,8 +199,10 @@ class Recorder:
         times = [t for t, _ in kept]
         samples = [s for _, s in kept]
         if len(samples) < 2:
-            raise TooFewSamples(f"{len(samples)} joint sample(s) recorded: a log needs two; "
-                                "record for longer than two state periods")
+            raise TooFewSamples(
+                f"{len(samples)} joint sample(s) recorded: a log needs two; "
+                "record for longer than two state periods"
+            )
         q = [s.joints for s in samples]
         origin = times[0]
         log = TrajectoryLog.from_positions([t - origin for t in times], q,

@@ -69,8 +69,10 @@ class StateTracking:
         if not isinstance(body, dict):
             if isinstance(body, bytes) and msg.msg_type in _JOINT_TYPES:
                 name = MsgType(msg.msg_type).name
-                raise ProtocolError(f"{name} with a {len(body)}-byte body: not {self.real}-byte "
-                                    "reals (the wrong real size?)")
+                raise ProtocolError(
+                    f"{name} with a {len(body)}-byte body: not {self.real}-byte "
+                    "reals (the wrong real size?)"
+                )
             return
         n = self.robot.n_joints
         sample = None
@@ -92,8 +94,12 @@ class StateTracking:
         with self._cond:
             self.history.append(sample)
             self.joints = sample
-            if (self._activated_at is not None and t > self._activated_at
-                    and self._start is not None and _gap(sample.joints, self._start) > 1e-3):
+            if (
+                self._activated_at is not None
+                and t > self._activated_at
+                and self._start is not None
+                and _gap(sample.joints, self._start) > 1e-3
+            ):
                 self._displaced = True
             self._cond.notify_all()
         if len(self._sample_listeners):

@@ -376,7 +376,7 @@ class Hub:
         packet = encode_request(MsgType.DOUT_CTRL, body, client_id=self.client_id)
         self._unanswered(packet, MsgType.DOUT_CTRL)
 
-    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:  # noqa: A002
+    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:
         """Send QUIT (the hub forgets this client; ``stop=False`` keeps its buffers for a
         reconnect with :attr:`client_id`) and close the link, bounded; then the simulator of
         a ``sim://`` URL. Idempotent. ``quit`` is the deprecated old name of ``stop``."""

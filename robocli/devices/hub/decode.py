@@ -212,8 +212,10 @@ def _image_block(body: Any, offset: int, infos: Any, what: str) -> tuple[Any, in
     w, h, c = int(infos["width"][0]), int(infos["height"][0]), int(infos["channels"][0])
     size = int(infos["size_data"][0])
     n = infos.shape[0]
-    if any((infos[k] != v).any() for k, v in (("size_data", size), ("width", w),
-                                                 ("height", h), ("channels", c))):
+    if any(
+        (infos[k] != v).any()
+        for k, v in (("size_data", size), ("width", w), ("height", h), ("channels", c))
+    ):
         raise ProtocolError(f"ros4mat {what}: frames of different sizes in one reply")
     _check_dims(w, h, what)
     if size != w * h * c:
@@ -252,7 +254,7 @@ def decode_jpeg(blob: bytes, max_bytes: int = MAX_DECODED_BYTES) -> np.ndarray[A
             return np.asarray(img.convert("RGB"))
     except ProtocolError:
         raise
-    except Exception as exc:  # noqa: BLE001 - Pillow's parsers raise many types on bad bytes
+    except Exception as exc:
         raise ProtocolError(f"undecodable JPEG frame: {type(exc).__name__}: {exc}") from None
 
 

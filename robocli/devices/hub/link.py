@@ -139,7 +139,7 @@ def handshake(
     except BaseException:
         session.close()
         raise
-    session._raw_tail = None  # noqa: SLF001 - as Session.start() does: the link is up
+    session._raw_tail = None
     return header, t0, t1
 
 

@@ -412,7 +412,7 @@ class ZenohHub(Hub):
         """Batches received, by sensor (``stats.as_dict()``)."""
         return self._stats
 
-    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:  # noqa: A002
+    def close(self, stop: bool | None = None, *, quit: bool | None = None) -> None:
         """Undeclare every subscription and close the Zenoh session (``stop``: nothing more
         to stop over Zenoh; ``quit`` is its deprecated old name). Idempotent."""
         renamed_argument("ZenohHub.close", "quit", "stop", quit, stop, True)

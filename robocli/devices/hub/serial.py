@@ -303,8 +303,11 @@ class VirtualSerial:
                     if time.monotonic() + RETRY_S > deadline:
                         self._event("ended", f"no hub for {self.resume:g} s ({exc})")
                         where = f"{self.host}:{self.hub_port}"
-                        self._end(ConnectionLost(
-                            f"{where}: the hub did not come back in {self.resume:g} s"))
+                        self._end(
+                            ConnectionLost(
+                                f"{where}: the hub did not come back in {self.resume:g} s"
+                            )
+                        )
                         return
                     time.sleep(RETRY_S)  # the retry period, not a wait for an event
                     continue
@@ -350,4 +353,3 @@ class VirtualSerial:
 
     def __repr__(self) -> str:
         return f"VirtualSerial({self.host}:{self.hub_port} {self.port} {dict(self.settings)})"
-

@@ -96,8 +96,9 @@ class ZenohSerialLine:
         self._declared += [
             s.liveliness().declare_token(serial_key(self.hub, self.user, "serial-alive")),
             s.declare_subscriber(serial_data_key(self.hub, self.port), self._on_bytes),
-            s.declare_subscriber(serial_key(self.hub, self.user, "serial-error"),
-                                 self._on_error),  # fmt: skip
+            s.declare_subscriber(
+                serial_key(self.hub, self.user, "serial-error"), self._on_error
+            ),  # fmt: skip
             s.liveliness().declare_subscriber(alive_key(self.hub, "hub"), self._on_hub),
         ]
         self._writer = s.declare_publisher(
@@ -210,7 +211,7 @@ class ZenohSerialLine:
         for entity in self._declared:
             try:
                 entity.undeclare()
-            except Exception as exc:  # noqa: BLE001 - a closed session: nothing to undo
+            except Exception as exc:
                 log.debug("undeclare: %s", exc)
         self._declared.clear()
         if self.session is not None:
@@ -222,5 +223,3 @@ class ZenohSerialLine:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
-
-

@@ -41,7 +41,6 @@ class Commands:
     _clamp_warned: set[str]
     _keeper: KeepAlive
 
-
     def send_command(self, command: int, arg: int | str | bytes | None = None) -> None:
         """Send one raw ARCOS command (numbers in :class:`~robocli.protocols.arcos.Command`)."""
         self._session.send(arcos.encode_command(command, arg))

@@ -33,8 +33,9 @@ class DeprecatedNames:
             self, listener: Callable[..., None], *, kind: str = "frames"
         ) -> ListenerHandle: ...
 
-        def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
-            ...
+        def remove_listener(
+            self, listener: Callable[..., None], *, kind: str = "frames"
+        ) -> None: ...
 
     @property
     def connected(self) -> bool:

@@ -51,6 +51,7 @@ class _Robot(Protocol):
 
     def _current_state(self) -> PioneerState: ...
 
+
 __all__ = ["LaserListener", "PioneerSimulator", "is_simulator"]
 
 #: Laser listener signature: called with each complete scan, in the thread that read it.
@@ -186,7 +187,6 @@ class PioneerSimulator:
             arcos.encode_command(Command.SIM_STAT, 1), _is_simstat, timeout
         )
         return parse_simstatus(frame[4:-2], time.monotonic())
-
 
     def set_pose(self, x: float, y: float, th: float) -> None:
         """Teleport the robot's true pose (m, m, rad), as MobileSim's SIM_SET_POSE does."""

@@ -380,7 +380,6 @@ class Ros4matSession:
         payload = struct.pack("<bI", status, len(data)) + data
         return self._packet(MsgType.SERIAL_ANS, payload, 1)
 
-
     # ---------------------------------------------------------------- serial stream
 
     def _stream_request(self, kind: int, body: bytes) -> bytes | None:

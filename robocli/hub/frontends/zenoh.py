@@ -152,7 +152,7 @@ class ZenohFrontend:
             for entity in [*self._declared, *(p.publisher for p in self._published.values())]:
                 try:
                     entity.undeclare()
-                except Exception as exc:  # noqa: BLE001 - a closed session: nothing to undo
+                except Exception as exc:
                     log.debug("zenoh undeclare: %s", exc)
             self._declared.clear()
             self._published.clear()
@@ -257,7 +257,7 @@ class ZenohFrontend:
                 "batches": pub.batches if pub else 0,
                 "samples": pub.samples if pub else 0,
                 "next_seq": pub.next_seq if pub else 0,
-            }  # fmt: skip
+            }
         return {
             "name": self.name,
             "kind": "hub",
@@ -272,7 +272,7 @@ class ZenohFrontend:
         try:
             query.reply(info_key(self.name), json.dumps(self.info(), default=_plain),
                         encoding=import_zenoh().Encoding.APPLICATION_JSON)  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception as exc:
             log.warning("zenoh @info: %s", exc)
 
     def _on_settings(self, query: Any) -> None:
@@ -286,14 +286,14 @@ class ZenohFrontend:
                 self.refused += 1
                 query.reply_err(json.dumps({"error": str(exc)}))
                 return
-            except Exception as exc:  # noqa: BLE001 - a fault of ours: said, not swallowed
+            except Exception as exc:
                 log.exception("zenoh @settings: %s failed", sensor)
                 self.refused += 1
                 query.reply_err(json.dumps({"error": f"{sensor}: internal error: {exc!r}"}))
                 return
             query.reply(query.key_expr, answer,
                         encoding=import_zenoh().Encoding.APPLICATION_JSON)  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception as exc:
             log.warning("zenoh @settings: no reply could be sent: %s", exc)
 
     def configure(self, sensor: str, request: Mapping[str, Any]) -> dict[str, Any]:

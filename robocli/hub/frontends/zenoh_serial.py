@@ -46,7 +46,7 @@ MAX_OPEN_BYTES = 4096  #: the largest serial-open payload taken
 def _undeclare(entity: Any) -> None:
     try:
         entity.undeclare()
-    except Exception as exc:  # noqa: BLE001 - a closed session: nothing to undo
+    except Exception as exc:
         log.debug("zenoh undeclare: %s", exc)
 
 
@@ -65,8 +65,9 @@ class ZenohSerial:
         self._declared = [
             s.declare_queryable(serial_key(name, None, "serial-open"), self._on_open),
             s.declare_subscriber(serial_key(name, None, "serial-write"), self._on_write),
-            s.liveliness().declare_subscriber(serial_key(name, None, "serial-alive"),
-                                              self._on_alive),  # fmt: skip
+            s.liveliness().declare_subscriber(
+                serial_key(name, None, "serial-alive"), self._on_alive
+            ),
         ]
 
     # ------------------------------------------------------------------ opening
@@ -120,7 +121,7 @@ class ZenohSerial:
         try:
             self.session.put(serial_key(self.name, user, "serial-error"),
                              json.dumps({"error": why}))  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - a closed session: nobody to tell
+        except Exception as exc:
             log.debug("zenoh serial-error: %s", exc)
         self.end(user)
 
@@ -155,7 +156,7 @@ class ZenohSerial:
                 return
             query.reply(query.key_expr, json.dumps(answer),
                         encoding=import_zenoh().Encoding.APPLICATION_JSON)  # fmt: skip
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception as exc:
             log.warning("zenoh serial-open: %s", exc)
 
     def _on_write(self, sample: Any) -> None:
@@ -171,7 +172,7 @@ class ZenohSerial:
             except RobocliError as exc:
                 assert user is not None
                 self._failed(user, str(exc))
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception as exc:
             log.warning("zenoh serial-write: %s", exc)
 
     def _on_alive(self, sample: Any) -> None:
@@ -179,7 +180,7 @@ class ZenohSerial:
             user = serial_holder(sample.key_expr, self.name, "serial-alive")
             if user is not None and sample.kind != import_zenoh().SampleKind.PUT:
                 self.end(user)  # its token went: the user left
-        except Exception as exc:  # noqa: BLE001 - never raise into Zenoh's thread
+        except Exception as exc:
             log.warning("zenoh serial-alive: %s", exc)
 
     def close(self) -> None:

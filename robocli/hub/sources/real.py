@@ -234,7 +234,7 @@ class GpsdSource(Source):
                     num("track"),
                     num("climb"),
                 ),
-            )  # fmt: skip
+            )
         )
 
     def _run(self) -> None:

@@ -8,8 +8,17 @@ import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
-__all__ = ["RAW_ENCODING", "RAW_SCHEMA", "ROS2_RAW_TYPE", "RawLink", "Sink", "is_raw",
-           "json_text", "new_link", "raw_link"]
+__all__ = [
+    "RAW_ENCODING",
+    "RAW_SCHEMA",
+    "ROS2_RAW_TYPE",
+    "RawLink",
+    "Sink",
+    "is_raw",
+    "json_text",
+    "new_link",
+    "raw_link",
+]
 
 #: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
@@ -30,7 +39,6 @@ def is_raw(encoding: str, schema: str) -> bool:
     """Whether a channel of ``encoding`` and ``schema`` (name) is a raw channel: robocli's
     JSON, its older bytes, or a ROS 2 bag's ``robocli_msgs/msg/RawFrame``."""
     return schema == RAW_SCHEMA or encoding == RAW_ENCODING or schema == ROS2_RAW_TYPE
-
 
 
 class Sink(Protocol):
@@ -94,8 +102,6 @@ def _finite(value: Any) -> Any:
         items = [_finite(v) for v in value]
         return _MISSING if any(v is _MISSING for v in items) else items
     return value
-
-
 
 
 class RawLink:

@@ -189,7 +189,7 @@ class LiveView:
         try:
             self.server.publish(cid, data, log_ns if publish_ns is None else publish_ns)
             self.messages += 1
-        except Exception:  # noqa: BLE001 - the view must not stop a recording
+        except Exception:
             self.errors += 1
             if self.errors == 1:
                 log.warning("live view: a message could not be sent", exc_info=True)
@@ -213,7 +213,7 @@ class LiveView:
             for handler, args in items:
                 try:
                     handler(*args)
-                except Exception as exc:  # noqa: BLE001 - bad data: count, go on
+                except Exception as exc:
                     self.decode_failed(getattr(handler, "__qualname__", str(handler)), exc)
 
     # ------------------------------------------------------------------ closing
@@ -227,7 +227,7 @@ class LiveView:
         for detach in self._detach:
             try:
                 detach()
-            except Exception:  # noqa: BLE001 - a device already closed
+            except Exception:
                 log.debug("live view: detaching a listener failed", exc_info=True)
         with self._lock:
             self._closing = True

@@ -151,8 +151,10 @@ def decompress(chunk: Any) -> bytes | bytearray:
                          f"{len(data)} {kind} bytes can hold")  # fmt: skip
     out: bytes | bytearray = _inflate(kind, data, declared) if kind else data
     if len(out) != declared:
-        raise _Malformed(f"it declares {declared} bytes uncompressed and inflates to "
-                         f"{'more' if len(out) > declared else len(out)}")
+        raise _Malformed(
+            f"it declares {declared} bytes uncompressed and inflates to "
+            f"{'more' if len(out) > declared else len(out)}"
+        )
     if chunk.uncompressed_crc and zlib.crc32(out) != chunk.uncompressed_crc:
         raise _Malformed("its CRC does not match its contents")
     return out
@@ -185,7 +187,7 @@ def _inflate(kind: str, data: bytes, declared: int) -> bytearray:
     except ImportError as exc:
         raise BadRecording(f"reading {kind} chunks needs {exc.name}: pip install "
                            "'robocli-robots[record]'") from None  # fmt: skip
-    except Exception as exc:  # noqa: BLE001 - the codecs' own errors (ZstdError, RuntimeError)
+    except Exception as exc:
         raise _Malformed(f"it does not decompress ({kind}: {exc})") from None
     return out
 

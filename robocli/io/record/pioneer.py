@@ -183,8 +183,9 @@ class PioneerDecoder:
                 echo = cache[(i, r)] = self._echo(i, r)
             if echo is not None:
                 bins[echo[0]] = echo[1]
-        return (f'{{"timestamp":{stamp}{self._sonar_json}{",".join(bins)}],'
-                '"intensities":[]}').encode()
+        return (
+            f'{{"timestamp":{stamp}{self._sonar_json}{",".join(bins)}],"intensities":[]}}'
+        ).encode()
 
     def _echo(self, i: int, r: float) -> tuple[int, str] | None:
         """(bin, distance text) of sonar ``i``'s echo at range ``r`` (None: no echo)."""

@@ -171,12 +171,19 @@ def _fits(schema: str, msg: Any) -> bool:
             return False
     if schema in SCAN_SCHEMAS:
         ranges = msg.get("ranges") or []
-        return (isinstance(ranges, list) and all(r is None or _is_number(r) for r in ranges)
-                and _finite(msg.get("start_angle")) and _finite(msg.get("end_angle")))
+        return (
+            isinstance(ranges, list)
+            and all(r is None or _is_number(r) for r in ranges)
+            and _finite(msg.get("start_angle"))
+            and _finite(msg.get("end_angle"))
+        )
     if schema in JOINT_SCHEMAS:
         names, position = msg.get("name", []), msg.get("position") or []
-        return (isinstance(names, list) and isinstance(position, list)
-                and all(v is None or _finite(v) for v in position))
+        return (
+            isinstance(names, list)
+            and isinstance(position, list)
+            and all(v is None or _finite(v) for v in position)
+        )
     return True
 
 

@@ -34,6 +34,7 @@ log = logging.getLogger("robocli.io.record")
 
 __all__ = ["ChannelInfo", "RecordingInfo", "info", "iter_messages", "raw_frames"]
 
+
 @dataclass
 class ChannelInfo:
     """One channel of a recording: counts and times from its messages' log times."""
@@ -348,8 +349,9 @@ def _ordered(path: str | Path, summary_info: RecordingInfo,
         summary = f.summary() if summary_info.summary else None
         if summary is not None and summary.chunk_indexes:
             # a message of a later chunk is no older than its chunk's start
-            for chunk in sorted(summary.chunk_indexes,
-                                key=lambda c: (c.message_start_time, c.chunk_start_offset)):
+            for chunk in sorted(
+                summary.chunk_indexes, key=lambda c: (c.message_start_time, c.chunk_start_offset)
+            ):
                 while heap and heap[0][0] < chunk.message_start_time:
                     t, _, cid, data = heapq.heappop(heap)
                     yield cid, t, data

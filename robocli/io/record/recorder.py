@@ -59,8 +59,14 @@ from robocli.io.schemas import schema_bytes
 
 log = logging.getLogger("robocli.io.record")
 
-__all__ = ["COMPRESSIONS", "RAW_ENCODING", "RAW_SCHEMA", "Recorder", "RecorderStats",
-           "RecordingError"]
+__all__ = [
+    "COMPRESSIONS",
+    "RAW_ENCODING",
+    "RAW_SCHEMA",
+    "Recorder",
+    "RecorderStats",
+    "RecordingError",
+]
 
 COMPRESSIONS = ("zstd", "lz4", "none")
 
@@ -96,7 +102,7 @@ class RecorderStats:
 
 def _mcap() -> Any:
     try:
-        import mcap.writer  # noqa: F401 - the optional extra
+        import mcap.writer
     except ImportError:
         raise RecordingError(
             "recording needs the mcap package: pip install 'robocli-robots[record]'"
@@ -380,7 +386,7 @@ class Recorder:
                         handler(*args)
                     except (OSError, MemoryError):
                         raise
-                    except Exception as exc:  # noqa: BLE001 - bad data: count, go on
+                    except Exception as exc:
                         self.decode_failed(getattr(handler, "__qualname__", str(handler)), exc)
                 now = time.monotonic()
                 if now - last_chunk >= self.chunk_seconds:
@@ -391,7 +397,7 @@ class Recorder:
                 self._ros2.bag.finish(self.path.name)
             self._writer.finish()  # type: ignore[no-untyped-call]
             self._file.flush()
-        except BaseException as exc:  # noqa: BLE001 - a full disk, a closed file: say so at close
+        except BaseException as exc:
             self.error = exc
             self._count_written()
             with self._lock:
@@ -457,7 +463,7 @@ class Recorder:
         for detach in self._detach:
             try:
                 detach()
-            except Exception:  # noqa: BLE001 - a device already closed: nothing to remove
+            except Exception:
                 log.debug("recorder: detaching a listener failed", exc_info=True)
         with self._lock:
             self._closing = True

@@ -158,6 +158,7 @@ def _writer(stream: Any, header: Any, compressions: list[str]) -> Any:
     compression = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4}.get(
         kind, CompressionType.NONE)  # fmt: skip
     writer = Writer(stream, chunk_size=4 << 20, compression=compression)
-    writer.start(profile=header.profile,
-                 library=f"{header.library}; recovered by robocli {__version__}")
+    writer.start(
+        profile=header.profile, library=f"{header.library}; recovered by robocli {__version__}"
+    )
     return writer

@@ -185,7 +185,7 @@ class FoxgloveServer:
         asyncio.set_event_loop(self._loop)
         try:
             self._loop.run_until_complete(self._start(host, port))
-        except BaseException as exc:  # noqa: BLE001 - a bind failure: the caller raises it
+        except BaseException as exc:
             failure.append(exc)
             self._loop.close()
             started.set()
@@ -231,7 +231,7 @@ class FoxgloveServer:
         try:
             async for request in ws:
                 self._request(client, request)
-        except Exception as exc:  # noqa: BLE001 - the connection failed: it ends
+        except Exception as exc:
             log.debug("live view: %s: %s", client.name, exc)
         finally:
             sender.cancel()

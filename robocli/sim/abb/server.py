@@ -129,8 +129,12 @@ class AbbSim:
     def state_url(self) -> str | None:
         return self._state.url if self._state else None
 
-    def serve_tcp(self, host: str = "127.0.0.1", motion_port: int = sm.PORT_MOTION,
-                  state_port: int = sm.PORT_STATE) -> tuple[str, str]:
+    def serve_tcp(
+        self,
+        host: str = "127.0.0.1",
+        motion_port: int = sm.PORT_MOTION,
+        state_port: int = sm.PORT_STATE,
+    ) -> tuple[str, str]:
         """Listen on both ports (0: ephemeral); returns their ``tcp://`` URLs."""
         if self._closed or self._motion is not None:
             raise TransportError("the simulator is closed or already serving")

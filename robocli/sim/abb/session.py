@@ -272,7 +272,7 @@ class ArmController:
 
     def _abb(self, link: Link, msg: sm.Message, frame: bytes) -> bytes | None:
         size = self._spec.JointTrajPt.sizeof()
-        raw = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE:]
+        raw = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE :]
         if msg.msg_type != MsgType.JOINT_TRAJ_PT or len(raw) < size:
             # RAPID raises ERR_ARGVALERR / ERR_OUTOFBND: the task restarts, the socket closes
             self.frames_refused += 1
@@ -315,8 +315,11 @@ class ArmController:
             return
         lo, hi = self.model.limits[:, 0] - 1e-6, self.model.limits[:, 1] + 1e-6
         for p in points:  # MoveAbsJ fails: ROS_motion.mod warns, aborts and restarts
-            if not (np.all(np.isfinite(p.joints)) and np.all((p.joints >= lo) & (p.joints <= hi))
-                    and math.isfinite(p.duration)):
+            if not (
+                np.all(np.isfinite(p.joints))
+                and np.all((p.joints >= lo) & (p.joints <= hi))
+                and math.isfinite(p.duration)
+            ):
                 self.rejected_points += 1
                 log.warning("ROS_motion: point %d cannot be reached; trajectory aborted",
                             p.sequence)  # fmt: skip
@@ -341,7 +344,7 @@ class ArmController:
         if not request:
             return None
         self._delay()
-        echo = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE:]
+        echo = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE :]
         return self._ack(ReplyCode.SUCCESS if ok else ReplyCode.FAILURE, echo)
 
     def _stream_point(self, p: _Point) -> bool:
