@@ -227,7 +227,12 @@ def test_output_waiting_over_all_connections_is_bounded(raw: Any, wait: Any) -> 
             alive = {i.id for i in srv.clients if i.connected} & connected
             return waiting > 0 and len(alive) < len(clients)
 
-        wait(settled, timeout=20, what="a client dropped for the budget")
+        try:
+            wait(settled, timeout=20, what="a client dropped for the budget")
+        except AssertionError as exc:  # what the hub held then, to find why
+            held_now = vars(srv._server.budget)
+            alive = [(i.id, i.connected) for i in srv.clients]
+            raise AssertionError(f"{exc}: budget {held_now}, clients {alive}") from None
         print(f"output waiting peak {srv.output_peak / 1e6:.2f} MB (budget {budget / 1e6:.1f})")
         assert srv.output_peak <= budget
         held = srv._server.budget
