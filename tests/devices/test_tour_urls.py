@@ -14,12 +14,14 @@ import re
 import socket
 import subprocess
 import sys
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 import robocli
+from robocli.errors import InvalidArgument
 from robocli.sim.pioneer.server import PioneerSim
 
 SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "tour.py"
@@ -91,3 +93,39 @@ def test_the_tour_runs_unchanged_with_only_the_url_changed(kind: str) -> None:
             assert _run_tour(url) >= 0.25
         truth = simulator.snapshot()
     assert math.dist((start.x, start.y), (truth.x, truth.y)) >= 0.2  # the robot itself moved
+
+
+def test_a_zenoh_url_names_its_endpoint_once_and_refuses_what_a_bridge_owns() -> None:
+    """Checked before anything is opened: no router is needed."""
+    url = "zenoh/tour?zenoh=tcp/127.0.0.1:1"
+    with pytest.raises(InvalidArgument, match="give the Zenoh endpoint once"):
+        robocli.Pioneer.connect(url, zenoh="tcp/127.0.0.1:2")
+    with pytest.raises(InvalidArgument, match=r"subtype=, baudrate= cannot be given"):
+        robocli.Pioneer.connect(url, subtype="p3at", baudrate=38400)
+    with pytest.raises(InvalidArgument, match="port= cannot be given"):
+        robocli.Hub.connect("zenoh/lab", port=1500)
+    with pytest.raises(InvalidArgument, match="zenoh= is for a zenoh/NAME URL"):
+        robocli.Pioneer.connect("tcp://127.0.0.1:1", zenoh="tcp/127.0.0.1:7447")
+
+
+def test_hub_connect_with_a_zenoh_url_gives_the_zenoh_hub() -> None:
+    """Hub.connect("zenoh/NAME?zenoh=ENDPOINT"): the hub's Zenoh front-end, read like any hub."""
+    pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
+    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.zenoh.session import close_session, open_session
+
+    endpoint = _free_endpoint()
+    server = robocli.HubServer(port=0, sim=True).start()
+    session = open_session(endpoint, "server")
+    front = ZenohFrontend(server.hub, session, "lab", publish={"adc": {}}).start()
+    got = threading.Event()
+    try:
+        with robocli.Hub.connect(f"zenoh/lab?zenoh={endpoint}",
+                                 listeners=[lambda *_frame: got.set()]) as hub:  # fmt: skip
+            assert isinstance(hub, robocli.ZenohHub) and hub.url == "zenoh/lab"
+            hub.subscribe("adc", rate=50)
+            assert got.wait(DEADLINE_S), "no batch reached the listener given to connect"
+    finally:
+        front.close()
+        close_session(session)
+        server.close()

@@ -62,6 +62,11 @@ from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols.ros4mat import MsgType, SerialStatus, encode_request, sensor_type
 from robocli.transports import Transport
 
+#: ``ZenohHub.connect``, which ``Hub.connect("zenoh/NAME")`` calls: put here by
+#: :mod:`robocli.devices.hub.over_zenoh` (imported with this package), whose ZenohHub is a Hub
+#: and so cannot be imported from here.
+ZENOH_HUB: list[Callable[..., Hub]] = []
+
 
 class Hub:
     """A client of a ros4mat v3 sensor hub (``robocli serve`` or the original server)."""
@@ -129,10 +134,9 @@ class Hub:
         text = renamed_argument("Hub.connect", "host", "url", host, url, "127.0.0.1")
         if text.startswith("zenoh/"):
             not_over_zenoh(text, "hub", port=port, compress=compress, client_id=client_id)
-            from robocli.devices.hub.over_zenoh import ZenohHub  # (it imports this module)
-
-            zhub = ZenohHub.connect(text, zenoh=zenoh, timeout=timeout, clock=clock,
-                                    hub_clock=hub_clock, token=token)  # fmt: skip
+            assert ZENOH_HUB, "robocli.devices.hub imports over_zenoh, which sets it"
+            zhub = ZENOH_HUB[0](text, zenoh=zenoh, timeout=timeout, clock=clock,
+                                hub_clock=hub_clock, token=token)  # fmt: skip
             for listener in listeners:
                 zhub.add_listener(listener)
             return zhub

@@ -31,7 +31,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from robocli.devices.base import ListenerHandle, pick_kind, renamed_argument, zenoh_where
-from robocli.devices.hub.client import Hub
+from robocli.devices.hub.client import ZENOH_HUB, Hub
 from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
@@ -460,6 +460,9 @@ class ZenohHub(Hub):
 
     def __repr__(self) -> str:
         return f"<ZenohHub {self.name}>"
+
+
+ZENOH_HUB.append(ZenohHub.connect)
 
 
 def _join(kind: MsgType, batches: list[Batch]) -> bytes:
