@@ -211,7 +211,8 @@ class DeviceURL:
     ``p3dx``; ``options`` its query, e.g. ``time_scale=4``), ``"tcp"`` (``host``, ``port``
     or None when the URL gave none; ``ports`` the named ports of its query), ``"serial"``
     (``target`` a path, ``COMn`` or a pyserial URL) or ``"zenoh"`` (``name`` after
-    ``zenoh/``). ``target`` is what :func:`~robocli.transports.open_transport` opens."""
+    ``zenoh/``; ``options`` its query: ``zenoh``, the endpoint or configuration file).
+    ``target`` is what :func:`~robocli.transports.open_transport` opens."""
 
     kind: str
     text: str
@@ -262,7 +263,8 @@ def parse_device_url(
       ``tcp://HOST?motion=11000&state=11002`` for an arm (``ports=ARM_PORTS``);
     - a serial port (``/dev/ttyUSB0``, ``COM3``) or a pyserial URL (``socket://``,
       ``rfc2217://``...): ``kind="serial"``;
-    - ``zenoh/NAME``: a robot or hub behind a Zenoh bridge.
+    - ``zenoh/NAME[?zenoh=ENDPOINT|CONFIG]``: a robot or hub behind a Zenoh bridge, reached
+      through that endpoint or configuration (``--zenoh``'s value; ``options["zenoh"]``).
 
     Raises :class:`InvalidURL` (a usage error) for anything else; nothing is opened."""
     text = url.strip() if isinstance(url, str) else ""
@@ -278,10 +280,14 @@ def parse_device_url(
             raise _bad(what, text, f"{model!r} is not a simulator model name", "sim://MODEL")
         return DeviceURL("sim", text, model=model, options=_query(text, query))
     if text.startswith("zenoh/"):
-        name = text.removeprefix("zenoh/")
+        name, _, query = text.removeprefix("zenoh/").partition("?")
         if not name or not _HOSTNAME.match(name):
-            raise _bad(what, text, "not a name after zenoh/", "zenoh/NAME")
-        return DeviceURL("zenoh", text, name=name)
+            raise _bad(what, text, "not a name after zenoh/", "zenoh/NAME[?zenoh=ENDPOINT]")
+        options = _query(text, query)
+        if options.keys() - {"zenoh"} or not options.get("zenoh", "-"):
+            raise _bad(what, text, "the query takes zenoh=ENDPOINT|CONFIG only (e.g. "
+                       "zenoh=tcp/127.0.0.1:7447)", "zenoh/NAME[?zenoh=ENDPOINT]")  # fmt: skip
+        return DeviceURL("zenoh", text, name=name, options=options)
     if ports and not text.startswith(("/", "\\")) and ("://" not in text or is_tcp(text)):
         address, _, query = text.partition("?")
         named = _named_ports(text, _query(text, query), ports)

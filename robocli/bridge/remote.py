@@ -30,11 +30,12 @@ import re
 import socket
 import threading
 import time
+from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
-from robocli.devices.base import ListenerHandle, deprecated, pick_kind
-from robocli.devices.listeners import Listeners
+from robocli.devices.base import ListenerHandle, deprecated, pick_kind, zenoh_where
+from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
 from robocli.devices.stats import LinkStats
@@ -81,7 +82,8 @@ class RemotePioneer:
 
     def __init__(self, session: zenoh.Session, robot: str, *, holder: str | None = None,
                  timeout: float = 5.0, resend: float = DEFAULT_RESEND_S,
-                 own_session: bool = False) -> None:  # fmt: skip
+                 own_session: bool = False,
+                 listeners: Iterable[FrameListener] = ()) -> None:  # fmt: skip
         self.robot = check_name(robot.removeprefix("zenoh/"), "robot name")
         #: samples received (by key: state, laser, event) and set-points sent
         self.stats = LinkStats()
@@ -89,6 +91,8 @@ class RemotePioneer:
             kind: Listeners(self.stats, f"zenoh/{self.robot} {kind}")
             for kind in ("frames", "states")
         }
+        for listener in listeners:
+            self._listeners["frames"].add(listener)
         self.holder = check_name(holder or default_holder(), "holder")
         self.timeout = timeout
         self.resend = resend
@@ -130,17 +134,21 @@ class RemotePioneer:
     @classmethod
     def connect(cls, robot: str, zenoh: str | ZenohTarget | None = None, *,
                 holder: str | None = None, timeout: float = 5.0,
-                resend: float = DEFAULT_RESEND_S) -> RemotePioneer:  # fmt: skip
+                resend: float = DEFAULT_RESEND_S,
+                listeners: Iterable[FrameListener] = ()) -> RemotePioneer:  # fmt: skip
         """Connect to ``zenoh`` (an endpoint such as ``tcp/127.0.0.1:7447``, or a JSON5
-        config file) as a client and find the bridge ``robot`` (``NAME`` or ``zenoh/NAME``):
-        :class:`TimeoutError` when no bridge of that name answers within ``timeout`` s.
+        config file; default tcp/127.0.0.1:7447) as a client and find the bridge ``robot``
+        (``NAME``, ``zenoh/NAME``, or ``zenoh/NAME?zenoh=ENDPOINT`` with the endpoint in the
+        URL): :class:`TimeoutError` when no bridge of that name answers within ``timeout`` s.
         ``holder`` (default: the configuration's user, else :func:`default_holder`): the
         name this program drives as; under a lab's ACL, only its own user name is let
-        through."""
+        through. ``listeners``: ``"frames"`` listeners (see :meth:`add_listener`), from the
+        first sample on. ``Pioneer.connect("zenoh/NAME...")`` comes here too."""
+        robot, zenoh = zenoh_where(robot, zenoh, "RemotePioneer")
         holder = holder or config_user(zenoh)
         session = open_session(zenoh, "client")
         return cls(session, robot, holder=holder, timeout=timeout, resend=resend,
-                   own_session=True)  # fmt: skip
+                   own_session=True, listeners=listeners)  # fmt: skip
 
     # ------------------------------------------------------------------ watching
 
@@ -248,6 +256,11 @@ class RemotePioneer:
             holder_key(self.robot, self.holder, "alive")
         )
         self.fault = None
+
+    def enable_motors(self) -> None:
+        """Take the robot (:meth:`acquire`): the bridge powers its motors when it grants it,
+        so a script written for :class:`~robocli.devices.pioneer.Pioneer` runs here as is."""
+        self.acquire()
 
     def set_velocity(self, v: float, w: float = 0.0) -> None:
         """Drive at ``v`` m/s and ``w`` rad/s (CCW +), re-sent until changed; takes the robot

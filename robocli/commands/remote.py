@@ -16,11 +16,12 @@ ZENOH_PREFIX = "zenoh/"
 
 
 def remote(port: str, zenoh: str | None, timeout: float, **options: Any) -> Any:
-    """The :class:`~robocli.bridge.RemotePioneer` of PORT ``zenoh/<robot>``."""
+    """The :class:`~robocli.bridge.RemotePioneer` of PORT ``zenoh/<robot>`` (its endpoint
+    in the URL, ``?zenoh=``, or given by ``--zenoh``: once)."""
     from robocli.bridge import RemotePioneer
 
-    robot = port[len(ZENOH_PREFIX) :]
-    return RemotePioneer.connect(robot, zenoh_target(zenoh), timeout=timeout, **options)
+    target = None if zenoh is None else zenoh_target(zenoh)
+    return RemotePioneer.connect(port, target, timeout=timeout, **options)
 
 
 def is_remote(port: str, zenoh: str | None) -> bool:

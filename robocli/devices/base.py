@@ -25,9 +25,13 @@ import threading
 import warnings
 from collections.abc import Callable
 from types import TracebackType
-from typing import Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
+from robocli.addresses import parse_device_url
 from robocli.errors import InvalidArgument
+
+if TYPE_CHECKING:
+    from robocli.zenoh.session import ZenohTarget
 
 __all__ = ["Device", "ListenerHandle", "Stats", "deprecated", "renamed_argument"]
 
@@ -128,3 +132,29 @@ def close_simulator(device: Any) -> None:
     simulator = getattr(device, "simulator", None)
     if simulator is not None:
         simulator.close()
+
+
+def zenoh_where(url: str, zenoh: str | ZenohTarget | None,
+                device: str) -> tuple[str, str | ZenohTarget | None]:  # fmt: skip
+    """A ``zenoh/NAME[?zenoh=ENDPOINT|CONFIG]`` URL (or a bare ``NAME``) and the ``zenoh=``
+    keyword -> (NAME, where to reach it: the keyword, else the URL's query; None: the
+    default endpoint). Both given and different is an :class:`InvalidArgument`."""
+    if not url.startswith("zenoh/"):
+        return url, zenoh
+    where = parse_device_url(url, what=f"{device} URL")
+    in_url = where.options.get("zenoh")
+    if zenoh is not None and in_url is not None and str(zenoh) != in_url:
+        raise InvalidArgument(f"{url!r}: give the Zenoh endpoint once, in the URL (?zenoh=) "
+                              f"or as zenoh=, not both ({in_url} and {zenoh})")  # fmt: skip
+    return where.name, in_url if zenoh is None else zenoh
+
+
+def not_over_zenoh(url: str, device: str, **given: object) -> None:
+    """:class:`InvalidArgument` naming the arguments of ``given`` that were set (not None,
+    False or empty) for a ``zenoh/NAME`` URL, where they mean nothing (the bridge or
+    front-end owns the link to the device)."""
+    named = [name for name, value in given.items() if value not in (None, False, 0, ())]
+    if named:
+        given_names = ", ".join(f"{name}=" for name in named)
+        raise InvalidArgument(f"{url!r}: {given_names} cannot be given for a {device} behind "
+                              "Zenoh (its bridge owns the link)")  # fmt: skip

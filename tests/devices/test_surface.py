@@ -26,6 +26,8 @@ from robocli.sim.abb.server import AbbSim
     ("/dev/ttyUSB0", "serial", "target", "/dev/ttyUSB0"),
     ("socket://127.0.0.1:4001", "serial", "target", "socket://127.0.0.1:4001"),
     ("zenoh/lab-robot", "zenoh", "name", "lab-robot"),
+    ("zenoh/lab-robot?zenoh=tcp/10.0.0.1:7447", "zenoh", "options",
+     {"zenoh": "tcp/10.0.0.1:7447"}),
 ])  # fmt: skip
 def test_one_grammar_for_every_device(url: str, kind: str, field: str, value: Any) -> None:
     parsed = parse_device_url(url)
@@ -47,6 +49,9 @@ def test_an_arms_two_ports_ride_in_its_url() -> None:
     ("loop://", (), "echoes"),
     ("sim://no such", (), "model name"),
     ("zenoh/", (), "zenoh/NAME"),
+    ("zenoh/r1?connect=tcp/h:1", (), "zenoh=ENDPOINT"),
+    ("zenoh/r1?zenoh=", (), "zenoh=ENDPOINT"),
+    ("zenoh/r1?zenoh=a&zenoh=b", (), "repeated"),
     ("", (), "empty"),
     ("x" * 5000, (), "longer than"),
 ])  # fmt: skip

@@ -63,6 +63,14 @@ def test_connect_names_a_missing_bridge(bridged, endpoint) -> None:
     assert "no bridge named 'nobody'" in one_line_error(proc, 3)
 
 
+def test_the_endpoint_may_ride_in_the_url_as_in_the_library(bridged, endpoint) -> None:
+    proc = run("connect", "pioneer", f"zenoh/r1?zenoh={endpoint}", "--once", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["robot"] == "r1"
+    proc = run("connect", "pioneer", f"zenoh/r1?zenoh={endpoint}", "--zenoh", "tcp/127.0.0.1:1")
+    assert "give the Zenoh endpoint once" in one_line_error(proc, 2)
+
+
 def test_zenoh_needs_a_zenoh_port() -> None:
     proc = run("connect", "pioneer", "sim", "--zenoh", "tcp/127.0.0.1:1")
     assert "zenoh/ROBOT" in one_line_error(proc, 2)

@@ -6,6 +6,7 @@ port of the hub as a local one: :class:`VirtualSerial` (:mod:`.serial`), on a lo
 (:mod:`.zenoh_serial`)."""
 
 from robocli.devices.hub.client import Hub, Reading
+from robocli.devices.hub.over_zenoh import ZenohHub  # (so that Hub.connect("zenoh/NAME") works)
 from robocli.devices.hub.serial import VirtualSerial
 
-__all__ = ["Hub", "Reading", "VirtualSerial"]
+__all__ = ["Hub", "Reading", "VirtualSerial", "ZenohHub"]

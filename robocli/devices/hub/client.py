@@ -28,7 +28,13 @@ import numpy as np
 
 from robocli.addresses import DeviceURL, parse_device_url
 from robocli.devices import simulators
-from robocli.devices.base import ListenerHandle, close_simulator, pick_kind, renamed_argument
+from robocli.devices.base import (
+    ListenerHandle,
+    close_simulator,
+    not_over_zenoh,
+    pick_kind,
+    renamed_argument,
+)
 from robocli.devices.hub.clock import CLOCK_SLEW, CLOCK_STEP, CLOCK_WINDOW, ClockSync
 from robocli.devices.hub.decode import HEADER, Reading, align_readings, body_of, decode_reading
 from robocli.devices.hub.link import (
@@ -55,6 +61,11 @@ from robocli.devices.session import LinkStats, Session
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols.ros4mat import MsgType, SerialStatus, encode_request, sensor_type
 from robocli.transports import Transport
+
+#: ``ZenohHub.connect``, which ``Hub.connect("zenoh/NAME")`` calls: put here by
+#: :mod:`robocli.devices.hub.over_zenoh` (imported with this package), whose ZenohHub is a Hub
+#: and so cannot be imported from here.
+ZENOH_HUB: list[Callable[..., Hub]] = []
 
 
 class Hub:
@@ -103,11 +114,13 @@ class Hub:
         token: bytes | str | None = None,
         listeners: Iterable[FrameListener] = (),
         host: str | None = None,
+        zenoh: str | None = None,
     ) -> Hub:
         """Connect to the hub at ``url`` (``HOST[:PORT]`` or ``tcp://HOST:PORT``; ``port``
         default 1500; default 127.0.0.1) and send CONNECT. ``sim://`` starts the built-in
         simulated hub in-process on loopback (closed with the client); a hub's Zenoh
-        front-end (``zenoh/NAME``) is :class:`~robocli.devices.hub.over_zenoh.ZenohHub`'s.
+        front-end, ``zenoh/NAME`` (``zenoh/NAME?zenoh=ENDPOINT``, or the endpoint or JSON5
+        file as ``zenoh=``), gives a :class:`~robocli.devices.hub.over_zenoh.ZenohHub`.
         ``host`` is the deprecated old name of ``url``.
         ``compress``: the hub zlib-compresses every reply.
         ``client_id``: re-attach to that client's buffers. ``clock``: the client's clock
@@ -120,8 +133,15 @@ class Hub:
         :class:`TimeoutError` when the hub does not answer."""
         text = renamed_argument("Hub.connect", "host", "url", host, url, "127.0.0.1")
         if text.startswith("zenoh/"):
-            raise InvalidArgument(f"{text!r}: a hub on Zenoh is reached with "
-                                  "robocli.ZenohHub.connect")  # fmt: skip
+            not_over_zenoh(text, "hub", port=port, compress=compress, client_id=client_id)
+            assert ZENOH_HUB, "robocli.devices.hub imports over_zenoh, which sets it"
+            zhub = ZENOH_HUB[0](text, zenoh=zenoh, timeout=timeout, clock=clock,
+                                hub_clock=hub_clock, token=token)  # fmt: skip
+            for listener in listeners:
+                zhub.add_listener(listener)
+            return zhub
+        if zenoh is not None:
+            raise InvalidArgument(f"{text!r}: zenoh= is for a zenoh/NAME URL")
         if text == "sim" or text.startswith("sim://"):
             where = parse_device_url(text, what="hub URL")
             return simulators.connect_to(  # type: ignore[no-any-return]

@@ -30,8 +30,8 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from robocli.devices.base import ListenerHandle, pick_kind, renamed_argument
-from robocli.devices.hub.client import Hub
+from robocli.devices.base import ListenerHandle, pick_kind, renamed_argument, zenoh_where
+from robocli.devices.hub.client import ZENOH_HUB, Hub
 from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
 from robocli.devices.hub.subscription import subscribe_request
@@ -214,13 +214,16 @@ class ZenohHub(Hub):
         token: bytes | str | None = None,
         history: bool = True,
     ) -> ZenohHub:
-        """Connect to the hub ``name`` (``zenoh/NAME`` too; None: the one hub that is up)
-        through the Zenoh endpoint or configuration ``zenoh`` (default
-        tcp/127.0.0.1:7447), and ask what it serves. ``token``: the hub's token, needed to
+        """Connect to the hub ``name`` (``zenoh/NAME`` too, ``zenoh/NAME?zenoh=ENDPOINT``
+        with the endpoint in the URL; None: the one hub that is up) through the Zenoh
+        endpoint or configuration ``zenoh`` (default tcp/127.0.0.1:7447), and ask what it
+        serves. ``token``: the hub's token, needed to
         change settings on a hub that has one. ``history``: a subscription starts with the
         hub's recent batches. Raises :class:`TransportError` when nothing answers there,
         :class:`TimeoutError` when no hub of that name answers."""
         secret = token_bytes(token) or None
+        if name is not None:
+            name, zenoh = zenoh_where(name, zenoh, "hub")
         session = open_session(zenoh, "client")
         try:
             if name is None:
@@ -457,6 +460,9 @@ class ZenohHub(Hub):
 
     def __repr__(self) -> str:
         return f"<ZenohHub {self.name}>"
+
+
+ZENOH_HUB.append(ZenohHub.connect)
 
 
 def _join(kind: MsgType, batches: list[Batch]) -> bytes:

@@ -30,7 +30,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Iterable
-from typing import Any
+from typing import Any, cast
 
 from robocli.addresses import parse_device_url
 from robocli.core import Framer
@@ -38,6 +38,7 @@ from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
     close_simulator,
+    not_over_zenoh,
     pick_kind,
     renamed_argument,
 )
@@ -150,11 +151,20 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
         listeners: Iterable[PacketListener] = (),
         laser: bool = False,
         baud: int | None = None,
+        zenoh: str | None = None,
     ) -> Pioneer:
         """Open ``url`` (``/dev/ttyUSB0``, ``COM1``, ``tcp://host:8101``, pyserial URLs, or
         ``sim://[SUBTYPE][?OPTION=VALUE...]``: the built-in simulator, started in-process on
         loopback and closed with the robot; see ``docs/urls.md``), run the ARCOS handshake
         and start the reader and keep-alive threads.
+
+        ``zenoh/NAME`` (``zenoh/NAME?zenoh=ENDPOINT``, or the endpoint or JSON5 file as
+        ``zenoh=``; default tcp/127.0.0.1:7447) gives a
+        :class:`~robocli.bridge.remote.RemotePioneer`, the robot behind ``robocli bridge
+        pioneer``: it has what a script drives with (``state``, ``pose``, ``battery``,
+        ``enable_motors``, ``set_velocity``, ``stop``, ``wait_for_state``, listeners,
+        ``close``), not the ARCOS-only commands. ``timeout`` and ``listeners`` apply there;
+        the link's own arguments (``subtype``, ``baudrate``...) are refused.
 
         ``subtype`` overrides the robot's own (conversion factors from
         :data:`robocli.robots.pioneer.ROBOT_PARAMS`); ``params`` gives them outright.
@@ -184,8 +194,16 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
                 "pioneer", where, lambda sim: cls.connect(sim.url, **options)
             )
         if where.kind == "zenoh":
-            raise InvalidArgument(f"{url!r}: a Pioneer behind a Zenoh bridge is reached with "
-                                  "robocli.RemotePioneer.connect")  # fmt: skip
+            not_over_zenoh(url, "Pioneer", subtype=subtype, params=params, baudrate=baudrate,
+                           baud=baud, switch_baud=switch_baud, deadman=deadman,
+                           require_config=require_config, laser=laser)  # fmt: skip
+            # imported here: the bridge's modules import this one
+            from robocli.bridge.remote import RemotePioneer
+
+            remote = RemotePioneer.connect(url, zenoh, timeout=timeout, listeners=listeners)
+            return cast("Pioneer", remote)  # the driving surface, duck-typed (see above)
+        if zenoh is not None:
+            raise InvalidArgument(f"{url!r}: zenoh= is for a zenoh/NAME URL")
         transport = open_transport(where.target, baudrate=rate, timeout=timeout)
         return cls.from_transport(transport, **options)
 
@@ -339,6 +357,11 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
                         raise self._keeper.silence_error()
                     raise TimeoutError(f"{self.transport.url}: no SIP within {limit:g} s")
                 cond.wait(left)
+
+    def wait_for_state(self, timeout: float | None = None) -> PioneerState:
+        """The next state, as every client spells it (:class:`~robocli.bridge.RemotePioneer`,
+        the arm): :meth:`wait_for_sip`."""
+        return self.wait_for_sip(timeout)
 
     def snapshot(self) -> dict[str, Any]:
         """Identity, parameters, the latest state and link counters as plain data (JSON-ready)."""
