@@ -433,22 +433,25 @@ def laser_scan(ns: int, frame_id: str, start: float, end: float, ranges: list[fl
     }  # fmt: skip
 
 
-def compressed_image(ns: int, frame_id: str, data: bytes, fmt: str = "jpeg") -> dict[str, Any]:
-    """A ``foxglove.CompressedImage`` (``data`` base64-encoded here)."""
-    import base64
-
-    return {"timestamp": stamp(ns), "frame_id": frame_id,
-            "data": base64.b64encode(data).decode("ascii"), "format": fmt}  # fmt: skip
+def compressed_image(ns: int, frame_id: str, data: bytes | memoryview, fmt: str = "jpeg", *,
+                     raw: bool = False) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.CompressedImage`` (``data`` base64-encoded here; ``raw``: kept as the
+    bytes, for a sink that takes dicts, never for JSON)."""
+    return {"timestamp": stamp(ns), "frame_id": frame_id, "data": _data(data, raw),
+            "format": fmt}  # fmt: skip
 
 
 def raw_image(ns: int, frame_id: str, width: int, height: int, encoding: str, step: int,
-              data: bytes | memoryview) -> dict[str, Any]:  # fmt: skip
-    """A ``foxglove.RawImage`` (``data`` base64-encoded here)."""
+              data: bytes | memoryview, *, raw: bool = False) -> dict[str, Any]:  # fmt: skip
+    """A ``foxglove.RawImage`` (``data`` as in :func:`compressed_image`)."""
+    return {"timestamp": stamp(ns), "frame_id": frame_id, "width": width, "height": height,
+            "encoding": encoding, "step": step, "data": _data(data, raw)}  # fmt: skip
+
+
+def _data(data: bytes | memoryview, raw: bool) -> str | bytes | memoryview:
     import base64
 
-    return {"timestamp": stamp(ns), "frame_id": frame_id, "width": width, "height": height,
-            "encoding": encoding, "step": step,
-            "data": base64.b64encode(data).decode("ascii")}  # fmt: skip
+    return data if raw else base64.b64encode(data).decode("ascii")
 
 
 def location_fix(ns: int, frame_id: str, latitude: float, longitude: float,

@@ -116,19 +116,35 @@ class Ros2Topics:
         return len(self._channels)
 
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
+        if self._channels[cid - 1][1]:  # (a raw channel: robocli's own, not ROS 2's)
+            try:
+                sample = json.loads(data)
+            except ValueError as exc:
+                self._error(self._channels[cid - 1][0], exc)
+                return
+            self.write_sample(cid, sample, log_ns, publish_ns)
+
+    def write_sample(self, cid: int, sample: dict[str, Any], log_ns: int,
+                     publish_ns: int | None = None) -> None:  # fmt: skip
+        """:meth:`write` of the message as the decoder's dict, not its JSON (a decoder that
+        sees this method gives its samples so: no JSON made and parsed again, an image's
+        ``data`` its bytes, not base64)."""
         topic, schema = self._channels[cid - 1]
         if not schema:
-            return  # a raw channel: robocli's own, not ROS 2's
+            return
         try:
-            messages = self.mapper.map(schema, topic, json.loads(data))
+            messages = self.mapper.map(schema, topic, sample)
         except (RobocliError, ValueError) as exc:
-            self.errors += 1
-            if self.errors == 1:
-                log.warning("%s: %s does not map to ROS 2: %s (later ones only counted)",
-                            self.name, topic, exc)  # fmt: skip
+            self._error(topic, exc)
             return
         for m in messages:
             self.publish(m)
+
+    def _error(self, topic: str, exc: Exception) -> None:
+        self.errors += 1
+        if self.errors == 1:
+            log.warning("%s: %s does not map to ROS 2: %s (later ones only counted)",
+                        self.name, topic, exc)  # fmt: skip
 
     # ------------------------------------------------------------------ publishing
 

@@ -52,6 +52,10 @@ robot; a robot description's link names lose it too, so that its model and ``/tf
 ``Mapper(prefix_frames=True)`` keeps the prefixes, for several robots in one bag or on one
 ROS 2 graph.
 
+**Bytes.** An image's (or raw frame's) ``data`` is base64 text, as in a recording's JSON,
+or the bytes themselves (``bytes``, ``memoryview``), as a live sink that takes the decoders'
+dicts without JSON gives them (:meth:`robocli.ros2.live.Ros2Topics.write_sample`).
+
 **Time.** ``t_ns`` is the message's own stamp (the source's acquisition time, robocli's
 ``timestamp``), also written in every header. A sample of a schema not listed above maps to
 nothing. A malformed sample raises :class:`~robocli.errors.RobocliError`.
@@ -67,12 +71,19 @@ import numpy as np
 
 from robocli.errors import RobocliError
 from robocli.ros2 import types as T
+from robocli.ros2.cdr import compressed_image_cdr, image_cdr, laser_scan_cdr, sample_bytes
 
-__all__ = ["Mapper", "Ros2Message", "laser_scan_cdr", "to_ros2"]
+__all__ = [
+    "Mapper",
+    "Ros2Message",
+    "compressed_image_cdr",
+    "image_cdr",
+    "laser_scan_cdr",
+    "to_ros2",
+]
 
 _NAN = math.nan
 _F4, _F8, _U1 = np.float32, np.float64, np.uint8
-_RANGE_MIN, _RANGE_MAX = 0.01, 30.0
 
 
 class Ros2Message(NamedTuple):
@@ -321,21 +332,15 @@ class Mapper:
         ]
 
     def compressed(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
-        import base64
-
-        return [self._one(topic, "sensor_msgs/msg/CompressedImage", ns,
-                          header=self.header(ns, s["frame_id"]), format=s.get("format", "jpeg"),
-                          data=np.frombuffer(base64.b64decode(s["data"]), _U1))]  # fmt: skip
+        data = compressed_image_cdr(ns, self.frame(s["frame_id"]), str(s.get("format", "jpeg")),
+                                    sample_bytes(s["data"]))  # fmt: skip
+        return [Ros2Message(topic, "sensor_msgs/msg/CompressedImage", data, ns)]
 
     def image(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
-        import base64
-
-        encoding = "16UC1" if s["encoding"] == "mono16" else s["encoding"]
-        return [self._one(topic, "sensor_msgs/msg/Image", ns,
-                          header=self.header(ns, s["frame_id"]), height=int(s["height"]),
-                          width=int(s["width"]), encoding=encoding, is_bigendian=0,
-                          step=int(s["step"]),
-                          data=np.frombuffer(base64.b64decode(s["data"]), _U1))]  # fmt: skip
+        encoding = "16UC1" if s["encoding"] == "mono16" else str(s["encoding"])
+        data = image_cdr(ns, self.frame(s["frame_id"]), int(s["height"]), int(s["width"]),
+                         encoding, int(s["step"]), sample_bytes(s["data"]))  # fmt: skip
+        return [Ros2Message(topic, "sensor_msgs/msg/Image", data, ns)]
 
     def text(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
         data = str(s["data"])
@@ -344,12 +349,10 @@ class Mapper:
         return [self._one(topic, "std_msgs/msg/String", ns, data=data)]
 
     def raw(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
-        import base64
-
         return [self._one(topic, T.RAW_FRAME, ns, stamp=_time(ns), link=s["link"],
                           protocol=s["protocol"], direction=s["direction"],
                           port=s.get("port", ""),
-                          data=np.frombuffer(base64.b64decode(s["data"]), _U1))]  # fmt: skip
+                          data=np.frombuffer(sample_bytes(s["data"]), _U1))]  # fmt: skip
 
 
 _HANDLERS = {
@@ -386,45 +389,6 @@ def to_ros2(kind: str, topic: str, sample: dict[str, Any], *,
 
 
 _PREFIXED = Mapper(prefix_frames=True)
-
-
-# ---------------------------------------------------------------------- LaserScan, fast
-
-
-def laser_scan_cdr(ns: int, frame_id: str, angle_min: float, angle_max: float,
-                   ranges: np.ndarray, intensities: np.ndarray | None = None) -> bytes:  # fmt: skip
-    """A sensor_msgs/LaserScan as CDR, straight from float32 arrays (a 1081-beam scan in a
-    few microseconds): robocli's 0 (no return) becomes +inf, ``frame_id`` is written as
-    given. The bytes equal :func:`.types.serialize` of the same message."""
-    r = np.asarray(ranges, _F4)
-    n = len(r)
-    top = float(r.max()) if n else 0.0
-    if not math.isfinite(top):  # an infinity or a NaN given: the farthest finite range
-        top = float(r[np.isfinite(r)].max(initial=0.0))
-    rmax = max(_RANGE_MAX, top)
-    if n and not r.all():
-        r = np.where(r == 0, np.float32(np.inf), r)
-    inten = np.asarray(() if intensities is None else intensities, _F4)
-    inc = (angle_max - angle_min) / (n - 1) if n > 1 else 0.0
-    sec, nsec = divmod(ns, 1_000_000_000)
-    fid = frame_id.encode() + b"\0"
-    head = _HEAD.pack(sec, nsec, len(fid))  # after the encapsulation: CDR offsets from here
-    pad = -(len(head) + len(fid)) % 4
-    body = _SCAN.pack(angle_min, angle_max, inc, 0.0, 0.0, _RANGE_MIN, rmax, n)
-    return b"".join((_CDR_LE, head, fid, b"\0" * pad, body, r.tobytes(), _U32.pack(len(inten)),
-                     inten.tobytes()))  # fmt: skip
-
-
-def _structs() -> tuple[Any, Any, Any]:
-    import struct
-
-    # stamp, frame_id length; then 7 floats and the ranges' length (all 4-aligned after
-    # the padded string)
-    return struct.Struct("<iII"), struct.Struct("<7fI"), struct.Struct("<I")
-
-
-_HEAD, _SCAN, _U32 = _structs()
-_CDR_LE = b"\x00\x01\x00\x00"  #: the encapsulation header: CDR, little-endian
 
 
 # ---------------------------------------------------------------------- small builders

@@ -66,7 +66,14 @@ def _states(as_dict: bool) -> list[bytes]:
     link = rec.listener("pioneer", "arcos")
     decoder = PioneerDecoder(rec, "pioneer", ROBOT_PARAMS["p3dx"])
     if as_dict:
-        decoder._state = decoder._state_dict  # type: ignore[method-assign]
+        import json
+
+        from robocli.io.record.links import json_text
+
+        def state(st: object, stamp: str, sonar: list[float]) -> bytes:
+            return json_text(decoder._state_dict(st, json.loads(stamp), sonar)).encode()
+
+        decoder._state = state  # type: ignore[method-assign]
     link.decoder = decoder
     for i, f in enumerate(read_capture(trace)):
         if f.direction == "rx" and f.frame[3] & 0xF0 == 0x30:

@@ -49,6 +49,8 @@ class HubDecoder:
     def __init__(self, rec: Sink, name: str, hub: Hub) -> None:
         self.rec, self.hub, self.name = rec, hub, name
         self._cids: dict[str, int] = {}
+        #: a sink that takes the samples as dicts (a live ROS 2 one): no JSON, images' bytes
+        self._direct: Callable[..., None] | None = getattr(rec, "write_sample", None)
 
     def _cid(self, topic: str, schema: str) -> int:
         cid = self._cids.get(topic)
@@ -74,7 +76,10 @@ class HubDecoder:
              offset: float) -> None:  # fmt: skip
         publish = int((t - offset) * 1e9)
         message["timestamp"] = S.stamp(publish)
-        self.rec.write(self._cid(topic, schema), json_text(message).encode(), ns, publish)
+        if self._direct is not None:
+            self._direct(self._cid(topic, schema), message, ns, publish)
+        else:
+            self.rec.write(self._cid(topic, schema), json_text(message).encode(), ns, publish)
 
     def fixed(self, mtype: Any, body: Any, n: int, ns: int, offset: float) -> None:
         from robocli.protocols.ros4mat import MsgType, record_dtype
@@ -153,12 +158,13 @@ class HubDecoder:
         frame_id = f"{self.name}/{topic.split('/')[0]}"
         if len(blob) != size:
             raise InvalidArgument(f"hub {topic}: image of {size} bytes past the reply's end")
+        raw = self._direct is not None  # the bytes as they are, not base64
         if int(info["compression"]) != 0:
-            msg = S.compressed_image(0, frame_id, bytes(blob), "jpeg")
+            msg = S.compressed_image(0, frame_id, blob, "jpeg", raw=raw)
             self._put(topic, "foxglove.CompressedImage", msg, ns, float(info["t"]), offset)
         else:
             encoding, step = ("mono16", width * 2) if depth else ("rgb8", width * 3)
-            msg = S.raw_image(0, frame_id, width, height, encoding, step, blob)
+            msg = S.raw_image(0, frame_id, width, height, encoding, step, blob, raw=raw)
             self._put(topic, "foxglove.RawImage", msg, ns, float(info["t"]), offset)
         return pos + size
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from robocli.devices.pioneer.state import Odometry, build_state
@@ -70,6 +71,8 @@ class PioneerDecoder:
         self.odom, self.base = f"{name}/odom", f"{name}/base_link"
         self.topics = {k: f"/{name}/{k}" for k in ("pose", "tf", "sonar", "laser", "state")}
         self._cids: dict[str, int] = {}
+        #: a sink that takes the samples as dicts (a live ROS 2 one): the state first, no JSON
+        self._direct: Callable[..., None] | None = getattr(rec, "write_sample", None)
         self._step = step = 2 * math.pi / _SONAR_BINS
         # per transducer: (x, y, cos th, sin th); the scan's JSON around its ranges
         self._sonar_geometry = [(p.x, p.y, math.cos(p.th), math.sin(p.th)) for p in params.sonar]
@@ -108,6 +111,9 @@ class PioneerDecoder:
         st = build_state(sip, 0.0, odo, tuple(sonar), (), self.params, self.sips)
         sec, nsec = divmod(ns, 1_000_000_000)
         qz, qw = math.sin(st.th / 2), math.cos(st.th / 2)
+        if self._direct is not None:
+            self._sip_direct(st, ns, sec, nsec, sonar)
+            return
         stamp = f'{{"sec":{sec},"nsec":{nsec}}}'
         quat = f'{{"x":0.0,"y":0.0,"z":{qz!r},"w":{qw!r}}}'
         xyz = f'{{"x":{st.x!r},"y":{st.y!r},"z":0.0}}'
@@ -122,13 +128,33 @@ class PioneerDecoder:
         rec.write(self._cid("sonar", "foxglove.LaserScan"), self._sonar_scan(stamp), ns)
         rec.write(self._cid("state", "robocli.pioneer.State"), self._state(st, stamp, sonar), ns)
 
+    def _sip_direct(self, st: Any, ns: int, sec: int, nsec: int, sonar: list[float]) -> None:
+        """A SIP into a sink of dicts: the state first (the odometry a ROS 2 node waits
+        for), then the transform, the pose, the sonar scan (the same messages as the JSON)."""
+        stamp = {"sec": sec, "nsec": nsec}
+        direct = self._direct
+        assert direct is not None
+        direct(self._cid("state", "robocli.pioneer.State"), self._state_dict(st, stamp, sonar),
+               ns)  # fmt: skip
+        quat = S.quaternion_z(st.th)
+        xyz = {"x": st.x, "y": st.y, "z": 0.0}
+        direct(self._cid("tf", "foxglove.FrameTransform"),
+               {"timestamp": stamp, "parent_frame_id": self.odom, "child_frame_id": self.base,
+                "translation": xyz, "rotation": quat}, ns)  # fmt: skip
+        direct(self._cid("pose", "foxglove.PoseInFrame"),
+               {"timestamp": stamp, "frame_id": self.odom,
+                "pose": {"position": xyz, "orientation": quat}}, ns)  # fmt: skip
+        self.rec.write(self._cid("sonar", "foxglove.LaserScan"),
+                       self._sonar_scan(f'{{"sec":{sec},"nsec":{nsec}}}'), ns)  # fmt: skip
+
     def _state(self, st: Any, stamp: str, sonar: list[float]) -> bytes:
         """The state message, written as text (this runs for every SIP): the same JSON as
         ``json_text`` of its dict, which it falls back to for a NaN or an infinity (left
         out). A sonar without a reading yet is 0, and false in ``sonar_known``."""
         if not math.isfinite(st.x + st.y + st.th + st.v + st.w + st.left_velocity
                              + st.right_velocity + st.battery + st.analog):  # fmt: skip
-            return self._state_dict(st, stamp, sonar)  # null for what is not a number
+            # left out: what is not a number
+            return json_text(self._state_dict(st, json.loads(stamp), sonar)).encode()
         texts = self._texts
         if len(texts) > _ECHO_CACHE:
             texts.clear()
@@ -155,9 +181,9 @@ class PioneerDecoder:
                 f'"analog":{st.analog!r},"sip_count":{self.sips:d}}}')  # fmt: skip
         return text.encode()
 
-    def _state_dict(self, st: Any, stamp: str, sonar: list[float]) -> bytes:
-        state = {
-            "timestamp": json.loads(stamp), "x": st.x, "y": st.y, "th": st.th,
+    def _state_dict(self, st: Any, stamp: dict[str, int], sonar: list[float]) -> dict[str, Any]:
+        return {
+            "timestamp": stamp, "x": st.x, "y": st.y, "th": st.th,
             "v": st.v, "w": st.w, "left_velocity": st.left_velocity,
             "right_velocity": st.right_velocity, "battery": st.battery,
             "motors_enabled": st.motors_enabled, "estop": st.estop,
@@ -167,7 +193,6 @@ class PioneerDecoder:
             "sonar_known": [math.isfinite(r) for r in sonar[: self._n_sonar]],
             "digin": st.digin, "digout": st.digout, "analog": st.analog, "sip_count": self.sips,
         }  # fmt: skip
-        return json_text(state).encode()
 
     def _sonar_scan(self, stamp: str) -> bytes:
         """The latest sonar ranges as a 360-bin scan about base_link: each echo point (from
