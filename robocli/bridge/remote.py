@@ -61,6 +61,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("robocli.bridge")
 
 _ZENOH = import_zenoh()
+INFO_RETRY_S = 0.1  #: between two info queries that found no bridge yet
 _DELETE = _ZENOH.SampleKind.DELETE
 #: Seconds between re-sends of a set-point (well inside the bridge's 0.5 s silence rule).
 DEFAULT_RESEND_S = 0.15
@@ -376,10 +377,23 @@ class RemotePioneer:
                          "control reply")  # fmt: skip
 
     def _query_info(self) -> dict[str, Any]:
-        return self._get(info_key(self.robot), None, "info reply")
+        """The bridge's info. A query that no queryable is known for yet ends at once with
+        no reply (a bridge just started, its declaration still on its way through the
+        router): it is asked again until ``timeout`` (it changes nothing on the bridge)."""
+        deadline = time.monotonic() + self.timeout
+        while True:
+            left = deadline - time.monotonic()
+            try:
+                return self._get(info_key(self.robot), None, "info reply", max(0.05, left))
+            except TimeoutError:
+                if left <= INFO_RETRY_S:
+                    raise
+            time.sleep(INFO_RETRY_S)
 
-    def _get(self, key: str, payload: bytes | None, what: str) -> dict[str, Any]:
-        replies = self._session.get(key, payload=payload, timeout=self.timeout)
+    def _get(self, key: str, payload: bytes | None, what: str,
+             timeout: float | None = None) -> dict[str, Any]:  # fmt: skip
+        wait = self.timeout if timeout is None else timeout
+        replies = self._session.get(key, payload=payload, timeout=wait)
         for reply in replies:
             if reply.ok is not None:
                 return decode(reply.ok.payload.to_bytes(), f"{self.url} {what}")
