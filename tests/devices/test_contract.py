@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+from waiting import wait_for
 
 import robocli
 from robocli.devices.base import Device, ListenerHandle
@@ -83,13 +84,13 @@ def _hub_traffic(hub: Any) -> object:
 def _query_once_gone(hub: Any) -> object:
     """Over Zenoh the hub's leaving is told by its liveliness token, which may come after
     the unanswered query: once it came, a query raises ConnectionLost."""
-    _wait(lambda: not hub.alive, "the hub's liveliness token to go")
+    wait_for(lambda: not hub.alive, "the hub's liveliness token to go")
     return hub.info()
 
 
 def _wait_for_batches(hub: Any) -> None:
     before = hub.stats.as_dict()["received"].get("adc", 0)
-    _wait(lambda: hub.stats.as_dict()["received"].get("adc", 0) > before, "a batch")
+    wait_for(lambda: hub.stats.as_dict()["received"].get("adc", 0) > before, "a batch")
 
 
 CASES = [
@@ -125,13 +126,6 @@ def case(request: pytest.FixtureRequest) -> Iterator[Case]:
                 from robocli.zenoh.session import close_session
 
                 close_session(part)
-
-
-def _wait(condition: Callable[[], bool], what: str) -> None:
-    deadline = time.monotonic() + DEADLINE_S
-    while not condition():
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.01)
 
 
 def _refused(url: str) -> bool:
@@ -179,7 +173,7 @@ def test_listeners_get_frames_and_a_removed_one_none(case: Case) -> None:
         removed_at = time.monotonic()
         before = len(kept)
         case.traffic(device)
-        _wait(lambda: any(t > removed_at for _, _, t in kept[before:]), "frames after removal")
+        wait_for(lambda: any(t > removed_at for _, _, t in kept[before:]), "frames after removal")
         assert all(t <= removed_at for _, _, t in removed)
 
 

@@ -13,6 +13,7 @@ from typing import Any
 
 import pytest
 from serial_device import TIMEOUT, Device, device_fixture, duplex  # noqa: F401
+from waiting import wait_for
 
 from robocli.devices.hub.relay import PtyRelay
 from robocli.devices.hub.serial import VirtualSerial
@@ -43,13 +44,6 @@ def reader(line: VirtualSerial) -> Callable[[int, float], bytes]:
         return bytes(got)
 
     return read
-
-
-def _wait(pred: Callable[[], Any], what: str, timeout: float = TIMEOUT) -> None:
-    end = time.monotonic() + timeout
-    while not pred():
-        assert time.monotonic() < end, f"timed out waiting for {what}"
-        time.sleep(0.01)  # polling a condition with a deadline
 
 
 # ---------------------------------------------------------------------------- streaming
@@ -157,7 +151,7 @@ def test_a_write_the_line_does_not_take_misses_its_deadline(device: Device, hub:
                 line.write(chunk)
                 line.read(1, timeout=0)  # raises once the hub said the write failed
         assert isinstance(line.ended, DeviceError) and "write failed" in str(line.ended)
-    _wait(lambda: hub.serial is not None and not hub.serial._streamed, "the port given back")
+    wait_for(lambda: hub.serial is not None and not hub.serial._streamed, "the port given back")
 
 
 # ---------------------------------------------------------------------------- the pty
@@ -255,9 +249,9 @@ def test_the_line_survives_the_hub_restarting(device: Device) -> None:
         line.write(b"one")
         assert device.wait_bytes(3) == b"one"
         srv.close()
-        _wait(lambda: "lost" in [k for k, _ in events], "the line to say it lost the hub")
+        wait_for(lambda: "lost" in [k for k, _ in events], "the line to say it lost the hub")
         srv = HubServer(port=port, sim=False, serial_ports=[device.path], token=TOKEN).start()
-        _wait(lambda: line.connected and line.resumes == 1, "the line to come back")
+        wait_for(lambda: line.connected and line.resumes == 1, "the line to come back")
         assert [k for k, _ in events] == ["lost", "resumed"]
         line.write(b"two")
         assert device.wait_bytes(6) == b"onetwo"
@@ -274,7 +268,7 @@ def test_the_line_ends_when_the_hub_does_not_come_back(device: Device) -> None:
         line = VirtualSerial.open(_address(srv), device.path, token=TOKEN, resume=0.6,
                                   on_event=lambda k, t: events.append(k))  # fmt: skip
     with line:
-        _wait(lambda: line.ended is not None, "the line to end")
+        wait_for(lambda: line.ended is not None, "the line to end")
         assert events == ["lost", "ended"]
         with pytest.raises(ConnectionLost, match="did not come back in 0.6 s"):
             line.read(1, timeout=1)

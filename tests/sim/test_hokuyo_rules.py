@@ -14,16 +14,10 @@ from typing import Any
 
 import pytest
 from sim.test_hokuyo_sim import DEADLINE, Raw
+from waiting import wait_for
 
 from robocli.protocols import scip2
 from robocli.sim.hokuyo import HokuyoSim
-
-
-def wait_for(pred: object, what: str) -> None:
-    end = time.monotonic() + DEADLINE  # bounds a failure only
-    while not pred():  # type: ignore[operator]
-        assert time.monotonic() < end, f"timed out waiting for {what}"
-        time.sleep(0.01)
 
 
 def state(code: str) -> bytes:

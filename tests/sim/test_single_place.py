@@ -6,11 +6,11 @@ from __future__ import annotations
 
 import socket
 import time
-from collections.abc import Callable
 from typing import Any
 
 import pytest
 from peers import closed_by_peer
+from waiting import wait_for
 
 from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
@@ -25,14 +25,6 @@ DEADLINE_S = 30.0
 def dial(url: str) -> socket.socket:
     host, port = url.removeprefix("tcp://").rsplit(":", 1)
     return socket.create_connection((host, int(port)), timeout=5.0)
-
-
-def wait_for(what: str, condition: Callable[[], Any], deadline: float = DEADLINE_S) -> None:
-    end = time.monotonic() + deadline
-    while not condition():
-        if time.monotonic() > end:
-            raise AssertionError(f"not within {deadline} s: {what}")
-        time.sleep(0.01)
 
 
 @pytest.mark.parametrize("kind", ["pioneer", "laser"])
@@ -50,8 +42,8 @@ def test_an_idle_connection_loses_the_place_and_a_client_gets_it(kind: str) -> N
         with client:
             server = sim._server if kind == "laser" else sim._tcp
             link = server.links()[0]
-            wait_for("the client's link past the deadline",
-                     lambda: time.monotonic() > link.opened + 3 * HANDSHAKE_S)  # fmt: skip
+            wait_for(lambda: time.monotonic() > link.opened + 3 * HANDSHAKE_S,
+                     "the client's link past the deadline")  # fmt: skip
             assert link.alive and link.established  # a client past its handshake keeps it
             late = dial(url)
             try:
