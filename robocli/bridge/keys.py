@@ -40,6 +40,7 @@ from typing import Any
 from robocli.errors import InvalidArgument, ProtocolError
 from robocli.zenoh.keys import ROOT, check_name
 from robocli.zenoh.payload import decode_object
+from robocli.zenoh.session import undeclare
 
 JSON_ENCODING = "application/json"
 #: The largest command or control payload a bridge decodes (bytes): a trajectory of a few
@@ -132,16 +133,6 @@ def reply(query: Any, data: dict[str, Any], *, error: bool = False) -> None:
         logging.getLogger(__name__).debug("reply failed", exc_info=True)
 
 
-def undeclare(entity: Any) -> None:
-    """Undeclare a Zenoh entity; one of a session already closed is left (logged)."""
-    import zenoh
-
-    try:
-        entity.undeclare()
-    except zenoh.ZError:
-        logging.getLogger(__name__).debug("undeclare failed", exc_info=True)
-
-
 def _finite(data: Any) -> Any:
     if isinstance(data, float):
         return data if math.isfinite(data) else None
@@ -153,4 +144,4 @@ def _finite(data: Any) -> Any:
 
 
 __all__ = ["HOLDER_PARTS", "JSON_ENCODING", "MAX_PAYLOAD", "control_key", "decode", "encode",
-           "holder_key", "holder_of", "number", "reply", "text"]  # fmt: skip
+           "holder_key", "holder_of", "number", "reply", "text", "undeclare"]  # fmt: skip

@@ -42,7 +42,7 @@ from robocli.ros2.rmw import (
     topic_key,
 )
 from robocli.ros2.types import type_hash
-from robocli.zenoh.session import import_zenoh
+from robocli.zenoh.session import import_zenoh, undeclare
 
 if TYPE_CHECKING:
     import zenoh
@@ -115,7 +115,7 @@ class Ros2Publisher:
 
     def close(self) -> None:
         for entity in (self._token, self._pub):
-            _undeclare(entity)
+            undeclare(entity)
 
 
 class Ros2Subscriber:
@@ -153,7 +153,7 @@ class Ros2Subscriber:
 
     def close(self) -> None:
         for entity in (self._token, self._sub):
-            _undeclare(entity)
+            undeclare(entity)
 
 
 class Ros2Node:
@@ -200,11 +200,4 @@ class Ros2Node:
         """Undeclare every entity, then the node. Idempotent."""
         while self._entities:
             self._entities.pop().close()
-        _undeclare(self._token)
-
-
-def _undeclare(entity: Any) -> None:
-    try:
-        entity.undeclare()
-    except Exception:
-        log.debug("undeclare failed", exc_info=True)
+        undeclare(self._token)

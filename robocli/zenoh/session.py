@@ -22,6 +22,7 @@ every function here raises :class:`ZenohMissing`, one line saying how to install
 from __future__ import annotations
 
 import json
+import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -44,6 +45,7 @@ __all__ = [
     "import_zenoh",
     "open_session",
     "parse_target",
+    "undeclare",
     "zenoh_config",
 ]
 
@@ -165,6 +167,14 @@ def open_session(
 def close_session(session: Any) -> None:
     """Close a Zenoh session (bounded by Zenoh; its declarations go with it). Idempotent."""
     session.close()
+
+
+def undeclare(entity: Any) -> None:
+    """Undeclare a Zenoh entity; one of a session already closed is left (logged)."""
+    try:
+        entity.undeclare()
+    except import_zenoh().ZError:
+        logging.getLogger(__name__).debug("undeclare failed", exc_info=True)
 
 
 def _first_line(exc: BaseException) -> str:

@@ -128,7 +128,7 @@ class ZenohFrontend:
     # ------------------------------------------------------------------ lifecycle
 
     def start(self) -> ZenohFrontend:
-        """Start the sensors of ``publish``, declare the queryables and the liveliness
+        """Start the sensors of ``publish``, declare the queryables and then the liveliness
         token, and start publishing. Returns self."""
         self._state = self.hub.connect(0, "zenoh", False, resume=False)
         for sensor, params in self._publish.items():
@@ -136,9 +136,11 @@ class ZenohFrontend:
         s = self.session
         self._declared.append(s.declare_queryable(info_key(self.name), self._on_info))
         self._declared.append(s.declare_queryable(settings_key(self.name), self._on_settings))
-        self._declared.append(s.liveliness().declare_token(alive_key(self.name, "hub")))
         if self._serial_ports is not None:
             self.serial = ZenohSerial(s, self.name, self._serial_ports, self._token)
+        # the token last: a client that sees the hub come up finds every queryable declared
+        # (a virtual serial line resuming asks serial-open the moment the token appears)
+        self._declared.append(s.liveliness().declare_token(alive_key(self.name, "hub")))
         self._ticker.start()
         return self
 

@@ -34,20 +34,13 @@ from robocli.hub.sources import SerialPorts
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
 from robocli.zenoh.keys import serial_data_key, serial_holder, serial_key
 from robocli.zenoh.payload import decode_object
-from robocli.zenoh.session import import_zenoh
+from robocli.zenoh.session import import_zenoh, undeclare
 
 __all__ = ["ZenohSerial"]
 
 log = logging.getLogger("robocli.hub")
 
 MAX_OPEN_BYTES = 4096  #: the largest serial-open payload taken
-
-
-def _undeclare(entity: Any) -> None:
-    try:
-        entity.undeclare()
-    except Exception as exc:
-        log.debug("zenoh undeclare: %s", exc)
 
 
 class ZenohSerial:
@@ -106,7 +99,7 @@ class ZenohSerial:
                         partial(self._failed, user),
                     )  # fmt: skip
                 except BaseException:
-                    _undeclare(publisher)
+                    undeclare(publisher)
                     raise
                 self._streams[user], self._publishers[user] = stream, publisher
         return {"port": port, "key": key, "settings": settings}
@@ -133,7 +126,7 @@ class ZenohSerial:
         if stream is not None:
             stream.close()
         if publisher is not None:
-            _undeclare(publisher)
+            undeclare(publisher)
 
     # ------------------------------------------------------------------ zenoh callbacks
 
@@ -186,7 +179,7 @@ class ZenohSerial:
     def close(self) -> None:
         """Undeclare everything and end every stream. Idempotent."""
         for entity in self._declared:
-            _undeclare(entity)
+            undeclare(entity)
         self._declared.clear()
         for user in list(self._streams):
             self.end(user)
