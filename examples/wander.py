@@ -175,7 +175,8 @@ def wander(robot: Pioneer, sips: int, params: WanderParams | None = None) -> Wan
         path.append((state.x, state.y))
         if state.bumped or state.stalled:
             brain.hit(rear=bool(state.bumpers_rear) and not state.bumpers_front)
-        scan = getattr(robot, "laser", None)
+        sim = getattr(robot, "sim", None)  # a real robot (or one over Zenoh) has no sim laser
+        scan = sim.laser if sim is not None else None
         points = obstacles(state.sonar, robot.params, scan.points() if scan else None)
         robot.set_velocity(*brain.step(look(points, robot.params, p.margin)))
     robot.stop()

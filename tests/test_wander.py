@@ -31,8 +31,8 @@ def run(sips: int, laser: bool) -> list[tuple[float, float]]:
         url = sim.serve_tcp("127.0.0.1", 0)
         with Pioneer.connect(url) as robot:
             if laser:
-                robot.start_laser()
-                robot.wait_for_laser(timeout=10)
+                robot.sim.start_laser()
+                robot.sim.wait_for_laser(timeout=10)
             runner = threading.Thread(target=lambda: done.append(wander(robot, sips)))
             runner.start()
             while runner.is_alive():  # the truth, sampled along the run

@@ -27,7 +27,7 @@ def test_raising_listeners_do_not_stop_the_state_stream(make_sim, make_arm) -> N
         raise ValueError("broken consumer")
 
     arm.add_listener(bad_frame)
-    arm.add_sample_listener(bad_sample)
+    arm.add_listener(bad_sample, kind="samples")
     first = arm.wait_for_state()
     for _ in range(20):
         last = arm.wait_for_state()
@@ -41,7 +41,7 @@ def test_history_and_recording_are_bounded(make_sim, make_arm) -> None:
     sim, mp, sp = make_sim(state_ms=5.0, time_scale=2.0, feedback=True)
     arm = make_arm(mp, sp, motion=False, history=50)
     received: list[object] = []
-    arm.add_sample_listener(received.append)
+    arm.add_listener(received.append, kind="samples")
     rec = arm.record(max_samples=30)
     deadline = time.monotonic() + 30
     while len(received) < 200:  # 4 x the history, about 0.25 s

@@ -24,8 +24,8 @@ def _served_url(proc) -> str:  # type: ignore[no-untyped-def]
 def test_georef_gives_simstat_a_gps_fix_and_the_laser_is_on_by_default() -> None:
     with running("sim", "pioneer", "--port", "0", "--georef", "42.3601,-71.0589,10") as proc:
         with Pioneer.connect(_served_url(proc), laser=True) as robot:
-            assert len(robot.wait_for_laser(timeout=5.0)) == 181
-            status = robot.sim_status()
+            assert len(robot.sim.wait_for_laser(timeout=5.0)) == 181
+            status = robot.sim.status()
             assert status.gps is not None
             assert status.gps.latitude == pytest.approx(42.3601, abs=1e-4)
             assert status.gps.longitude == pytest.approx(-71.0589, abs=1e-4)
@@ -36,10 +36,10 @@ def test_georef_gives_simstat_a_gps_fix_and_the_laser_is_on_by_default() -> None
 def test_no_laser_answers_35_as_adsel() -> None:
     with running("sim", "pioneer", "--port", "0", "--no-laser") as proc:
         with Pioneer.connect(_served_url(proc)) as robot:
-            robot.start_laser(-math.pi / 2, math.pi / 2, math.radians(1))
+            robot.sim.start_laser(-math.pi / 2, math.pi / 2, math.radians(1))
             with pytest.raises(TimeoutError):
-                robot.wait_for_laser(timeout=0.5)  # several SIP periods: no scan ever comes
-            assert robot.sim_status().gps is None
+                robot.sim.wait_for_laser(timeout=0.5)  # several SIP periods: no scan ever comes
+            assert robot.sim.status().gps is None
         proc.send_signal(signal.SIGINT)
         assert proc.wait(30) == 130  # interrupted, as every command
 

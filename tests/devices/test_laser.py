@@ -230,7 +230,7 @@ def test_a_listener_that_raises_does_not_stop_the_stream() -> None:
                 seen.append(scan.stamp_ms)
                 raise RuntimeError("listener bug")
 
-            laser.on_scan(bad)
+            laser.add_listener(bad, kind="scans")
             for _ in laser.scans(count=4, start=0, end=100):
                 pass
             assert len(seen) == 4

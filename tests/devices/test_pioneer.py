@@ -205,7 +205,7 @@ def test_lost_link_is_reported_to_the_caller() -> None:
                 robot.wait_for_sip(timeout=10)
         with pytest.raises(ConnectionLost):
             _ = robot.pose
-        assert not robot.connected
+        assert not robot.alive
 
 
 def test_no_sip_raises_timeout_not_a_hang() -> None:
@@ -240,7 +240,7 @@ def test_serial_path_over_a_pty_and_a_session_left_open() -> None:
     finds SIPs in reply to SYNC0, sends CLOSE and re-syncs on the same line."""
     with PioneerSim("p3dx", time_scale=5.0) as sim:
         path = sim.serve_pty()
-        first = Pioneer.connect(path, baud=9600)
+        first = Pioneer.connect(path, baudrate=9600)
         first.enable_motors()
         first.transport.close()  # a crash: the port goes away, no CLOSE goes out
         assert sim.snapshot().session_open and sim.snapshot().commands["CLOSE"] == 0

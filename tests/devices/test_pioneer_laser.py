@@ -162,8 +162,8 @@ def test_laser_scan_sees_the_wall_at_its_distance(wall_sim: PioneerSim) -> None:
     assert wall_sim.url is not None
     with Pioneer.connect(wall_sim.url, laser=True) as robot:
         assert robot.is_simulator
-        scan = robot.wait_for_laser(timeout=5.0)
-        assert robot.laser is scan and len(scan) == 181
+        scan = robot.sim.wait_for_laser(timeout=5.0)
+        assert robot.sim.laser is scan and len(scan) == 181
         assert [math.degrees(a) for a in scan.angles] == pytest.approx(list(range(-90, 91)))
         for a, r in zip(scan.angles, scan.ranges, strict=True):
             want = expected_wall(a)
@@ -187,8 +187,8 @@ def test_laser_commands_each_reach_the_listeners(wall_sim: PioneerSim) -> None:
             sent.append((cmd.command, cmd.arg))
 
     with Pioneer.connect(wall_sim.url, listeners=[listener]) as robot:
-        robot.start_laser(math.radians(-45), math.radians(45), math.radians(0.5))
-        assert len(robot.wait_for_laser(timeout=5.0)) == 181  # the simulator got all four
+        robot.sim.start_laser(math.radians(-45), math.radians(45), math.radians(0.5))
+        assert len(robot.sim.wait_for_laser(timeout=5.0)) == 181  # the simulator got all four
         assert sent == [(36, -45), (37, 45), (38, 50), (35, 2)]
         assert robot.stats.as_dict()["sent"].get("ADSEL", 0) >= 1
 
@@ -200,42 +200,42 @@ def test_scan_pose_follows_the_robot_and_teleports_are_flagged(wall_sim: Pioneer
         robot.move(0.5)
         wall_sim.wait_until(lambda s: s.odom_x > 0.49 and s.trans_vel == 0.0, timeout=10)
         robot.wait_for_sip()
-        scan = robot.wait_for_laser()
+        scan = robot.sim.wait_for_laser()
         assert scan.pose == pytest.approx(robot.pose, abs=0.002)
         assert scan.pose[0] == pytest.approx(0.5, abs=0.01)
         assert scan.ranges[90] == pytest.approx(WALL_X - 0.5, abs=0.01)
         seen: list[LaserScan] = []
-        robot.on_laser(seen.append)
-        robot.set_simulator_pose(1.0, 0.0, 0.0)  # the true pose only: odometry stays at 0.5
+        robot.add_listener(seen.append, kind="laser")
+        robot.sim.set_pose(1.0, 0.0, 0.0)  # the true pose only: odometry stays at 0.5
         while not any(s.moved for s in seen):
-            robot.wait_for_laser()
+            robot.sim.wait_for_laser()
         moved = next(s for s in seen if s.moved)
         assert moved.ranges[90] == pytest.approx(WALL_X - 1.0, abs=0.01)
         assert moved.pose[0] == pytest.approx(0.5, abs=0.01)
-        robot.wait_for_laser()
+        robot.sim.wait_for_laser()
         assert sum(s.moved for s in seen) == 1
 
 
 def test_plain_scans_with_the_new_commands_then_off(wall_sim: PioneerSim) -> None:
     assert wall_sim.url is not None
     with Pioneer.connect(wall_sim.url) as robot:
-        assert robot.laser is None
-        robot.start_laser(-math.pi / 4, math.pi / 4, math.radians(0.5), extended=False,
+        assert robot.sim.laser is None
+        robot.sim.start_laser(-math.pi / 4, math.pi / 4, math.radians(0.5), extended=False,
                           new_commands=True)  # fmt: skip
-        scan = robot.wait_for_laser(timeout=5.0)
+        scan = robot.sim.wait_for_laser(timeout=5.0)
         assert len(scan) == 181 and scan.reflectance is None
         assert math.degrees(scan.angles[1] - scan.angles[0]) == pytest.approx(0.5)
         assert wall_sim.snapshot().laser_mode == 1
-        robot.stop_laser(new_commands=True)
+        robot.sim.stop_laser(new_commands=True)
         wall_sim.wait_until(lambda s: s.laser_mode == 0, timeout=30)
         n = robot.stats.laser_scans
         for _ in range(3):
             robot.wait_for_sip()
         assert robot.stats.laser_scans <= n + 1
         with pytest.raises(InvalidArgument):
-            robot.start_laser(resolution=0.0)
+            robot.sim.start_laser(resolution=0.0)
         with pytest.raises(InvalidArgument):
-            robot.start_laser(start=math.nan)
+            robot.sim.start_laser(start=math.nan)
 
 
 def test_a_raising_laser_listener_is_isolated(wall_sim: PioneerSim) -> None:
@@ -252,15 +252,15 @@ def test_a_raising_laser_listener_is_isolated(wall_sim: PioneerSim) -> None:
             if len(got) >= 3:
                 done.set()
 
-        robot.on_laser(bad)
-        robot.on_laser(good)
+        robot.add_listener(bad, kind="laser")
+        robot.add_listener(good, kind="laser")
         assert done.wait(5.0)
-        assert robot.stats.listener_errors >= 3 and robot.connected
-        robot.remove_laser_listener(bad)
-        robot.wait_for_laser()  # a notification under way when it was removed has ended
+        assert robot.stats.listener_errors >= 3 and robot.alive
+        robot.remove_listener(bad, kind="laser")
+        robot.sim.wait_for_laser()  # a notification under way when it was removed has ended
         errors = robot.stats.listener_errors
-        robot.wait_for_laser()
-        robot.wait_for_laser()
+        robot.sim.wait_for_laser()
+        robot.sim.wait_for_laser()
         assert robot.stats.listener_errors == errors
         assert robot.stats.laser_dropped == 0 and robot.stats.laser_scans >= 5
 
@@ -268,9 +268,9 @@ def test_a_raising_laser_listener_is_isolated(wall_sim: PioneerSim) -> None:
 def test_sim_status_true_pose_and_gps(wall_sim: PioneerSim) -> None:
     assert wall_sim.url is not None
     with Pioneer.connect(wall_sim.url) as robot:
-        robot.set_simulator_pose(1.0, -0.5, math.pi / 2)
+        robot.sim.set_pose(1.0, -0.5, math.pi / 2)
         wall_sim.wait_until(lambda s: s.x == 1.0, timeout=30)
-        status = robot.sim_status()
+        status = robot.sim.status()
         assert status.true_pose == pytest.approx((1.0, -0.5, math.pi / 2))
         assert robot.pose == pytest.approx((0.0, 0.0, 0.0))  # odometry unchanged
         assert status.gps is not None
@@ -280,19 +280,16 @@ def test_sim_status_true_pose_and_gps(wall_sim: PioneerSim) -> None:
         robot.config = {**(robot.config or {}), "serial": "1234"}  # a real robot's CONFIG
         robot.identity = type(robot.identity)("Pioneer", "Pioneer", "p3dx")
         assert not robot.is_simulator
-        with pytest.raises(DeviceError):
-            robot.sim_status()
-        with pytest.raises(DeviceError):
-            robot.start_laser()
+        assert robot.sim is None  # a real robot offers none of the simulator's calls
 
 
 def test_without_georeference_there_is_no_gps(empty_sim: PioneerSim) -> None:
     assert empty_sim.url is not None
     with Pioneer.connect(empty_sim.url) as robot:
-        status = robot.sim_status()
+        status = robot.sim.status()
         assert status.gps is None and status.fields["gps_dop"] == -1
         with pytest.raises(TimeoutError):
-            robot.wait_for_laser(timeout=0.3)  # laser not started
+            robot.sim.wait_for_laser(timeout=0.3)  # laser not started
 
 
 @settings(max_examples=300, suppress_health_check=[HealthCheck.too_slow], deadline=None)
@@ -382,7 +379,7 @@ def test_client_against_amrisims_recorded_stream() -> None:
     poses: list[tuple[float, float]] = []
     with Pioneer.connect(f"tcp://127.0.0.1:{srv.getsockname()[1]}", subtype="p3dx") as robot:
         assert robot.is_simulator  # serial SIM, name AMRISim
-        robot.on_laser(lambda scan: poses.append(scan.pose[:2]))
+        robot.add_listener(lambda scan: poses.append(scan.pose[:2]), kind="laser")
         listening.set()
         deadline = time.monotonic() + 10.0
         while robot.stats.laser_scans < 111 and time.monotonic() < deadline:

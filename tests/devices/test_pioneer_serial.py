@@ -16,7 +16,7 @@ from robocli.transports import _serial_hint
 def test_hostbaud_after_config_switches_the_port() -> None:
     with PioneerSim("p3dx", time_scale=5.0) as sim:
         path = sim.serve_pty()
-        with Pioneer.connect(path, baud=9600, switch_baud=38400) as robot:
+        with Pioneer.connect(path, baudrate=9600, switch_baud=38400) as robot:
             assert robot.transport.port.baudrate == 38400  # type: ignore[attr-defined]
             robot.wait_for_sip()
         assert sim.snapshot().commands["HOSTBAUD"] == 1
@@ -27,7 +27,7 @@ def test_no_switch_to_a_slower_rate_and_bad_rates_refused() -> None:
 
     with PioneerSim("p3dx", time_scale=5.0) as sim:
         path = sim.serve_pty()
-        with Pioneer.connect(path, baud=38400, switch_baud=9600) as robot:
+        with Pioneer.connect(path, baudrate=38400, switch_baud=9600) as robot:
             assert robot.transport.port.baudrate == 38400  # type: ignore[attr-defined]
         assert sim.snapshot().commands["HOSTBAUD"] == 0
         with pytest.raises(InvalidArgument, match="baud rate 12345"):

@@ -37,8 +37,8 @@ def broken(trip):
     raise RuntimeError("a listener that raises")
 
 with Pioneer.connect(sys.argv[1], sip_timeout=120) as robot:
-    robot.on_watchdog_trip(broken)
-    robot.on_watchdog_trip(lambda trip: say("TRIP", f"{trip.silence:.3f}", f"{trip.watchdog:g}"))
+    robot.add_listener(broken, kind="watchdog")
+    robot.add_listener(lambda trip: say("TRIP", f"{trip.silence:.3f}", f"{trip.watchdog:g}"), kind="watchdog")
     robot.enable_motors()
     robot.set_velocity(0.3, 0.0)
     say("DRIVING")

@@ -37,7 +37,7 @@ def test_a_write_stalled_past_the_watchdog_never_resends_the_stale_set_point(
     tripped = threading.Event()
     with Pioneer.from_transport(link, keepalive=0.2, sip_timeout=120) as robot:
         assert robot.watchdog == 1.0  # the simulator's, from its CONFIG
-        robot.on_watchdog_trip(lambda trip: (trips.append(trip), tripped.set()))
+        robot.add_listener(lambda trip: (trips.append(trip), tripped.set()), kind="watchdog")
         robot.enable_motors()
         robot.set_velocity(0.0, 0.5)
         sim.wait_until(lambda s: s.rot_vel > 0.2, WAIT)
@@ -93,7 +93,7 @@ def test_a_re_send_waiting_behind_a_stalled_write_is_dropped_after_the_trip(
     link.write_timeout = WAIT  # writers wait behind the stall, not fail the session
     trips: list[WatchdogTrip] = []
     with Pioneer.from_transport(link, keepalive=0.2, sip_timeout=120) as robot:
-        robot.on_watchdog_trip(trips.append)
+        robot.add_listener(trips.append, kind="watchdog")
         robot.enable_motors()
         robot.set_velocity(0.0, 0.5)
         sim.wait_until(lambda s: s.rot_vel > 0.2, WAIT)

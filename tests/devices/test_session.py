@@ -88,7 +88,7 @@ def test_a_raising_listener_kills_nothing(sim: PioneerSim) -> None:
         time.sleep(2.0)  # twice the simulator's 1 s watchdog: only the keep-alive holds it off
         state = robot.wait_for_sip()
         truth = sim.snapshot()
-        assert robot.connected and state.sip_count >= first + 15
+        assert robot.alive and state.sip_count >= first + 15
         assert truth.trans_vel_set == pytest.approx(0.1) and truth.watchdog_trips == 0
         assert robot.stats.listener_errors > 20 and robot.stats.keepalives >= 3
     s = sim.wait_until(
@@ -123,7 +123,7 @@ def test_link_lost_during_request_config_raises(sim: PioneerSim) -> None:
         relay.cut_on = config_request
         with pytest.raises(ConnectionLost):
             robot.request_config(timeout=2.0)
-        assert not robot.connected
+        assert not robot.alive
 
 
 def test_link_lost_names_the_url_once(sim: PioneerSim) -> None:
@@ -157,7 +157,7 @@ def test_a_bug_in_a_client_thread_fails_closed(sim: PioneerSim) -> None:
     with pytest.raises(KeyError, match="a bug"):
         for _ in range(50):
             robot.wait_for_sip(timeout=10)
-    assert not robot.connected
+    assert not robot.alive
     sim.wait_until(lambda s: s.trans_vel_set == 0, timeout=30)
     robot.close()
     assert not robot._session.stuck_threads

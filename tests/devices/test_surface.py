@@ -105,7 +105,9 @@ def test_an_old_spelling_works_and_warns_once_naming_the_new(
             "Pioneer.connected is deprecated; use Pioneer.alive"
         ]
         assert robot.connected is True
-    with robocli.Hub.connect(host="sim://") as hub:  # the old name of url
+    with pytest.warns(DeprecationWarning, match=r"Hub\.connect\(host=\) is deprecated"):
+        hub = robocli.Hub.connect(host="sim://")  # the old name of url
+    with hub:
         assert hub.alive
     messages = _warnings_of(lambda: hub.close(quit=True))
     assert messages == ["Hub.close(quit=) is deprecated; use Hub.close(stop=)"]

@@ -99,7 +99,7 @@ def arm_recording(abb: tuple[int, int], tmp_path: Path) -> tuple[Path, list[Any]
     path = tmp_path / "arm.mcap"
     samples: list[Any] = []
     with Recorder(path) as rec, Arm.connect("127.0.0.1", *abb) as arm:
-        arm.add_sample_listener(samples.append)
+        arm.add_listener(samples.append, kind="samples")
         rec.add(arm)
         arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
         arm.wait_until_idle(20)

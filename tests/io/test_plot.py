@@ -44,7 +44,7 @@ def test_a_pioneer_path_with_its_sonar_and_laser(pioneer_url: str, tmp_path: Pat
         robot.set_velocity(0.4, 0.3)
         for _ in range(20):
             robot.wait_for_sip()
-        robot.wait_for_laser(10)
+        robot.sim.wait_for_laser(10)
     topics = by_topic(path)
     out = tmp_path / "path.png"
     result = plot(path, out, ["/pioneer/pose", "/pioneer/sonar", "/pioneer/laser"])

@@ -53,7 +53,7 @@ def _record_pioneer(url: str, path: Path, sips: int = 12,
             robot.set_velocity(0.3, 0.4)
             for _ in range(sips):
                 poses.append(robot.wait_for_sip().pose)
-            robot.wait_for_laser(5.0)
+            robot.sim.wait_for_laser(5.0)
         assert rec.stats.dropped == 0
     return seen, poses, before, time.time_ns()
 
@@ -154,7 +154,7 @@ def test_arm_joints_frames_and_controller_time(abb: tuple[int, int], tmp_path: P
     irb = load_model("irb120")
     with Recorder(path) as rec, Arm.connect("127.0.0.1", motion, state) as arm:
         arm.add_listener(lambda d, f, t: seen.append(f) if d == "rx" else None, ports="state")
-        arm.add_sample_listener(samples.append)
+        arm.add_listener(samples.append, kind="samples")
         # the recorder attaches while frames keep coming: every frame from the end of add()
         # on is recorded, none from before its start (how many fall between is the machine's)
         before_add = len(seen)

@@ -59,7 +59,7 @@ def test_a_stalled_disk_drops_with_a_count_and_the_robot_goes_on(
             wait_for(lambda: rec.stats.dropped > 50, what="drops")
             sips = robot.stats.sips
             wait_for(lambda: robot.stats.sips >= sips + 10, what="SIPs while the disk stalls")
-            assert robot.connected
+            assert robot.alive
             assert robot.stats.as_dict()["listener_errors"] == 0
             assert rec.stats.queue_peak <= 40  # bounded: dropped, not queued
             disk.running.set()  # the disk answers again
@@ -129,7 +129,7 @@ def test_a_closed_recorder_never_raises_into_a_device(pioneer_url: str) -> None:
         rec.close()
         sips = robot.stats.sips
         wait_for(lambda: robot.stats.sips >= sips + 3, what="SIPs after the close")
-        assert robot.connected and robot.stats.as_dict()["listener_errors"] == 0
+        assert robot.alive and robot.stats.as_dict()["listener_errors"] == 0
         assert rec.stats.dropped >= 3
 
 

@@ -36,7 +36,7 @@ def pioneer_recording(pioneer_url: str, tmp_path: Path) -> Path:
             robot.set_velocity(0.3, 0.4)
             for _ in range(15):
                 robot.wait_for_sip()
-            robot.wait_for_laser(10.0)
+            robot.sim.wait_for_laser(10.0)
     return path
 
 
@@ -97,8 +97,8 @@ def test_pioneer_replay_sends_the_laser_only_from_the_clients_request(
             wait_for(lambda: replay.schedule.laps >= 1, what="a whole lap of the recording")
             assert _sips(seen) and not _laser(seen)
             assert replay.withheld >= len(recorded_laser)
-            robot.start_laser()
-            scan = robot.wait_for_laser(30.0)
+            robot.sim.start_laser()
+            scan = robot.sim.wait_for_laser(30.0)
             assert len(scan.ranges) == 181
     got = _laser(seen)
     assert got[0][3:5] == b"\0\0", "the first packet sent begins a scan"
@@ -152,7 +152,7 @@ def arm_recording(abb: tuple[int, int], tmp_path: Path) -> Path:
     path = tmp_path / "arm.mcap"
     samples: list[Any] = []
     with Recorder(path) as rec, Arm.connect("127.0.0.1", *abb) as arm:
-        arm.add_sample_listener(samples.append)
+        arm.add_listener(samples.append, kind="samples")
         rec.add(arm)
         arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
         arm.wait_until_idle(20)
@@ -173,7 +173,7 @@ def test_arm_client_gets_the_recorded_joint_states(arm_recording: Path) -> None:
         port = int(state.rsplit(":", 1)[1])
         with Arm.connect("127.0.0.1", 0, port, motion=False, listeners=[
                 lambda d, f, t: frames.append(f) if d == "rx" else None]) as arm:  # fmt: skip
-            arm.add_sample_listener(samples.append)
+            arm.add_listener(samples.append, kind="samples")
             wait_for(lambda: len(frames) >= len(recorded_frames),
                      what="every recorded state frame")  # fmt: skip
     # the recorded state stream, every frame, in order, byte for byte

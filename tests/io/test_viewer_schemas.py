@@ -143,7 +143,7 @@ def test_every_channel_of_a_recording_loads_in_a_viewer(
                 return got == set(HUB)
 
             wait_for(pulled, what="a sample of every hub sensor")
-            robot.wait_for_laser(30.0)
+            robot.sim.wait_for_laser(30.0)
             list(laser.scans(2))
             arm.wait_for_state(30.0)
     topics = by_topic(path)

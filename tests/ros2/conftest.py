@@ -42,8 +42,8 @@ def pioneer_recording(path: Path, ros2: bool = True) -> None:
                 robot.set_velocity(0.3, 0.4)
                 for _ in range(15):
                     robot.wait_for_sip()
-                robot.wait_for_laser(10.0)
-                robot.wait_for_laser(10.0)
+                robot.sim.wait_for_laser(10.0)
+                robot.sim.wait_for_laser(10.0)
         assert rec.stats.dropped == 0 and rec.stats.decode_errors == 0
 
 
