@@ -15,9 +15,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+from robocli.serving.server import Link
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.replay import FrameSchedule, recorded_frames
-from robocli.sim.serving import Link
 
 __all__ = ["AbbReplay"]
 

@@ -42,6 +42,7 @@ from robocli.errors import TimeoutError, TransportError
 from robocli.kinematics import load_model
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
+from robocli.serving.server import Link, Server
 from robocli.sim.abb.session import (
     PROFILES,
     ArmController,
@@ -49,7 +50,6 @@ from robocli.sim.abb.session import (
     MotionSession,
     StateSession,
 )
-from robocli.sim.serving import Link, Server
 
 __all__ = ["PROFILES", "AbbSim", "ArmSimState", "ControllerModel"]
 

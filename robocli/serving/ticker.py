@@ -10,7 +10,7 @@ from collections.abc import Callable
 
 __all__ = ["JOIN_TIMEOUT_S", "Ticker"]
 
-log = logging.getLogger("robocli.sim.ticker")
+log = logging.getLogger("robocli.serving.ticker")
 
 JOIN_TIMEOUT_S = 2.0  #: close() waits at most this long for the threads, in total
 
