@@ -1,7 +1,7 @@
 """The one periodic loop's policy (``robocli.serving.periodic``): a step that raises is
 logged once per run of failures with its traceback, counted and handed to the owner, and the
 loop goes on unless the owner stops it; a step that overruns its period is not caught up in a
-burst."""
+burst. And the loops built on it keep the policy: a session's task ends on its first error."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from collections.abc import Iterator
 import pytest
 from waiting import wait_for
 
+from robocli.devices.tasks import PeriodicTask
 from robocli.serving.periodic import PeriodicLoop
 
 LOGGER = "robocli.serving.periodic"
@@ -136,3 +137,18 @@ def test_a_step_that_overruns_its_period_skips_the_deadlines_it_missed(
     assert loop.errors == 0
     warned = _records(caplog, logging.WARNING, "slow")
     assert len(warned) == 1 and "overran" in warned[0].getMessage()
+
+
+def test_a_session_task_ends_on_its_first_error_and_fails_its_session() -> None:
+    failed: list[BaseException] = []
+    calls = [0]
+
+    def step() -> float:
+        calls[0] += 1
+        raise OSError("keep-alive write failed")
+
+    task = PeriodicTask("robot-keepalive", step, failed.append)
+    task.start()
+    task.thread.join(JOIN_S)
+    assert not task.thread.is_alive() and task.stopped
+    assert calls[0] == 1 and [str(e) for e in failed] == ["keep-alive write failed"]
