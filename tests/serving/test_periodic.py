@@ -1,11 +1,13 @@
 """The one periodic loop's policy (``robocli.serving.periodic``): a step that raises is
 logged once per run of failures with its traceback, counted and handed to the owner, and the
 loop goes on unless the owner stops it; a step that overruns its period is not caught up in a
-burst. And the loops built on it keep the policy: a session's task ends on its first error."""
+burst. And the loops built on it keep the policy: the arm simulator's state stream outlives
+a state that fails to build, a session's task ends on its first error."""
 
 from __future__ import annotations
 
 import logging
+import socket
 import threading
 from collections.abc import Iterator
 
@@ -14,6 +16,7 @@ from waiting import wait_for
 
 from robocli.devices.tasks import PeriodicTask
 from robocli.serving.periodic import PeriodicLoop
+from robocli.sim.abb.server import AbbSim
 
 LOGGER = "robocli.serving.periodic"
 JOIN_S = 10.0
@@ -152,3 +155,28 @@ def test_a_session_task_ends_on_its_first_error_and_fails_its_session() -> None:
     task.thread.join(JOIN_S)
     assert not task.thread.is_alive() and task.stopped
     assert calls[0] == 1 and [str(e) for e in failed] == ["keep-alive write failed"]
+
+
+def test_the_arm_simulators_state_stream_outlives_a_state_that_fails_to_build(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    with AbbSim(state_ms=5.0) as sim:
+        _, state_url = sim.serve_tcp(motion_port=0, state_port=0)
+        host, port = state_url.removeprefix("tcp://").rsplit(":", 1)
+        real = sim.controller.state_messages
+        broken = threading.Event()
+
+        def once_broken(t: float, feedback: bool) -> bytes:
+            if not broken.is_set():
+                broken.set()
+                raise ValueError("a state that cannot be built")
+            return real(t, feedback)
+
+        with socket.create_connection((host, int(port)), timeout=10.0) as client:
+            sim.wait_until(lambda s: s.state_clients == 1, 10.0)
+            monkeypatch.setattr(sim.controller, "state_messages", once_broken)
+            wait_for(broken.is_set, "the stream tried to build a state")
+            sent = sim.states_sent
+            sim.wait_until(lambda s: s.states_sent > sent + 3, 10.0)  # the stream went on
+            assert client.recv(4096)
+        assert sim._publisher is not None and sim._publisher.errors == 1
