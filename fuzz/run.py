@@ -49,8 +49,8 @@ NAMES = (
 
 #: Packages instrumented for coverage besides the protocols, by target.
 INSTRUMENTED = {
-    "recording-readers": ("robocli.io", "robocli.sim", "robocli.hub", "mcap"),
-    "create-oi": ("robocli.sim",),
+    "recording-readers": ("robocli.io", "robocli.sim", "robocli.serving", "robocli.hub", "mcap"),
+    "create-oi": ("robocli.sim", "robocli.serving"),
 }
 #: libFuzzer options of a target besides :data:`harness.DEFAULTS` (recordings are larger
 #: than protocol frames).

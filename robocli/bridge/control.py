@@ -56,6 +56,7 @@ from robocli.bridge.keys import (
     undeclare,
 )
 from robocli.errors import ProtocolError, RobocliError
+from robocli.serving.periodic import PeriodicLoop
 from robocli.zenoh.keys import check_name
 from robocli.zenoh.session import import_zenoh
 
@@ -112,6 +113,9 @@ class ControlGate:
         self._pending: list[tuple[str, bool]] = []  # (reason, release) for the gate thread
         self._warned: set[str] = set()
         self._closed = False
+        # the stop rules' thread: a step that raises is logged and counted, and the rules go
+        # on (robocli.serving.periodic's policy): their end would leave the robot moving
+        self._loop = PeriodicLoop(f"bridge-control-{robot}", self._step)
         self._events = session.declare_publisher(control_key(robot, "event"),
                                                  encoding=JSON_ENCODING)  # fmt: skip
         self._tokens = session.liveliness().declare_subscriber(
@@ -120,9 +124,7 @@ class ControlGate:
         self._queryable = session.declare_queryable(control_key(robot), self._on_query)
         self._requests = session.declare_queryable(holder_key(robot, None, "request"),
                                                    self._on_query)  # fmt: skip
-        self._thread = threading.Thread(target=self._run, name=f"bridge-control-{robot}",
-                                        daemon=True)  # fmt: skip
-        self._thread.start()
+        self._loop.start()
 
     # ------------------------------------------------------------------ commands
 
@@ -148,7 +150,7 @@ class ControlGate:
                     self._last_command = time.monotonic()
                     self._moving = moving
                     self.counts["commands"] += 1
-                    self._cond.notify_all()
+                    self._loop.wake()
                 else:
                     self.counts["ignored_commands"] += 1
                     who = str(holder)[:64]
@@ -193,8 +195,7 @@ class ControlGate:
             if self._closed:
                 return
             self._closed = True
-            self._cond.notify_all()
-        self._thread.join(timeout=5.0)
+        self._loop.close(timeout=5.0)
         self._do_stop(reason, release=True, always=True)
         for entity in (self._requests, self._queryable, self._tokens, self._events):
             undeclare(entity)
@@ -227,7 +228,7 @@ class ControlGate:
                 if name == self.holder:
                     self._pending.append((f"the controller {name} left (its liveliness "
                                           "token went)", True))  # fmt: skip
-            self._cond.notify_all()
+            self._loop.wake()
 
     def _on_query(self, query: zenoh.Query) -> None:
         """Answer a control request; every query gets a reply, an error one when refused."""
@@ -304,17 +305,17 @@ class ControlGate:
 
     # ------------------------------------------------------------------ the gate's thread
 
-    def _run(self) -> None:
-        """Apply the stop rules until closed; a stop that raises never ends this loop."""
-        while True:
-            with self._cond:
-                if self._closed:
-                    return
-                action = self._due(time.monotonic())
-                if action is None:
-                    self._cond.wait(self._wait(time.monotonic()))
-                    continue
-            self._do_stop(*action)
+    def _step(self) -> float:
+        """Apply the stop rule due now, if any; the seconds until one may be due (woken
+        sooner by a command or a token). A stop that raises never ends this loop."""
+        with self._cond:
+            if self._closed:
+                return 1.0  # close() is stopping the loop, and stops the robot itself
+            action = self._due(time.monotonic())
+            if action is None:
+                return self._wait(time.monotonic())
+        self._do_stop(*action)
+        return 0.0
 
     def _due(self, now: float) -> tuple[str, bool] | None:
         """(reason, release) of the stop due now, or None (called under the condition)."""

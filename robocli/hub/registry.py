@@ -29,7 +29,7 @@ import numpy.typing as npt
 from robocli.errors import DeviceError, InvalidArgument, RobocliError
 from robocli.hub.rings import Cursor, SensorRing, ring_capacity
 from robocli.hub.sources.base import Source
-from robocli.sim.ticker import Ticker
+from robocli.serving.ticker import Ticker
 
 __all__ = ["Channel", "ClientInfo", "ClientState", "Hub", "Pulled", "hub_clock"]
 

@@ -14,9 +14,9 @@ from robocli.hub.registry import ClientInfo, Hub
 from robocli.hub.rings import DEFAULT_BUDGET
 from robocli.hub.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
-from robocli.sim.links import Link, LinkStats
-from robocli.sim.serving import REAP_WAIT_S, Server
-from robocli.sim.ticker import Ticker
+from robocli.serving.links import Link, LinkStats
+from robocli.serving.server import REAP_WAIT_S, Server
+from robocli.serving.ticker import Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
@@ -97,7 +97,7 @@ class HubServer:
     ``output_budget``: bytes of memory the replies waiting for their clients may hold over
     all connections (default: two full rings and 1 MiB); room is made by dropping the
     connections whose output waited longest, those without the token first, never a client
-    with the token for one without (:class:`~robocli.sim.links.OutputBudget`).
+    with the token for one without (:class:`~robocli.serving.links.OutputBudget`).
     ``sources``: extra or replacement sources by sensor name.
 
     A connection whose stream loses its framing (garbage, a request body over ``max_body``,
@@ -204,7 +204,7 @@ class HubServer:
     def _admit_client(self, session: Ros4matSession) -> str | None:
         """A client place for a connection completing CONNECT: None, or why not. When the
         hub is full, the connections whose client has already closed are waited for first
-        (at most :data:`~robocli.sim.serving.REAP_WAIT_S`): the original client's ``close``
+        (at most :data:`~robocli.serving.server.REAP_WAIT_S`): the original client's ``close``
         then ``connect`` must not find its own old connection holding the last place."""
         if self.places.take(session) is None:
             return None

@@ -1,5 +1,6 @@
-"""Faults of a bridge: a stop that raises never ends the thread that applies the stop rules;
-a bridge that stalled past the robot's watchdog reports a fault and never resumes motion."""
+"""Faults of a bridge: a stop (or a stop rule) that raises never ends the thread that applies
+the stop rules; a bridge that stalled past the robot's watchdog reports a fault and never
+resumes motion."""
 
 from __future__ import annotations
 
@@ -57,6 +58,34 @@ def test_a_stop_that_raises_never_ends_the_gates_thread(server, endpoint) -> Non
         gate.close()
         client.close()
     assert calls[-1] == "the bridge ended"
+
+
+def test_a_stop_rule_that_raises_never_ends_the_gates_thread(server, endpoint, monkeypatch) -> None:
+    """Whatever fails in the gate's thread (here its rules, once), the rules go on: the
+    silence rule still stops a robot whose controller went quiet."""
+    calls: list[str] = []
+    gate = ControlGate(server, "g1", stop=calls.append, silence=0.2)
+    rules, broken = gate._due, []
+
+    def due_once_broken(now: float) -> Any:
+        if not broken:
+            broken.append(now)
+            raise ValueError("a rule that failed")
+        return rules(now)
+
+    monkeypatch.setattr(gate, "_due", due_once_broken)
+    client = open_session(endpoint, "client")
+    try:
+        wait_for(lambda: _acquire(client, "ivan"), "the grant")
+        token = client.liveliness().declare_token("robocli/g1/@control/ivan/alive")
+        with gate.command("ivan", moving=True, epoch=gate.epoch) as ok:
+            assert ok
+        wait_for(lambda: calls, "the silence stop, after the rule that failed")
+        assert broken and calls[0].startswith("no command from ivan")
+        token.undeclare()
+    finally:
+        gate.close()
+        client.close()
 
 
 def _acquire(session: Any, holder: str) -> bool:

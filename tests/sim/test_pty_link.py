@@ -16,7 +16,7 @@ import pytest
 from waiting import wait_for
 
 from robocli.protocols import arcos
-from robocli.sim.serving import Server
+from robocli.serving.server import Server
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pty")
 WAIT = 10.0

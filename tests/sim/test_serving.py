@@ -1,4 +1,4 @@
-"""The shared serving layer (``robocli.sim.serving``) over real sockets and a real pty.
+"""The shared serving layer (``robocli.serving.server``) over real sockets and a real pty.
 
 An echo session stands for a robot: every complete ARCOS frame comes back as it was sent.
 """
@@ -20,8 +20,8 @@ import pytest
 from robocli.errors import TransportError
 from robocli.protocols import arcos
 from robocli.protocols.common import REFUSAL_PREFIX, find_refusal
-from robocli.sim.serving import BUSY_REASON, Link, Server
-from robocli.sim.ticker import Ticker
+from robocli.serving.server import BUSY_REASON, Link, Server
+from robocli.serving.ticker import Ticker
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -240,7 +240,7 @@ def test_a_client_that_stops_reading_is_dropped_without_blocking_the_ticker(
 
 
 def test_close_joins_every_thread(make_server: Any, monkeypatch: pytest.MonkeyPatch) -> None:
-    from robocli.sim import serving
+    from robocli.serving import server as serving
 
     # a refused client that does not hang up keeps its thread for 60 s, not 0.5 s, so that
     # the thread is still there when close() comes, however late a loaded machine is

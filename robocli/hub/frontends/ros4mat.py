@@ -1,6 +1,6 @@
 """The ros4mat v3 front-end of the hub: TCP (port 1500), many clients, wire-compatible.
 
-Each connection has one thread (:class:`robocli.sim.serving.Server`): it frames requests with
+Each connection has one thread (:class:`robocli.serving.server.Server`): it frames requests with
 the C ros4mat framer (bounded by ``max_body``) and answers each one inline, as fast as they
 arrive (the original served one request per connection per 5 ms loop). Everything about
 sensors and clients is in :class:`robocli.hub.registry.Hub`; this module only translates
@@ -57,7 +57,7 @@ from robocli.protocols.ros4mat import (
     encode_error,
     plain,
 )
-from robocli.sim.links import Link
+from robocli.serving.links import Link
 
 __all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "body_parts", "pull_body"]
 

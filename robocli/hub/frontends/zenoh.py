@@ -39,7 +39,7 @@ from robocli.hub.frontends.ros4mat import SENSOR_IDS, body_parts
 from robocli.hub.frontends.zenoh_serial import ZenohSerial
 from robocli.hub.registry import ClientState, Hub
 from robocli.hub.sources import SerialPorts
-from robocli.sim.ticker import Ticker
+from robocli.serving.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
 from robocli.zenoh.keys import alive_key, check_name, info_key, settings_key, topic_key
 from robocli.zenoh.payload import decode_object

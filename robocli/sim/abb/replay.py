@@ -12,12 +12,13 @@ but nothing moves: the state stream is the recording's.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from robocli.serving.server import Link
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.replay import FrameSchedule, recorded_frames
-from robocli.sim.serving import Link
 
 __all__ = ["AbbReplay"]
 
@@ -53,16 +54,18 @@ class AbbReplay(AbbSim):
         super().__init__(**options)
         self.path = str(path)
 
-    def _publish(self) -> None:
+    def _publish_step(self) -> Callable[[], float]:
         """The recorded stream to the state client, restarted for each new one."""
         playing: Link | None = None
-        while not self._stop.wait(TICK_S):
+
+        def step() -> float:
+            nonlocal playing
             links: list[Link] = self._state.links() if self._state else []
             if not links:
                 if playing is not None:
                     playing = None
                     self.schedule.stop()
-                continue
+                return TICK_S
             now = time.monotonic()
             if playing not in links:
                 playing = links[0]
@@ -70,3 +73,6 @@ class AbbReplay(AbbSim):
             frames = self.schedule.due(now)
             if frames and playing.send(b"".join(frames)):
                 self.states_sent += len(frames)
+            return TICK_S
+
+        return step

@@ -29,8 +29,8 @@ exact and states are sampled at their nominal instants ``k * state_ms``.
 from __future__ import annotations
 
 import logging
-import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
@@ -42,6 +42,8 @@ from robocli.errors import TimeoutError, TransportError
 from robocli.kinematics import load_model
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
+from robocli.serving.periodic import PeriodicLoop
+from robocli.serving.server import Link, Server
 from robocli.sim.abb.session import (
     PROFILES,
     ArmController,
@@ -49,7 +51,6 @@ from robocli.sim.abb.session import (
     MotionSession,
     StateSession,
 )
-from robocli.sim.serving import Link, Server
 
 __all__ = ["PROFILES", "AbbSim", "ArmSimState", "ControllerModel"]
 
@@ -110,8 +111,7 @@ class AbbSim:
         self._rng = np.random.default_rng(seed + 1)
         self._motion: Server | None = None
         self._state: Server | None = None
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
+        self._publisher: PeriodicLoop | None = None
         self.states_sent = 0
         self._closed = False
 
@@ -154,9 +154,9 @@ class AbbSim:
         except BaseException:
             self.close()
             raise
-        self._thread = threading.Thread(target=self._publish, name="abb-state-ticker",
-                                        daemon=True)  # fmt: skip
-        self._thread.start()
+        # a state that fails to build is logged and counted; the stream goes on
+        self._publisher = PeriodicLoop("abb-state-ticker", self._publish_step())
+        self._publisher.start()
         return urls
 
     def close(self) -> None:
@@ -164,9 +164,8 @@ class AbbSim:
         if self._closed:
             return
         self._closed = True
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(2.0)
+        if self._publisher is not None:
+            self._publisher.close(2.0)
         for server in (self._motion, self._state):
             if server is not None:
                 server.close()
@@ -210,15 +209,17 @@ class AbbSim:
 
     # ---------------------------------------------------------------- state publishing
 
-    def _publish(self) -> None:
-        """State messages on absolute deadlines ``k * period``. Exact mode: each sample is
-        taken at its nominal instant, missed ones are sent late rather than skipped (up to
-        :data:`MAX_CATCH_UP_S` late), and with ``feedback`` the instants a motion starts and
-        ends are reported too. With the model's period jitter each period is drawn afresh
+    def _publish_step(self) -> Callable[[], float]:
+        """The step of the state stream's loop: state messages on absolute deadlines
+        ``k * period``. Exact mode: each sample is taken at its nominal instant, missed ones
+        are sent late rather than skipped (up to :data:`MAX_CATCH_UP_S` late), and with
+        ``feedback`` the instants a motion starts and ends are reported too. With the
+        model's period jitter each period is drawn afresh
         (:meth:`ControllerModel.state_period_ms`) from the previous deadline, and each sample
         is taken at its deadline; missed ones are sent late, as in exact mode, so that the
         stamps follow the model however loaded the host is. Otherwise a sample is taken when
-        sent, and a late publisher skips the missed ones."""
+        sent, and a late publisher skips the missed ones. The step returns the seconds until
+        its next deadline."""
         period = self.state_ms / 1000.0  # simulated s
         wall = period / self.time_scale
         k = int(self.sim_time() / period) + 1
@@ -226,11 +227,12 @@ class AbbSim:
         renewal = self.ctl_model.period_jitter_ms > 0.0
         due, last_t = self._t0 + k * wall, k * period - period
         burst = max(1, min(MAX_BURST, int(MAX_CATCH_UP_S / wall)))
-        while not self._stop.is_set():
-            delay = due - time.monotonic()
-            if delay > 0 and self._stop.wait(delay):
-                return
+
+        def step() -> float:
+            nonlocal k, due, last_t
             now = time.monotonic()
+            if now < due:
+                return due - now
             now_k = int((now - self._t0) / wall)
             if exact:
                 times = [j * period for j in range(max(k, now_k - burst + 1), now_k + 1)]
@@ -247,7 +249,7 @@ class AbbSim:
                     drawn = self.ctl_model.state_period_ms(self._rng, self.state_ms)
                     due += drawn / 1000.0 / self.time_scale
                 if not times:
-                    continue
+                    return due - time.monotonic()
             else:
                 times = [self.sim_time()]
                 k = max(k, now_k) + 1 if now_k > k else k + 1
@@ -255,11 +257,14 @@ class AbbSim:
             last_t = times[-1]
             links: list[Link] = self._state.links() if self._state else []
             if not links:
-                continue
+                return due - time.monotonic()
             data = b"".join(self.controller.state_messages(t, self.feedback) for t in times)
             for link in links:
                 if link.send(data):
                     self.states_sent += len(times)
+            return due - time.monotonic()
+
+        return step
 
     def _with_events(self, after: float, times: list[float]) -> list[float]:
         """``times`` plus the motion's start and end instants within ``(after, times[-1]]``."""

@@ -5,7 +5,7 @@
 ``ROS_stateServer``; docs/protocols/simple-message.md section 4) or, with
 ``profile="generic"``, what an industrial_robot_client streaming server does.
 :class:`MotionSession` and :class:`StateSession` are one link's protocol state (a
-:class:`~robocli.sim.serving.Session`): the serving layer hands them complete frames and
+:class:`~robocli.serving.server.Session`): the serving layer hands them complete frames and
 writes their replies. Every method that touches shared state takes the controller's lock.
 
 Execution model: the points of an activated trajectory are knots of a cubic Hermite curve
@@ -31,7 +31,7 @@ from robocli.errors import ProtocolError
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
-from robocli.sim.serving import Link
+from robocli.serving.server import Link
 
 __all__ = [
     "ABB_BUFFER",

@@ -4,7 +4,7 @@ The simulator glues three parts, as the Pioneer's does: the body
 (:mod:`robocli.sim.create.model`: the Pioneer's physics and world with the Create's geometry,
 bumper, wheel drops, odometry, battery), the OI firmware (:mod:`robocli.sim.create.session`:
 modes, commands, sensors, the stream) and the shared serving layer
-(:mod:`robocli.sim.serving`: a thread per link replying inline, the pty, one client at a
+(:mod:`robocli.serving.server`: a thread per link replying inline, the pty, one client at a
 time, a second one refused with ``robocli-refused: robot busy: ...``). Commands are framed by
 :class:`~robocli.protocols.create_oi.CommandFramer`: garbage is dropped and counted, a command
 cut short for ``byte_timeout`` is abandoned (its first byte dropped, the rest rescanned).
@@ -23,11 +23,11 @@ from types import TracebackType
 
 from robocli.errors import TransportError
 from robocli.protocols.create_oi import MAX_COMMAND, CommandFramer
+from robocli.serving.server import Server, poll_until
+from robocli.serving.ticker import Ticker
 from robocli.sim.create.model import DROP_LEFT, DROP_RIGHT, CreateBody
 from robocli.sim.create.session import CreateController
 from robocli.sim.pioneer.model import Pose
-from robocli.sim.serving import Server, poll_until
-from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
 __all__ = ["STREAM_PERIOD_S", "CreateSim", "CreateState"]

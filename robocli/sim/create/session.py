@@ -2,7 +2,7 @@
 
 :class:`CreateController` is the robot's one OI (shared by its links, guarded by
 :attr:`CreateController.lock`); :class:`CreateSession` is one link's view of it (the serving
-layer's :class:`~robocli.sim.links.Session`). No sockets.
+layer's :class:`~robocli.serving.links.Session`). No sockets.
 
 Rules, from the Create 2 OI Specification:
 
@@ -32,8 +32,8 @@ from typing import Any
 
 from robocli.protocols import create_oi as oi
 from robocli.protocols.create_oi import Op
+from robocli.serving.links import Link
 from robocli.sim.create.model import DROP_LEFT, DROP_RIGHT, CreateBody, wheel_setpoints
-from robocli.sim.links import Link
 from robocli.sim.pioneer.model import clamp
 
 __all__ = ["OFF", "PASSIVE", "SAFE", "FULL", "CreateController", "CreateSession"]

@@ -37,7 +37,7 @@ from robocli.sim.hokuyo.model import HokuyoModel
 from robocli.sim.hokuyo.output import FrameOutput
 
 if TYPE_CHECKING:
-    from robocli.sim.serving import Link
+    from robocli.serving.server import Link
 
 __all__ = ["ScipSession", "Stream", "encode_array"]
 

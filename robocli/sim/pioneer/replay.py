@@ -23,12 +23,12 @@ from pathlib import Path
 from typing import Any
 
 from robocli.protocols.arcos import Command, PacketType
+from robocli.serving.ticker import Ticker
 from robocli.sim.laser import LMS200
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.pioneer.session import ArcosController, ArcosSession
 from robocli.sim.pioneer.simext import LASER_EXTENDED, LASER_OFF, LASER_PLAIN
 from robocli.sim.replay import FrameSchedule, recorded_frames
-from robocli.sim.ticker import Ticker
 
 __all__ = ["PioneerReplay", "ReplayController"]
 

@@ -26,7 +26,7 @@ in the second SIP after it, as in AMRISim.
 The simulator glues three parts: the robot model (``robocli.sim.pioneer.model``: physics,
 odometry, collisions, battery, sonar in a ``World``), the ARCOS firmware
 (``robocli.sim.pioneer.session``: handshake, commands, packets, watchdog; no sockets) and the
-shared serving layer (``robocli.sim.serving``: a thread per TCP link replying inline, the pty,
+shared serving layer (``robocli.serving.server``: a thread per TCP link replying inline, the pty,
 one client per robot, a second one refused with ``robocli-refused: robot busy: ...``).
 
 Threads: one ticker (physics + SIPs on absolute deadlines ``t0 + k * period``) pushing through
@@ -44,13 +44,13 @@ from typing import Any
 
 from robocli.errors import InvalidArgument, TransportError
 from robocli.robots.pioneer import ROBOT_PARAMS
+from robocli.serving.server import SIM_HANDSHAKE_S, Server, poll_until
+from robocli.serving.ticker import Ticker
 from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.packets import sonar_batch
 from robocli.sim.pioneer.session import PRE_SYNC, ArcosController
 from robocli.sim.pioneer.simext import Georef
-from robocli.sim.serving import SIM_HANDSHAKE_S, Server, poll_until
-from robocli.sim.ticker import Ticker
 from robocli.sim.world import World
 
 __all__ = ["PioneerSim", "SimState", "serve_many", "sonar_batch"]

@@ -4,7 +4,7 @@
 handlers driving a :class:`~robocli.sim.pioneer.model.PioneerModel`, the server packets (SIP,
 CONFIG, IO, encoder, battery; built in :mod:`robocli.sim.pioneer.packets`), the watchdog, and
 the rule that one client at a time holds the session. :class:`ArcosSession` is one link's
-protocol state (a :class:`~robocli.sim.serving.Session`): the serving layer hands it complete
+protocol state (a :class:`~robocli.serving.server.Session`): the serving layer hands it complete
 frames from the link's thread and writes its replies; the simulator's ticker calls
 :meth:`ArcosController.tick` and pushes the packets it returns. Every method that touches state
 takes the controller's lock.
@@ -36,11 +36,11 @@ from robocli.protocols.arcos import (
     frame,
     split_two_bytes,
 )
+from robocli.serving.server import Link
 from robocli.sim.laser import LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, clamp
 from robocli.sim.pioneer.packets import ServerPackets
 from robocli.sim.pioneer.simext import Georef, SimExtensions
-from robocli.sim.serving import Link
 
 __all__ = ["ArcosController", "ArcosSession"]
 
@@ -124,7 +124,7 @@ class ArcosController(ServerPackets):
     # ---------------------------------------------------------------- links and ticks
 
     def attach(self, link: Link) -> ArcosSession:
-        """The session of a new link (a :data:`~robocli.sim.serving.SessionFactory`)."""
+        """The session of a new link (a :data:`~robocli.serving.server.SessionFactory`)."""
         with self.lock:
             session = ArcosSession(self, link, time.monotonic())
             self.links.append(session)

@@ -2,7 +2,7 @@
 output budget shared by the server's links (:class:`OutputBudget`) and the counters
 (:class:`LinkStats`).
 
-Part of :mod:`robocli.sim.links` (import from there).
+Part of :mod:`robocli.serving.links` (import from there).
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ class OutputBudget:
 
 @dataclass(frozen=True)
 class LinkLimits:
-    """What every link of one server obeys (see :class:`robocli.sim.serving.Server`)."""
+    """What every link of one server obeys (see :class:`robocli.serving.server.Server`)."""
 
     protocol: str
     max_frame: int | None

@@ -1,6 +1,6 @@
 """A link over one TCP connection (:class:`TcpLink`).
 
-Part of :mod:`robocli.sim.links` (import from there).
+Part of :mod:`robocli.serving.links` (import from there).
 """
 
 from __future__ import annotations
@@ -12,10 +12,10 @@ import threading
 import time
 from collections.abc import Callable
 
-from robocli.sim.links.base import RECV_SIZE, Link
-from robocli.sim.links.limits import LinkLimits
+from robocli.serving.links.base import RECV_SIZE, Link
+from robocli.serving.links.limits import LinkLimits
 
-log = logging.getLogger("robocli.sim.serving")
+log = logging.getLogger("robocli.serving.server")
 
 DONTWAIT = getattr(socket, "MSG_DONTWAIT", 0)  #: 0 where the platform has no such flag
 LINGER_S = 0.5  #: a link ending after a last reply reads (and discards) this long at most

@@ -16,22 +16,22 @@ server, and its next requests wait in the kernel's buffers. An :class:`OutputBud
 memory the output waiting over every link of a server holds: the links that cause it pay for
 it (dropped, those waiting longest first; a :attr:`Link.privileged` one never for another).
 
-Used through :class:`robocli.sim.serving.Server`; nothing here is global.
+Used through :class:`robocli.serving.server.Server`; nothing here is global.
 
-The package holds :mod:`~robocli.sim.links.limits` (what every link of a server obeys and
+The package holds :mod:`~robocli.serving.links.limits` (what every link of a server obeys and
 counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`LinkStats`),
-:mod:`~robocli.sim.links.base` (the :class:`Session` and :class:`UnframedHook` protocols and
+:mod:`~robocli.serving.links.base` (the :class:`Session` and :class:`UnframedHook` protocols and
 :class:`Link`: framing, dispatch and the output queue every link shares),
-:mod:`~robocli.sim.links.tcp` (:class:`TcpLink`) and :mod:`~robocli.sim.links.pty`
+:mod:`~robocli.serving.links.tcp` (:class:`TcpLink`) and :mod:`~robocli.serving.links.pty`
 (:class:`PtyLink`). Import from here.
 """
 
 from __future__ import annotations
 
-from robocli.sim.links.base import Link, Session, UnframedHook
-from robocli.sim.links.limits import LinkLimits, LinkStats, OutputBudget
-from robocli.sim.links.pty import PtyLink
-from robocli.sim.links.tcp import DONTWAIT, TcpLink
+from robocli.serving.links.base import Link, Session, UnframedHook
+from robocli.serving.links.limits import LinkLimits, LinkStats, OutputBudget
+from robocli.serving.links.pty import PtyLink
+from robocli.serving.links.tcp import DONTWAIT, TcpLink
 
 __all__ = [
     "DONTWAIT",

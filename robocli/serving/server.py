@@ -1,8 +1,9 @@
-"""The serving layer of the built-in simulators: TCP and pty links and their limits.
+"""The serving layer of the built-in simulators and the hub server: TCP and pty links and
+their limits.
 
-A simulator is a :class:`Session` per client link plus whatever it shares between them (its
-robot). This module owns everything about bytes on the wire, so the sessions never see a
-socket:
+A simulator (or the hub) is a :class:`Session` per client link plus whatever it shares
+between them (its robot). This module owns everything about bytes on the wire, so the
+sessions never see a socket:
 
 * **TCP**: a listener thread accepts; each link has **one thread, blocking in** ``recv``, that
   frames the bytes, calls :meth:`Session.on_frame` for each complete frame and writes the
@@ -31,7 +32,7 @@ socket:
   On a pty, output the line cannot take is dropped as on a serial line with nobody
   listening, a message at a time: one the line took in part is finished as it drains.
 * Periodic work (physics, SIPs, a state stream) runs on a
-  :class:`~robocli.sim.ticker.Ticker` and pushes through :meth:`Link.send`.
+  :class:`~robocli.serving.ticker.Ticker` and pushes through :meth:`Link.send`.
 
 Nothing here is global: two servers in one process are independent. :meth:`Server.close` stops
 and joins every thread within a bounded time. Protocol-agnostic: the protocol name only picks
@@ -53,7 +54,7 @@ from typing import Any, TypeVar
 from robocli.core import Framer
 from robocli.errors import TimeoutError, TransportError
 from robocli.protocols.common import refusal_line
-from robocli.sim.links import (
+from robocli.serving.links import (
     DONTWAIT,
     Link,
     LinkLimits,
@@ -64,7 +65,7 @@ from robocli.sim.links import (
     TcpLink,
     UnframedHook,
 )
-from robocli.sim.ticker import JOIN_TIMEOUT_S
+from robocli.serving.ticker import JOIN_TIMEOUT_S
 
 __all__ = [
     "BUSY_REASON",
@@ -79,7 +80,7 @@ __all__ = [
     "poll_until",
 ]
 
-log = logging.getLogger("robocli.sim.serving")
+log = logging.getLogger("robocli.serving.server")
 
 BUSY_REASON = "robot busy: another client holds it"
 REFUSE_LINGER_S = 0.5  #: a refused client has this long to read the refusal line

@@ -1,6 +1,6 @@
 """A link over the master side of a pseudo-terminal (:class:`PtyLink`), a serial line.
 
-Part of :mod:`robocli.sim.links` (import from there).
+Part of :mod:`robocli.serving.links` (import from there).
 """
 
 from __future__ import annotations
@@ -13,10 +13,10 @@ import time
 from collections.abc import Callable
 
 from robocli.errors import TransportError
-from robocli.sim.links.base import RECV_SIZE, Link
-from robocli.sim.links.limits import LinkLimits
+from robocli.serving.links.base import RECV_SIZE, Link
+from robocli.serving.links.limits import LinkLimits
 
-log = logging.getLogger("robocli.sim.serving")
+log = logging.getLogger("robocli.serving.server")
 
 
 class PtyLink(Link):

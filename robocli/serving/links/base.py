@@ -2,7 +2,7 @@
 its session, the output queue and its bounds, the link thread's end), and the protocols of the
 sessions it serves (:class:`Session`, :class:`UnframedHook`).
 
-Part of :mod:`robocli.sim.links` (import from there).
+Part of :mod:`robocli.serving.links` (import from there).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from itertools import islice
 from typing import Any, Protocol
 
 from robocli.core import Framer
-from robocli.sim.links.limits import LinkLimits, LinkStats
+from robocli.serving.links.limits import LinkLimits, LinkStats
 
-log = logging.getLogger("robocli.sim.serving")
+log = logging.getLogger("robocli.serving.server")
 
 
 class Session(Protocol):
