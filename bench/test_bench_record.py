@@ -169,7 +169,7 @@ def test_camera_write_throughput(benchmark: Any, compression: str) -> None:
     path: the raw channel, the RawImage JSON with its base64 pixels, MCAP, compression.
     Reported in MB/s of camera replies (target >= 100 MB/s)."""
     from robocli.devices.hub.client import Hub
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
     from robocli.io.record.links import RawLink
 
     replies: list[bytes] = []

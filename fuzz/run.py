@@ -49,7 +49,7 @@ NAMES = (
 
 #: Packages instrumented for coverage besides the protocols, by target.
 INSTRUMENTED = {
-    "recording-readers": ("robocli.io", "robocli.sim", "robocli.hub", "mcap"),
+    "recording-readers": ("robocli.io", "robocli.sim", "robocli.hub_server", "mcap"),
     "create-oi": ("robocli.sim",),
 }
 #: libFuzzer options of a target besides :data:`harness.DEFAULTS` (recordings are larger

@@ -67,7 +67,7 @@ if TYPE_CHECKING:
         TransportError,
         UnknownRobotError,
     )
-    from robocli.hub.server import HubServer
+    from robocli.hub_server.server import HubServer
     from robocli.io.record.live import LiveView
     from robocli.io.record.recorder import Recorder
     from robocli.kinematics.model import RobotModel
@@ -117,7 +117,7 @@ _LAZY = {
     "PioneerSim": "robocli.sim.pioneer.server", "AbbSim": "robocli.sim.abb.server",
     "HokuyoSim": "robocli.sim.hokuyo.server", "CreateSim": "robocli.sim.create",
     "World": "robocli.sim.world",
-    "HubServer": "robocli.hub.server", "Recorder": "robocli.io.record.recorder",
+    "HubServer": "robocli.hub_server.server", "Recorder": "robocli.io.record.recorder",
     "LiveView": "robocli.io.record.live", "RobotModel": "robocli.kinematics.model",
     "RobotParams": "robocli.robots.pioneer",
 }  # fmt: skip

@@ -89,7 +89,7 @@ def serial_latency(n: int = 500, size: int = 2, baud: int = 115200) -> dict[str,
 
     from robocli.devices.hub.relay import PtyRelay
     from robocli.devices.hub.serial import VirtualSerial
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
     out: dict[str, Stats] = {}
     with EchoLine() as echo:

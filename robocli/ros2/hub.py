@@ -25,7 +25,7 @@ from robocli.ros2.node import Ros2Node, node_name
 if TYPE_CHECKING:
     import zenoh
 
-    from robocli.hub.registry import Hub
+    from robocli.hub_server.registry import Hub
 
 __all__ = ["HubTopics"]
 

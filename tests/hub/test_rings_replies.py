@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 CAM = {"fps": 30, "width": 320, "height": 240, "compression": 0, "roi": [0] * 4, "id": 0,

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
@@ -317,9 +317,9 @@ def test_original_client_subscribes_to_every_sensor(
 
 def test_reply_with_partly_filled_blobs_decodes() -> None:
     """JPEG frames fill only part of their slot: the reply carries each at its own size."""
-    from robocli.hub.frontends.ros4mat import pull_body
-    from robocli.hub.registry import Pulled
-    from robocli.hub.sources import StereoSource
+    from robocli.hub_server.frontends.ros4mat import pull_body
+    from robocli.hub_server.registry import Pulled
+    from robocli.hub_server.sources import StereoSource
 
     src = StereoSource()
     src.configure({"fps": 10, "width": 32, "height": 24})

@@ -9,7 +9,7 @@ from typing import Any
 
 from peers import closed_by_peer
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 TOKEN = b"lab-token"

@@ -17,9 +17,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
-from robocli.hub.sources import AdcSource, BatterySource, GpsSource, ImuSource, SysinfoSource
-from robocli.hub.sources.imaging import DepthSource, robot_pose
+from robocli.hub_server import HubServer
+from robocli.hub_server.sources import AdcSource, BatterySource, GpsSource, ImuSource, SysinfoSource
+from robocli.hub_server.sources.imaging import DepthSource, robot_pose
 from robocli.protocols import ros4mat as r4m
 from robocli.sim.world import World
 
@@ -269,7 +269,7 @@ def test_gpsd_source_against_a_recorded_stream(
 
 
 def test_real_camera_only_with_opencv(raw: Any) -> None:
-    from robocli.hub.sources.opencv import opencv_available
+    from robocli.hub_server.sources.opencv import opencv_available
 
     with HubServer(port=0, sim=False) as srv:
         if not opencv_available():

@@ -27,13 +27,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import DeviceError, InvalidArgument, RobocliError
-from robocli.hub.rings import Cursor, SensorRing, ring_capacity
-from robocli.hub.sources.base import Source
+from robocli.hub_server.rings import Cursor, SensorRing, ring_capacity
+from robocli.hub_server.sources.base import Source
 from robocli.sim.ticker import Ticker
 
 __all__ = ["Channel", "ClientInfo", "ClientState", "Hub", "Pulled", "hub_clock"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 RING_SECONDS = 10.0  #: a ring holds this many seconds of samples (within its byte budget)
 
@@ -55,7 +55,7 @@ class Pulled:
 
 @dataclass(frozen=True)
 class ClientInfo:
-    """What :attr:`robocli.hub.HubServer.clients` shows of one client."""
+    """What :attr:`robocli.hub_server.HubServer.clients` shows of one client."""
 
     id: int
     peer: str

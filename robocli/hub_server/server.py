@@ -8,11 +8,11 @@ import sys
 from typing import Any
 
 from robocli.errors import InvalidArgument
-from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
-from robocli.hub.places import BUSY_REASON, Places
-from robocli.hub.registry import ClientInfo, Hub
-from robocli.hub.rings import DEFAULT_BUDGET
-from robocli.hub.sources import SerialPorts, Source, hub_sources
+from robocli.hub_server.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub_server.places import BUSY_REASON, Places
+from robocli.hub_server.registry import ClientInfo, Hub
+from robocli.hub_server.rings import DEFAULT_BUDGET
+from robocli.hub_server.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
 from robocli.sim.links import Link, LinkStats
 from robocli.sim.serving import REAP_WAIT_S, Server
@@ -20,7 +20,7 @@ from robocli.sim.ticker import Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
 DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
@@ -93,7 +93,7 @@ class HubServer:
     quarter of ``max_clients``, at least 1); clients without it hold the others, at most
     ``max_per_address`` from one address, and lose their place when idle ``idle_timeout`` s
     or when a client with the token finds the hub full (the one idle longest goes;
-    :mod:`robocli.hub.places`).
+    :mod:`robocli.hub_server.places`).
     ``output_budget``: bytes of memory the replies waiting for their clients may hold over
     all connections (default: two full rings and 1 MiB); room is made by dropping the
     connections whose output waited longest, those without the token first, never a client
