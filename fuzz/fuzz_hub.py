@@ -30,7 +30,7 @@ from robocli.core import Framer
 from robocli.devices.hub.client import Hub
 from robocli.errors import RobocliError
 from robocli.hub_server.frontends.ros4mat import PullTimes, Ros4matSession
-from robocli.hub_server.registry import Hub as Registry
+from robocli.hub_server.registry import SensorRegistry
 from robocli.hub_server.sources import SerialPorts, hub_sources
 from robocli.protocols import ros4mat as r4m
 from robocli.protocols.ros4mat import HEADER_SIZE, MsgType
@@ -265,7 +265,7 @@ class ServerRig:
     """The hub's registry over the simulated sensors (small rings), shared by all inputs."""
 
     def __init__(self) -> None:
-        self.registry = Registry(hub_sources(True), ring_budget=1 << 20, detached_ttl=600.0)
+        self.registry = SensorRegistry(hub_sources(True), ring_budget=1 << 20, detached_ttl=600.0)
         self.times = PullTimes()
         self.serial = SerialPorts(("/nonexistent/robocli-fuzz-tty",))
 

@@ -10,7 +10,7 @@ from typing import Any
 from robocli.errors import InvalidArgument
 from robocli.hub_server.frontends.ros4mat import PullTimes, Ros4matSession
 from robocli.hub_server.places import BUSY_REASON, Places
-from robocli.hub_server.registry import ClientInfo, Hub
+from robocli.hub_server.registry import ClientInfo, SensorRegistry
 from robocli.hub_server.rings import DEFAULT_BUDGET
 from robocli.hub_server.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
@@ -162,8 +162,9 @@ class HubServer:
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
-        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
-                       random_ids=token is not None)  # fmt: skip
+        self.hub = SensorRegistry(all_sources, ring_budget=ring_budget,
+                                  detached_ttl=detached_ttl,
+                                  random_ids=token is not None)  # fmt: skip
         period = min(5.0, detached_ttl / 2, idle_timeout / 2)
         self._expiry = Ticker(period, self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None

@@ -3,8 +3,9 @@
 One Zenoh session (opened by the caller: ``robocli serve --zenoh``) publishes every sensor
 that runs on ``robocli/<hub>/<sensor>`` (the key layout: :mod:`robocli.zenoh.keys`), one put
 per batch every ``period`` seconds (the encoding: :mod:`robocli.zenoh.batch`). The
-front-end is one client of :class:`~robocli.hub_server.registry.Hub`, with one cursor per sensor it
-publishes, however many Zenoh subscribers there are: Zenoh copies to them, not the hub.
+front-end is one client of :class:`~robocli.hub_server.registry.SensorRegistry`, with one cursor
+per sensor it publishes, however many Zenoh subscribers there are: Zenoh copies to them, not
+the hub.
 
 * The sensors of ``publish`` start at once with their settings; any sensor a ros4mat client
   starts is published too, for as long as someone else keeps it running.
@@ -37,7 +38,7 @@ from typing import TYPE_CHECKING, Any
 from robocli.errors import DeviceError, ProtocolError, RobocliError
 from robocli.hub_server.frontends.ros4mat import SENSOR_IDS, body_parts
 from robocli.hub_server.frontends.zenoh_serial import ZenohSerial
-from robocli.hub_server.registry import ClientState, Hub
+from robocli.hub_server.registry import ClientState, SensorRegistry
 from robocli.hub_server.sources import SerialPorts
 from robocli.sim.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
@@ -79,7 +80,7 @@ class _Published:
 
 
 class ZenohFrontend:
-    """Publishes a :class:`Hub`'s sensors on a Zenoh ``session`` under ``name``.
+    """Publishes a :class:`SensorRegistry`'s sensors on a Zenoh ``session`` under ``name``.
 
     ``token``: the hub's token, required by the settings queryable (None: open).
     ``publish``: sensor -> settings (ros4mat SUBSCRIBE parameters; empty or None: its
@@ -92,7 +93,7 @@ class ZenohFrontend:
 
     def __init__(
         self,
-        hub: Hub,
+        hub: SensorRegistry,
         session: zenoh.Session,
         name: str,
         *,
