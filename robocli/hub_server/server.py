@@ -14,7 +14,7 @@ from robocli.hub_server.registry import ClientInfo, SensorRegistry
 from robocli.hub_server.rings import DEFAULT_BUDGET
 from robocli.hub_server.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
-from robocli.sim.links import Link, LinkStats
+from robocli.sim.links import Link, ServerLinkStats
 from robocli.sim.serving import REAP_WAIT_S, Server
 from robocli.sim.ticker import Ticker
 
@@ -281,7 +281,7 @@ class HubServer:
         return self._server.evicted
 
     @property
-    def link_stats(self) -> LinkStats:
+    def link_stats(self) -> ServerLinkStats:
         """Byte and frame counters summed over every connection, past and present."""
         return self._server.stats()
 

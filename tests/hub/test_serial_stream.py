@@ -112,7 +112,7 @@ def _raw_open(port: int, path: str) -> socket.socket:
     return sock
 
 
-def _recv(sock: socket.socket) -> r4m.Message:
+def _recv(sock: socket.socket) -> r4m.DecodedPacket:
     def exact(n: int) -> bytes:
         buf = b""
         while len(buf) < n:

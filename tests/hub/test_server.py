@@ -29,7 +29,7 @@ def _session() -> dict[str, bytes]:
 ORIGINAL = _session()
 
 
-def _adc_times(msg: r4m.Message) -> np.ndarray:
+def _adc_times(msg: r4m.DecodedPacket) -> np.ndarray:
     return np.array([r["t"] for r in msg.body or []])
 
 
@@ -45,7 +45,7 @@ def test_original_client_bytes_are_served(hub: HubServer, client_factory: Any, w
     assert (sub.msg_type, sub.error) == (r4m.MsgType.SUBSCRIBE_ACK, 0)
     assert hub.sensors["adc"]["rate"] == 100 and hub.sensors["adc"]["batch_rate"] == 35
 
-    def pulled() -> r4m.Message | None:
+    def pulled() -> r4m.DecodedPacket | None:
         c.send(ORIGINAL["pull_adc"])
         msg = c.recv()
         return msg if msg.size >= 3 else None

@@ -15,7 +15,7 @@ from robocli.protocols import ros4mat as r4m
 TOKEN = b"lab-token"
 
 
-def plain_connect(raw: Any, port: int) -> tuple[Any, r4m.Message]:
+def plain_connect(raw: Any, port: int) -> tuple[Any, r4m.DecodedPacket]:
     """A CONNECT without the token, and its reply (the socket kept open, idle)."""
     c = raw(port)
     return c, c.request(r4m.MsgType.CONNECT, bytes([r4m.PROTOCOL_VERSION, 0]))

@@ -19,8 +19,8 @@ it (dropped, those waiting longest first; a :attr:`Link.privileged` one never fo
 Used through :class:`robocli.sim.serving.Server`; nothing here is global.
 
 The package holds :mod:`~robocli.sim.links.limits` (what every link of a server obeys and
-counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`LinkStats`),
-:mod:`~robocli.sim.links.base` (the :class:`Session` and :class:`UnframedHook` protocols and
+counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`ServerLinkStats`),
+:mod:`~robocli.sim.links.base` (the :class:`ServerSession` and :class:`UnframedHook` protocols and
 :class:`Link`: framing, dispatch and the output queue every link shares),
 :mod:`~robocli.sim.links.tcp` (:class:`TcpLink`) and :mod:`~robocli.sim.links.pty`
 (:class:`PtyLink`). Import from here.
@@ -28,8 +28,8 @@ counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`LinkStats`),
 
 from __future__ import annotations
 
-from robocli.sim.links.base import Link, Session, UnframedHook
-from robocli.sim.links.limits import LinkLimits, LinkStats, OutputBudget
+from robocli.sim.links.base import Link, ServerSession, UnframedHook
+from robocli.sim.links.limits import LinkLimits, OutputBudget, ServerLinkStats
 from robocli.sim.links.pty import PtyLink
 from robocli.sim.links.tcp import DONTWAIT, TcpLink
 
@@ -37,10 +37,10 @@ __all__ = [
     "DONTWAIT",
     "Link",
     "LinkLimits",
-    "LinkStats",
     "OutputBudget",
     "PtyLink",
-    "Session",
+    "ServerLinkStats",
+    "ServerSession",
     "TcpLink",
     "UnframedHook",
 ]
