@@ -4,7 +4,7 @@ through the hub (:class:`~robocli.devices.hub.serial.VirtualSerial`), and throug
 behind a local pty (``robocli serial --pty``: what an unmodified toolkit sees). The
 yardstick is the iRobot Create's sensor stream, one packet every 15 ms.
 
-POSIX only (pseudo-terminals). Used by ``bench/test_bench_serial.py`` and
+POSIX only (pseudo-terminals). Used by ``benchmarks/test_bench_serial.py`` and
 :func:`main` (``python -m robocli.bench.serial``).
 """
 

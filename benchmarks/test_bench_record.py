@@ -9,7 +9,7 @@ Three figures, each over recorded SIPs of a real session (``tests/data/arcos``):
 - a whole session against the simulator in this process, 100 SIPs/s, with and without a
   recorder: the process CPU time per SIP, the difference being what recording adds.
 
-Run with ``make bench`` (or ``pytest bench/test_bench_record.py``).
+Run with ``make bench`` (or ``pytest benchmarks/test_bench_record.py``).
 """
 
 from __future__ import annotations
