@@ -128,7 +128,7 @@ valgrind: csrc/test_core
 	valgrind --error-exitcode=1 --leak-check=full -q ./csrc/test_core specs
 
 bench: $(STAMP)
-	$(PY) -m pytest -q -p no:cacheprovider bench --benchmark-columns=min,median,mean,ops,rounds
+	$(PY) -m pytest -q -p no:cacheprovider benchmarks --benchmark-columns=min,median,mean,ops,rounds
 
 # The lab in network namespaces (README "Lab in network namespaces"): robots, laptops and a lab
 # server, each in its own namespace on a bridge, robot uplinks shaped to LAB_UPLINK Mbit/s; the
@@ -152,7 +152,7 @@ lab: lab-tools $(STAMP)
 # Release files in $(DIST_DIR): the sdist, and the wheel built from that sdist alone (`build`
 # with neither --sdist nor --wheel unpacks the sdist and builds there, so the C sources, header
 # and cffi script must be in it). The C core is compiled by zig against glibc $(GLIBC)
-# (tools/zigcc: no Docker), the wheel retagged by `auditwheel repair` and checked by
+# (csrc/zigcc: no Docker), the wheel retagged by `auditwheel repair` and checked by
 # `auditwheel show` (the policy must be manylinux_$(GLIBC)) and abi3audit (limited API only):
 # one cp310-abi3 wheel serves every CPython >= 3.10 on glibc >= $(GLIBC). Linux only; macOS and
 # Windows wheels come from cibuildwheel ([tool.cibuildwheel] in pyproject.toml) on runners of
@@ -186,7 +186,7 @@ export AUDITWHEEL_POLICY
 # (a stale *.egg-info/SOURCES.txt would be merged into the sdist by setuptools)
 wheel: $(BUILD_STAMP)
 	rm -rf $(DIST_DIR)/robocli_robots-* $(DIST_DIR)/.raw robocli.egg-info robocli_robots.egg-info
-	CC="$(CURDIR)/tools/zigcc" LDSHARED="$(CURDIR)/tools/zigcc -shared -s" \
+	CC="$(CURDIR)/csrc/zigcc" LDSHARED="$(CURDIR)/csrc/zigcc -shared -s" \
 	  ZIG_PYTHON="$(abspath $(BUILDENV))/bin/python" ZIG_TARGET=$(ARCH)-linux-gnu.$(GLIBC) \
 	  $(BUILDENV)/bin/python -m build --outdir $(DIST_DIR)/.raw .
 	mv $(DIST_DIR)/.raw/robocli_robots-*.tar.gz $(DIST_DIR)/
@@ -233,7 +233,7 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --quiet
 
 lint: $(STAMP)
-	$(VENV)/bin/ruff check robocli tests bench examples docs/hooks
+	$(VENV)/bin/ruff check robocli tests benchmarks examples docs/hooks
 	$(VENV)/bin/mypy robocli
 	$(VENV)/bin/actionlint .github/workflows/*.yml
 
@@ -281,7 +281,7 @@ soak-serial: $(STAMP)
 # and without compression. Not in `make test` (10 min of wall time). SOAK_MINUTES to shorten.
 SOAK_MINUTES ?= 10
 soak-record: $(STAMP)
-	$(PY) tools/soak_record.py --minutes $(SOAK_MINUTES) --json soak-record.json
+	$(PY) benchmarks/soak_record.py --minutes $(SOAK_MINUTES) --json soak-record.json
 
 clean:
 	rm -rf $(VENV) build dist demo-out *.egg-info robocli/_core*.so robocli/_core.c csrc/test_core csrc/test_core_asan csrc/test_bench csrc/test_bench_asan

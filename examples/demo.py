@@ -81,7 +81,7 @@ def sensor_hub() -> int:
     import subprocess
 
     from robocli import Hub
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
     with HubServer(bind="127.0.0.1", port=0, sim=True).start() as hub:
         where = f"127.0.0.1:{hub.port}"

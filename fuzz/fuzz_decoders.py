@@ -79,7 +79,7 @@ def fuzz_ros4mat(data: bytes) -> None:
         _call(r4m.inflate, bytes(frame), opt * 16)
 
 
-def _scan_outcome(decode: Callable[..., scip2.Scan], block: bytes, check: bool) -> Any:
+def _scan_outcome(decode: Callable[..., scip2.ScanReply], block: bytes, check: bool) -> Any:
     try:
         scan = decode(block, check)
     except RobocliError as exc:

@@ -8,9 +8,10 @@
   or raise a :class:`robocli.errors.RobocliError`.
 * ``hub-server-requests``: a byte stream as the hub server receives it from one client. The
   bytes are framed as the server's links frame them (the C framer, the server's request
-  limit) and each request goes to a real :class:`~robocli.hub.frontends.ros4mat.Ros4matSession` over
-  the simulated sensors, in-process. The session must not raise, and every reply it sends
-  must be exactly one ros4mat packet that decodes.
+  limit) and each request goes to a real
+  :class:`~robocli.hub_server.frontends.ros4mat.Ros4matSession` over the simulated sensors,
+  in-process. The session must not raise, and every reply it sends must be exactly one ros4mat
+  packet that decodes.
 
 Any other exception, or a broken invariant (an ``AssertionError``), is a finding.
 """
@@ -28,9 +29,9 @@ import numpy as np
 from robocli.core import Framer
 from robocli.devices.hub.client import Hub
 from robocli.errors import RobocliError
-from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
-from robocli.hub.registry import Hub as Registry
-from robocli.hub.sources import SerialPorts, hub_sources
+from robocli.hub_server.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub_server.registry import SensorRegistry
+from robocli.hub_server.sources import SerialPorts, hub_sources
 from robocli.protocols import ros4mat as r4m
 from robocli.protocols.ros4mat import HEADER_SIZE, MsgType
 from robocli.transports import SocketTransport
@@ -227,7 +228,7 @@ _OPT_TOKEN = 0x01  # the hub has a token (the seeds' CONNECTs may carry it)
 _OPT_FULL = 0x02  # the hub is full: the session answers every request with an error
 _OPT_SERIAL = 0x04  # the hub serves a serial port (that does not exist)
 TOKEN = b"fuzz-token"
-MAX_REQUEST_BODY = 64 * 1024  # the hub's default request limit (robocli.hub.server)
+MAX_REQUEST_BODY = 64 * 1024  # the hub's default request limit (robocli.hub_server.server)
 
 
 class _Link:
@@ -264,7 +265,7 @@ class ServerRig:
     """The hub's registry over the simulated sensors (small rings), shared by all inputs."""
 
     def __init__(self) -> None:
-        self.registry = Registry(hub_sources(True), ring_budget=1 << 20, detached_ttl=600.0)
+        self.registry = SensorRegistry(hub_sources(True), ring_budget=1 << 20, detached_ttl=600.0)
         self.times = PullTimes()
         self.serial = SerialPorts(("/nonexistent/robocli-fuzz-tty",))
 

@@ -28,7 +28,7 @@ from mcap.reader import make_reader
 
 from robocli.cli import main
 from robocli.errors import RobocliError
-from robocli.hub.sources.replay import replay_sources
+from robocli.hub_server.sources.replay import replay_sources
 from robocli.io.record import Recorder, info, recover
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
@@ -180,7 +180,7 @@ def _hub(port: int) -> Callable[[Any], None]:
 @functools.lru_cache(maxsize=1)
 def recordings() -> dict[str, bytes]:
     """Small recordings by robocli's recorder, by name (made once per process)."""
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
     from robocli.sim.abb.server import AbbSim
     from robocli.sim.pioneer.server import PioneerSim
 

@@ -49,7 +49,9 @@ NAMES = (
 
 #: Packages instrumented for coverage besides the protocols, by target.
 INSTRUMENTED = {
-    "recording-readers": ("robocli.io", "robocli.sim", "robocli.serving", "robocli.hub", "mcap"),
+    "recording-readers": (
+        "robocli.io", "robocli.sim", "robocli.serving", "robocli.hub_server", "mcap"
+    ),
     "create-oi": ("robocli.sim", "robocli.serving"),
 }
 #: libFuzzer options of a target besides :data:`harness.DEFAULTS` (recordings are larger

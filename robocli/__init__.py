@@ -23,6 +23,7 @@ if TYPE_CHECKING:
     from robocli.devices.arm import (
         Arm,
         ArmStatus,
+        JointRecorder,
         JointSample,
         Point,
         StillMoving,
@@ -67,7 +68,7 @@ if TYPE_CHECKING:
         TransportError,
         UnknownRobotError,
     )
-    from robocli.hub.server import HubServer
+    from robocli.hub_server.server import HubServer
     from robocli.io.record.live import LiveView
     from robocli.io.record.recorder import Recorder
     from robocli.kinematics.model import RobotModel
@@ -94,12 +95,14 @@ _LAZY = {
     "WatchdogTripped": "robocli.devices.pioneer",
     "PioneerSimulator": "robocli.devices.pioneer.simulated",
     "Arm": "robocli.devices.arm", "ArmStatus": "robocli.devices.arm",
-    "JointSample": "robocli.devices.arm", "Point": "robocli.devices.arm",
+    "JointSample": "robocli.devices.arm", "JointRecorder": "robocli.devices.arm",
+    "Point": "robocli.devices.arm",
     "StillMoving": "robocli.devices.arm", "TooFewSamples": "robocli.devices.arm",
     "Hub": "robocli.devices.hub.client", "Reading": "robocli.devices.hub.decode",
     "ZenohHub": "robocli.devices.hub.over_zenoh",
     "VirtualSerial": "robocli.devices.hub.serial",
     "Create": "robocli.devices.create", "CreateState": "robocli.devices.create",
+    "CreateOdometry": "robocli.devices.create",
     "Laser": "robocli.devices.laser", "LaserInfo": "robocli.devices.laser",
     "Scan": "robocli.devices.laser", "MountedLaser": "robocli.devices.laser",
     "PlacedScan": "robocli.devices.laser", "SensorClock": "robocli.devices.laser",
@@ -117,7 +120,7 @@ _LAZY = {
     "PioneerSim": "robocli.sim.pioneer.server", "AbbSim": "robocli.sim.abb.server",
     "HokuyoSim": "robocli.sim.hokuyo.server", "CreateSim": "robocli.sim.create",
     "World": "robocli.sim.world",
-    "HubServer": "robocli.hub.server", "Recorder": "robocli.io.record.recorder",
+    "HubServer": "robocli.hub_server.server", "Recorder": "robocli.io.record.recorder",
     "LiveView": "robocli.io.record.live", "RobotModel": "robocli.kinematics.model",
     "RobotParams": "robocli.robots.pioneer",
 }  # fmt: skip
@@ -130,6 +133,7 @@ __all__ = [
     "ChecksumError",
     "ConnectionLost",
     "Create",
+    "CreateOdometry",
     "CreateSim",
     "CreateState",
     "Device",
@@ -142,6 +146,7 @@ __all__ = [
     "HubServer",
     "InvalidArgument",
     "InvalidURL",
+    "JointRecorder",
     "JointSample",
     "Laser",
     "LaserInfo",

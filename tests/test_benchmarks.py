@@ -17,27 +17,27 @@ from robocli.bench.pioneer import (
     pioneer_on_responder,
     pioneer_rtt,
 )
-from robocli.bench.stats import Run, Stats, histogram, report
+from robocli.bench.stats import Run, SampleStats, histogram, report
 from robocli.core import PingPong, Responder, pin_supported
 from robocli.errors import TransportError
 from robocli.protocols import arcos
 
 
 def test_stats_of_known_samples() -> None:
-    s = Stats.of([1.0, 2.0, 3.0, 4.0, 5.0])
+    s = SampleStats.of([1.0, 2.0, 3.0, 4.0, 5.0])
     assert (s.n, s.mean, s.median, s.min, s.max) == (5, 3.0, 3.0, 1.0, 5.0)
     assert s.std == pytest.approx(np.sqrt(2.5))  # sample standard deviation
     assert s.p90 == pytest.approx(4.6) and s.p99 == pytest.approx(4.96)
 
 
 def test_stats_single_sample_and_empty() -> None:
-    assert Stats.of([7.0]).std == 0.0
+    assert SampleStats.of([7.0]).std == 0.0
     with pytest.raises(ValueError):
-        Stats.of([])
+        SampleStats.of([])
 
 
 def test_report_scales_to_microseconds_and_floor_multiples() -> None:
-    floor = Stats.of([10e-6] * 3)
+    floor = SampleStats.of([10e-6] * 3)
     r = report("x", [20e-6, 40e-6, 60e-6], floor)
     assert r["median"] == pytest.approx(40.0) and r["n"] == 3
     assert r["x_floor_median"] == pytest.approx(4.0)
@@ -164,9 +164,9 @@ def test_run_keeps_partial_samples() -> None:
     run.samples[:3] = [1.0, 2.0, 3.0]
     run.count = 3
     assert list(run.values) == [1.0, 2.0, 3.0] and not run.complete
-    r = report("x", run.values, Stats.of([1.0]), targets=(3.0, 6.0))
+    r = report("x", run.values, SampleStats.of([1.0]), targets=(3.0, 6.0))
     assert r["target_met"] is True
-    r = report("x", run.values, Stats.of([0.5]), targets=(3.0, 6.0))
+    r = report("x", run.values, SampleStats.of([0.5]), targets=(3.0, 6.0))
     assert r["target_met"] is False  # p99 2.98 / 0.5 = 5.96 x, median 4 x > 3 x
 
 

@@ -4,6 +4,7 @@ issue asks for."""
 
 from __future__ import annotations
 
+import re
 import shutil
 import subprocess
 import sys
@@ -56,3 +57,24 @@ def test_pre_commit_runs_ruff_check_ruff_format_and_mypy() -> None:
     config = _yaml(ROOT / ".pre-commit-config.yaml")
     ids = {hook["id"] for repo in config["repos"] for hook in repo["hooks"]}
     assert {"ruff-check", "ruff-format", "mypy", "actionlint"} <= ids
+
+
+def _makefile_paths(text: str) -> set[str]:
+    """The files of the tree a Makefile names: scripts it runs (``$(PY) X``, ``$(CURDIR)/X``)
+    and every source file (``.py``, ``.c``, ``.h``) it names by path."""
+    run = re.findall(r"(?:\$\(CURDIR\)/|\$\(PY\) )([\w.-]+/[\w./-]+)", text)
+    named = re.findall(r"(?<![\w$/.-])([\w-]+/[\w./-]+\.(?:py|c|h))\b", text)
+    return set(run) | set(named)
+
+
+def test_the_makefile_names_files_that_exist() -> None:
+    """A moved script (the soak, the wheel's compiler wrapper) takes its Makefile line along."""
+    paths = _makefile_paths((ROOT / "Makefile").read_text(encoding="utf-8"))
+    assert {"benchmarks/soak_record.py", "csrc/zigcc", "examples/demo.py"} <= paths
+    built = set((ROOT / ".gitignore").read_text(encoding="utf-8").split())  # robocli/_core.c
+    assert sorted(p for p in paths - built if not (ROOT / p).exists()) == []
+
+
+def test_the_makefile_check_sees_a_path(tmp_path: Path) -> None:
+    text = 'x:\n\t$(PY) tools/soak.py --json a.json\n\tCC="$(CURDIR)/tools/zigcc -s" cc csrc/a.c\n'
+    assert _makefile_paths(text) == {"tools/soak.py", "tools/zigcc", "csrc/a.c"}

@@ -72,3 +72,48 @@ def test_the_checker_sees_a_circle(tmp_path: Path) -> None:
     modules = {"robocli.a": pkg / "a.py", "robocli.b": pkg / "b.py"}
     assert _imports("robocli.a", pkg / "a.py", modules) == {"robocli.b"}
     assert _imports("robocli.b", pkg / "b.py", modules) == {"robocli.a"}
+
+
+#: what the tree has that is not its own code: virtual environments, caches, build output
+_NOT_SOURCE = {"build", "dist", "demo-out", "node_modules", "__pycache__"}
+
+
+def _source_files(top: Path) -> list[Path]:
+    """The ``.py`` files of ``top``'s folders, outside hidden, build and egg-info folders."""
+    out = []
+    for folder in sorted(p for p in top.iterdir() if p.is_dir()):
+        if folder.name.startswith(".") or folder.name.endswith(".egg-info"):
+            continue
+        for path in folder.rglob("*.py"):
+            parts = path.relative_to(top).parts
+            if not _NOT_SOURCE.intersection(parts) and not parts[-2].startswith("."):
+                out.append(path)
+    return out
+
+
+def _misplaced_benchmarks(top: Path) -> list[str]:
+    """Benchmark suites (``test_bench_*.py``) and soak scripts (``*soak*.py``) outside the
+    one top-level ``benchmarks/`` (the test suite and the package have their own rules)."""
+    out = []
+    for path in _source_files(top):
+        rel = path.relative_to(top)
+        if rel.parts[0] in ("benchmarks", "tests", "robocli"):
+            continue
+        if path.name.startswith("test_bench_") or "soak" in path.stem:
+            out.append(rel.as_posix())
+    return sorted(out)
+
+
+def test_benchmarks_live_in_one_top_level_folder() -> None:
+    top = ROOT.parent
+    assert _misplaced_benchmarks(top) == []
+    assert not (top / "bench").exists(), "bench/ beside robocli/bench: the suites are benchmarks/"
+    assert not (top / "tools").exists(), "tools/: a soak goes to benchmarks/, a build file to csrc/"
+
+
+def test_the_benchmark_check_sees_a_stray_suite(tmp_path: Path) -> None:
+    for rel in ("benchmarks/test_bench_a.py", "benchmarks/soak_b.py", "tests/test_bench_cli.py",
+                "bench/test_bench_c.py", "tools/soak_record.py", ".venv/lib/soak.py"):  # fmt: skip
+        (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / rel).write_text("")
+    assert _misplaced_benchmarks(tmp_path) == ["bench/test_bench_c.py", "tools/soak_record.py"]

@@ -4,7 +4,7 @@ SERVICE_REPLY round trips (:func:`rtt`) and the state period (:func:`state_perio
 The IRB120 paper's Table 5 measured both between MATLAB/ROS and the controller: RTT mean
 33.9 ms (median 31.8, std 6.76, min 20.4, max 65.8) and a StateServer period of mean 20.3 ms
 (median 15.7, std 18.0, min 0.5, max 63.0); :data:`PAPER_TABLE5` holds them. The statistics
-are :class:`robocli.bench.stats.Stats` (Table 5's plus p90/p99), filled into a
+are :class:`robocli.bench.stats.SampleStats` (Table 5's plus p90/p99), filled into a
 :class:`robocli.bench.stats.Run` as they come, so Ctrl-C keeps what was measured.
 
 Round trips never move the arm: each is a download start (sequence -1) at the measured

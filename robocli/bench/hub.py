@@ -97,8 +97,8 @@ def _hub_child() -> None:
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the parent stops us
-    from robocli.hub import HubServer
-    from robocli.hub.server import tune_hub_process
+    from robocli.hub_server import HubServer
+    from robocli.hub_server.server import tune_hub_process
 
     tune_hub_process()  # measure the hub as `robocli serve` runs it
     with HubServer(bind="127.0.0.1", port=0, sim=True) as srv:

@@ -4,7 +4,7 @@ through the hub (:class:`~robocli.devices.hub.serial.VirtualSerial`), and throug
 behind a local pty (``robocli serial --pty``: what an unmodified toolkit sees). The
 yardstick is the iRobot Create's sensor stream, one packet every 15 ms.
 
-POSIX only (pseudo-terminals). Used by ``bench/test_bench_serial.py`` and
+POSIX only (pseudo-terminals). Used by ``benchmarks/test_bench_serial.py`` and
 :func:`main` (``python -m robocli.bench.serial``).
 """
 
@@ -19,7 +19,7 @@ import tty
 from collections.abc import Callable
 from typing import Any
 
-from robocli.bench.stats import Run, Stats
+from robocli.bench.stats import Run, SampleStats
 
 __all__ = ["PATHS", "EchoLine", "round_trips", "serial_latency"]
 
@@ -83,24 +83,26 @@ def round_trips(write: Callable[[bytes], object], read: Callable[[int], bytes], 
     return run
 
 
-def serial_latency(n: int = 500, size: int = 2, baud: int = 115200) -> dict[str, Stats]:
+def serial_latency(n: int = 500, size: int = 2, baud: int = 115200) -> dict[str, SampleStats]:
     """Round trips of ``size`` bytes on each of :data:`PATHS` (``n`` each), at ``baud``."""
     import serial
 
     from robocli.devices.hub.relay import PtyRelay
     from robocli.devices.hub.serial import VirtualSerial
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
-    out: dict[str, Stats] = {}
+    out: dict[str, SampleStats] = {}
     with EchoLine() as echo:
         with serial.Serial(echo.path, baud, timeout=TIMEOUT_S) as local:
-            out["pty"] = Stats.of(round_trips(local.write, local.read, Run("pty", n), size).values)
+            out["pty"] = SampleStats.of(
+                round_trips(local.write, local.read, Run("pty", n), size).values
+            )
         with HubServer(port=0, sim=False, serial_ports=[echo.path]) as hub:
             address = f"127.0.0.1:{hub.port}"
             with VirtualSerial.open(address, echo.path, baudrate=baud) as line:
                 read = lambda k: line.read(k, TIMEOUT_S)  # noqa: E731
                 run = round_trips(line.write, read, Run("hub", n), size)
-                out["hub"] = Stats.of(run.values)
+                out["hub"] = SampleStats.of(run.values)
             with PtyRelay(address, echo.path, baudrate=baud) as relay:
                 stop = threading.Event()
                 relaying = threading.Thread(target=relay.run, args=(stop,), daemon=True)
@@ -108,7 +110,7 @@ def serial_latency(n: int = 500, size: int = 2, baud: int = 115200) -> dict[str,
                 try:
                     with serial.Serial(relay.path, baud, timeout=TIMEOUT_S) as program:
                         run = round_trips(program.write, program.read, Run("hub+pty", n), size)
-                        out["hub+pty"] = Stats.of(run.values)
+                        out["hub+pty"] = SampleStats.of(run.values)
                 finally:
                     stop.set()
                     relaying.join(TIMEOUT_S)

@@ -18,7 +18,7 @@ Progress = Callable[[int], None]
 
 
 @dataclass(frozen=True)
-class Stats:
+class SampleStats:
     """Table-5 statistics of a sample set (seconds, or whatever unit the samples are in)."""
 
     n: int
@@ -31,7 +31,7 @@ class Stats:
     p99: float
 
     @classmethod
-    def of(cls, samples: npt.ArrayLike) -> Stats:
+    def of(cls, samples: npt.ArrayLike) -> SampleStats:
         a = np.asarray(samples, dtype=np.float64)
         if a.size == 0:
             raise ValueError("no samples")
@@ -104,7 +104,7 @@ def histogram(
 def report(
     name: str,
     samples: npt.ArrayLike,
-    floor: Stats | None = None,
+    floor: SampleStats | None = None,
     targets: tuple[float, float] | None = None,
     where: str = "",
 ) -> dict[str, Any]:
@@ -113,7 +113,7 @@ def report(
     ``targets``: (median, p99) limits as multiples of the floor's median; the summary then
     says whether each is met.
     """
-    stats = Stats.of(samples)
+    stats = SampleStats.of(samples)
     out: dict[str, Any] = {"name": name, "unit": "us", **stats.as_dict(1e6)}
     if where:
         out["where"] = where

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import typer
 
 if TYPE_CHECKING:
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
     from robocli.io.record.live import LiveView
 
 FoxgloveOpt = typer.Option(
@@ -51,7 +51,7 @@ def hub_live_view(port: int | None, host: str, srv: HubServer,
     if port is None:
         yield
         return
-    from robocli.hub.server import EXPOSED_BINDS
+    from robocli.hub_server.server import EXPOSED_BINDS
     from robocli.io.record.live import following_hub
 
     with live_view(port, host) as view:

@@ -204,13 +204,15 @@ def describe_message(frame: bytes, order: sm.ByteOrder = "<", real: sm.RealSize 
     ``n_joints``). A frame that does not decode is named ``undecodable`` with the reason."""
     from robocli.errors import FramingError
     from robocli.protocols import simple_message as sm
-    from robocli.protocols.simple_message import CommType, MsgType, ReplyCode
+    from robocli.protocols.simple_message import CommType, ReplyCode, SimpleMessageType
 
     try:
         msg = sm.decode(frame, byteorder=order, real=real)
     except (FramingError, ProtocolError) as exc:
         return "undecodable", {"error": str(exc)}
-    name = msg.msg_type.name if isinstance(msg.msg_type, MsgType) else f"TYPE_{msg.msg_type}"
+    name = (
+        msg.msg_type.name if isinstance(msg.msg_type, SimpleMessageType) else f"TYPE_{msg.msg_type}"
+    )
     if msg.comm_type == CommType.SERVICE_REQUEST:
         name += " req"
     elif msg.comm_type == CommType.SERVICE_REPLY:

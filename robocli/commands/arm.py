@@ -52,7 +52,7 @@ from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, c
 
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
-    from robocli.devices.arm.state import Recorder
+    from robocli.devices.arm.state import JointRecorder
     from robocli.io.trajlog import TrajectoryLog
 
 # ------------------------------------------------------------------------------ sim abb
@@ -331,7 +331,7 @@ def _recorded(path: Path | None, link: ArmLink, overwrite: bool,
 
 @contextlib.contextmanager
 def recording(arm: Arm, out: Path, max_samples: int | None = None, *,
-              overwrite: bool = False) -> Iterator[Recorder]:  # fmt: skip
+              overwrite: bool = False) -> Iterator[JointRecorder]:  # fmt: skip
     """Record ``arm``'s joint samples (:meth:`Arm.record`) and write them to ``out`` however
     the block ends: its end, Ctrl-C or SIGTERM, a ``--wait`` that ran out, a lost link.
     Says on stderr how many samples went where; the block's own error (its exit code) goes
@@ -354,7 +354,7 @@ def recording(arm: Arm, out: Path, max_samples: int | None = None, *,
         _write_recording(rec, out, overwrite)
 
 
-def _write_recording(rec: Recorder, out: Path, overwrite: bool) -> None:
+def _write_recording(rec: JointRecorder, out: Path, overwrite: bool) -> None:
     from robocli.io.trajlog import write_log
 
     log = rec.log()

@@ -143,7 +143,7 @@ def rtt(
     with sigterm_as_interrupt():
         out = runs.pioneer_rtt(url, n, floor_n, cpu, stage=_Progress().stage)
     floor_run = out.runs[0][0]
-    floor = bs.Stats.of(floor_run.values) if floor_run.count else None
+    floor = bs.SampleStats.of(floor_run.values) if floor_run.count else None
     results = [
         bs.report(run.name, run.values, floor if i else None, targets, run.where)
         for i, (run, targets) in enumerate(out.runs)
@@ -309,7 +309,7 @@ def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool =
         out = bench_runs.arm_bench(kind, url, n, paper, floor_n, cpu, wire, _Progress().stage)
     runs, interrupted = [run for run, _ in out.runs], out.interrupted
     name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
-    floor = bs.Stats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
+    floor = bs.SampleStats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
     results = [bs.report(r.name, r.values, floor if "floor" not in r.name else None,
                         where=r.where) for r in runs if r.count]  # fmt: skip
     paper_row = ab.PAPER_TABLE5["rtt" if kind == "rtt" else "state period"]

@@ -1,4 +1,4 @@
-"""``robocli doctor``: a thin layer over :func:`robocli.doctor.diagnose`."""
+"""``robocli doctor``: a thin layer over :func:`robocli.diagnostics.diagnose`."""
 
 from __future__ import annotations
 
@@ -50,7 +50,7 @@ def doctor(
     """Check this machine for robocli: versions, the C core, serial ports and whether you
     may open them, optional extras, and whether the default addresses answer (each probe
     bounded by --timeout; nothing is moved)."""
-    from robocli.doctor import diagnose
+    from robocli.diagnostics import diagnose
 
     report = diagnose(pioneer=pioneer, arm=arm, hub=hub, motion_port=motion_port,
                       state_port=state_port, timeout=timeout)  # fmt: skip

@@ -317,7 +317,7 @@ def _hub_address(hub: str) -> Iterator[str]:
     if hub != SIM:
         yield hub
         return
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
     server = HubServer("127.0.0.1", 0, sim=True).start()
     try:

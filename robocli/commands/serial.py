@@ -47,7 +47,7 @@ def serial(
     send: str = typer.Option("", "--send", help="Bytes to send: text, or hex with --hex."),
     recv: int = typer.Option(0, "--recv", min=0, max=1024, help="Bytes to read back."),
     hex_io: bool = typer.Option(False, "--hex", help="--send is hex; print the reply in hex."),
-    timeout: float = typer.Option(  # at most robocli.hub.sources.real.MAX_SERIAL_WAIT_S
+    timeout: float = typer.Option(  # at most robocli.hub_server.sources.real.MAX_SERIAL_WAIT_S
         1.0,
         "--timeout",
         min=0,

@@ -1,6 +1,6 @@
 """``robocli serve``: the sensor hub (ros4mat v3 on TCP 1500; with ``--zenoh``, also or
-only on Eclipse Zenoh), a thin layer over :class:`robocli.hub.HubServer` and
-:class:`robocli.hub.frontends.zenoh.ZenohFrontend`.
+only on Eclipse Zenoh), a thin layer over :class:`robocli.hub_server.HubServer` and
+:class:`robocli.hub_server.frontends.zenoh.ZenohFrontend`.
 
 On a terminal: a live Rich table with a line per sensor and per client. Otherwise: plain
 log lines, one per change (a client connects, subscribes, leaves), so that logs stay small.
@@ -30,7 +30,7 @@ from robocli.commands._zenoh import (
 )
 
 if TYPE_CHECKING:
-    from robocli.hub import HubServer, tune_hub_process
+    from robocli.hub_server import HubServer, tune_hub_process
 
     tune_hub_process()
 STATUS_PERIOD_S = 0.5
@@ -118,7 +118,7 @@ def serve(
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C. With --zenoh,
     also publish its sensors on robocli/NAME/SENSOR (--no-tcp: on Zenoh only)."""
-    from robocli.hub import HubServer, tune_hub_process
+    from robocli.hub_server import HubServer, tune_hub_process
 
     if not tcp and zenoh is None:
         raise typer.BadParameter("--no-tcp serves nothing without --zenoh")
@@ -128,7 +128,7 @@ def serve(
     token = token_from_file(token_file)
     sources = sources or {}
     if laser:
-        from robocli.hub.sources.hokuyo import HokuyoSource
+        from robocli.hub_server.sources.hokuyo import HokuyoSource
 
         sources["laser"] = HokuyoSource(laser)
     srv = HubServer(
@@ -184,7 +184,7 @@ def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
     rate = check_replay(replay, speed, loop)
     if replay is None:
         return None
-    from robocli.hub.sources.replay import replay_sources as sources_of
+    from robocli.hub_server.sources.replay import replay_sources as sources_of
 
     return sources_of(replay, rate, loop)
 
@@ -193,7 +193,7 @@ def _zenoh_frontend(
     srv: HubServer, zenoh: str, name: str | None, publish: str, token: bytes | None
 ) -> Any:
     """The hub's Zenoh front-end, started (its session listening on ``zenoh``)."""
-    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.hub_server.frontends.zenoh import ZenohFrontend
     from robocli.zenoh.keys import default_name
     from robocli.zenoh.session import close_session
 

@@ -55,7 +55,7 @@ class TrajectoryLog:
     ``velocities`` (N, n) rad/s and ``tcp`` (N, 3) m (``None`` when not recorded).
 
     ``time`` starts at 0 at the first point for generated runs and for recordings
-    (:meth:`robocli.devices.arm.Recorder.log`); a log may also be on any other clock, as
+    (:meth:`robocli.devices.arm.JointRecorder.log`); a log may also be on any other clock, as
     validation aligns clocks itself. ``origin``: where the recording clock (the controller's,
     or this computer's ``time.monotonic()``) stood at ``time`` 0, when known (kept as
     ``"time_origin"`` in JSON and NPZ; CSV has no place for it).

@@ -25,7 +25,7 @@ from robocli.ros2.node import Ros2Node, node_name
 if TYPE_CHECKING:
     import zenoh
 
-    from robocli.hub.registry import Hub
+    from robocli.hub_server.registry import SensorRegistry
 
 __all__ = ["HubTopics"]
 
@@ -34,7 +34,7 @@ class _HubClock:
     """What :class:`HubDecoder` asks of a hub client: the offset of the hub's clock from the
     host's Unix clock (``sync.offset``), here read from the server's own clock."""
 
-    def __init__(self, hub: Hub) -> None:
+    def __init__(self, hub: SensorRegistry) -> None:
         self._hub = hub
         self.sync = self
 
@@ -47,7 +47,7 @@ class HubTopics:
     """The ROS 2 node of hub ``name`` (see the module); :meth:`batch` is the Zenoh
     front-end's ``on_batch`` hook."""
 
-    def __init__(self, hub: Hub, session: zenoh.Session, name: str, *, domain: int = 0,
+    def __init__(self, hub: SensorRegistry, session: zenoh.Session, name: str, *, domain: int = 0,
                  namespace: str = "") -> None:  # fmt: skip
         self.node = Ros2Node(session, node_name(name), namespace=namespace, domain=domain)
         self.topics = Ros2Topics(self.node, name)

@@ -1,12 +1,12 @@
 """The serving layer of the built-in simulators and the hub server: TCP and pty links and
 their limits.
 
-A simulator (or the hub) is a :class:`Session` per client link plus whatever it shares
+A simulator (or the hub) is a :class:`ServerSession` per client link plus whatever it shares
 between them (its robot). This module owns everything about bytes on the wire, so the
 sessions never see a socket:
 
 * **TCP**: a listener thread accepts; each link has **one thread, blocking in** ``recv``, that
-  frames the bytes, calls :meth:`Session.on_frame` for each complete frame and writes the
+  frames the bytes, calls :meth:`ServerSession.on_frame` for each complete frame and writes the
   replies **inline** from that same thread (no hand-off on the request/reply path).
 * **pty**: a pseudo-terminal in raw mode, served by one such link thread.
 * **Limits**: ``max_clients`` links at once; a client beyond it gets
@@ -58,10 +58,10 @@ from robocli.serving.links import (
     DONTWAIT,
     Link,
     LinkLimits,
-    LinkStats,
     OutputBudget,
     PtyLink,
-    Session,
+    ServerLinkStats,
+    ServerSession,
     TcpLink,
     UnframedHook,
 )
@@ -71,10 +71,10 @@ __all__ = [
     "BUSY_REASON",
     "SIM_HANDSHAKE_S",
     "Link",
-    "LinkStats",
     "OutputBudget",
     "Server",
-    "Session",
+    "ServerLinkStats",
+    "ServerSession",
     "SessionFactory",
     "UnframedHook",
     "poll_until",
@@ -95,7 +95,7 @@ handshake this long after it opened is closed, so one idle connection cannot hol
 ABB motion or state client may rightly stay silent: those ports have no such deadline)."""
 
 
-SessionFactory = Callable[[Link], Session]
+SessionFactory = Callable[[Link], ServerSession]
 S = TypeVar("S")
 
 
@@ -117,7 +117,7 @@ def poll_until(snapshot: Callable[[], S], predicate: Callable[[S], bool], timeou
 
 
 class Server:
-    """Serves one endpoint (a TCP port or a pty) with a :class:`Session` per link.
+    """Serves one endpoint (a TCP port or a pty) with a :class:`ServerSession` per link.
 
     ``session_factory(link)`` makes the session of each new link. ``protocol`` picks the
     framer (:data:`robocli.core.PROTOCOLS`), ``max_frame`` bounds its frames (bytes, header
@@ -187,7 +187,7 @@ class Server:
         self._links: list[Link] = []
         self._threads: list[threading.Thread] = []
         self._refusing: set[socket.socket] = set()
-        self._past = LinkStats()
+        self._past = ServerLinkStats()
         self._accepted = self._refused = self._evicted = 0
         self._closed = False
         self._listener: socket.socket | None = None
@@ -237,10 +237,10 @@ class Server:
         with self._lock:
             return list(self._links)
 
-    def stats(self) -> LinkStats:
+    def stats(self) -> ServerLinkStats:
         """Counters summed over every link, past and present."""
         with self._lock:
-            total = LinkStats()
+            total = ServerLinkStats()
             total.add(self._past)
             for link in self._links:
                 total.add(link.stats)

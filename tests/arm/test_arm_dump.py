@@ -59,7 +59,11 @@ def test_a_capture_keeps_motion_and_state_apart(tmp_path: Path) -> None:
     ports (the traces, older captures) still reads, its port null."""
     from robocli.io.capture import CaptureWriter
 
-    state_types = {sm.MsgType.JOINT_POSITION, sm.MsgType.STATUS, sm.MsgType.JOINT_FEEDBACK}
+    state_types = {
+        sm.SimpleMessageType.JOINT_POSITION,
+        sm.SimpleMessageType.STATUS,
+        sm.SimpleMessageType.JOINT_FEEDBACK,
+    }
     old = list(read_capture(DATA / "exchange_le.jsonl", "sm-le"))
     ports = []
     out = tmp_path / "both.jsonl"
@@ -138,7 +142,7 @@ def test_empty_capture_fails(tmp_path: Path) -> None:
 def test_an_invalid_header_is_shown_not_fatal(tmp_path: Path) -> None:
     capture = tmp_path / "bad.jsonl"
     bad = "0c000000000000000100000000000000"  # msg_type 0: the library refuses it
-    good = sm.encode(sm.MsgType.PING, sm.CommType.TOPIC).hex()
+    good = sm.encode(sm.SimpleMessageType.PING, sm.CommType.TOPIC).hex()
     capture.write_text(f'{{"t": 0, "dir": "s2c", "hex": "{bad}{good}"}}\n')
     done = dump("--file", str(capture), "--json")
     assert done.returncode == 0, done.stderr

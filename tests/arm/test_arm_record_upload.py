@@ -50,7 +50,9 @@ def test_upload_records_its_own_connection(tmp_path: Path) -> None:
     assert summary.summary and not summary.truncated
     topics = _topics(path)
     sent = [_msg_type(f) for f in topics["/arm/raw/motion/tx"]]
-    assert sent.count(sm.MsgType.JOINT_TRAJ_PT) >= 20  # every point of the upload, and more
+    assert (
+        sent.count(sm.SimpleMessageType.JOINT_TRAJ_PT) >= 20
+    )  # every point of the upload, and more
     assert topics["/arm/raw/motion/rx"] and topics["/arm/raw/state/rx"]
     assert topics["/arm/joint_states"] and topics["/arm/joint_feedback"]
 

@@ -68,7 +68,7 @@ def test_library_vectors_against_abb_server(variant, make_sim) -> None:
     state = RawSM(sp, order)
     assert state.frame() == bytes.fromhex(vec["joint_position_topic"]["hex"])
     status = sm.decode(state.frame(), byteorder=order, real=real)
-    assert status.msg_type == sm.MsgType.STATUS and status.body["in_motion"] == 0
+    assert status.msg_type == sm.SimpleMessageType.STATUS and status.body["in_motion"] == 0
     raw.close()
     state.close()
 
@@ -147,7 +147,7 @@ def test_abb_motion_server_restarts_on_another_message(make_sim, make_arm) -> No
     """PING stops the RAPID motion task: the link closes, the next client is served."""
     sim, mp, sp = make_sim()
     raw = RawSM(mp)
-    raw.send(sm.encode(sm.MsgType.PING, sm.CommType.SERVICE_REQUEST))
+    raw.send(sm.encode(sm.SimpleMessageType.PING, sm.CommType.SERVICE_REQUEST))
     assert raw.closed_by_peer()
     assert sim.wait_until(lambda s: s.motion_clients == 0, 30).frames_refused == 1
     arm = make_arm(mp, sp)

@@ -18,7 +18,7 @@ from robocli import __version__
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import RobocliError
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 

@@ -14,7 +14,7 @@ import pytest
 
 from cli.helpers import one_line_error, run
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from cli.helpers import run
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 
 def _lines(*args: str) -> list[dict[str, object]]:

@@ -18,7 +18,7 @@ from typing import Any
 import pytest
 
 from cli.helpers import run
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 #: How far a ``t`` may lie from now (s): the command ran within the last minutes.
 SLACK = 300.0

@@ -11,7 +11,7 @@ import pytest
 from hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
 from cli.helpers import one_line_error, read_lines, run, running
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 

@@ -55,7 +55,7 @@ def _zenoh_hub() -> Any:
     """A ZenohHub on the Zenoh front-end of a simulated hub in this process; the test kills
     the link by closing the front-end (its liveliness token goes)."""
     pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.hub_server.frontends.zenoh import ZenohFrontend
     from robocli.zenoh.session import close_session, open_session
 
     endpoint = _free_endpoint()

@@ -25,7 +25,7 @@ from robocli.devices.pioneer.laser import (
     ScanAssembler,
     parse_simstatus,
 )
-from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TimeoutError
+from robocli.errors import InvalidArgument, ProtocolError, TimeoutError
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim

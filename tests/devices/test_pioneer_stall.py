@@ -38,7 +38,9 @@ def broken(trip):
 
 with Pioneer.connect(sys.argv[1], sip_timeout=120) as robot:
     robot.add_listener(broken, kind="watchdog")
-    robot.add_listener(lambda trip: say("TRIP", f"{trip.silence:.3f}", f"{trip.watchdog:g}"), kind="watchdog")
+    robot.add_listener(
+        lambda trip: say("TRIP", f"{trip.silence:.3f}", f"{trip.watchdog:g}"), kind="watchdog"
+    )
     robot.enable_motors()
     robot.set_velocity(0.3, 0.0)
     say("DRIVING")

@@ -111,7 +111,7 @@ def test_a_zenoh_url_names_its_endpoint_once_and_refuses_what_a_bridge_owns() ->
 def test_hub_connect_with_a_zenoh_url_gives_the_zenoh_hub() -> None:
     """Hub.connect("zenoh/NAME?zenoh=ENDPOINT"): the hub's Zenoh front-end, read like any hub."""
     pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-    from robocli.hub.frontends.zenoh import ZenohFrontend
+    from robocli.hub_server.frontends.zenoh import ZenohFrontend
     from robocli.zenoh.session import close_session, open_session
 
     endpoint = _free_endpoint()

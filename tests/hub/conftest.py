@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 TIMEOUT = 10.0
@@ -40,10 +40,10 @@ class RawClient:
         head = self._exact(r4m.HEADER_SIZE)
         return head + self._exact(r4m.body_length(r4m.Header.parse(head)))
 
-    def recv(self) -> r4m.Message:
+    def recv(self) -> r4m.DecodedPacket:
         return r4m.decode(self.recv_raw())
 
-    def request(self, kind: Any, body: Any = None) -> r4m.Message:
+    def request(self, kind: Any, body: Any = None) -> r4m.DecodedPacket:
         self.send(r4m.encode_request(kind, body, client_id=self.client_id))
         return self.recv()
 
@@ -57,11 +57,11 @@ class RawClient:
 
     def subscribe(
         self, sensor: str, params: Any = None, buffer: int = 0, silent: bool = False
-    ) -> r4m.Message:
+    ) -> r4m.DecodedPacket:
         body = {"sensor": sensor, "silent": int(silent), "buffer_size": buffer, "params": params}
         return self.request(r4m.MsgType.SUBSCRIBE, body)
 
-    def pull(self, sensor: str) -> r4m.Message:
+    def pull(self, sensor: str) -> r4m.DecodedPacket:
         reply = self.request(sensor)
         assert reply.msg_type == r4m.sensor_type(sensor), reply
         return reply

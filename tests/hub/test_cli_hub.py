@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from robocli import Hub
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 
 @pytest.fixture(scope="module")

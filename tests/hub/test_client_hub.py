@@ -14,7 +14,7 @@ import pytest
 from robocli import Hub
 from robocli.devices.hub.client import subscribe_body
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols.ros4mat import MsgType, encode_request
 from tests.hub.conftest import wait_for as until
 
@@ -316,7 +316,7 @@ def test_read_aligned_on_camera_frames(server: HubServer, hub: Hub) -> None:
 def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: str) -> None:
     """quality > 0: the hub encodes each frame as JPEG (Pillow, a test dependency), and the
     client decodes it back into the scene that the hub rendered at that frame's timestamp."""
-    from robocli.hub.sources.imaging import StereoSource, scene
+    from robocli.hub_server.sources.imaging import StereoSource, scene
 
     assert server.sensors["camera"]["jpeg"] == "pillow"
     with Hub.connect("127.0.0.1", server.port) as hub:
@@ -340,7 +340,7 @@ def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: 
 
 def test_kinect_jpeg_readings_of_several_frames(server: HubServer) -> None:
     """The hub's Kinect RGB frames in JPEG differ in size: a reading of several decodes."""
-    from robocli.hub.sources.imaging import scene
+    from robocli.hub_server.sources.imaging import scene
 
     with Hub.connect("127.0.0.1", server.port) as hub:
         hub.subscribe("kinect", rate=30, resolution="160x120", quality=90)

@@ -13,7 +13,7 @@ import pytest
 
 from robocli import Hub
 from robocli.errors import DeviceError
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 
 @pytest.fixture
@@ -67,7 +67,7 @@ def test_serial_cli(pty_hub: tuple[HubServer, str, int]) -> None:
 
 def test_serial_timeout_range_is_the_hubs_cap() -> None:
     from robocli.commands.serial import SERIAL_MAX_WAIT_S
-    from robocli.hub.sources.real import MAX_SERIAL_WAIT_S
+    from robocli.hub_server.sources.real import MAX_SERIAL_WAIT_S
 
     assert SERIAL_MAX_WAIT_S == MAX_SERIAL_WAIT_S
     proc = subprocess.run(

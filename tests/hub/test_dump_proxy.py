@@ -9,7 +9,7 @@ import pytest
 
 from robocli import Hub
 from robocli.devices.hub.tools import DumpProxy, Message
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 
 
 @pytest.fixture(scope="module")

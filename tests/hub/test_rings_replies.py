@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 CAM = {"fps": 30, "width": 320, "height": 240, "compression": 0, "roi": [0] * 4, "id": 0,
@@ -17,7 +17,7 @@ CAM = {"fps": 30, "width": 320, "height": 240, "compression": 0, "roi": [0] * 4,
 IMU = {"freq_acquisition": 200, "freq_send": 50}
 
 
-def _frames(msg: r4m.Message) -> tuple[list[float], list[bytes]]:
+def _frames(msg: r4m.DecodedPacket) -> tuple[list[float], list[bytes]]:
     body = msg.body or {"infos": [], "images": []}
     return [i["t"] for i in body["infos"]], [bytes(im) for im in body["images"]]
 

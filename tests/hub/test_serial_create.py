@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from cli.helpers import read_lines, running
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.sim.create import CreateSim
 
 pytest.importorskip("pycreate2")

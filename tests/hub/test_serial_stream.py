@@ -18,7 +18,7 @@ from waiting import wait_for
 from robocli.devices.hub.relay import PtyRelay
 from robocli.devices.hub.serial import VirtualSerial
 from robocli.errors import ConnectionLost, DeviceError
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
@@ -112,7 +112,7 @@ def _raw_open(port: int, path: str) -> socket.socket:
     return sock
 
 
-def _recv(sock: socket.socket) -> r4m.Message:
+def _recv(sock: socket.socket) -> r4m.DecodedPacket:
     def exact(n: int) -> bytes:
         buf = b""
         while len(buf) < n:

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
@@ -29,7 +29,7 @@ def _session() -> dict[str, bytes]:
 ORIGINAL = _session()
 
 
-def _adc_times(msg: r4m.Message) -> np.ndarray:
+def _adc_times(msg: r4m.DecodedPacket) -> np.ndarray:
     return np.array([r["t"] for r in msg.body or []])
 
 
@@ -45,7 +45,7 @@ def test_original_client_bytes_are_served(hub: HubServer, client_factory: Any, w
     assert (sub.msg_type, sub.error) == (r4m.MsgType.SUBSCRIBE_ACK, 0)
     assert hub.sensors["adc"]["rate"] == 100 and hub.sensors["adc"]["batch_rate"] == 35
 
-    def pulled() -> r4m.Message | None:
+    def pulled() -> r4m.DecodedPacket | None:
         c.send(ORIGINAL["pull_adc"])
         msg = c.recv()
         return msg if msg.size >= 3 else None
@@ -317,9 +317,9 @@ def test_original_client_subscribes_to_every_sensor(
 
 def test_reply_with_partly_filled_blobs_decodes() -> None:
     """JPEG frames fill only part of their slot: the reply carries each at its own size."""
-    from robocli.hub.frontends.ros4mat import pull_body
-    from robocli.hub.registry import Pulled
-    from robocli.hub.sources import StereoSource
+    from robocli.hub_server.frontends.ros4mat import pull_body
+    from robocli.hub_server.registry import Pulled
+    from robocli.hub_server.sources import StereoSource
 
     src = StereoSource()
     src.configure({"fps": 10, "width": 32, "height": 24})

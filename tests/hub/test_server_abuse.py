@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 ADC_FAST = {"freq_acquisition": 500, "freq_send": 50, "channels": 255}

@@ -10,7 +10,7 @@ from typing import Any
 
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 TOKEN = b"lab-token"

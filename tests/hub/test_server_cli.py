@@ -94,7 +94,7 @@ def test_serve_usage_errors_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture
 
 def test_a_pioneer_url_is_checked_when_the_hub_is_made() -> None:
     from robocli.errors import InvalidArgument
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
     with pytest.raises(InvalidArgument, match="unknown URL scheme 'bogus'"):
         HubServer(port=0, sim=True, pioneer="bogus://x")

@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 ADC = {"freq_acquisition": 500, "freq_send": 50, "channels": 255}

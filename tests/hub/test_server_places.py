@@ -9,13 +9,13 @@ from typing import Any
 
 from peers import closed_by_peer
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.protocols import ros4mat as r4m
 
 TOKEN = b"lab-token"
 
 
-def plain_connect(raw: Any, port: int) -> tuple[Any, r4m.Message]:
+def plain_connect(raw: Any, port: int) -> tuple[Any, r4m.DecodedPacket]:
     """A CONNECT without the token, and its reply (the socket kept open, idle)."""
     c = raw(port)
     return c, c.request(r4m.MsgType.CONNECT, bytes([r4m.PROTOCOL_VERSION, 0]))

@@ -17,17 +17,17 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
-from robocli.hub.sources import AdcSource, BatterySource, GpsSource, ImuSource, SysinfoSource
-from robocli.hub.sources.imaging import DepthSource, robot_pose
+from robocli.hub_server import HubServer
+from robocli.hub_server.sources import AdcSource, BatterySource, GpsSource, ImuSource, SysinfoSource
+from robocli.hub_server.sources.imaging import DepthSource, robot_pose
 from robocli.protocols import ros4mat as r4m
 from robocli.sim.world import World
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
 
 
-def _pull_until(c: Any, sensor: str, n: int, wait: Any) -> r4m.Message:
-    got: list[r4m.Message] = []
+def _pull_until(c: Any, sensor: str, n: int, wait: Any) -> r4m.DecodedPacket:
+    got: list[r4m.DecodedPacket] = []
 
     def enough() -> bool:
         msg = c.pull(sensor)
@@ -39,10 +39,10 @@ def _pull_until(c: Any, sensor: str, n: int, wait: Any) -> r4m.Message:
     return got[-1] if len(got) == 1 else _merge(got)
 
 
-def _merge(msgs: list[r4m.Message]) -> r4m.Message:
+def _merge(msgs: list[r4m.DecodedPacket]) -> r4m.DecodedPacket:
     body = msgs[0].body
     if isinstance(body, list):
-        return r4m.Message(msgs[0].msg_type, size=sum(m.size for m in msgs),
+        return r4m.DecodedPacket(msgs[0].msg_type, size=sum(m.size for m in msgs),
                            body=[r for m in msgs for r in m.body])  # fmt: skip
     return msgs[-1]
 
@@ -269,7 +269,7 @@ def test_gpsd_source_against_a_recorded_stream(
 
 
 def test_real_camera_only_with_opencv(raw: Any) -> None:
-    from robocli.hub.sources.opencv import opencv_available
+    from robocli.hub_server.sources.opencv import opencv_available
 
     with HubServer(port=0, sim=False) as srv:
         if not opencv_available():

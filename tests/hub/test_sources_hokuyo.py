@@ -11,8 +11,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
-from robocli.hub.sources.hokuyo import HokuyoSource
+from robocli.hub_server import HubServer
+from robocli.hub_server.sources.hokuyo import HokuyoSource
 from robocli.sim.hokuyo import HokuyoSim
 
 

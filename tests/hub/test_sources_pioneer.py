@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.sim.pioneer.server import PioneerSim
 
 

@@ -8,7 +8,7 @@ import pytest
 
 pytest.importorskip("mcap")
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 

@@ -16,7 +16,7 @@ import pytest
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io.export import arm_log, export, read_any_log
 from robocli.io.record import Recorder
 from robocli.io.trajlog import finite_difference, read_log

@@ -22,7 +22,7 @@ from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import InvalidArgument
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io import schemas as S
 from robocli.io.record import Recorder
 from robocli.io.record.links import json_text

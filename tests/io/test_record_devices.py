@@ -16,7 +16,7 @@ import pytest
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io.capture import CaptureStats, read_capture
 from robocli.io.record import RAW_SCHEMA, Recorder, info
 from robocli.kinematics import load_model

@@ -12,7 +12,7 @@ from pathlib import Path
 from cli.helpers import run
 from mcap.reader import make_reader
 
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io.record.reader import raw_frame
 from robocli.protocols import ros4mat
 from robocli.sim.abb.server import AbbSim

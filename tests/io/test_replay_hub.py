@@ -14,8 +14,8 @@ import pytest
 
 from robocli.devices.hub.client import Hub
 from robocli.errors import RobocliError
-from robocli.hub import HubServer
-from robocli.hub.sources.replay import read_hub_recording, replay_sources
+from robocli.hub_server import HubServer
+from robocli.hub_server.sources.replay import read_hub_recording, replay_sources
 from robocli.io.record import Recorder
 from tests.io.readback import wait_for
 
@@ -251,7 +251,7 @@ def test_replay_memory_is_bounded(recording: tuple[Path, dict[str, Pulled]]) -> 
 
 
 def test_a_stalled_replay_skips_what_it_missed_beyond_the_catch_up() -> None:
-    from robocli.hub.sources.replay import (
+    from robocli.hub_server.sources.replay import (
         MAX_CATCH_UP_S,
         RecordedSensor,
         ReplaySource,

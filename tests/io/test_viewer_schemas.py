@@ -19,7 +19,7 @@ from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io.record import Recorder, RecordingError, pull_hub
 from robocli.io.record.links import json_text
 from robocli.io.record.reader import raw_frame

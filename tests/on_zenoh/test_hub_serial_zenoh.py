@@ -17,8 +17,8 @@ from on_zenoh.bridge_helpers import wait_for
 from on_zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the lab fixture
 from robocli.devices.hub.zenoh_serial import ZenohSerialLine
 from robocli.errors import DeviceError
-from robocli.hub import HubServer
-from robocli.hub.frontends.zenoh import ZenohFrontend
+from robocli.hub_server import HubServer
+from robocli.hub_server.frontends.zenoh import ZenohFrontend
 from robocli.zenoh.keys import serial_key
 
 TOKEN = b"lab-token"

@@ -18,9 +18,9 @@ from hypothesis import strategies as st
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.over_zenoh import HUB_NAMES, ZenohHub, alive
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
-from robocli.hub import HubServer
-from robocli.hub.frontends.ros4mat import SENSOR_IDS
-from robocli.hub.frontends.zenoh import ZenohFrontend
+from robocli.hub_server import HubServer
+from robocli.hub_server.frontends.ros4mat import SENSOR_IDS
+from robocli.hub_server.frontends.zenoh import ZenohFrontend
 from robocli.protocols.ros4mat import MsgType
 from robocli.zenoh import open_session
 from robocli.zenoh.batch import BATCH_HEADER, decode_batch, encode_head

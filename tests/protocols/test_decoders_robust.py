@@ -66,7 +66,7 @@ def golden_mutants(draw: st.DrawFn, kinds: tuple[str, ...]) -> bytes:
 def sm_frames(draw: st.DrawFn) -> bytes:
     """A frame whose length prefix fits, so decoding reaches the body declarations."""
     byteorder = draw(st.sampled_from(["<", ">"]))
-    msg_type = draw(st.sampled_from([int(t) for t in sm.MsgType] + [0, 3, 99]))
+    msg_type = draw(st.sampled_from([int(t) for t in sm.SimpleMessageType] + [0, 3, 99]))
     body = draw(st.binary(max_size=600))
     header = struct.pack(byteorder + "iii", msg_type, draw(st.integers(0, 4)), 0)
     return struct.pack(byteorder + "i", len(header) + len(body)) + header + body
@@ -135,8 +135,8 @@ def test_failures_name_the_packet() -> None:
 
 
 def test_one_enum_helper() -> None:
-    assert enum_or_int(sm.MsgType, 10) is sm.MsgType.JOINT_POSITION
-    assert enum_or_int(sm.MsgType, 12345) == 12345
+    assert enum_or_int(sm.SimpleMessageType, 10) is sm.SimpleMessageType.JOINT_POSITION
+    assert enum_or_int(sm.SimpleMessageType, 12345) == 12345
     assert r4m.decode(r4m.encode_packet(0x2F, b"")).msg_type == 0x2F
 
 

@@ -74,7 +74,7 @@ def test_spec_file_shape() -> None:
         assert vector["framer"] in ("sm-le", "sm-be")
         assert vector["variant"] in ("le", "bswap", "float64", None)
         assert vector["hex"] == vector["hex"].lower()
-        assert vector["message"] in sm.MsgType.__members__
+        assert vector["message"] in sm.SimpleMessageType.__members__
 
 
 @pytest.mark.parametrize("vector", SPEC["vectors"], ids=lambda v: v["name"])
@@ -83,7 +83,7 @@ def test_spec_vector(vector: dict[str, Any]) -> None:
     frame = bytes.fromhex(vector["hex"])
     fields = vector["fields"]
     msg = sm.decode(frame, byteorder=byteorder, real=real)
-    assert sm.MsgType[vector["message"]] == msg.msg_type
+    assert sm.SimpleMessageType[vector["message"]] == msg.msg_type
     assert (msg.msg_type, msg.comm_type, msg.reply_code) == (
         fields["msg_type"],
         fields["comm_type"],
@@ -193,7 +193,7 @@ def test_exchange_frames_decode(variant: str) -> None:
             )
             == frame
         )
-        if msg.msg_type == sm.MsgType.JOINT_TRAJ_PT and msg.body is not None:
+        if msg.msg_type == sm.SimpleMessageType.JOINT_TRAJ_PT and msg.body is not None:
             assert isinstance(msg.body, dict) and set(msg.body) == {
                 "sequence",
                 "joints",
@@ -201,18 +201,21 @@ def test_exchange_frames_decode(variant: str) -> None:
                 "duration",
             }
     # the conversation as the README describes it
-    assert decoded[0].msg_type == sm.MsgType.PING and decoded[0].body is None
+    assert decoded[0].msg_type == sm.SimpleMessageType.PING and decoded[0].body is None
     assert decoded[1].reply_code == sm.ReplyCode.SUCCESS
     seqs = [
         m.body["sequence"]
         for m in decoded
         if m.comm_type == sm.CommType.SERVICE_REQUEST
-        and m.msg_type == sm.MsgType.JOINT_TRAJ_PT
+        and m.msg_type == sm.SimpleMessageType.JOINT_TRAJ_PT
         and isinstance(m.body, dict)
     ]
     assert seqs == [0, 1, 2, 3, sm.SpecialSeq.STOP_TRAJECTORY]
     failures = [m for m in decoded if m.reply_code == sm.ReplyCode.FAILURE]
-    assert {m.msg_type for m in failures} == {sm.MsgType.JOINT_TRAJ_PT, sm.MsgType.STATUS}
+    assert {m.msg_type for m in failures} == {
+        sm.SimpleMessageType.JOINT_TRAJ_PT,
+        sm.SimpleMessageType.STATUS,
+    }
 
 
 # ------------------------------------------------------------------------------ (d) checks
@@ -304,7 +307,10 @@ def test_validate_header_messages() -> None:
 
 def test_short_arrays_are_padded_and_long_ones_refused() -> None:
     frame = sm.encode(
-        sm.MsgType.JOINT_POSITION, sm.CommType.TOPIC, 0, {"sequence": 0, "joints": [0.5, -0.5]}
+        sm.SimpleMessageType.JOINT_POSITION,
+        sm.CommType.TOPIC,
+        0,
+        {"sequence": 0, "joints": [0.5, -0.5]},
     )
     assert len(frame) == 60
     msg = sm.decode(frame)
@@ -312,12 +318,15 @@ def test_short_arrays_are_padded_and_long_ones_refused() -> None:
     assert msg.body["joints"] == [0.5, -0.5] + [0.0] * 8
     with pytest.raises(ProtocolError):
         sm.encode(
-            sm.MsgType.JOINT_POSITION, sm.CommType.TOPIC, 0, {"sequence": 0, "joints": [0.0] * 11}
+            sm.SimpleMessageType.JOINT_POSITION,
+            sm.CommType.TOPIC,
+            0,
+            {"sequence": 0, "joints": [0.0] * 11},
         )
 
 
 def test_ping_rep6_body_and_header_only() -> None:
-    rep = sm.encode(sm.MsgType.PING, sm.CommType.SERVICE_REQUEST, 0, {"data": []})
+    rep = sm.encode(sm.SimpleMessageType.PING, sm.CommType.SERVICE_REQUEST, 0, {"data": []})
     assert len(rep) == 56
     assert sm.decode(rep).body == {"data": [0] * 10}
     assert sm.decode(sm.encode(1, 2)).body is None
@@ -325,7 +334,7 @@ def test_ping_rep6_body_and_header_only() -> None:
 
 def test_get_version_and_motoman() -> None:
     frame = sm.encode(
-        sm.MsgType.GET_VERSION,
+        sm.SimpleMessageType.GET_VERSION,
         sm.CommType.SERVICE_REPLY,
         sm.ReplyCode.SUCCESS,
         {"major": 1, "minor": 2, "patch": 3},
@@ -333,7 +342,9 @@ def test_get_version_and_motoman() -> None:
     assert len(frame) == 28
     assert sm.decode(frame).body == {"major": 1, "minor": 2, "patch": 3}
     ctrl = {"robot_id": 0, "sequence": 7, "command": sm.MotomanCommand.START_TRAJ_MODE, "data": []}
-    frame = sm.encode(sm.MsgType.MOTOMAN_MOTION_CTRL, sm.CommType.SERVICE_REQUEST, 0, ctrl)
+    frame = sm.encode(
+        sm.SimpleMessageType.MOTOMAN_MOTION_CTRL, sm.CommType.SERVICE_REQUEST, 0, ctrl
+    )
     assert len(frame) == 16 + 52
     reply = {
         "robot_id": 0,
@@ -343,7 +354,9 @@ def test_get_version_and_motoman() -> None:
         "subcode": 0,
         "data": [1.0],
     }
-    frame = sm.encode(sm.MsgType.MOTOMAN_MOTION_REPLY, sm.CommType.SERVICE_REPLY, 1, reply)
+    frame = sm.encode(
+        sm.SimpleMessageType.MOTOMAN_MOTION_REPLY, sm.CommType.SERVICE_REPLY, 1, reply
+    )
     assert len(frame) == 16 + 60
     body = sm.decode(frame).body
     assert isinstance(body, dict) and body["result"] == 1 and body["data"][0] == 1.0
@@ -357,7 +370,7 @@ def test_unknown_type_and_odd_sizes_stay_raw() -> None:
         sm.encode(65000, sm.CommType.TOPIC, 0, {"x": 1})
     # a REP-I0006-ordered JOINT_TRAJ (size first) must not crash the decoder
     rep_body = struct.pack("<i", 2) + bytes(2 * 52)
-    sm.decode(sm.encode(sm.MsgType.JOINT_TRAJ, sm.CommType.TOPIC, 0, rep_body))
+    sm.decode(sm.encode(sm.SimpleMessageType.JOINT_TRAJ, sm.CommType.TOPIC, 0, rep_body))
 
 
 def test_framing_errors() -> None:
@@ -376,10 +389,10 @@ def test_framing_errors() -> None:
 
 def test_frame_size_limit() -> None:
     point = {"sequence": 0, "joints": [], "velocity": 0.0, "duration": 0.0}
-    ok = sm.encode(sm.MsgType.JOINT_TRAJ, 1, 0, {"points": [point] * 19})
+    ok = sm.encode(sm.SimpleMessageType.JOINT_TRAJ, 1, 0, {"points": [point] * 19})
     assert len(ok) <= sm.MAX_FRAME_SIZE
     with pytest.raises(ProtocolError, match="exceeds"):
-        sm.encode(sm.MsgType.JOINT_TRAJ, 1, 0, {"points": [point] * 20})
+        sm.encode(sm.SimpleMessageType.JOINT_TRAJ, 1, 0, {"points": [point] * 20})
 
 
 def test_spec_cache_and_sizes() -> None:
@@ -436,7 +449,7 @@ def test_traj_pt_full_round_trip(
         "accelerations": arrays[2],
     }
     frame = sm.encode(
-        sm.MsgType.JOINT_TRAJ_PT_FULL,
+        sm.SimpleMessageType.JOINT_TRAJ_PT_FULL,
         sm.CommType.SERVICE_REQUEST,
         0,
         body,

@@ -15,7 +15,7 @@ from cli.helpers import run
 
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
-from robocli.hub import HubServer
+from robocli.hub_server import HubServer
 from robocli.io.record import Recorder
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim

@@ -23,7 +23,7 @@ import pytest
 
 from robocli.protocols import create_oi as oi
 from robocli.protocols.create_oi import Op
-from robocli.sim.create import CreateSim, CreateState
+from robocli.sim.create import CreateSim, CreateSimState
 from robocli.sim.world import World
 
 pytest.importorskip("pycreate2")
@@ -109,7 +109,7 @@ def test_pycreate2_drives_and_reads_its_odometry_unmodified() -> None:
     assert end.dropped_bytes == 0
 
 
-def _drive_into_the_wall(sim: CreateSim, client: PtyClient, mode: Op) -> CreateState:
+def _drive_into_the_wall(sim: CreateSim, client: PtyClient, mode: Op) -> CreateSimState:
     client.send(cmd(Op.START), cmd(mode), cmd(Op.DRIVE_DIRECT, right=200, left=200))
     return sim.wait_until(lambda s: s.bumps_drops & 3 == 3, WAIT)  # a head-on bump: both
 

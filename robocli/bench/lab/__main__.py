@@ -32,7 +32,7 @@ def zenoh_missing() -> str | None:
 
     if importlib.util.find_spec("zenoh") is None:
         return "eclipse-zenoh is not installed (pip install 'robocli-robots[zenoh]')"
-    if importlib.util.find_spec("robocli.hub.frontends.zenoh") is None:
+    if importlib.util.find_spec("robocli.hub_server.frontends.zenoh") is None:
         return "this robocli has no Zenoh front-end for the hub (serve --zenoh)"
     return None
 

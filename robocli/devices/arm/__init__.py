@@ -6,9 +6,9 @@ from robocli.devices.arm.client import Arm, SampleListener, StillMoving
 from robocli.devices.arm.state import (
     ABB_MAX_POINTS,
     ArmStatus,
+    JointRecorder,
     JointSample,
     Point,
-    Recorder,
     TooFewSamples,
 )
 
@@ -16,9 +16,9 @@ __all__ = [
     "ABB_MAX_POINTS",
     "Arm",
     "ArmStatus",
+    "JointRecorder",
     "JointSample",
     "Point",
-    "Recorder",
     "SampleListener",
     "StillMoving",
     "TooFewSamples",

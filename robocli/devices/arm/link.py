@@ -21,7 +21,7 @@ from robocli.errors import (
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import find_refusal
-from robocli.protocols.simple_message import CommType, MsgType, SpecialSeq
+from robocli.protocols.simple_message import CommType, SimpleMessageType, SpecialSeq
 from robocli.transports import SocketTransport
 
 __all__ = [
@@ -58,7 +58,7 @@ def point_frame(seq: int, p: Point, order: sm.ByteOrder, real: sm.RealSize) -> b
     """One JOINT_TRAJ_PT SERVICE_REQUEST (joints padded to 10 with zeros)."""
     body = {"sequence": int(seq), "joints": list(p.joints), "velocity": p.velocity,
             "duration": p.duration}  # fmt: skip
-    return sm.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
+    return sm.encode(SimpleMessageType.JOINT_TRAJ_PT, CommType.SERVICE_REQUEST, 0, body,
                      byteorder=order, real=real)  # fmt: skip
 
 
@@ -76,7 +76,7 @@ def namer(order: sm.ByteOrder, real: sm.RealSize) -> Callable[[bytes, str], str]
             return "short"
         (msg_type,) = struct.unpack_from(order + "i", payload, 4)
         try:
-            return MsgType(msg_type).name
+            return SimpleMessageType(msg_type).name
         except ValueError:
             return f"TYPE_{msg_type}"
 

@@ -33,7 +33,7 @@ from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import find_refusal
-from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
+from robocli.protocols.simple_message import CommType, ReplyCode, SimpleMessageType, SpecialSeq
 
 __all__ = ["Motion"]
 
@@ -85,7 +85,9 @@ class Motion(StateTracking):
             m = sm.decode(frame, byteorder=self.byteorder, real=self.real)
         except ProtocolError:
             return False
-        return m.msg_type == MsgType.JOINT_TRAJ_PT and m.comm_type == CommType.SERVICE_REPLY
+        return (
+            m.msg_type == SimpleMessageType.JOINT_TRAJ_PT and m.comm_type == CommType.SERVICE_REPLY
+        )
 
     def _send_point(self, seq: int, p: Point, timeout: float) -> None:
         s = need(self._motion, "motion")

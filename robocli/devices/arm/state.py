@@ -21,7 +21,7 @@ from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import check_limits
 
 __all__ = [
-    "ABB_MAX_POINTS", "ArmStatus", "JointSample", "Point", "Recorder", "TooFewSamples",
+    "ABB_MAX_POINTS", "ArmStatus", "JointRecorder", "JointSample", "Point", "TooFewSamples",
     "prepare", "split_points",
 ]  # fmt: skip
 
@@ -158,13 +158,13 @@ def split_points(points: list[Point], size: int = ABB_MAX_POINTS) -> list[list[P
 
 
 class TooFewSamples(TimeoutError):
-    """:meth:`Recorder.log` of a recording shorter than two samples: the controller was
+    """:meth:`JointRecorder.log` of a recording shorter than two samples: the controller was
     reached (exit 1, not an unreachable one's 3); record for longer."""
 
     exit_code = EXIT_FAILURE
 
 
-class Recorder:
+class JointRecorder:
     """Joint samples collected from ``Arm.record()`` until :meth:`stop` (bounded).
 
     :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock

@@ -16,12 +16,12 @@ from collections import deque
 from collections.abc import Callable
 
 from robocli.devices.arm.link import need
-from robocli.devices.arm.state import ArmStatus, JointSample, Point, Recorder
+from robocli.devices.arm.state import ArmStatus, JointRecorder, JointSample, Point
 from robocli.devices.session import LinkStats, Listeners, Session
 from robocli.errors import EXIT_FAILURE, DeviceError, ProtocolError, TimeoutError
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
-from robocli.protocols.simple_message import MsgType
+from robocli.protocols.simple_message import SimpleMessageType
 
 __all__ = ["SampleListener", "StateTracking", "StillMoving"]
 
@@ -29,7 +29,11 @@ __all__ = ["SampleListener", "StateTracking", "StillMoving"]
 SampleListener = Callable[[JointSample], None]
 
 _POS = sm.ValidFields.POSITION
-_JOINT_TYPES = (MsgType.JOINT_POSITION, MsgType.JOINT_FEEDBACK, MsgType.STATUS)
+_JOINT_TYPES = (
+    SimpleMessageType.JOINT_POSITION,
+    SimpleMessageType.JOINT_FEEDBACK,
+    SimpleMessageType.STATUS,
+)
 
 
 class StillMoving(TimeoutError):
@@ -68,7 +72,7 @@ class StateTracking:
         body = msg.body
         if not isinstance(body, dict):
             if isinstance(body, bytes) and msg.msg_type in _JOINT_TYPES:
-                name = MsgType(msg.msg_type).name
+                name = SimpleMessageType(msg.msg_type).name
                 raise ProtocolError(
                     f"{name} with a {len(body)}-byte body: not {self.real}-byte "
                     "reals (the wrong real size?)"
@@ -76,12 +80,12 @@ class StateTracking:
             return
         n = self.robot.n_joints
         sample = None
-        if msg.msg_type == MsgType.JOINT_POSITION:
+        if msg.msg_type == SimpleMessageType.JOINT_POSITION:
             sample = JointSample(t, tuple(body["joints"][:n]))
-        elif msg.msg_type == MsgType.JOINT_FEEDBACK and body["valid_fields"] & _POS:
+        elif msg.msg_type == SimpleMessageType.JOINT_FEEDBACK and body["valid_fields"] & _POS:
             rt = body["time"] if body["valid_fields"] & sm.ValidFields.TIME else None
             sample = JointSample(t, tuple(body["positions"][:n]), rt, "joint_feedback")
-        elif msg.msg_type == MsgType.STATUS:
+        elif msg.msg_type == SimpleMessageType.STATUS:
             with self._cond:
                 self.status = ArmStatus.from_body(body, t)
                 self._statuses += 1
@@ -185,11 +189,11 @@ class StateTracking:
         return (self._streamed and self._travel > 1e-3 and not self._moved
                 and not self._displaced)  # fmt: skip
 
-    def record(self, max_samples: int = 720_000) -> Recorder:
-        """Start recording joint samples (a :class:`Recorder`; stop it for the log). At most
+    def record(self, max_samples: int = 720_000) -> JointRecorder:
+        """Start recording joint samples (a :class:`JointRecorder`; stop it for the log). At most
         ``max_samples`` are kept, the oldest dropped first (about 350 bytes each; the default
         holds an hour of 100 Hz state with JOINT_FEEDBACK)."""
-        return Recorder(self, max_samples)
+        return JointRecorder(self, max_samples)
 
     def _activated(self, points: list[Point], streamed: bool = False) -> None:
         now = time.monotonic()

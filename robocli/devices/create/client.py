@@ -29,7 +29,7 @@ from robocli.protocols import create_oi as oi
 from robocli.protocols.create_oi import Op
 from robocli.transports import Transport, open_transport
 
-__all__ = ["STREAMED", "Create", "CreateState", "Odometry", "StateListener"]
+__all__ = ["STREAMED", "Create", "CreateOdometry", "CreateState", "StateListener"]
 
 #: The packets streamed: bumps and wheel drops, distance, angle, charging state, voltage,
 #: current, charge, capacity, OI mode.
@@ -63,7 +63,7 @@ class CreateState:
 StateListener = Callable[[CreateState], None]
 
 
-class Odometry:
+class CreateOdometry:
     """The pose from the distance (mm) and angle (degrees) packets, summed (the recorder
     keeps its own, so that every recorded pose is the frame's it was decoded from)."""
 
@@ -103,7 +103,7 @@ class Create:
         framer: Any = oi.StreamFramer()  # the Framer interface, in Python
         self._session = Session(transport, framer, on_frame=self._on_frame,
                                 name=f"create {transport.url}")  # fmt: skip
-        self._odo = Odometry()
+        self._odo = CreateOdometry()
         self._state: CreateState | None = None
         self._frames = 0
         self._state_listeners: Listeners[StateListener] = Listeners(self._session.stats,

@@ -461,7 +461,7 @@ __all__ = [
 
 def _start_simulated_hub(url: DeviceURL, **fixed: Any) -> simulators.Simulator:
     """The simulated hub of ``sim://`` (the hub server with simulated sensors)."""
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
 
     if url.model:
         raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")

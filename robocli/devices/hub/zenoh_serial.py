@@ -1,6 +1,6 @@
 """A hub's serial port over Eclipse Zenoh: :class:`ZenohSerialLine`, the counterpart of
 :class:`~robocli.devices.hub.serial.VirtualSerial` for a hub served with ``serve --zenoh``
-(the keys: :mod:`robocli.hub.frontends.zenoh_serial`).
+(the keys: :mod:`robocli.hub_server.frontends.zenoh_serial`).
 
 The user is the one the Zenoh configuration authenticates as (the router's user, whose key
 chunk the lab's access control lets through); the hub's token goes in the open request, as

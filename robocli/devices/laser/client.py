@@ -300,7 +300,7 @@ class Laser:
         received = self.epoch()
         return self._to_scan(fast.decode_scan(block, self.checksums), received, observe=False)
 
-    def _to_scan(self, s: scip2.Scan, received: float, *, observe: bool) -> Scan:
+    def _to_scan(self, s: scip2.ScanReply, received: float, *, observe: bool) -> Scan:
         ms = self.clock.unwrap(s.timestamp)
         if observe:
             self.clock.observe(ms, received)

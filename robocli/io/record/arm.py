@@ -101,7 +101,7 @@ class ArmDecoder:
 
     def __call__(self, direction: str, frame: bytes, ns: int) -> None:
         from robocli.protocols import simple_message as sm
-        from robocli.protocols.simple_message import MsgType, ValidFields
+        from robocli.protocols.simple_message import SimpleMessageType, ValidFields
 
         if direction != "rx":
             return
@@ -110,9 +110,12 @@ class ArmDecoder:
         if not isinstance(body, dict):
             return
         n = self.model.n_joints
-        if msg.msg_type == MsgType.JOINT_POSITION:
+        if msg.msg_type == SimpleMessageType.JOINT_POSITION:
             self._joints("joint_states", ns, ns, list(body["joints"][:n]), [], None)
-        elif msg.msg_type == MsgType.JOINT_FEEDBACK and body["valid_fields"] & ValidFields.POSITION:
+        elif (
+            msg.msg_type == SimpleMessageType.JOINT_FEEDBACK
+            and body["valid_fields"] & ValidFields.POSITION
+        ):
             valid = body["valid_fields"]
             rt = float(body["time"]) if valid & ValidFields.TIME else None
             publish = ns
@@ -123,7 +126,7 @@ class ArmDecoder:
             vel = list(body["velocities"][:n]) if valid & ValidFields.VELOCITY else []
             self._feedback = True
             self._joints("joint_feedback", ns, publish, list(body["positions"][:n]), vel, rt)
-        elif msg.msg_type == MsgType.STATUS:
+        elif msg.msg_type == SimpleMessageType.STATUS:
             from robocli.devices.arm.state import ArmStatus
 
             status = ArmStatus.from_body(body, 0.0).as_dict()

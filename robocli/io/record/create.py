@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from robocli.devices.create.client import Odometry, state_of
+from robocli.devices.create.client import CreateOdometry, state_of
 from robocli.errors import InvalidArgument, ProtocolError
 from robocli.io import schemas as S
 from robocli.io.record.links import RawLink, Sink, json_text, new_link
@@ -48,7 +48,7 @@ class CreateDecoder:
     def __init__(self, rec: Sink, name: str) -> None:
         self.rec = rec
         self.claimed = False  #: a device was added on it (a link is recorded once)
-        self.odo = Odometry()
+        self.odo = CreateOdometry()
         self.frames = self.bad_frames = 0
         self.odom, self.base = f"{name}/odom", f"{name}/base_link"
         self.topics = {k: f"/{name}/{k}" for k in ("pose", "tf", "state")}

@@ -37,7 +37,7 @@ from __future__ import annotations
 
 from robocli.protocols.common import plain
 from robocli.protocols.ros4mat.codec import (
-    Message,
+    DecodedPacket,
     adc_freq_send_default,
     decode,
     encode_error,
@@ -123,6 +123,7 @@ __all__ = [
     "ComputerState",
     "Connect",
     "DECLARATIONS",
+    "DecodedPacket",
     "DigitalOut",
     "Gps",
     "GpsState",
@@ -137,7 +138,6 @@ __all__ = [
     "KinectData",
     "MAX_BODY_SIZE",
     "MAX_STREAM_CHUNK",
-    "Message",
     "MsgType",
     "PARAMS",
     "PARITIES",

@@ -72,7 +72,7 @@ def record_dtype(sensor: str | int) -> np.dtype[Any]:
 
 
 @dataclass(frozen=True)
-class Message:
+class DecodedPacket:
     """One decoded packet.
 
     ``body`` is ``None`` (no body), a dict (request bodies, serial answer, camera/Kinect/
@@ -270,7 +270,7 @@ def inflate(data: bytes, size: int, *, what: str = "ros4mat body") -> bytes:
     return bytes(out)
 
 
-def decode(frame: bytes | bytearray | memoryview) -> Message:
+def decode(frame: bytes | bytearray | memoryview) -> DecodedPacket:
     """Decode one whole packet (header + body), inflating a zlib body (bounded, see
     :func:`inflate`).
 
@@ -304,7 +304,7 @@ def decode(frame: bytes | bytearray | memoryview) -> Message:
     }
     if header.error != 0:
         text = payload.split(b"\0", 1)[0].decode("ascii", "replace")
-        return Message(body=None, error_text=text, **common)
+        return DecodedPacket(body=None, error_text=text, **common)
     if header.compression_type == Compression.ZLIB and payload:
         payload = inflate(payload, header.uncompress_size, what=f"{what} body")
     elif header.compression_type not in (Compression.NONE, Compression.ZLIB):
@@ -318,7 +318,7 @@ def decode(frame: bytes | bytearray | memoryview) -> Message:
         body = _decode_body(header.type, header.size, payload)
     except DECODE_ERRORS as exc:
         undecodable(f"{what} body", payload, exc)
-    return Message(body=body, **common)
+    return DecodedPacket(body=body, **common)
 
 
 def adc_freq_send_default(freq: int) -> int:

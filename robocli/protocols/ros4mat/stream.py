@@ -22,7 +22,7 @@ byte as they were::
     u32 speed (baud) | u8 byte_size (5..8) | char parity (N E O M S)
     | u8 stop_bits (tenths: 10, 15, 20) | u16 port length | port name (UTF-8)
 
-Rules the hub enforces (:mod:`robocli.hub.serial`): the hub's token guards all three
+Rules the hub enforces (:mod:`robocli.hub_server.serial`): the hub's token guards all three
 requests as it guards ``SERIAL_CMD``; only the ports of its allow-list open; one stream per
 port and per connection (``SERIAL_CMD`` on a streamed port is refused); a write body is at
 most :data:`MAX_STREAM_CHUNK` bytes and is written to the port within a deadline sized to

@@ -60,7 +60,7 @@ from robocli.protocols.scip2.commands import (
 from robocli.protocols.scip2.framing import ReplyFramer, ReplyFramerStats
 from robocli.protocols.scip2.replies import (
     Reply,
-    Scan,
+    ScanReply,
     build_info,
     build_reply,
     build_scan,
@@ -121,8 +121,8 @@ __all__ = [
     "ReplyFramer",
     "ReplyFramerStats",
     "Request",
-    "Scan",
     "ScanEcho",
+    "ScanReply",
     "ScipStatusError",
     "StatusLine",
     "TimestampLine",

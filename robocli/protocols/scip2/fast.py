@@ -2,7 +2,7 @@
 
 :func:`reply_framer` is ``robocli.core.Framer("scip2")`` (rules in
 :mod:`robocli.protocols.scip2.framing`, whose pure-Python :class:`ReplyFramer` gives the same
-blocks and counters). :func:`decode_scan` gives the same :class:`Scan` as the pure-Python
+blocks and counters). :func:`decode_scan` gives the same :class:`ScanReply` as the pure-Python
 :func:`robocli.protocols.scip2.decode_scan` and raises the same errors, but decodes the data
 lines in C (``rc_scip_decode``: each line's length and sum checked, the sum chars skipped,
 values straddling lines joined) straight into a NumPy ``uint32`` array.
@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 from robocli._core import ffi, lib
 from robocli.core import Framer
 from robocli.errors import ChecksumError, FramingError
-from robocli.protocols.scip2.replies import Scan, scan_header
+from robocli.protocols.scip2.replies import ScanReply, scan_header
 from robocli.protocols.scip2.wire import MAX_BLOCK
 
 if TYPE_CHECKING:
@@ -72,7 +72,7 @@ def _decode(
     return out
 
 
-def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> Scan:
+def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> ScanReply:
     """Decode a whole scan reply (GD/GS/GE, MD/MS/ME frame) with the C decoder: same result
     and same errors as the pure-Python :func:`robocli.protocols.scip2.decode_scan`."""
     data = bytes(block)
@@ -94,7 +94,7 @@ def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> Sc
         ranges, intensities = values[::2].copy(), values[1::2].copy()
     else:
         ranges, intensities = values, None
-    return Scan(
+    return ScanReply(
         reply.echo, echo.command, reply.status, ts, echo.start, echo.end, echo.cluster,
         echo.remaining, ranges, intensities, echo.tag,
     )  # fmt: skip

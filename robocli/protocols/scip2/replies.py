@@ -128,7 +128,7 @@ def parse_info(lines: Iterable[bytes], check: bool = True) -> dict[str, str]:
 
 
 @dataclass(frozen=True)
-class Scan:
+class ScanReply:
     """A decoded scan reply. ``ranges`` (and ``intensities`` for GE/ME) hold the raw values,
     one per cluster from ``start`` to ``end`` step (values below DMIN are error codes);
     ``timestamp`` is the sensor's 24-bit millisecond counter at step 0; ``remaining`` the
@@ -169,7 +169,7 @@ def scan_header(
     return reply, echo, ts
 
 
-def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> Scan:
+def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> ScanReply:
     """Decode a whole scan reply (pure Python; :func:`robocli.protocols.scip2.fast.decode_scan`
     is the C version, same results and same errors). ``check=False`` skips the data-line sums
     (the status and timestamp sums too), as urg_library does by default."""
@@ -190,7 +190,7 @@ def decode_scan(block: bytes | bytearray | memoryview, check: bool = True) -> Sc
     )
     ranges = values[::per_step] if per_step == 2 else values
     intensities = values[1::2] if per_step == 2 else None
-    return Scan(
+    return ScanReply(
         reply.echo, echo.command, reply.status, ts, echo.start, echo.end, echo.cluster,
         echo.remaining, np.ascontiguousarray(ranges),
         None if intensities is None else np.ascontiguousarray(intensities), echo.tag,

@@ -36,7 +36,7 @@ values), :mod:`~robocli.protocols.simple_message.spec` (the ``construct`` declar
 from __future__ import annotations
 
 from robocli.protocols.common import plain
-from robocli.protocols.simple_message.codec import Message, decode, encode, validate_header
+from robocli.protocols.simple_message.codec import SimpleMessage, decode, encode, validate_header
 from robocli.protocols.simple_message.constants import (
     HEADER_SIZE,
     MAX_FRAME_SIZE,
@@ -55,9 +55,9 @@ from robocli.protocols.simple_message.constants import (
     CommType,
     MotomanCommand,
     MotomanResult,
-    MsgType,
     ReplyCode,
     RobotMode,
+    SimpleMessageType,
     SpecialSeq,
     TriState,
     ValidFields,
@@ -81,14 +81,14 @@ __all__ = [
     "UDP_HANDSHAKE",
     "ByteOrder",
     "CommType",
-    "Message",
     "MotomanCommand",
     "MotomanResult",
-    "MsgType",
     "RealSize",
     "ReplyCode",
     "RobotMode",
+    "SimpleMessage",
     "SimpleMessageSpec",
+    "SimpleMessageType",
     "SpecialSeq",
     "TriState",
     "ValidFields",

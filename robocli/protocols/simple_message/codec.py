@@ -1,5 +1,5 @@
 """Simple Message frames to and from bytes: :func:`encode`, :func:`decode` (into a
-:class:`Message`) and the reference library's header rule (:func:`validate_header`).
+:class:`SimpleMessage`) and the reference library's header rule (:func:`validate_header`).
 
 Part of :mod:`robocli.protocols.simple_message` (import from there).
 """
@@ -22,14 +22,14 @@ from robocli.protocols.simple_message.constants import (
     MIN_LENGTH,
     PREFIX_SIZE,
     CommType,
-    MsgType,
     ReplyCode,
+    SimpleMessageType,
 )
 from robocli.protocols.simple_message.spec import ByteOrder, RealSize, messages
 
 
 @dataclass(frozen=True)
-class Message:
+class SimpleMessage:
     """One decoded frame. ``body``: ``None`` (header only), a dict, or raw ``bytes``."""
 
     msg_type: int
@@ -106,7 +106,7 @@ def decode(
     real: RealSize = 4,
     validate: bool = True,
     max_length: int = MAX_LENGTH,
-) -> Message:
+) -> SimpleMessage:
     """Decode one whole frame (prefix included).
 
     Raises :class:`FramingError` when the prefix does not match the frame (``length`` < 12,
@@ -133,13 +133,15 @@ def decode(
         parsed = spec.Frame.parse(frame)
     except DECODE_ERRORS as exc:
         (msg_type,) = struct.unpack_from(byteorder + "i", frame, PREFIX_SIZE)
-        undecodable(f"Simple Message {enum_name(MsgType, msg_type, str(msg_type))}", frame, exc)
+        undecodable(
+            f"Simple Message {enum_name(SimpleMessageType, msg_type, str(msg_type))}", frame, exc
+        )
     header = parsed.header
     if validate:
         validate_header(header.msg_type, header.comm_type, header.reply_code)
     body = parsed.body
-    return Message(
-        msg_type=enum_or_int(MsgType, header.msg_type),
+    return SimpleMessage(
+        msg_type=enum_or_int(SimpleMessageType, header.msg_type),
         comm_type=enum_or_int(CommType, header.comm_type),
         reply_code=enum_or_int(ReplyCode, header.reply_code),
         body=body if body is None or isinstance(body, bytes) else plain(body),

@@ -35,7 +35,7 @@ UDP_HANDSHAKE = 0x8E
 """Byte exchanged until echoed before framing starts on the (rarely used) UDP variant."""
 
 
-class MsgType(enum.IntEnum):
+class SimpleMessageType(enum.IntEnum):
     """Standard message ids (REP-I0004) plus the Motoman ones robocli declares."""
 
     INVALID = 0

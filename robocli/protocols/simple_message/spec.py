@@ -14,7 +14,7 @@ from typing import Any, Literal
 import construct as cs
 
 from robocli.errors import ProtocolError
-from robocli.protocols.simple_message.constants import HEADER_SIZE, MAX_JOINTS, MsgType
+from robocli.protocols.simple_message.constants import HEADER_SIZE, MAX_JOINTS, SimpleMessageType
 
 ByteOrder = Literal["<", ">"]
 RealSize = Literal[4, 8]
@@ -93,7 +93,7 @@ class SimpleMessageSpec:
             return 0
         if isinstance(body, (bytes, bytearray, memoryview)):
             return len(body)
-        if msg_type == MsgType.JOINT_TRAJ:
+        if msg_type == SimpleMessageType.JOINT_TRAJ:
             return int(self.JointTrajPt.sizeof()) * len(body["points"]) + 4
         decl = self.bodies.get(msg_type)
         if decl is None:
@@ -170,15 +170,15 @@ def _build_spec(byteorder: ByteOrder, real: RealSize) -> SimpleMessageSpec:
         "data" / joints(),
     )
     bodies: dict[int, Any] = {
-        MsgType.PING: Ping,
-        MsgType.GET_VERSION: GetVersionReply,
-        MsgType.JOINT_POSITION: JointPosition,
-        MsgType.JOINT_TRAJ_PT: JointTrajPt,
-        MsgType.STATUS: Status,
-        MsgType.JOINT_TRAJ_PT_FULL: JointTrajPtFull,
-        MsgType.JOINT_FEEDBACK: JointFeedback,
-        MsgType.MOTOMAN_MOTION_CTRL: MotomanMotionCtrl,
-        MsgType.MOTOMAN_MOTION_REPLY: MotomanMotionReply,
+        SimpleMessageType.PING: Ping,
+        SimpleMessageType.GET_VERSION: GetVersionReply,
+        SimpleMessageType.JOINT_POSITION: JointPosition,
+        SimpleMessageType.JOINT_TRAJ_PT: JointTrajPt,
+        SimpleMessageType.STATUS: Status,
+        SimpleMessageType.JOINT_TRAJ_PT_FULL: JointTrajPtFull,
+        SimpleMessageType.JOINT_FEEDBACK: JointFeedback,
+        SimpleMessageType.MOTOMAN_MOTION_CTRL: MotomanMotionCtrl,
+        SimpleMessageType.MOTOMAN_MOTION_REPLY: MotomanMotionReply,
     }
     sizes = {int(k): int(v.sizeof()) for k, v in bodies.items()}
     point_size = int(JointTrajPt.sizeof())
@@ -192,12 +192,12 @@ def _build_spec(byteorder: ByteOrder, real: RealSize) -> SimpleMessageSpec:
             return "raw"
         if sizes.get(msg_type) == n:
             return int(msg_type)
-        if msg_type == MsgType.JOINT_TRAJ and n > 4 and (n - 4) % point_size == 0:
+        if msg_type == SimpleMessageType.JOINT_TRAJ and n > 4 and (n - 4) % point_size == 0:
             return int(msg_type)
         return "raw"
 
     cases: dict[Any, Any] = {int(k): v for k, v in bodies.items()}
-    cases[int(MsgType.JOINT_TRAJ)] = JointTraj
+    cases[int(SimpleMessageType.JOINT_TRAJ)] = JointTraj
     cases["empty"] = cs.Pass
 
     spec: SimpleMessageSpec

@@ -19,17 +19,17 @@ it (dropped, those waiting longest first; a :attr:`Link.privileged` one never fo
 Used through :class:`robocli.serving.server.Server`; nothing here is global.
 
 The package holds :mod:`~robocli.serving.links.limits` (what every link of a server obeys and
-counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`LinkStats`),
-:mod:`~robocli.serving.links.base` (the :class:`Session` and :class:`UnframedHook` protocols and
-:class:`Link`: framing, dispatch and the output queue every link shares),
+counts: :class:`LinkLimits`, :class:`OutputBudget`, :class:`ServerLinkStats`),
+:mod:`~robocli.serving.links.base` (the :class:`ServerSession` and :class:`UnframedHook`
+protocols and :class:`Link`: framing, dispatch and the output queue every link shares),
 :mod:`~robocli.serving.links.tcp` (:class:`TcpLink`) and :mod:`~robocli.serving.links.pty`
 (:class:`PtyLink`). Import from here.
 """
 
 from __future__ import annotations
 
-from robocli.serving.links.base import Link, Session, UnframedHook
-from robocli.serving.links.limits import LinkLimits, LinkStats, OutputBudget
+from robocli.serving.links.base import Link, ServerSession, UnframedHook
+from robocli.serving.links.limits import LinkLimits, OutputBudget, ServerLinkStats
 from robocli.serving.links.pty import PtyLink
 from robocli.serving.links.tcp import DONTWAIT, TcpLink
 
@@ -37,10 +37,10 @@ __all__ = [
     "DONTWAIT",
     "Link",
     "LinkLimits",
-    "LinkStats",
     "OutputBudget",
     "PtyLink",
-    "Session",
+    "ServerLinkStats",
+    "ServerSession",
     "TcpLink",
     "UnframedHook",
 ]

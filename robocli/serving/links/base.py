@@ -1,6 +1,6 @@
 """The link every byte stream of the serving layer is: :class:`Link` (framing, dispatch to
 its session, the output queue and its bounds, the link thread's end), and the protocols of the
-sessions it serves (:class:`Session`, :class:`UnframedHook`).
+sessions it serves (:class:`ServerSession`, :class:`UnframedHook`).
 
 Part of :mod:`robocli.serving.links` (import from there).
 """
@@ -17,12 +17,12 @@ from itertools import islice
 from typing import Any, Protocol
 
 from robocli.core import Framer
-from robocli.serving.links.limits import LinkLimits, LinkStats
+from robocli.serving.links.limits import LinkLimits, ServerLinkStats
 
 log = logging.getLogger("robocli.serving.server")
 
 
-class Session(Protocol):
+class ServerSession(Protocol):
     """One client's protocol state machine (no sockets).
 
     Called from its link's thread only: :meth:`on_frame` for each complete frame, in order,
@@ -108,8 +108,8 @@ class Link:
         self._ending = False  # read nothing more; end once the output is out
         self._closed = False
         self._ended = threading.Event()
-        self._stats = LinkStats()
-        self.session: Session | None = None
+        self._stats = ServerLinkStats()
+        self.session: ServerSession | None = None
 
     # ---------------------------------------------------------------- any thread
 
@@ -225,11 +225,13 @@ class Link:
             self._mark_closed("closed")
 
     @property
-    def stats(self) -> LinkStats:
+    def stats(self) -> ServerLinkStats:
         """A copy of the counters (thread-safe)."""
         with self._rx_lock:
             fs = self._framer.stats
-            s = LinkStats(**{f.name: getattr(self._stats, f.name) for f in fields(LinkStats)})
+            s = ServerLinkStats(
+                **{f.name: getattr(self._stats, f.name) for f in fields(ServerLinkStats)}
+            )
         s.frames = fs.frames
         s.dropped_bytes = fs.dropped_bytes + self._stats.abandoned
         s.bad_checksums, s.oversize = fs.bad_checksums, fs.bad_lengths

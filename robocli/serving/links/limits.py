@@ -1,6 +1,6 @@
 """What every link of one server obeys and counts: its limits (:class:`LinkLimits`), the
 output budget shared by the server's links (:class:`OutputBudget`) and the counters
-(:class:`LinkStats`).
+(:class:`ServerLinkStats`).
 
 Part of :mod:`robocli.serving.links` (import from there).
 """
@@ -101,7 +101,7 @@ class LinkLimits:
 
 
 @dataclass
-class LinkStats:
+class ServerLinkStats:
     """Counters of one link, or summed over a server's links (:meth:`Server.stats`)."""
 
     frames: int = 0  #: complete frames handed to the session
@@ -114,6 +114,6 @@ class LinkStats:
     tx_dropped: int = 0  #: output bytes discarded (pty line full, link dropped)
     session_errors: int = 0  #: exceptions raised by the session (the link is then dropped)
 
-    def add(self, other: LinkStats) -> None:
+    def add(self, other: ServerLinkStats) -> None:
         for f in fields(self):
             setattr(self, f.name, getattr(self, f.name) + getattr(other, f.name))

@@ -5,7 +5,7 @@
 ``ROS_stateServer``; docs/protocols/simple-message.md section 4) or, with
 ``profile="generic"``, what an industrial_robot_client streaming server does.
 :class:`MotionSession` and :class:`StateSession` are one link's protocol state (a
-:class:`~robocli.serving.server.Session`): the serving layer hands them complete frames and
+:class:`~robocli.serving.server.ServerSession`): the serving layer hands them complete frames and
 writes their replies. Every method that touches shared state takes the controller's lock.
 
 Execution model: the points of an activated trajectory are knots of a cubic Hermite curve
@@ -30,7 +30,7 @@ import numpy.typing as npt
 from robocli.errors import ProtocolError
 from robocli.kinematics.model import RobotModel
 from robocli.protocols import simple_message as sm
-from robocli.protocols.simple_message import CommType, MsgType, ReplyCode, SpecialSeq
+from robocli.protocols.simple_message import CommType, ReplyCode, SimpleMessageType, SpecialSeq
 from robocli.serving.server import Link
 
 __all__ = [
@@ -250,7 +250,7 @@ class ArmController:
                          byteorder=self.byteorder, real=self.real)  # fmt: skip
 
     def _ack(self, reply: int = ReplyCode.SUCCESS, body: bytes | None = None) -> bytes:
-        return self.encode(MsgType.JOINT_TRAJ_PT, CommType.SERVICE_REPLY, reply, body)
+        return self.encode(SimpleMessageType.JOINT_TRAJ_PT, CommType.SERVICE_REPLY, reply, body)
 
     # ---------------------------------------------------------------- motion port
 
@@ -270,10 +270,10 @@ class ArmController:
         q = np.asarray(body["joints"][: self._n], dtype=float)
         return _Point(int(body["sequence"]), q, float(body["velocity"]), float(body["duration"]))
 
-    def _abb(self, link: Link, msg: sm.Message, frame: bytes) -> bytes | None:
+    def _abb(self, link: Link, msg: sm.SimpleMessage, frame: bytes) -> bytes | None:
         size = self._spec.JointTrajPt.sizeof()
         raw = frame[sm.PREFIX_SIZE + sm.HEADER_SIZE :]
-        if msg.msg_type != MsgType.JOINT_TRAJ_PT or len(raw) < size:
+        if msg.msg_type != SimpleMessageType.JOINT_TRAJ_PT or len(raw) < size:
             # RAPID raises ERR_ARGVALERR / ERR_OUTOFBND: the task restarts, the socket closes
             self.frames_refused += 1
             log.warning("%s: ROS_motionServer error on msg_type %s (%d-byte body): the "
@@ -327,13 +327,13 @@ class ArmController:
         start = now + self.ctl.lag_ms / 1000.0
         self.executor.start([(p.joints, p.duration) for p in points], start, skip_first=True)
 
-    def _generic(self, msg: sm.Message, frame: bytes) -> bytes | None:
+    def _generic(self, msg: sm.SimpleMessage, frame: bytes) -> bytes | None:
         request = msg.comm_type == CommType.SERVICE_REQUEST
         if msg.comm_type == CommType.SERVICE_REPLY:
             return None  # REP-I0006: unsolicited replies are ignored
-        if msg.msg_type == MsgType.PING:
-            return self.encode(MsgType.PING, CommType.SERVICE_REPLY, ReplyCode.SUCCESS)
-        if msg.msg_type != MsgType.JOINT_TRAJ_PT or not isinstance(msg.body, dict):
+        if msg.msg_type == SimpleMessageType.PING:
+            return self.encode(SimpleMessageType.PING, CommType.SERVICE_REPLY, ReplyCode.SUCCESS)
+        if msg.msg_type != SimpleMessageType.JOINT_TRAJ_PT or not isinstance(msg.body, dict):
             if request:  # MessageManager: no handler -> header-only FAILURE of that type
                 return self.encode(msg.msg_type, CommType.SERVICE_REPLY, ReplyCode.FAILURE)
             return None
@@ -401,14 +401,15 @@ class ArmController:
         joints = [float(v) for v in q]
         topic = CommType.TOPIC
         out = [
-            self.encode(MsgType.JOINT_POSITION, topic, 0, {"sequence": 0, "joints": joints}),
-            self.encode(MsgType.STATUS, topic, 0, {
+            self.encode(SimpleMessageType.JOINT_POSITION, topic, 0,
+                        {"sequence": 0, "joints": joints}),
+            self.encode(SimpleMessageType.STATUS, topic, 0, {
                 "drives_powered": 1, "e_stopped": 0, "error_code": 0, "in_error": 0,
                 "in_motion": int(moving), "mode": 2, "motion_possible": 1,
             }),
         ]  # fmt: skip
         if feedback:
-            out.append(self.encode(MsgType.JOINT_FEEDBACK, topic, 0, {
+            out.append(self.encode(SimpleMessageType.JOINT_FEEDBACK, topic, 0, {
                 "robot_id": 0, "valid_fields": 0x03, "time": t, "positions": joints,
                 "velocities": [0.0] * sm.MAX_JOINTS, "accelerations": [0.0] * sm.MAX_JOINTS,
             }))  # fmt: skip

@@ -1,5 +1,5 @@
 """Built-in iRobot Create 2 simulator (Open Interface): :class:`CreateSim`."""
 
-from robocli.sim.create.server import STREAM_PERIOD_S, CreateSim, CreateState
+from robocli.sim.create.server import STREAM_PERIOD_S, CreateSim, CreateSimState
 
-__all__ = ["STREAM_PERIOD_S", "CreateSim", "CreateState"]
+__all__ = ["STREAM_PERIOD_S", "CreateSim", "CreateSimState"]

@@ -30,7 +30,7 @@ from robocli.sim.create.session import CreateController
 from robocli.sim.pioneer.model import Pose
 from robocli.sim.world import World
 
-__all__ = ["STREAM_PERIOD_S", "CreateSim", "CreateState"]
+__all__ = ["STREAM_PERIOD_S", "CreateSim", "CreateSimState"]
 
 STREAM_PERIOD_S = 0.015  #: the OI's stream period, and the physics step (robot seconds)
 SEND_TIMEOUT_S = 1.0  #: a TCP client that does not read for this long is dropped
@@ -38,7 +38,7 @@ BYTE_TIMEOUT_S = 0.2  #: a command cut short for this long (wall s) is abandoned
 
 
 @dataclass(frozen=True)
-class CreateState:
+class CreateSimState:
     """A copy of the simulator's truth at one instant (SI unless the name says otherwise).
 
     ``x, y, th``: true pose in the world (m, rad); ``odom_*``: the odometry (the wheels'
@@ -168,7 +168,7 @@ class CreateSim:
         with self._ctl.lock:
             self._body.cliffs = (left, front_left, front_right, right)
 
-    def snapshot(self) -> CreateState:
+    def snapshot(self) -> CreateSimState:
         """A consistent copy of the truth (thread-safe)."""
         stats = [s.stats() for s in self._servers.values()]
         # before the controller lock: a link ending holds its server's lock, then the
@@ -179,7 +179,7 @@ class CreateSim:
             left, right = m.wheel_speeds()
             dist, ang = b.travel_mm()
             mv, _, mah, _ = b.battery()
-            return CreateState(
+            return CreateSimState(
                 x=m.x, y=m.y, th=m.th, odom_x=m.odom[0], odom_y=m.odom[1], odom_th=m.odom[2],
                 distance_mm=dist, angle_deg=ang, left=left, right=right,
                 set_left=b.set_left, set_right=b.set_right, mode=c.mode,
@@ -194,7 +194,9 @@ class CreateSim:
                 sim_time=m.sim_time, clients=clients,
             )  # fmt: skip
 
-    def wait_until(self, predicate: Callable[[CreateState], bool], timeout: float) -> CreateState:
+    def wait_until(
+        self, predicate: Callable[[CreateSimState], bool], timeout: float
+    ) -> CreateSimState:
         """Poll snapshots until ``predicate`` holds; raises
         :class:`~robocli.errors.TimeoutError` after ``timeout`` wall seconds."""
         return poll_until(self.snapshot, predicate, timeout)

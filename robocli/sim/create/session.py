@@ -2,7 +2,7 @@
 
 :class:`CreateController` is the robot's one OI (shared by its links, guarded by
 :attr:`CreateController.lock`); :class:`CreateSession` is one link's view of it (the serving
-layer's :class:`~robocli.serving.links.Session`). No sockets.
+layer's :class:`~robocli.serving.links.ServerSession`). No sockets.
 
 Rules, from the Create 2 OI Specification:
 

@@ -6,8 +6,8 @@ and counts them (docs/protocols/scip2.md section 5). Over TCP the link queues wh
 kernel does not take, whole; a scan is dropped while more than :data:`TCP_BEHIND` bytes wait for the
 client (a client that reads nothing for the serving layer's send timeout is dropped there).
 On a pty the link drops what the line cannot take now (counted in
-:attr:`~robocli.serving.server.LinkStats.tx_dropped`), which would cut a frame: here the part of
-a frame the line did not take is kept and sent first at the next chance (every scan tick),
+:attr:`~robocli.serving.server.ServerLinkStats.tx_dropped`), which would cut a frame: here the
+part of a frame the line did not take is kept and sent first at the next chance (every scan tick),
 replies wait behind it in order (at most :data:`MAX_WAITING` bytes), and scans due meanwhile
 are dropped whole. A scan is dropped too while the client's side already holds a full read
 buffer (nobody reads the line), so that what it finds there is never long stale.

@@ -4,8 +4,8 @@
 handlers driving a :class:`~robocli.sim.pioneer.model.PioneerModel`, the server packets (SIP,
 CONFIG, IO, encoder, battery; built in :mod:`robocli.sim.pioneer.packets`), the watchdog, and
 the rule that one client at a time holds the session. :class:`ArcosSession` is one link's
-protocol state (a :class:`~robocli.serving.server.Session`): the serving layer hands it complete
-frames from the link's thread and writes its replies; the simulator's ticker calls
+protocol state (a :class:`~robocli.serving.server.ServerSession`): the serving layer hands it
+complete frames from the link's thread and writes its replies; the simulator's ticker calls
 :meth:`ArcosController.tick` and pushes the packets it returns. Every method that touches state
 takes the controller's lock.
 

@@ -2,7 +2,7 @@
 (:mod:`robocli.protocols.ros4mat.stream`).
 
 :class:`SerialStream` holds one port of the allow-list alone (claimed from
-:class:`~robocli.hub.sources.SerialPorts`, so ``SERIAL_CMD`` cannot interleave with it) and
+:class:`~robocli.hub_server.sources.SerialPorts`, so ``SERIAL_CMD`` cannot interleave with it) and
 has one thread reading it, which pushes every byte that comes through ``push`` (the
 connection's bounded output: a client that stops reading is dropped). Writes run in the
 connection's thread with a deadline sized to the line's rate; a port that fails ends the
@@ -17,13 +17,13 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from robocli.errors import DeviceError, InvalidArgument
-from robocli.hub.sources import SerialPorts
-from robocli.hub.sources.real import PORT_ERRORS
+from robocli.hub_server.sources import SerialPorts
+from robocli.hub_server.sources.real import PORT_ERRORS
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK, PARITIES, STOP_BITS, write_deadline
 
 __all__ = ["READ_POLL_S", "SerialStream", "line_settings"]
 
-log = logging.getLogger("robocli.hub.serial")
+log = logging.getLogger("robocli.hub_server.serial")
 
 READ_POLL_S = 0.05  #: the reader looks at its stop flag this often when the line is quiet
 MAX_BAUD = 4_000_000

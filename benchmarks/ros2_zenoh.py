@@ -11,7 +11,7 @@
   ``--ros2``: the hub process's CPU (cores, from /proc/PID/stat) over ``--seconds``, with one
   subscriber of everything (robocli's keys and ROS 2's) in another process. Linux only.
 
-    python bench/ros2_zenoh.py --bridge --hub --seconds 20
+    python benchmarks/ros2_zenoh.py --bridge --hub --seconds 20
 """
 
 from __future__ import annotations

@@ -25,7 +25,7 @@ from typing import Protocol
 
 __all__ = ["Holder", "Places"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 BUSY_REASON = "hub full: too many clients"
 BUSY_UNAUTHORIZED = "hub full for clients without the token"

@@ -8,19 +8,19 @@ import sys
 from typing import Any
 
 from robocli.errors import InvalidArgument
-from robocli.hub.frontends.ros4mat import PullTimes, Ros4matSession
-from robocli.hub.places import BUSY_REASON, Places
-from robocli.hub.registry import ClientInfo, Hub
-from robocli.hub.rings import DEFAULT_BUDGET
-from robocli.hub.sources import SerialPorts, Source, hub_sources
+from robocli.hub_server.frontends.ros4mat import PullTimes, Ros4matSession
+from robocli.hub_server.places import BUSY_REASON, Places
+from robocli.hub_server.registry import ClientInfo, SensorRegistry
+from robocli.hub_server.rings import DEFAULT_BUDGET
+from robocli.hub_server.sources import SerialPorts, Source, hub_sources
 from robocli.protocols.ros4mat import HEADER_SIZE, PORT
-from robocli.serving.links import Link, LinkStats
+from robocli.serving.links import Link, ServerLinkStats
 from robocli.serving.server import REAP_WAIT_S, Server
 from robocli.serving.ticker import Ticker
 
 __all__ = ["HUB_SWITCH_INTERVAL_S", "HubServer", "PORT", "tune_hub_process"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 MAX_BODY = 64 * 1024  #: largest request body accepted (bytes)
 DETACHED_TTL_S = 600.0  #: a client gone without QUIT keeps its buffers this long
@@ -93,7 +93,7 @@ class HubServer:
     quarter of ``max_clients``, at least 1); clients without it hold the others, at most
     ``max_per_address`` from one address, and lose their place when idle ``idle_timeout`` s
     or when a client with the token finds the hub full (the one idle longest goes;
-    :mod:`robocli.hub.places`).
+    :mod:`robocli.hub_server.places`).
     ``output_budget``: bytes of memory the replies waiting for their clients may hold over
     all connections (default: two full rings and 1 MiB); room is made by dropping the
     connections whose output waited longest, those without the token first, never a client
@@ -162,8 +162,9 @@ class HubServer:
         self._max_body = max_body
         all_sources = hub_sources(sim, gpsd, pioneer)
         all_sources.update(sources or {})
-        self.hub = Hub(all_sources, ring_budget=ring_budget, detached_ttl=detached_ttl,
-                       random_ids=token is not None)  # fmt: skip
+        self.hub = SensorRegistry(all_sources, ring_budget=ring_budget,
+                                  detached_ttl=detached_ttl,
+                                  random_ids=token is not None)  # fmt: skip
         period = min(5.0, detached_ttl / 2, idle_timeout / 2)
         self._expiry = Ticker(period, self._expire, "hub-expiry")
         self.serial = SerialPorts(self.serial_ports) if self.serial_ports else None
@@ -280,7 +281,7 @@ class HubServer:
         return self._server.evicted
 
     @property
-    def link_stats(self) -> LinkStats:
+    def link_stats(self) -> ServerLinkStats:
         """Byte and frame counters summed over every connection, past and present."""
         return self._server.stats()
 

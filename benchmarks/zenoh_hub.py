@@ -1,7 +1,7 @@
 """A hub serving IMU 200 Hz + ADC 1 kHz to N subscribers: the hub's CPU (cores) and the
 bytes it writes, over ros4mat TCP and over Zenoh (directly, and through a router).
 
-    python bench/zenoh_hub.py --subscribers 1 10 --seconds 10
+    python benchmarks/zenoh_hub.py --subscribers 1 10 --seconds 10
 
 The hub (``robocli serve --sim``) and the router run in their own processes; the N
 subscribers share one other process (N Zenoh sessions or N TCP connections), each reading

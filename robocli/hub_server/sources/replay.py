@@ -36,7 +36,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import InvalidArgument, ProtocolError, RobocliError
-from robocli.hub.sources.base import EMPTY_T, Batch, Source
+from robocli.hub_server.sources.base import EMPTY_T, Batch, Source
 
 __all__ = [
     "RecordedSensor",
@@ -235,7 +235,7 @@ def read_hub_recording(path: str | Path, max_bytes: int = MAX_REPLAY_BYTES
 def _samples_of(frame: bytes, out: dict[str, list[tuple[float, Any, list[bytes]]]]) -> int:
     """Add the samples of one data reply (other replies are skipped); returns their bytes."""
     from robocli.devices.hub.decode import HEADER, body_of
-    from robocli.hub.frontends.ros4mat import SENSOR_IDS
+    from robocli.hub_server.frontends.ros4mat import SENSOR_IDS
     from robocli.protocols.ros4mat import MsgType, record_dtype
 
     if len(frame) < HEADER.size:
@@ -315,7 +315,7 @@ def replay_sources(path: str | Path, speed: float = 1.0, loop: bool = False,
                    max_bytes: int = MAX_REPLAY_BYTES) -> dict[str, Source]:  # fmt: skip
     """Hub sources (by sensor name) playing back the hub recording at ``path`` on one
     shared :class:`ReplayTimeline` (see the module docstring): give them to
-    :class:`~robocli.hub.HubServer` as ``sources``. ``max_bytes``: see
+    :class:`~robocli.hub_server.HubServer` as ``sources``. ``max_bytes``: see
     :data:`MAX_REPLAY_BYTES`."""
     sensors = read_hub_recording(path, max_bytes)
     start = min(float(s.t[0]) for s in sensors.values())

@@ -23,7 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.errors import DeviceError
-from robocli.hub.sources.base import Batch, Source, rate_param
+from robocli.hub_server.sources.base import Batch, Source, rate_param
 from robocli.protocols.ros4mat import BatteryState, record_dtype
 from robocli.transports import check_url
 

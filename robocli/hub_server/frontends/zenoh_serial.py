@@ -29,8 +29,8 @@ from functools import partial
 from typing import Any
 
 from robocli.errors import DeviceError, ProtocolError, RobocliError
-from robocli.hub.serial import SerialStream, line_settings
-from robocli.hub.sources import SerialPorts
+from robocli.hub_server.serial import SerialStream, line_settings
+from robocli.hub_server.sources import SerialPorts
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
 from robocli.zenoh.keys import serial_data_key, serial_holder, serial_key
 from robocli.zenoh.payload import decode_object
@@ -38,7 +38,7 @@ from robocli.zenoh.session import import_zenoh, undeclare
 
 __all__ = ["ZenohSerial"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 MAX_OPEN_BYTES = 4096  #: the largest serial-open payload taken
 

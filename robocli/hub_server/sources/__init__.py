@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from robocli.hub.sources.base import Batch, PeriodicSource, Source
-from robocli.hub.sources.imaging import CameraSource, DepthSource, LaserSource, StereoSource
-from robocli.hub.sources.opencv import OpenCvCameraSource, opencv_available
-from robocli.hub.sources.pioneer import PioneerAdcSource, PioneerBatterySource, PioneerLink
-from robocli.hub.sources.real import GpsdSource, SerialPorts, SysinfoSource, parse_host_port
-from robocli.hub.sources.sim import AdcSource, BatterySource, GpsSource, ImuSource
+from robocli.hub_server.sources.base import Batch, PeriodicSource, Source
+from robocli.hub_server.sources.imaging import CameraSource, DepthSource, LaserSource, StereoSource
+from robocli.hub_server.sources.opencv import OpenCvCameraSource, opencv_available
+from robocli.hub_server.sources.pioneer import PioneerAdcSource, PioneerBatterySource, PioneerLink
+from robocli.hub_server.sources.real import GpsdSource, SerialPorts, SysinfoSource, parse_host_port
+from robocli.hub_server.sources.sim import AdcSource, BatterySource, GpsSource, ImuSource
 
 __all__ = [
     "AdcSource",

@@ -23,7 +23,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import InvalidArgument
-from robocli.hub.sources.base import PeriodicSource, rate_param
+from robocli.hub_server.sources.base import PeriodicSource, rate_param
 from robocli.protocols.ros4mat import record_dtype
 from robocli.sim.world import World
 

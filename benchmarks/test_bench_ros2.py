@@ -3,7 +3,7 @@ intensities): robocli's direct encoder (:func:`robocli.ros2.laser_scan_cdr`, wha
 publishers and the bags use for every scan) against rosbags' generic serialiser of the same
 message, and the whole mapping of a recorded scan dict (JSON list in, CDR out). The target:
 <= 20 us per scan for the encoder. The bytes are checked equal; no wall-clock assert (the
-figures are reported: ``make bench``, or ``pytest bench/test_bench_ros2.py -s``)."""
+figures are reported: ``make bench``, or ``pytest benchmarks/test_bench_ros2.py -s``)."""
 
 from __future__ import annotations
 

@@ -7,7 +7,7 @@ At the end the recording's chunk indexes give its size per minute as written (zs
 before compression (each chunk's uncompressed size), and its summary the messages per
 channel. Prints a report (and ``--json`` it); exits 1 when messages were dropped.
 
-Usage: python tools/soak_record.py [--minutes 10] [--every 10] [--out DIR] [--json FILE]
+Usage: python benchmarks/soak_record.py [--minutes 10] [--every 10] [--out DIR] [--json FILE]
 """
 
 from __future__ import annotations

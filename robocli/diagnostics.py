@@ -399,7 +399,7 @@ def _probe_hub(address: str, timeout: float) -> tuple[bool | None, str]:
     return True, f"a ros4mat hub: CONNECT answered (client id {client})"
 
 
-if __name__ == "__main__":  # pragma: no cover - `python -m robocli.doctor`: the raw dict
+if __name__ == "__main__":  # pragma: no cover - `python -m robocli.diagnostics`: the raw dict
     import json
 
     json.dump(diagnose(), sys.stdout, indent=2, default=str)

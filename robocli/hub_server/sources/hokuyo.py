@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.hub.sources.base import Batch, Source, rate_param
+from robocli.hub_server.sources.base import Batch, Source, rate_param
 from robocli.protocols.ros4mat import record_dtype
 from robocli.transports import check_url
 

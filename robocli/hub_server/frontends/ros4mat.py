@@ -3,8 +3,8 @@
 Each connection has one thread (:class:`robocli.serving.server.Server`): it frames requests with
 the C ros4mat framer (bounded by ``max_body``) and answers each one inline, as fast as they
 arrive (the original served one request per connection per 5 ms loop). Everything about
-sensors and clients is in :class:`robocli.hub.registry.Hub`; this module only translates
-packets. Beyond ros4mat:
+sensors and clients is in :class:`robocli.hub_server.registry.SensorRegistry`; this module only
+translates packets. Beyond ros4mat:
 
 * every data reply carries the send time on the hub's clock (``packet_timestamp``);
 * a malformed, compressed or unknown request gets an error reply (type = the request's); a
@@ -41,8 +41,8 @@ from typing import Any
 import numpy as np
 
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
-from robocli.hub.registry import ClientState, Hub, Pulled
-from robocli.hub.serial import SerialStream, line_settings
+from robocli.hub_server.registry import ClientState, Pulled, SensorRegistry
+from robocli.hub_server.serial import SerialStream, line_settings
 from robocli.protocols import layout
 from robocli.protocols.common import DECODE_ERRORS, undecodable
 from robocli.protocols.ros4mat import (
@@ -61,7 +61,7 @@ from robocli.serving.links import Link
 
 __all__ = ["SENSOR_IDS", "PullTimes", "Ros4matSession", "body_parts", "pull_body"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 SENSOR_IDS: dict[int, str] = {
     MsgType.ADC: "adc",
@@ -147,7 +147,7 @@ class Ros4matSession:
     def __init__(
         self,
         link: Link,
-        hub: Hub,
+        hub: SensorRegistry,
         peer: str,
         token: bytes | None,
         serial: Any,

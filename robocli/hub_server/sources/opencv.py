@@ -13,8 +13,8 @@ from typing import Any
 import numpy as np
 
 from robocli.errors import DeviceError
-from robocli.hub.sources.base import Batch
-from robocli.hub.sources.imaging import CameraSource
+from robocli.hub_server.sources.base import Batch
+from robocli.hub_server.sources.imaging import CameraSource
 
 __all__ = ["OpenCvCameraSource", "opencv_available"]
 

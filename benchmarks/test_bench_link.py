@@ -13,7 +13,7 @@ import pytest
 
 from robocli.bench.harness import allowed_cpus, c_floor
 from robocli.bench.pioneer import raw_sip_periods
-from robocli.bench.stats import Run, Stats
+from robocli.bench.stats import Run, SampleStats
 
 
 @pytest.mark.parametrize("placement", ["same CPU", "different CPUs"])
@@ -29,9 +29,9 @@ def test_c_floor_pinned(benchmark: Any, placement: str) -> None:
         runs.append(c_floor(Run("floor", 20_000), cpu, echo))
 
     benchmark.pedantic(measure, rounds=3, iterations=1)
-    medians = [Stats.of(r.values).median * 1e6 for r in runs]
+    medians = [SampleStats.of(r.values).median * 1e6 for r in runs]
     benchmark.extra_info["median_us"] = medians
-    benchmark.extra_info["p99_us"] = [Stats.of(r.values).p99 * 1e6 for r in runs]
+    benchmark.extra_info["p99_us"] = [SampleStats.of(r.values).p99 * 1e6 for r in runs]
 
 
 def test_sim_sip_period_raw_reader(benchmark: Any) -> None:
@@ -41,6 +41,6 @@ def test_sim_sip_period_raw_reader(benchmark: Any) -> None:
         url = sim.serve_tcp("127.0.0.1", 0)
         host, port = url.removeprefix("tcp://").rsplit(":", 1)
         run = benchmark.pedantic(lambda: raw_sip_periods(host, int(port), 200), rounds=1)
-    stats = Stats.of(run.values)
+    stats = SampleStats.of(run.values)
     assert run.complete
     benchmark.extra_info.update(period_ms=stats.mean * 1e3, std_ms=stats.std * 1e3)

@@ -3,8 +3,9 @@
 One Zenoh session (opened by the caller: ``robocli serve --zenoh``) publishes every sensor
 that runs on ``robocli/<hub>/<sensor>`` (the key layout: :mod:`robocli.zenoh.keys`), one put
 per batch every ``period`` seconds (the encoding: :mod:`robocli.zenoh.batch`). The
-front-end is one client of :class:`~robocli.hub.registry.Hub`, with one cursor per sensor it
-publishes, however many Zenoh subscribers there are: Zenoh copies to them, not the hub.
+front-end is one client of :class:`~robocli.hub_server.registry.SensorRegistry`, with one cursor
+per sensor it publishes, however many Zenoh subscribers there are: Zenoh copies to them, not
+the hub.
 
 * The sensors of ``publish`` start at once with their settings; any sensor a ros4mat client
   starts is published too, for as long as someone else keeps it running.
@@ -19,7 +20,7 @@ publishes, however many Zenoh subscribers there are: Zenoh copies to them, not t
   writer wins.
 * A liveliness token ``robocli/<hub>/@alive/hub`` while it runs.
 * With ``serial`` (the hub's allow-list), its serial ports streamed to one user each
-  (:mod:`robocli.hub.frontends.zenoh_serial`).
+  (:mod:`robocli.hub_server.frontends.zenoh_serial`).
 
 Zenoh's callbacks (queries) run on Zenoh's threads and never raise into them; the batches
 go out from one ticker thread.
@@ -35,10 +36,10 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import DeviceError, ProtocolError, RobocliError
-from robocli.hub.frontends.ros4mat import SENSOR_IDS, body_parts
-from robocli.hub.frontends.zenoh_serial import ZenohSerial
-from robocli.hub.registry import ClientState, Hub
-from robocli.hub.sources import SerialPorts
+from robocli.hub_server.frontends.ros4mat import SENSOR_IDS, body_parts
+from robocli.hub_server.frontends.zenoh_serial import ZenohSerial
+from robocli.hub_server.registry import ClientState, SensorRegistry
+from robocli.hub_server.sources import SerialPorts
 from robocli.serving.ticker import Ticker
 from robocli.zenoh.batch import SCHEMA, encode_head
 from robocli.zenoh.keys import alive_key, check_name, info_key, settings_key, topic_key
@@ -50,7 +51,7 @@ if TYPE_CHECKING:
 
 __all__ = ["BATCH_PERIOD_S", "HISTORY_S", "SENSOR_ID_OF", "ZenohFrontend", "sensor_encoding"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 BATCH_PERIOD_S = 0.025  #: one put per sensor at most this often (s)
 HISTORY_S = 2.0  #: seconds of batches each publisher keeps for late joiners
@@ -79,7 +80,7 @@ class _Published:
 
 
 class ZenohFrontend:
-    """Publishes a :class:`Hub`'s sensors on a Zenoh ``session`` under ``name``.
+    """Publishes a :class:`SensorRegistry`'s sensors on a Zenoh ``session`` under ``name``.
 
     ``token``: the hub's token, required by the settings queryable (None: open).
     ``publish``: sensor -> settings (ros4mat SUBSCRIBE parameters; empty or None: its
@@ -92,7 +93,7 @@ class ZenohFrontend:
 
     def __init__(
         self,
-        hub: Hub,
+        hub: SensorRegistry,
         session: zenoh.Session,
         name: str,
         *,

@@ -1,14 +1,14 @@
 """The hub's core, wire-agnostic: sensors (source + one ring + a driver) and clients (cursors).
 
-Front-ends (the ros4mat TCP server, later others) call :class:`Hub` only: connect a client,
-subscribe it to a sensor with parameters or silently, pull its new samples, unsubscribe, quit.
-A sensor runs while at least one client (connected or detached) is subscribed; its driver
-polls the source at the source's batch rate and pushes into the sensor's ring. Settings are
-shared: a non-silent subscribe reconfigures the sensor for everyone (last writer wins), as in
-ros4mat. A client that disconnects without QUIT is kept, detached, so that it can re-attach
-with its id and find its buffers; at most ``max_detached`` are kept (the oldest go first),
-each for at most ``detached_ttl`` seconds (:meth:`Hub.expire`). Client ids are sequential, as
-ros4mat's, or random (``random_ids``: a hub with a token, where an id must not be guessable).
+Front-ends (the ros4mat TCP server, later others) call :class:`SensorRegistry` only: connect a
+client, subscribe it to a sensor with parameters or silently, pull its new samples, unsubscribe,
+quit. A sensor runs while at least one client (connected or detached) is subscribed; its driver
+polls the source at the source's batch rate and pushes into the sensor's ring. Settings are shared:
+a non-silent subscribe reconfigures the sensor for everyone (last writer wins), as in ros4mat. A
+client that disconnects without QUIT is kept, detached, so that it can re-attach with its id and
+find its buffers; at most ``max_detached`` are kept (the oldest go first), each for at most
+``detached_ttl`` seconds (:meth:`SensorRegistry.expire`). Client ids are sequential, as ros4mat's,
+or random (``random_ids``: a hub with a token, where an id must not be guessable).
 """
 
 from __future__ import annotations
@@ -27,13 +27,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import DeviceError, InvalidArgument, RobocliError
-from robocli.hub.rings import Cursor, SensorRing, ring_capacity
-from robocli.hub.sources.base import Source
+from robocli.hub_server.rings import Cursor, SensorRing, ring_capacity
+from robocli.hub_server.sources.base import Source
 from robocli.serving.ticker import Ticker
 
-__all__ = ["Channel", "ClientInfo", "ClientState", "Hub", "Pulled", "hub_clock"]
+__all__ = ["Channel", "ClientInfo", "ClientState", "Pulled", "SensorRegistry", "hub_clock"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 RING_SECONDS = 10.0  #: a ring holds this many seconds of samples (within its byte budget)
 
@@ -55,7 +55,7 @@ class Pulled:
 
 @dataclass(frozen=True)
 class ClientInfo:
-    """What :attr:`robocli.hub.HubServer.clients` shows of one client."""
+    """What :attr:`robocli.hub_server.HubServer.clients` shows of one client."""
 
     id: int
     peer: str
@@ -178,7 +178,7 @@ class Channel:
         return self.poll_errors + (self._ticker.errors if self._ticker is not None else 0)
 
 
-class Hub:
+class SensorRegistry:
     """Sensors and clients. Thread-safe; every front-end thread calls in."""
 
     def __init__(

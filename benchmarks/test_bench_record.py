@@ -9,7 +9,7 @@ Three figures, each over recorded SIPs of a real session (``tests/data/arcos``):
 - a whole session against the simulator in this process, 100 SIPs/s, with and without a
   recorder: the process CPU time per SIP, the difference being what recording adds.
 
-Run with ``make bench`` (or ``pytest bench/test_bench_record.py``).
+Run with ``make bench`` (or ``pytest benchmarks/test_bench_record.py``).
 """
 
 from __future__ import annotations
@@ -169,7 +169,7 @@ def test_camera_write_throughput(benchmark: Any, compression: str) -> None:
     path: the raw channel, the RawImage JSON with its base64 pixels, MCAP, compression.
     Reported in MB/s of camera replies (target >= 100 MB/s)."""
     from robocli.devices.hub.client import Hub
-    from robocli.hub import HubServer
+    from robocli.hub_server import HubServer
     from robocli.io.record.links import RawLink
 
     replies: list[bytes] = []

@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.hub.sources.base import PeriodicSource, rate_param
+from robocli.hub_server.sources.base import PeriodicSource, rate_param
 from robocli.protocols.ros4mat import GpsState, record_dtype
 from robocli.sim.world import World
 

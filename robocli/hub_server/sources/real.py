@@ -27,13 +27,13 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import DeviceError
-from robocli.hub.sources.base import Batch, PeriodicSource, Source, rate_param
+from robocli.hub_server.sources.base import Batch, PeriodicSource, Source, rate_param
 from robocli.protocols.ros4mat import ComputerState, GpsState, SerialStatus, record_dtype
 from robocli.transports import parse_address
 
 __all__ = ["GpsdSource", "SerialPorts", "SysinfoSource", "parse_host_port"]
 
-log = logging.getLogger("robocli.hub")
+log = logging.getLogger("robocli.hub_server")
 
 PROC = Path("/proc")
 MAX_LINE = 64 * 1024  #: longest gpsd JSON line accepted
@@ -276,7 +276,7 @@ class SerialPorts:
     def __init__(self, allowed: tuple[str, ...] | list[str]) -> None:
         self.allowed = tuple(allowed)
         self._open: dict[str, Any] = {}
-        self._streamed: dict[str, Any] = {}  # claimed by a stream (robocli.hub.serial)
+        self._streamed: dict[str, Any] = {}  # claimed by a stream (robocli.hub_server.serial)
         self._lock = threading.Lock()
 
     @property
