@@ -63,8 +63,8 @@ def _start(model: RobotModel, start: str | None) -> Any:
 
 
 def _outputs(out: Path, plot: Path | None, overwrite: bool) -> None:
-    """Refuse the log and the plot before computing anything (see :mod:`robocli.io.output`)."""
-    from robocli.io.output import check_output
+    """Refuse the log and the plot before computing anything (see :mod:`robocli.output`)."""
+    from robocli.output import check_output
     from robocli.io.trajlog import check_writable
 
     check_writable(out, overwrite)
@@ -254,7 +254,7 @@ def validate(
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.export import read_any_log
-    from robocli.io.output import check_output
+    from robocli.output import check_output
     from robocli.kinematics.validate import validate as compare
 
     if plot is not None:

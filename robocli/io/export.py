@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.io.output import replace_output
+from robocli.output import replace_output
 
 if TYPE_CHECKING:
     from robocli.io.trajlog import TrajectoryLog
@@ -103,7 +103,7 @@ def export(path: str | Path, fmt: str, out_dir: str | Path | None = None,
     (default: the recording's folder); returns the files written, in topic order. Each file
     is written beside its name and put in place once every one is written (a failure leaves
     the folder as it was); an existing one is refused unless ``overwrite``, a symbolic link
-    always (:class:`~robocli.io.output.OutputError`, before any file is put in place)."""
+    always (:class:`~robocli.output.OutputError`, before any file is put in place)."""
     if fmt not in FORMATS:
         raise InvalidArgument(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     src = Path(path)
@@ -137,7 +137,7 @@ def _file_stem(topic: str) -> str:
 
 class _Writer:
     """One channel's file: streamed for csv/jsonl, gathered then written for npz (into
-    ``stream``, a :func:`~robocli.io.output.replace_output`'s)."""
+    ``stream``, a :func:`~robocli.output.replace_output`'s)."""
 
     def __init__(self, path: Path, fmt: str, stream: IO[Any]) -> None:
         self.path, self.fmt = path, fmt
@@ -307,7 +307,7 @@ def read_any_log(path: str | Path) -> TrajectoryLog:
 
 
 def _export_arm(src: Path, out: Path, overwrite: bool) -> list[Path]:
-    from robocli.io.output import check_output
+    from robocli.output import check_output
     from robocli.io.trajlog import write_log
 
     path = check_output(out / f"{src.stem}.json", overwrite)  # before reading the recording

@@ -32,9 +32,9 @@ def _pyplot() -> Any:
 
 
 def save_png(fig: Any, path: str | Path, overwrite: bool = False) -> Path:
-    """Write ``fig`` as a PNG (whole or not at all; see :func:`~robocli.io.output.
+    """Write ``fig`` as a PNG (whole or not at all; see :func:`~robocli.output.
     replace_output`)."""
-    from robocli.io.output import replace_output
+    from robocli.output import replace_output
 
     out = Path(path)
     with replace_output(out, overwrite) as fh:
