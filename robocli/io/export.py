@@ -19,7 +19,7 @@ Image data stays the base64 text it is in the recording.
 
 **irb120-json**: the arm's joint states (``JOINT_FEEDBACK`` when the controller sent it,
 with its velocities, else ``JOINT_POSITION``, velocities by finite differences) as a
-:class:`~robocli.io.trajlog.TrajectoryLog`: time from 0 at the first sample, on the
+:class:`~robocli.kinematics.trajlog.TrajectoryLog`: time from 0 at the first sample, on the
 controller's clock when it sent one (JOINT_FEEDBACK's time; a sample that does not advance
 it is kept once), else on the publish times; the first sample's Unix time as
 ``time_origin``, and the flange position from the recording's ``tcp`` channel when it
@@ -42,7 +42,7 @@ from robocli.errors import InvalidArgument, RobocliError
 from robocli.output import replace_output
 
 if TYPE_CHECKING:
-    from robocli.io.trajlog import TrajectoryLog
+    from robocli.kinematics.trajlog import TrajectoryLog
 
 __all__ = ["FORMATS", "arm_log", "channel_messages", "export", "flatten", "read_any_log"]
 
@@ -233,11 +233,11 @@ def _column(values: list[Any]) -> Any:
 
 def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     """The joint states of the arm recorded at ``path`` (the first arm link, or ``link``)
-    as a :class:`~robocli.io.trajlog.TrajectoryLog` (see the module docstring). Raises
+    as a :class:`~robocli.kinematics.trajlog.TrajectoryLog` (see the module docstring). Raises
     :class:`RobocliError` when the recording holds no arm joint states."""
     import numpy as np
 
-    from robocli.io.trajlog import TrajectoryLog, finite_difference
+    from robocli.kinematics.trajlog import TrajectoryLog, finite_difference
 
     joints: dict[str, list[tuple[int, dict[str, Any]]]] = {}
     tcp: dict[str, dict[int, list[float | None]]] = {}
@@ -299,16 +299,16 @@ def _finite(value: Any) -> bool:
 
 
 def read_any_log(path: str | Path) -> TrajectoryLog:
-    """A trajectory log from a log file (:func:`~robocli.io.trajlog.read_log`: .json,
+    """A trajectory log from a log file (:func:`~robocli.kinematics.trajlog.read_log`: .json,
     .csv, .npz) or an arm's MCAP recording (:func:`arm_log`), by suffix."""
-    from robocli.io.trajlog import read_log
+    from robocli.kinematics.trajlog import read_log
 
     return arm_log(path) if Path(path).suffix.lower() == ".mcap" else read_log(path)
 
 
 def _export_arm(src: Path, out: Path, overwrite: bool) -> list[Path]:
+    from robocli.kinematics.trajlog import write_log
     from robocli.output import check_output
-    from robocli.io.trajlog import write_log
 
     path = check_output(out / f"{src.stem}.json", overwrite)  # before reading the recording
     return [write_log(arm_log(src), path, overwrite)]

@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from robocli.errors import RobocliError
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.fk import fk_positions
 from robocli.kinematics.model import RobotModel
+from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.kinematics.validate import Validation
 
 
