@@ -29,7 +29,7 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import InvalidArgument
-from robocli.sim.hokuyo.framing import RequestFramer
+from robocli.protocols.scip2.framing import RequestFramer
 from robocli.sim.hokuyo.model import MODELS, HokuyoModel, measure
 from robocli.sim.hokuyo.session import ScipSession
 from robocli.sim.serving import SIM_HANDSHAKE_S, Link, Server
