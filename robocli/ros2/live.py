@@ -34,10 +34,10 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli.errors import RobocliError
-from robocli.io.record.links import RAW_SCHEMA
 from robocli.ros2.mapping import Mapper, Ros2Message
 from robocli.ros2.node import Ros2Node, Ros2Publisher
 from robocli.ros2.rmw import DEFAULT_QOS, LATCHED_QOS, Qos
+from robocli.ros2.types import RAW_SCHEMA
 
 __all__ = ["Ros2Topics", "static_transforms"]
 
