@@ -66,7 +66,7 @@ class Ros2Topics:
         self.published = 0  #: ROS 2 messages put
         self.dropped = 0  #: work items dropped (queue full)
         self.errors = 0  #: messages that did not map (logged once)
-        #: when a set: every publisher a message went out on is added (see ros2.hub)
+        #: when a set: every publisher a message went out on is added (see hub.frontends.ros2)
         self.used: set[Ros2Publisher] | None = None
         self._prefix = f"/{name}/"
         self._channels: list[tuple[str, str]] = []
