@@ -19,7 +19,6 @@ if TYPE_CHECKING:
     from robocli.addresses import DeviceURL, InvalidURL, parse_device_url
     from robocli.bridge.arm import ArmBridge
     from robocli.bridge.pioneer import PioneerBridge
-    from robocli.bridge.remote import RemotePioneer
     from robocli.devices.arm import (
         Arm,
         ArmStatus,
@@ -51,6 +50,7 @@ if TYPE_CHECKING:
         WatchdogTrip,
         WatchdogTripped,
     )
+    from robocli.devices.pioneer.over_zenoh import RemotePioneer
     from robocli.devices.pioneer.simulated import PioneerSimulator
     from robocli.devices.simulators import Simulator
     from robocli.devices.stats import LinkStats
@@ -103,7 +103,8 @@ _LAZY = {
     "Laser": "robocli.devices.laser", "LaserInfo": "robocli.devices.laser",
     "Scan": "robocli.devices.laser", "MountedLaser": "robocli.devices.laser",
     "PlacedScan": "robocli.devices.laser", "SensorClock": "robocli.devices.laser",
-    "RemotePioneer": "robocli.bridge.remote", "PioneerBridge": "robocli.bridge.pioneer",
+    "RemotePioneer": "robocli.devices.pioneer.over_zenoh",
+    "PioneerBridge": "robocli.bridge.pioneer",
     "ArmBridge": "robocli.bridge.arm",
     # addresses
     "DeviceURL": "robocli.addresses", "InvalidURL": "robocli.addresses",
