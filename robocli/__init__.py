@@ -13,6 +13,7 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
+from robocli import _wiring
 from robocli._version import __version__
 
 if TYPE_CHECKING:
@@ -80,6 +81,23 @@ if TYPE_CHECKING:
 
 # The library never prints: without the application's logging set up, log records go nowhere.
 logging.getLogger("robocli").addHandler(logging.NullHandler())
+
+
+def _simulated_hub(url: DeviceURL, **fixed: Any) -> Simulator:
+    """The simulated hub of ``Hub.connect("sim://")``: the hub server with simulated sensors,
+    on an ephemeral loopback port. Given to the device clients from here (robocli._wiring):
+    the hub server stands on them, so they cannot import it."""
+    from robocli.devices import simulators
+    from robocli.errors import InvalidArgument
+    from robocli.hub import HubServer
+
+    if url.model:
+        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
+    server = HubServer("127.0.0.1", 0, **simulators.options(url, sim=True, **fixed)).start()
+    return simulators.Simulator(server, {"": f"127.0.0.1:{server.port}"})
+
+
+_wiring.SIMULATORS["hub"] = _simulated_hub
 
 #: name -> the module that defines it, imported on first access (PEP 562)
 _LAZY = {
