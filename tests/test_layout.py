@@ -124,13 +124,18 @@ def package_graph(modules: dict[str, Path]) -> dict[tuple[str, str], list[str]]:
     return edges
 
 
-def package_cycles(edges: dict[tuple[str, str], list[str]]) -> list[list[str]]:
-    """One cycle (its packages in order, the first repeated last) through each strongly
-    connected group of packages that has more than one (Tarjan's algorithm, iterative)."""
+def _graph(edges: dict[tuple[str, str], list[str]]) -> dict[str, list[str]]:
     graph: dict[str, list[str]] = {}
     for a, b in sorted(edges):
         graph.setdefault(a, []).append(b)
         graph.setdefault(b, [])
+    return graph
+
+
+def package_knots(edges: dict[tuple[str, str], list[str]]) -> list[set[str]]:
+    """The groups of packages that all import one another, however indirectly (the strongly
+    connected groups of more than one; Tarjan's algorithm, iterative)."""
+    graph = _graph(edges)
     index: dict[str, int] = {}
     low: dict[str, int] = {}
     stack: list[str] = []
@@ -159,8 +164,15 @@ def package_cycles(edges: dict[tuple[str, str], list[str]]) -> list[list[str]]:
                 work.append((nxt, iter(graph[nxt])))
             elif nxt in stack:
                 low[node] = min(low[node], index[nxt])
+    return [g for g in groups if len(g) > 1]
+
+
+def package_cycles(edges: dict[tuple[str, str], list[str]]) -> list[list[str]]:
+    """One cycle (its packages in order, the first repeated last) through each knot of
+    :func:`package_knots`."""
+    graph = _graph(edges)
     cycles = []
-    for group in (g for g in groups if len(g) > 1):
+    for group in package_knots(edges):
         start = min(group)  # a shortest path back to it, inside the group (breadth first)
         trails = {b: [start, b] for b in graph[start] if b in group}
         frontier = list(trails)
@@ -175,7 +187,9 @@ def package_cycles(edges: dict[tuple[str, str], list[str]]) -> list[list[str]]:
 
 
 def _explain(edges: dict[tuple[str, str], list[str]], cycle: list[str]) -> str:
-    lines = [" -> ".join(cycle)]
+    knot = next(k for k in package_knots(edges) if cycle[0] in k)
+    members = ", ".join(sorted(knot))
+    lines = [f"{' -> '.join(cycle)}   ({len(knot)} packages import one another: {members})"]
     for a, b in zip(cycle, cycle[1:], strict=False):
         lines.append(f"  {a} -> {b}: {', '.join(edges[a, b][:8])}")
     return "\n".join(lines)
