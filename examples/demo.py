@@ -63,7 +63,7 @@ def arm_circle(out: Path) -> int:
 def explain_delay(sim_log: str, real_log: str) -> None:
     """Say what validate's delay is: not a lag of the simulator (it executes exactly), but
     the download, which the recording spans."""
-    from robocli.io.trajlog import read_log
+    from robocli.kinematics.trajlog import read_log
     from robocli.kinematics.validate import validate
 
     delay_ms = validate(read_log(sim_log), read_log(real_log)).delay_s * 1e3

@@ -1,5 +1,5 @@
 """Fuzz harness of the file readers a user feeds robocli: trajectory logs (``.json``,
-``.csv``, ``.npz``: :func:`robocli.io.trajlog.read_log`), waypoints (``.json``, ``.csv``:
+``.csv``, ``.npz``: :func:`robocli.kinematics.trajlog.read_log`), waypoints (``.json``, ``.csv``:
 :func:`robocli.io.waypoints.read_waypoints`) and robot model files
 (:func:`robocli.kinematics.model.parse_model`).
 
@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 
 from robocli.errors import RobocliError
-from robocli.io.trajlog import TrajectoryLog, read_log, write_log
 from robocli.io.waypoints import read_waypoints
 from robocli.kinematics.model import parse_model
+from robocli.kinematics.trajlog import TrajectoryLog, read_log, write_log
 
 #: (reader, suffix) by the option byte's low bits.
 READERS: tuple[tuple[str, str], ...] = (

@@ -105,7 +105,7 @@ def fuzz_requests(data: bytes) -> None:
     simulator can take (no terminator, within the limit), and its session's parser either
     reads it or refuses it with a robocli error."""
     from robocli.errors import RobocliError
-    from robocli.sim.hokuyo.framing import MAX_REQUEST, RequestFramer
+    from robocli.protocols.scip2.framing import MAX_REQUEST, RequestFramer
 
     max_frame, chunks = _chunks(data)
     limit = MAX_REQUEST if max_frame is None else max_frame % 97 + 1

@@ -30,6 +30,7 @@ from robocli.cli import main
 from robocli.errors import RobocliError
 from robocli.hub_server.sources.replay import replay_sources
 from robocli.io.record import Recorder, info, recover
+from robocli.io.record.replay import RecordedPackets
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
 
@@ -71,9 +72,9 @@ def read(reader: str, path: Path, out: Path) -> None:
     elif reader == "arm-log":
         cli("export", p, "-f", "irb120-json", "-o", str(out))
     elif reader == "pioneer-replay":
-        PioneerReplay(path).close()
+        PioneerReplay(RecordedPackets(path)).close()
     elif reader == "abb-replay":
-        AbbReplay(path).close()
+        AbbReplay(RecordedPackets(path)).close()
     elif reader == "hub-replay":
         replay_sources(path)
     elif reader == "recover":

@@ -13,13 +13,13 @@ import importlib
 import logging
 from typing import TYPE_CHECKING, Any
 
+from robocli import _wiring
 from robocli._version import __version__
 
 if TYPE_CHECKING:
     from robocli.addresses import DeviceURL, InvalidURL, parse_device_url
     from robocli.bridge.arm import ArmBridge
     from robocli.bridge.pioneer import PioneerBridge
-    from robocli.bridge.remote import RemotePioneer
     from robocli.devices.arm import (
         Arm,
         ArmStatus,
@@ -52,6 +52,7 @@ if TYPE_CHECKING:
         WatchdogTrip,
         WatchdogTripped,
     )
+    from robocli.devices.pioneer.over_zenoh import RemotePioneer
     from robocli.devices.pioneer.simulated import PioneerSimulator
     from robocli.devices.simulators import Simulator
     from robocli.devices.stats import LinkStats
@@ -82,6 +83,23 @@ if TYPE_CHECKING:
 # The library never prints: without the application's logging set up, log records go nowhere.
 logging.getLogger("robocli").addHandler(logging.NullHandler())
 
+
+def _simulated_hub(url: DeviceURL, **fixed: Any) -> Simulator:
+    """The simulated hub of ``Hub.connect("sim://")``: the hub server with simulated sensors,
+    on an ephemeral loopback port. Given to the device clients from here (robocli._wiring):
+    the hub server stands on them, so they cannot import it."""
+    from robocli.devices import simulators
+    from robocli.errors import InvalidArgument
+    from robocli.hub_server import HubServer
+
+    if url.model:
+        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
+    server = HubServer("127.0.0.1", 0, **simulators.options(url, sim=True, **fixed)).start()
+    return simulators.Simulator(server, {"": f"127.0.0.1:{server.port}"})
+
+
+_wiring.SIMULATORS["hub"] = _simulated_hub
+
 #: name -> the module that defines it, imported on first access (PEP 562)
 _LAZY = {
     # device clients and what they return
@@ -106,7 +124,8 @@ _LAZY = {
     "Laser": "robocli.devices.laser", "LaserInfo": "robocli.devices.laser",
     "Scan": "robocli.devices.laser", "MountedLaser": "robocli.devices.laser",
     "PlacedScan": "robocli.devices.laser", "SensorClock": "robocli.devices.laser",
-    "RemotePioneer": "robocli.bridge.remote", "PioneerBridge": "robocli.bridge.pioneer",
+    "RemotePioneer": "robocli.devices.pioneer.over_zenoh",
+    "PioneerBridge": "robocli.bridge.pioneer",
     "ArmBridge": "robocli.bridge.arm",
     # addresses
     "DeviceURL": "robocli.addresses", "InvalidURL": "robocli.addresses",

@@ -4,9 +4,14 @@ through imports made only for type checking or inside functions."""
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1] / "robocli"
+
+
+#: the compiled modules of the package (the C core), imported like the others
+_EXTENSIONS = {f"robocli.{p.name.split('.')[0]}" for p in [*ROOT.glob("*.so"), *ROOT.glob("*.pyd")]}
 
 
 def _modules() -> dict[str, Path]:
@@ -17,32 +22,41 @@ def _modules() -> dict[str, Path]:
     return found
 
 
-def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """The robocli modules that ``name`` imports anywhere in its file (a package's own
-    ``__init__`` is not counted: importing a submodule runs it anyway)."""
+def _targets(name: str, path: Path, node: ast.Import | ast.ImportFrom,
+             modules: dict[str, Path]) -> list[str]:  # fmt: skip
+    """The robocli modules (or the package's own ``__init__``, ``robocli``) that one import
+    statement of module ``name`` loads."""
 
     def resolve(target: str) -> str | None:
-        while target and target not in modules:
+        while target and target not in modules and target not in {"robocli", *_EXTENSIONS}:
             target = target.rpartition(".")[0]
         return target or None
 
+    if isinstance(node, ast.Import):
+        targets = [alias.name for alias in node.names]
+    else:
+        base = node.module or ""
+        if node.level:
+            package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+            for _ in range(node.level - 1):
+                package = package.rpartition(".")[0]
+            base = f"{package}.{base}" if base else package
+        targets = [base, *(f"{base}.{alias.name}" for alias in node.names)]
+        if base == "robocli":  # `from robocli import x`: the module x, else the __init__'s x
+            targets = [t for t in targets[1:] if t in modules or t in _EXTENSIONS] or [base]
+    found = {resolve(t) for t in targets if t == "robocli" or t.startswith("robocli.")}
+    return sorted(f for f in found if f)
+
+
+def _imports(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
+    """The robocli modules that ``name`` imports anywhere in its file (a package's own
+    ``__init__`` is not counted: importing a submodule runs it anyway)."""
     out: set[str] = set()
     for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-        targets: list[str] = []
-        if isinstance(node, ast.Import):
-            targets = [alias.name for alias in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-                for _ in range(node.level - 1):
-                    package = package.rpartition(".")[0]
-                base = f"{package}.{base}" if base else package
-            targets = [base, *(f"{base}.{alias.name}" for alias in node.names)]
-        for target in targets:
-            found = resolve(target) if target.startswith("robocli") else None
-            if found and found != name and found != "robocli" and not name.startswith(found + "."):
-                out.add(found)
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            for found in _targets(name, path, node, modules):
+                if found in modules and found != name and not name.startswith(found + "."):
+                    out.add(found)
     return out
 
 
@@ -117,3 +131,188 @@ def test_the_benchmark_check_sees_a_stray_suite(tmp_path: Path) -> None:
         (tmp_path / rel).parent.mkdir(parents=True, exist_ok=True)
         (tmp_path / rel).write_text("")
     assert _misplaced_benchmarks(tmp_path) == ["bench/test_bench_c.py", "tools/soak_record.py"]
+
+
+# ---------------------------------------------------------------- packages
+
+LAYOUT = ROOT.parent / "docs" / "development.md"
+
+
+def _package(module: str) -> str:
+    """The top-level part of robocli a module belongs to: ``robocli.io.record.reader`` is in
+    ``robocli.io``; a top-level module (``robocli.transports``) and the package's own
+    ``__init__`` (``robocli``) stand for themselves."""
+    return ".".join(module.split(".")[:2])
+
+
+def _import_sites(name: str, path: Path, modules: dict[str, Path]) -> list[tuple[str, int]]:
+    """(robocli module, line) of every import in the file of module ``name``, at module level,
+    in a function or under ``TYPE_CHECKING`` alike; ``from robocli import X`` counts as an
+    import of ``robocli.X`` when that is a module, else of the package's ``__init__``."""
+    sites = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            sites += [(target, node.lineno) for target in _targets(name, path, node, modules)]
+    return sites
+
+
+def package_graph(modules: dict[str, Path]) -> dict[tuple[str, str], list[str]]:
+    """(importing package, imported package) -> the ``file:line`` of each import that makes
+    the edge, over every module of ``modules``."""
+    edges: dict[tuple[str, str], list[str]] = {}
+    for name, path in sorted(modules.items()):
+        where = path.relative_to(ROOT.parent) if path.is_relative_to(ROOT.parent) else path
+        for target, line in _import_sites(name, path, modules):
+            edge = (_package(name), _package(target))
+            if edge[0] != edge[1] and f"{where}:{line}" not in edges.get(edge, []):
+                edges.setdefault(edge, []).append(f"{where}:{line}")
+    return edges
+
+
+def _graph(edges: dict[tuple[str, str], list[str]]) -> dict[str, list[str]]:
+    graph: dict[str, list[str]] = {}
+    for a, b in sorted(edges):
+        graph.setdefault(a, []).append(b)
+        graph.setdefault(b, [])
+    return graph
+
+
+def package_knots(edges: dict[tuple[str, str], list[str]]) -> list[set[str]]:
+    """The groups of packages that all import one another, however indirectly (the strongly
+    connected groups of more than one; Tarjan's algorithm, iterative)."""
+    graph = _graph(edges)
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    groups: list[set[str]] = []
+    for root in graph:
+        if root in index:
+            continue
+        work = [(root, iter(graph[root]))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        while work:
+            node, nexts = work[-1]
+            nxt = next(nexts, None)
+            if nxt is None:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    group = set()
+                    while (member := stack.pop()) != node:
+                        group.add(member)
+                    groups.append(group | {node})
+            elif nxt not in index:
+                index[nxt] = low[nxt] = len(index)
+                stack.append(nxt)
+                work.append((nxt, iter(graph[nxt])))
+            elif nxt in stack:
+                low[node] = min(low[node], index[nxt])
+    return [g for g in groups if len(g) > 1]
+
+
+def package_cycles(edges: dict[tuple[str, str], list[str]]) -> list[list[str]]:
+    """One cycle (its packages in order, the first repeated last) through each knot of
+    :func:`package_knots`."""
+    graph = _graph(edges)
+    cycles = []
+    for group in package_knots(edges):
+        start = min(group)  # a shortest path back to it, inside the group (breadth first)
+        trails = {b: [start, b] for b in graph[start] if b in group}
+        frontier = list(trails)
+        while start not in trails:
+            node = frontier.pop(0)
+            for b in graph[node]:
+                if b in group and b not in trails:
+                    trails[b] = [*trails[node], b]
+                    frontier.append(b)
+        cycles.append(trails[start])
+    return cycles
+
+
+def _explain(edges: dict[tuple[str, str], list[str]], cycle: list[str]) -> str:
+    knot = next(k for k in package_knots(edges) if cycle[0] in k)
+    members = ", ".join(sorted(knot))
+    lines = [f"{' -> '.join(cycle)}   ({len(knot)} packages import one another: {members})"]
+    for a, b in zip(cycle, cycle[1:], strict=False):
+        lines.append(f"  {a} -> {b}: {', '.join(edges[a, b][:8])}")
+    return "\n".join(lines)
+
+
+def test_no_package_cycles() -> None:
+    """No two parts of robocli import each other, however indirectly: a part can be read,
+    tested and moved with only what is below it."""
+    edges = package_graph(_modules())
+    cycles = package_cycles(edges)
+    assert cycles == [], "\n".join(_explain(edges, cycle) for cycle in cycles)
+
+
+def layers(text: str) -> list[list[str]]:
+    """The layer order of the layout page: the numbered list between ``<!-- layers -->`` and
+    ``<!-- /layers -->``, one layer a line, its packages the backquoted names before the
+    line's first colon (without ``robocli.``)."""
+    section = text.split("<!-- layers -->", 1)[1].split("<!-- /layers -->", 1)[0]
+    found = []
+    for line in section.splitlines():
+        head, _, _ = line.partition(":")
+        if head.lstrip()[:1].isdigit():
+            found.append(["robocli" if n == "robocli" else f"robocli.{n}"
+                          for n in re.findall(r"`([\w.]+)`", head)])  # fmt: skip
+    return found
+
+
+def layer_breaches(edges: dict[tuple[str, str], list[str]],
+                   order: list[list[str]]) -> list[str]:  # fmt: skip
+    """Each import of a package from its own layer or one above it, and each package that
+    the order does not place."""
+    rank = {name: i for i, layer in enumerate(order) for name in layer}
+    out = [f"{p} is in no layer of docs/development.md"
+           for p in sorted({p for edge in edges for p in edge} - rank.keys())]  # fmt: skip
+    for (a, b), sites in sorted(edges.items()):
+        if a in rank and b in rank and rank[a] <= rank[b]:
+            out.append(f"{a} (layer {rank[a] + 1}) imports {b} (layer {rank[b] + 1}): "
+                       + ", ".join(sites[:8]))  # fmt: skip
+    return out
+
+
+def test_packages_keep_the_documented_layers() -> None:
+    """A package imports only packages of the layers below its own, in the order that
+    docs/development.md gives a maintainer."""
+    order = layers(LAYOUT.read_text(encoding="utf-8"))
+    assert len(order) > 5
+    breaches = layer_breaches(package_graph(_modules()), order)
+    assert breaches == [], "\n".join(breaches)
+
+
+def test_the_checker_sees_a_package_cycle(tmp_path: Path) -> None:
+    """The package graph finds a cycle made by an import inside a function and one made only
+    for the type checker, names the lines that make it, and the layers see the breach."""
+    pkg = tmp_path / "robocli"
+    for sub in ("low", "high"):
+        (pkg / sub).mkdir(parents=True)
+        (pkg / sub / "__init__.py").write_text("")
+    (pkg / "low" / "a.py").write_text(
+        "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from robocli.high.b import x\n"
+    )
+    (pkg / "high" / "b.py").write_text("def f():\n    from ..low import a\n")
+    (pkg / "top.py").write_text("from robocli import high\n")
+    modules = {
+        "robocli.low": pkg / "low" / "__init__.py", "robocli.low.a": pkg / "low" / "a.py",
+        "robocli.high": pkg / "high" / "__init__.py", "robocli.high.b": pkg / "high" / "b.py",
+        "robocli.top": pkg / "top.py",
+    }  # fmt: skip
+    edges = package_graph(modules)
+    assert edges == {
+        ("robocli.low", "robocli.high"): [f"{pkg / 'low' / 'a.py'}:3"],
+        ("robocli.high", "robocli.low"): [f"{pkg / 'high' / 'b.py'}:2"],
+        ("robocli.top", "robocli.high"): [f"{pkg / 'top.py'}:1"],
+    }
+    assert package_cycles(edges) == [["robocli.high", "robocli.low", "robocli.high"]]
+    assert "b.py:2" in _explain(edges, package_cycles(edges)[0])
+    order = layers("<!-- layers -->\n1. `low`: x\n2. `high`, `top`: y\n<!-- /layers -->")
+    assert order == [["robocli.low"], ["robocli.high", "robocli.top"]]
+    assert layer_breaches(edges, order) == [
+        f"robocli.low (layer 1) imports robocli.high (layer 2): {pkg / 'low' / 'a.py'}:3",
+        f"robocli.top (layer 2) imports robocli.high (layer 2): {pkg / 'top.py'}:1",
+    ]

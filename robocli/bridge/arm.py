@@ -1,7 +1,7 @@
 """An arm on Zenoh: joints, TCP pose and status out to any number of watchers, trajectory
 uploads in from one controller at a time (:class:`~robocli.bridge.control.ControlGate`).
 
-Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
+Keys (``<robot>`` is the bridge's name; see :mod:`robocli.zenoh.robot_keys`):
 
 * ``robocli/<robot>/state``, one put per joint sample: ``t`` (epoch s, received),
   ``joints`` (rad), ``robot_time`` (s on the controller's clock, or null), ``tcp``:
@@ -32,7 +32,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.bridge.keys import (
+from robocli.devices.arm import Arm
+from robocli.errors import ProtocolError, RobocliError, TimeoutError
+from robocli.kinematics import fk
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.robot_keys import (
     JSON_ENCODING,
     control_key,
     decode,
@@ -42,10 +46,6 @@ from robocli.bridge.keys import (
     reply,
     undeclare,
 )
-from robocli.devices.arm import Arm
-from robocli.errors import ProtocolError, RobocliError, TimeoutError
-from robocli.kinematics import fk
-from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
 
 if TYPE_CHECKING:
     import zenoh

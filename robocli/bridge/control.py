@@ -44,7 +44,10 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
-from robocli.bridge.keys import (
+from robocli.errors import ProtocolError, RobocliError
+from robocli.serving.periodic import PeriodicLoop
+from robocli.zenoh.keys import check_name
+from robocli.zenoh.robot_keys import (
     JSON_ENCODING,
     control_key,
     decode,
@@ -55,9 +58,6 @@ from robocli.bridge.keys import (
     text,
     undeclare,
 )
-from robocli.errors import ProtocolError, RobocliError
-from robocli.serving.periodic import PeriodicLoop
-from robocli.zenoh.keys import check_name
 from robocli.zenoh.session import import_zenoh
 
 if TYPE_CHECKING:

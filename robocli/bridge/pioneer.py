@@ -1,7 +1,7 @@
 """A Pioneer on Zenoh: its state out to any number of watchers, velocity in from one
 controller at a time (:class:`~robocli.bridge.control.ControlGate`).
 
-Keys (``<robot>`` is the bridge's name; see :mod:`robocli.bridge.keys`):
+Keys (``<robot>`` is the bridge's name; see :mod:`robocli.zenoh.robot_keys`):
 
 * ``robocli/<robot>/state``, one put per SIP: ``t`` (epoch s, when the bridge received
   it), ``x``, ``y`` (m), ``th`` (rad), ``v`` (m/s), ``w`` (rad/s, CCW +),
@@ -32,7 +32,10 @@ import time
 from typing import TYPE_CHECKING, Any
 
 from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.bridge.keys import (
+from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
+from robocli.errors import ProtocolError, RobocliError, TimeoutError
+from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.robot_keys import (
     JSON_ENCODING,
     control_key,
     decode,
@@ -43,9 +46,6 @@ from robocli.bridge.keys import (
     reply,
     undeclare,
 )
-from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
-from robocli.errors import ProtocolError, RobocliError, TimeoutError
-from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
 
 if TYPE_CHECKING:
     import zenoh

@@ -143,7 +143,7 @@ class Ros2Bridge:
 
     def close(self) -> None:
         """Undeclare the graph watch, the node's topics and the node. Idempotent."""
-        from robocli.bridge.keys import undeclare
+        from robocli.zenoh.robot_keys import undeclare
 
         undeclare(self._graph)
         self.topics.close()

@@ -114,7 +114,7 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
                 raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
 
 
-#: Every command that writes a user's file takes it (see :mod:`robocli.io.output`).
+#: Every command that writes a user's file takes it (see :mod:`robocli.output`).
 OverwriteOpt = typer.Option(False, "--overwrite", help="Replace an existing output file.")
 
 

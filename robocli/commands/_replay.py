@@ -34,9 +34,11 @@ def check_replay(replay: Path | None, speed: float | None, loop: bool) -> float:
 def abb_replay(replay: Path, speed: float, loop: bool, robot: str, profile: str, bind: str,
                motion_port: int, state_port: int) -> None:  # fmt: skip
     """``sim abb --replay``: the recording's state stream on the state port until Ctrl-C."""
+    from robocli.io.record.replay import RecordedPackets
     from robocli.sim.abb.replay import AbbReplay
 
-    with sigterm_as_interrupt(), AbbReplay(replay, speed=speed, loop=loop, robot=robot,
+    recorded = RecordedPackets(replay)
+    with sigterm_as_interrupt(), AbbReplay(recorded, speed=speed, loop=loop, robot=robot,
                                            profile=profile) as simulator:  # fmt: skip
         with listening(bind):
             motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)

@@ -53,7 +53,7 @@ from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, c
 if TYPE_CHECKING:
     from robocli.devices.arm import Arm
     from robocli.devices.arm.state import JointRecorder
-    from robocli.io.trajlog import TrajectoryLog
+    from robocli.kinematics.trajlog import TrajectoryLog
 
 # ------------------------------------------------------------------------------ sim abb
 
@@ -177,7 +177,7 @@ def _trajectory(
     if (shape is None) == (file is None):
         raise typer.BadParameter("give --shape or --file")
     if file is not None:
-        from robocli.io.trajlog import read_log
+        from robocli.kinematics.trajlog import read_log
 
         return read_log(file)
     from robocli.commands.kinematics import _floats
@@ -255,7 +255,7 @@ def upload(
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
     from robocli.devices.arm import StillMoving
-    from robocli.io.trajlog import check_writable
+    from robocli.kinematics.trajlog import check_writable
 
     if monitor is not None and wait == 0:
         raise typer.BadParameter("--output logs until the end: give --wait > 0")
@@ -355,7 +355,7 @@ def recording(arm: Arm, out: Path, max_samples: int | None = None, *,
 
 
 def _write_recording(rec: JointRecorder, out: Path, overwrite: bool) -> None:
-    from robocli.io.trajlog import write_log
+    from robocli.kinematics.trajlog import write_log
 
     log = rec.log()
     write_log(log, out, overwrite)
@@ -378,7 +378,7 @@ def monitor(
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log, for
     --count, --duration or until Ctrl-C; the log is written however it ends."""
-    from robocli.io.trajlog import check_writable
+    from robocli.kinematics.trajlog import check_writable
 
     if samples is not None and duration is not None:
         raise typer.BadParameter("give --count or --duration, not both")

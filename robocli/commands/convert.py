@@ -1,5 +1,5 @@
 """``robocli convert``: a recording rewritten for another tool; a thin layer over
-:func:`robocli.ros2.convert.convert` (``--ros2``: a ROS 2 bag)."""
+:func:`robocli.io.convert.convert` (``--ros2``: a ROS 2 bag)."""
 
 from __future__ import annotations
 
@@ -25,7 +25,7 @@ def convert(
     """Rewrite a recording as a ROS 2 bag (standard messages in CDR, REP 103/105) that
     ros2 bag play, rosbags and Foxglove read; OUT.mcap is one file, another name a bag
     folder with its metadata.yaml."""
-    from robocli.ros2.convert import convert as run
+    from robocli.io.convert import convert as run
 
     if not ros2:
         raise typer.BadParameter("name the target: --ros2 (a ROS 2 bag)")

@@ -20,8 +20,8 @@ from robocli.commands._common import OverwriteOpt, print_json
 from robocli.commands._options import count_option, duration_option, json_option, output_option
 
 if TYPE_CHECKING:
-    from robocli.io.trajlog import TrajectoryLog
     from robocli.kinematics.model import RobotModel
+    from robocli.kinematics.trajlog import TrajectoryLog
 
 RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 PointsOpt = count_option(100, "Number of points.", min=2, max=100_000)
@@ -63,9 +63,9 @@ def _start(model: RobotModel, start: str | None) -> Any:
 
 
 def _outputs(out: Path, plot: Path | None, overwrite: bool) -> None:
-    """Refuse the log and the plot before computing anything (see :mod:`robocli.io.output`)."""
-    from robocli.io.output import check_output
-    from robocli.io.trajlog import check_writable
+    """Refuse the log and the plot before computing anything (see :mod:`robocli.output`)."""
+    from robocli.kinematics.trajlog import check_writable
+    from robocli.output import check_output
 
     check_writable(out, overwrite)
     if plot is not None:
@@ -76,7 +76,7 @@ def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: 
             json_out: bool, overwrite: bool = False) -> None:  # fmt: skip
     import numpy as np
 
-    from robocli.io.trajlog import write_log
+    from robocli.kinematics.trajlog import write_log
 
     if plot is not None:
         from robocli.kinematics.plot import plot_trajectory
@@ -254,8 +254,8 @@ def validate(
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.export import read_any_log
-    from robocli.io.output import check_output
     from robocli.kinematics.validate import validate as compare
+    from robocli.output import check_output
 
     if plot is not None:
         check_output(plot, overwrite)  # before reading the logs

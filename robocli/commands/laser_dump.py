@@ -116,7 +116,7 @@ def _dump_file(view: _View, file: Path) -> None:
     (``/dev/zero``, noise) end the reading with an error."""
     from robocli.errors import RobocliError
     from robocli.protocols.scip2 import fast
-    from robocli.sim.hokuyo.framing import RequestFramer
+    from robocli.protocols.scip2.framing import RequestFramer
 
     if file.suffix == ".mcap":
         _dump_recording(view, file)

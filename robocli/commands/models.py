@@ -20,7 +20,7 @@ def urdf(
     overwrite: bool = OverwriteOpt,
 ) -> None:
     """Print the URDF of a robot, generated from robocli's own model of it."""
-    from robocli.io.output import check_output, replace_output
+    from robocli.output import check_output, replace_output
     from robocli.robots.urdf import urdf as make
 
     if out is not None:

@@ -233,9 +233,11 @@ def simulate(
     if not laser:
         options["laser"] = None
     if replay is not None:
+        from robocli.io.record.replay import RecordedPackets
         from robocli.sim.pioneer.replay import PioneerReplay
 
-        options = {"factory": partial(PioneerReplay, replay, speed=rate, loop=loop), **options}
+        recorded = RecordedPackets(replay)
+        options = {"factory": partial(PioneerReplay, recorded, speed=rate, loop=loop), **options}
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:

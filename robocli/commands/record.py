@@ -124,8 +124,8 @@ def record(
     --count or Ctrl-C. The file is made once every source is connected; an existing one is refused
     unless --overwrite. To record an arm while uploading to it: upload --record."""
     from robocli.errors import EXIT_INTERRUPTED
-    from robocli.io.output import check_output
     from robocli.io.record import COMPRESSIONS, Recorder
+    from robocli.output import check_output
 
     if not (pioneer or arm or hub or laser or create):
         raise typer.BadParameter("give at least one of --pioneer, --arm, --hub, --laser, "

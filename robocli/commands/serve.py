@@ -145,7 +145,7 @@ def serve(
             if zenoh is not None:
                 frontend = _zenoh_frontend(srv, zenoh, name, publish, token)
                 if ros2:
-                    from robocli.ros2.hub import HubTopics
+                    from robocli.hub_server.frontends.ros2 import HubTopics
 
                     ros = HubTopics(srv.hub, frontend.session, frontend.name,
                                     domain=ros2_domain, namespace=ros2_namespace)  # fmt: skip

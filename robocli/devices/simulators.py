@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
+from robocli._wiring import SIMULATORS
 from robocli.addresses import DeviceURL
 from robocli.errors import InvalidArgument
 
@@ -93,21 +94,23 @@ def _laser(url: DeviceURL, **fixed: Any) -> Simulator:
     return Simulator(server, {"": server.serve_tcp("127.0.0.1", 0)})
 
 
-#: The simulators of the robots, by device. The hub's is given by its client
-#: (:mod:`robocli.devices.hub.client`): the hub server's sources use the other clients, so
-#: importing it from here would make an import circle.
+#: The simulators of the robots, by device. The hub's is the hub server, whose sources use
+#: the clients: ``robocli/__init__.py`` gives it (:data:`robocli._wiring.SIMULATORS`).
 STARTERS: dict[str, Callable[..., Simulator]] = {
     "pioneer": _pioneer, "arm": _arm, "laser": _laser,
 }  # fmt: skip
 
 
 def start(device: str | Callable[..., Simulator], url: DeviceURL, **fixed: Any) -> Simulator:
-    """Start the simulator of ``device`` (``pioneer``, ``arm``, ``laser``, or a function
+    """Start the simulator of ``device`` (``pioneer``, ``arm``, ``laser``, ``hub``, or a function
     ``(url, **options) -> Simulator``) that ``url`` (a ``sim`` :class:`DeviceURL`) asks
     for; ``fixed``: options the client's own arguments imply (the arm's byte order),
     overridden by the URL's. An option the simulator does not have, or a value it
     refuses, is an :class:`InvalidArgument`."""
-    starter = STARTERS[device] if isinstance(device, str) else device
+    if isinstance(device, str):
+        starter = STARTERS[device] if device in STARTERS else SIMULATORS[device]
+    else:
+        starter = device
     try:
         return starter(url, **fixed)
     except (TypeError, ValueError, LookupError) as exc:

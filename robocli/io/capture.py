@@ -287,7 +287,7 @@ class CaptureWriter:
     line per packet, flushed as it goes so that an interrupted session keeps what it saw.
     Thread-safe: packets sent and received in different threads never interleave.
 
-    The path is checked at once (:func:`~robocli.io.output.check_output`: an existing file
+    The path is checked at once (:func:`~robocli.output.check_output`: an existing file
     is refused unless ``overwrite``, a symbolic link always). With ``deferred``, the file is
     made by :meth:`open` (a command calls it once its session is connected), and the lines
     before it (a handshake's, at most :data:`MAX_HELD`) wait in memory: a session that
@@ -295,7 +295,7 @@ class CaptureWriter:
 
     def __init__(self, path: str | Path, overwrite: bool = False, *,
                  deferred: bool = False) -> None:  # fmt: skip
-        from robocli.io.output import check_output
+        from robocli.output import check_output
 
         self.path = check_output(path, overwrite)
         self._overwrite = overwrite
@@ -310,7 +310,7 @@ class CaptureWriter:
 
     def open(self) -> None:
         """Make the file and write the lines held so far. Idempotent."""
-        from robocli.io.output import create_output
+        from robocli.output import create_output
 
         with self._lock:
             if self._file is not None or self._closed:

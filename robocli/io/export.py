@@ -19,7 +19,7 @@ Image data stays the base64 text it is in the recording.
 
 **irb120-json**: the arm's joint states (``JOINT_FEEDBACK`` when the controller sent it,
 with its velocities, else ``JOINT_POSITION``, velocities by finite differences) as a
-:class:`~robocli.io.trajlog.TrajectoryLog`: time from 0 at the first sample, on the
+:class:`~robocli.kinematics.trajlog.TrajectoryLog`: time from 0 at the first sample, on the
 controller's clock when it sent one (JOINT_FEEDBACK's time; a sample that does not advance
 it is kept once), else on the publish times; the first sample's Unix time as
 ``time_origin``, and the flange position from the recording's ``tcp`` channel when it
@@ -39,10 +39,10 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.io.output import replace_output
+from robocli.output import replace_output
 
 if TYPE_CHECKING:
-    from robocli.io.trajlog import TrajectoryLog
+    from robocli.kinematics.trajlog import TrajectoryLog
 
 __all__ = ["FORMATS", "arm_log", "channel_messages", "export", "flatten", "read_any_log"]
 
@@ -103,7 +103,7 @@ def export(path: str | Path, fmt: str, out_dir: str | Path | None = None,
     (default: the recording's folder); returns the files written, in topic order. Each file
     is written beside its name and put in place once every one is written (a failure leaves
     the folder as it was); an existing one is refused unless ``overwrite``, a symbolic link
-    always (:class:`~robocli.io.output.OutputError`, before any file is put in place)."""
+    always (:class:`~robocli.output.OutputError`, before any file is put in place)."""
     if fmt not in FORMATS:
         raise InvalidArgument(f"format must be one of {', '.join(FORMATS)}, not {fmt!r}")
     src = Path(path)
@@ -137,7 +137,7 @@ def _file_stem(topic: str) -> str:
 
 class _Writer:
     """One channel's file: streamed for csv/jsonl, gathered then written for npz (into
-    ``stream``, a :func:`~robocli.io.output.replace_output`'s)."""
+    ``stream``, a :func:`~robocli.output.replace_output`'s)."""
 
     def __init__(self, path: Path, fmt: str, stream: IO[Any]) -> None:
         self.path, self.fmt = path, fmt
@@ -233,11 +233,11 @@ def _column(values: list[Any]) -> Any:
 
 def arm_log(path: str | Path, link: str | None = None) -> TrajectoryLog:
     """The joint states of the arm recorded at ``path`` (the first arm link, or ``link``)
-    as a :class:`~robocli.io.trajlog.TrajectoryLog` (see the module docstring). Raises
+    as a :class:`~robocli.kinematics.trajlog.TrajectoryLog` (see the module docstring). Raises
     :class:`RobocliError` when the recording holds no arm joint states."""
     import numpy as np
 
-    from robocli.io.trajlog import TrajectoryLog, finite_difference
+    from robocli.kinematics.trajlog import TrajectoryLog, finite_difference
 
     joints: dict[str, list[tuple[int, dict[str, Any]]]] = {}
     tcp: dict[str, dict[int, list[float | None]]] = {}
@@ -299,16 +299,16 @@ def _finite(value: Any) -> bool:
 
 
 def read_any_log(path: str | Path) -> TrajectoryLog:
-    """A trajectory log from a log file (:func:`~robocli.io.trajlog.read_log`: .json,
+    """A trajectory log from a log file (:func:`~robocli.kinematics.trajlog.read_log`: .json,
     .csv, .npz) or an arm's MCAP recording (:func:`arm_log`), by suffix."""
-    from robocli.io.trajlog import read_log
+    from robocli.kinematics.trajlog import read_log
 
     return arm_log(path) if Path(path).suffix.lower() == ".mcap" else read_log(path)
 
 
 def _export_arm(src: Path, out: Path, overwrite: bool) -> list[Path]:
-    from robocli.io.output import check_output
-    from robocli.io.trajlog import write_log
+    from robocli.kinematics.trajlog import write_log
+    from robocli.output import check_output
 
     path = check_output(out / f"{src.stem}.json", overwrite)  # before reading the recording
     return [write_log(arm_log(src), path, overwrite)]

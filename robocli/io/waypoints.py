@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.io.trajlog import LogFormatError, open_capped
+from robocli.kinematics.trajlog import LogFormatError, open_capped
 
 FloatArray = npt.NDArray[np.float64]
 MAX_WAYPOINT_BYTES = 64 * 1024 * 1024

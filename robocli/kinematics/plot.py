@@ -8,9 +8,9 @@ from typing import Any
 import numpy as np
 
 from robocli.errors import RobocliError
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.fk import fk_positions
 from robocli.kinematics.model import RobotModel
+from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.kinematics.validate import Validation
 
 
@@ -32,9 +32,9 @@ def _pyplot() -> Any:
 
 
 def save_png(fig: Any, path: str | Path, overwrite: bool = False) -> Path:
-    """Write ``fig`` as a PNG (whole or not at all; see :func:`~robocli.io.output.
+    """Write ``fig`` as a PNG (whole or not at all; see :func:`~robocli.output.
     replace_output`)."""
-    from robocli.io.output import replace_output
+    from robocli.output import replace_output
 
     out = Path(path)
     with replace_output(out, overwrite) as fh:

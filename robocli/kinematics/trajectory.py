@@ -14,11 +14,11 @@ import math
 import numpy as np
 import numpy.typing as npt
 
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.errors import KinematicsError, LimitError
 from robocli.kinematics.fk import fk, fk_positions
 from robocli.kinematics.ik import ik_path
 from robocli.kinematics.model import FloatArray, RobotModel
+from robocli.kinematics.trajlog import TrajectoryLog
 
 MAX_POINTS = 100_000
 DEFAULT_POINTS = 100

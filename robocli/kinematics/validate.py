@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.errors import ValidationError
 from robocli.kinematics.fk import fk_positions
 from robocli.kinematics.model import FloatArray, RobotModel
+from robocli.kinematics.trajlog import TrajectoryLog
 
 MAX_GRID = 2_000_000
 _REFINE = 3

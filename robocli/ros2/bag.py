@@ -17,7 +17,7 @@ and reads them):
   summary or a scan.
 
 :class:`BagChannels` does this over an ``mcap`` writer for :class:`~robocli.io.record.Recorder`
-(``ros2=True``) and :func:`~robocli.ros2.convert.convert`.
+(``ros2=True``) and :func:`~robocli.io.convert.convert`.
 """
 
 from __future__ import annotations

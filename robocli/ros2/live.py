@@ -34,10 +34,10 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli.errors import RobocliError
-from robocli.io.record.links import RAW_SCHEMA
 from robocli.ros2.mapping import Mapper, Ros2Message
 from robocli.ros2.node import Ros2Node, Ros2Publisher
 from robocli.ros2.rmw import DEFAULT_QOS, LATCHED_QOS, Qos
+from robocli.ros2.types import RAW_SCHEMA
 
 __all__ = ["Ros2Topics", "static_transforms"]
 
@@ -66,7 +66,7 @@ class Ros2Topics:
         self.published = 0  #: ROS 2 messages put
         self.dropped = 0  #: work items dropped (queue full)
         self.errors = 0  #: messages that did not map (logged once)
-        #: when a set: every publisher a message went out on is added (see ros2.hub)
+        #: when a set: every publisher a message went out on is added (see hub.frontends.ros2)
         self.used: set[Ros2Publisher] | None = None
         self._prefix = f"/{name}/"
         self._channels: list[tuple[str, str]] = []

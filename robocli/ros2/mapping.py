@@ -371,7 +371,7 @@ _HANDLERS = {
     "foxglove.LocationFix": Mapper.gps,
     "foxglove.CompressedImage": Mapper.compressed,
     "foxglove.RawImage": Mapper.image,
-    "robocli.RawFrame": Mapper.raw,
+    T.RAW_SCHEMA: Mapper.raw,
     "std_msgs/String": Mapper.text,
 }
 #: A link's name in a URDF: ``<link name="...">``, ``<parent link="...">``, ``<child link=...``.

@@ -25,6 +25,7 @@ from robocli.errors import RobocliError
 __all__ = [
     "RAW_FRAME",
     "RAW_FRAME_MSG",
+    "RAW_SCHEMA",
     "Ros2Unavailable",
     "deserialize",
     "message",
@@ -40,6 +41,9 @@ __all__ = [
 #: ``protocol``: ``arcos``, ``sm-le``, ``sm-be``, ``ros4mat`` or ``scip2``; ``port``: the arm's
 #: ``motion`` or ``state`` (empty for other links).
 RAW_FRAME = "robocli_msgs/msg/RawFrame"
+#: The same frames' schema in robocli's recordings (JSON, the data base64; see
+#: :mod:`robocli.io.record.links`), which a ROS 2 bag or topic carries as :data:`RAW_FRAME`.
+RAW_SCHEMA = "robocli.RawFrame"
 RAW_FRAME_MSG = """\
 builtin_interfaces/Time stamp
 string link

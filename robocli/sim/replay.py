@@ -6,6 +6,10 @@ receive times (the MCAP log times of the recording's raw channel). :meth:`FrameS
 restart` starts it (a client's session opens); :meth:`FrameSchedule.due` returns the frames
 whose time has come, ``speed`` times as fast as recorded; with ``loop`` the recording starts
 over after its last frame and one more typical interval.
+
+A simulator takes its frames from a :class:`PacketSource`, not from a file: the simulators
+know nothing of recordings, and :class:`robocli.io.record.replay.RecordedPackets` (an MCAP
+recording) is the source that ``robocli sim ... --replay`` hands them.
 """
 
 from __future__ import annotations
@@ -13,12 +17,33 @@ from __future__ import annotations
 import bisect
 import statistics
 import threading
-from collections.abc import Iterable
-from pathlib import Path
+from collections.abc import Iterable, Mapping
+from typing import Protocol
 
-from robocli.errors import InvalidArgument, RobocliError
+from robocli.errors import InvalidArgument
 
-__all__ = ["FrameSchedule", "recorded_frames"]
+__all__ = ["FrameSchedule", "PacketSource"]
+
+
+class PacketSource(Protocol):
+    """A source of recorded packets: what a simulator replays."""
+
+    @property
+    def name(self) -> str:
+        """What the packets come from (a recording's path), for messages."""
+        ...  # pragma: no cover
+
+    def frames(self, protocol: str, direction: str) -> list[tuple[float, bytes]]:
+        """``(t, frame)`` of the first ``protocol`` link's whole frames going ``direction``
+        (``rx``, or ``rx:state`` for an arm's state port), in order, ``t`` in seconds since
+        the source's start. Raises :class:`~robocli.errors.RobocliError` when there is
+        none."""
+        ...  # pragma: no cover
+
+    def link_metadata(self, protocol: str) -> Mapping[str, str]:
+        """What was noted about that link when it was recorded (``byte_order``,
+        ``real_size``...); empty when nothing was."""
+        ...  # pragma: no cover
 
 
 class FrameSchedule:
@@ -79,16 +104,3 @@ class FrameSchedule:
                 self.laps += 1
             self.sent += len(out)
             return out
-
-
-def recorded_frames(path: str | Path, protocol: str, direction: str
-                    ) -> list[tuple[float, bytes]]:  # fmt: skip
-    """``(t, frame)`` of the first ``protocol`` link's raw frames going ``direction``
-    (``rx``, or ``rx:state`` for an arm's state port) in the recording at ``path``, ``t`` in
-    seconds since the recording's first message."""
-    from robocli.io.record import raw_frames
-
-    frames = [(t, frame) for t, way, frame in raw_frames(path, protocol) if way == direction]
-    if not frames:
-        raise RobocliError(f"{path}: no {direction} frame of the {protocol} link to replay")
-    return frames

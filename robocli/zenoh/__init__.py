@@ -2,7 +2,9 @@
 
 :mod:`robocli.zenoh.session` opens a session from ``--zenoh [ENDPOINT|CONFIG]`` (servers
 listen, clients connect, multicast scouting off); :mod:`robocli.zenoh.keys` is the key
-layout (``robocli/<name>/<topic>``, ``@info``, ``@settings``, ``@alive``). The
+layout (``robocli/<name>/<topic>``, ``@info``, ``@settings``, ``@alive``), and
+:mod:`robocli.zenoh.robot_keys` a robot's (state, ``@control``) with their JSON, which a
+bridge serves and a remote client (:mod:`robocli.devices.pioneer.over_zenoh`) uses. The
 ``eclipse-zenoh`` package is optional: ``pip install 'robocli-robots[zenoh]'``; nothing here
 imports it until a session is opened.
 """

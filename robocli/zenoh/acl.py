@@ -12,7 +12,7 @@ its own name**. Every user of the ``user:password`` file may
   and the credentials of that user;
 * *command* any robot as itself: put and query ``robocli/<robot>/@control/<user>/*`` and
   declare its liveliness token there. A bridge takes the controller's identity from that
-  key chunk (:mod:`robocli.bridge.keys`), which the router let through only from ``<user>``;
+  key chunk (:mod:`robocli.zenoh.robot_keys`), which the router let through only from ``<user>``;
 * *read* everything: subscribe, query ``@info``, ``@control``, ``@settings`` (a hub's token
   still guards its settings), ask for liveliness tokens and advanced publishers' history.
 

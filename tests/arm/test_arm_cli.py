@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from robocli.cli import main
-from robocli.io.trajlog import TrajectoryLog, read_log, write_log
 from robocli.kinematics import load_model
+from robocli.kinematics.trajlog import TrajectoryLog, read_log, write_log
 
 
 def run(capsys, *argv: str) -> tuple[int, str, str]:
@@ -123,7 +123,7 @@ def test_port_with_another_protocol_exit_3(talking_server, capsys) -> None:
 def test_upload_stream_to_sim_starts_the_streaming_profile(tmp_path: Path, capsys) -> None:
     """``upload arm sim --stream``: the embedded simulator streams (an ABB would keep the
     points without -3 and never move), so the run ends at the trajectory's last point."""
-    from robocli.io.trajlog import read_log
+    from robocli.kinematics.trajlog import read_log
 
     sim_json, real_json = tmp_path / "sim.json", tmp_path / "real.json"
     assert run(capsys, "traj", "circle", "--count", "20", "--duration", "1", "--output",

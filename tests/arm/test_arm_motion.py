@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from robocli.errors import DeviceError, InvalidArgument
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics import LimitError, load_model
 from robocli.kinematics.trajectory import circle, ptp_joint
+from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.kinematics.validate import validate
 
 IRB = load_model("irb120")
@@ -245,7 +245,7 @@ def test_a_recording_counts_from_its_start(make_sim, make_arm, tmp_path) -> None
     """A recording on this computer's clock starts at 0 like the plan, so that the delay
     validation reports is how late the motion came, not the clock's reading (the absolute
     start is kept as the log's origin, also through a JSON file)."""
-    from robocli.io.trajlog import read_log, write_log
+    from robocli.kinematics.trajlog import read_log, write_log
 
     sim, mp, sp = make_sim(state_ms=5.0, time_scale=1.0)  # JOINT_POSITION: receive times
     arm = make_arm(mp, sp)

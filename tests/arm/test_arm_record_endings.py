@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robocli.io.trajlog import read_log
+from robocli.kinematics.trajlog import read_log
 from robocli.sim.abb.server import AbbSim, ArmSimState
 
 TIMEOUT = 30.0

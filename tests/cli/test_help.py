@@ -149,7 +149,7 @@ def test_validate_calls_the_alignment_a_time_shift_not_a_delay(
 ) -> None:
     """The demo printed "delay 1129 ms" against the exact simulator: that was how long the
     recording ran before the arm moved (the upload), and it read like a bug."""
-    from robocli.io.trajlog import read_log, write_log
+    from robocli.kinematics.trajlog import read_log, write_log
     from robocli.kinematics.validate import shifted
 
     sim, real = tmp_path / "sim.json", tmp_path / "real.json"

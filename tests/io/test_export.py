@@ -19,7 +19,7 @@ from robocli.errors import InvalidArgument, RobocliError
 from robocli.hub_server import HubServer
 from robocli.io.export import arm_log, export, read_any_log
 from robocli.io.record import Recorder
-from robocli.io.trajlog import finite_difference, read_log
+from robocli.kinematics.trajlog import finite_difference, read_log
 from tests.io.readback import by_topic, decoded, wait_for
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 from cli.helpers import one_line_error, run
 
-from robocli.io.output import OutputError, check_output, create_output, replace_output
 from robocli.io.record import Recorder
+from robocli.output import OutputError, check_output, create_output, replace_output
 
 PRECIOUS = b"a recording nobody can make again\n" * 2000
 

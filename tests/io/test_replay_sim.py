@@ -4,6 +4,7 @@ recorded robot's stream (its SIPs and laser, its joint states) byte for byte."""
 from __future__ import annotations
 
 import math
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +17,7 @@ from robocli.devices.arm import Arm
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import RobocliError
 from robocli.io.record import Recorder
+from robocli.io.record.replay import RecordedPackets
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
 from robocli.sim.replay import FrameSchedule
@@ -56,7 +58,7 @@ def test_pioneer_client_gets_the_recorded_stream(pioneer_recording: Path) -> Non
     recorded_sips = [f[3:-2] for f in raw if f[3] & 0xF0 == 0x30]
     recorded_laser = [f[3:-2] for f in raw if f[3] in (0x60, 0x61)]
     seen: Frames = []
-    with PioneerReplay(pioneer_recording, speed=2.0) as replay:
+    with PioneerReplay(RecordedPackets(pioneer_recording), speed=2.0) as replay:
         url = replay.serve_tcp("127.0.0.1", 0)
         with Pioneer.connect(url, listeners=[lambda d, p, t: seen.append((d, p))],
                              laser=True) as robot:  # fmt: skip
@@ -91,7 +93,7 @@ def test_pioneer_replay_sends_the_laser_only_from_the_clients_request(
     recorded_laser = [f for f in raw if f[0] == 0x61]
     assert recorded_laser, "the recording has its laser"
     seen: Frames = []
-    with PioneerReplay(pioneer_recording, speed=4.0, loop=True) as replay:
+    with PioneerReplay(RecordedPackets(pioneer_recording), speed=4.0, loop=True) as replay:
         url = replay.serve_tcp("127.0.0.1", 0)
         with Pioneer.connect(url, listeners=[lambda d, p, t: seen.append((d, p))]) as robot:
             wait_for(lambda: replay.schedule.laps >= 1, what="a whole lap of the recording")
@@ -111,7 +113,7 @@ def _same(a: Any, b: Any) -> bool:
 
 
 def test_pioneer_replay_answers_the_recorded_identity(pioneer_recording: Path) -> None:
-    with PioneerReplay(pioneer_recording) as replay:
+    with PioneerReplay(RecordedPackets(pioneer_recording)) as replay:
         url = replay.serve_tcp("127.0.0.1", 0)
         with Pioneer.connect(url) as robot:
             assert robot.config is not None
@@ -144,7 +146,7 @@ def test_schedule_spacing_speed_and_loop() -> None:
 
 def test_replay_needs_its_link(pioneer_recording: Path) -> None:
     with pytest.raises(RobocliError, match="no raw sm channel"):
-        AbbReplay(pioneer_recording)
+        AbbReplay(RecordedPackets(pioneer_recording))
 
 
 @pytest.fixture
@@ -168,7 +170,7 @@ def test_arm_client_gets_the_recorded_joint_states(arm_recording: Path) -> None:
     recorded_frames = [frame_of(i) for i in topics["/arm/raw/state/rx"]]
     frames: list[bytes] = []
     samples: list[Any] = []
-    with AbbReplay(arm_recording) as replay:
+    with AbbReplay(RecordedPackets(arm_recording)) as replay:
         _, state = replay.serve_tcp("127.0.0.1", 0, 0)
         port = int(state.rsplit(":", 1)[1])
         with Arm.connect("127.0.0.1", 0, port, motion=False, listeners=[
@@ -185,6 +187,38 @@ def test_arm_client_gets_the_recorded_joint_states(arm_recording: Path) -> None:
     plain = [s.joints for s in samples if s.source == "joint_position"]
     assert plain == positions[len(positions) - len(plain) :]
     assert max(abs(v) for v in wanted[-1][0]) > 0.1, "the recorded arm moved"
+
+
+class MemoryPackets:
+    """A :class:`~robocli.sim.replay.PacketSource` that is no file: a simulator replays what
+    any source gives it."""
+
+    name = "memory"
+
+    def __init__(self, frames: list[tuple[float, bytes]], meta: dict[str, str]) -> None:
+        self._frames, self._meta = frames, meta
+
+    def frames(self, protocol: str, direction: str) -> list[tuple[float, bytes]]:
+        assert (protocol, direction) == ("sm", "rx:state")
+        return self._frames
+
+    def link_metadata(self, protocol: str) -> dict[str, str]:
+        return self._meta
+
+
+def test_a_simulator_replays_any_packet_source() -> None:
+    frames = [(0.0, b"first"), (0.01, b"second"), (0.02, b"third")]
+    source = MemoryPackets(frames, {"protocol": "sm-be", "real_size": "8"})
+    with AbbReplay(source, speed=4.0) as replay:
+        assert (replay.controller.byteorder, replay.path) == (">", "memory")
+        _, state = replay.serve_tcp("127.0.0.1", 0, 0)
+        with socket.create_connection(("127.0.0.1", int(state.rsplit(":", 1)[1])), 10) as s:
+            got = b""
+            while len(got) < len(b"firstsecondthird"):
+                chunk = s.recv(64)
+                assert chunk, "the replay closed the state port"
+                got += chunk
+    assert got == b"firstsecondthird"
 
 
 def _cli(*args: str) -> subprocess.Popen[str]:

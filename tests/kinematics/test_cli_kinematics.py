@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robocli.io.trajlog import TrajectoryLog, read_log, write_log
+from robocli.kinematics.trajlog import TrajectoryLog, read_log, write_log
 from robocli.kinematics.validate import shifted
 
 

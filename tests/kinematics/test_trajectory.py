@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from robocli.io.trajlog import LogFormatError
 from robocli.io.waypoints import read_waypoints
 from robocli.kinematics import (
     KinematicsError,
@@ -20,6 +19,7 @@ from robocli.kinematics import (
     load_model,
 )
 from robocli.kinematics import trajectory as tr
+from robocli.kinematics.trajlog import LogFormatError
 
 
 @pytest.fixture(scope="module")

@@ -8,11 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import robocli.io.trajlog as trajlog
+import robocli.kinematics.trajlog as trajlog
 from robocli.errors import EXIT_USAGE
-from robocli.io.trajlog import LogFormatError, TrajectoryLog, read_log, write_log
 from robocli.kinematics import load_model
 from robocli.kinematics.trajectory import circle
+from robocli.kinematics.trajlog import LogFormatError, TrajectoryLog, read_log, write_log
 
 
 @pytest.fixture(scope="module")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics import RobotModel, load_model
 from robocli.kinematics.errors import ValidationError
 from robocli.kinematics.trajectory import circle, ptp_joint
+from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.kinematics.validate import shifted, validate
 
 

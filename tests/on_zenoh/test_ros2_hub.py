@@ -70,8 +70,8 @@ def test_a_sensor_nobody_reads_on_ros2_is_not_decoded_until_someone_does(endpoin
     """The hub's first ADC batch declares /adc; with no ROS 2 subscriber the next batches
     are skipped (robocli's own key still gets them), and a subscriber brings them back."""
     from robocli.hub_server import HubServer
+    from robocli.hub_server.frontends.ros2 import HubTopics
     from robocli.hub_server.frontends.zenoh import ZenohFrontend
-    from robocli.ros2.hub import HubTopics
     from robocli.ros2.rmw import topic_key
     from robocli.ros2.types import type_hash
     from robocli.zenoh.session import close_session, open_session

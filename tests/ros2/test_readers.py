@@ -20,6 +20,7 @@ from robocli.devices.pioneer import Pioneer
 from robocli.io.capture import read_capture
 from robocli.io.export import arm_log, export
 from robocli.io.record import info, recover
+from robocli.io.record.replay import RecordedPackets
 from robocli.sim.pioneer.replay import PioneerReplay
 from tests.io.readback import wait_for
 from tests.ros2.conftest import pioneer_recording
@@ -44,7 +45,7 @@ def test_dump_file_and_replay_read_a_bag(bags: dict[str, Path]) -> None:
     assert proc.returncode == 0 and "SYNC0-reply" in proc.stdout, proc.stderr
     sips = [f[3:-2] for f in raw if f[3] & 0xF0 == 0x30]
     seen: list[bytes] = []
-    with PioneerReplay(path, speed=4.0) as replay:
+    with PioneerReplay(RecordedPackets(path), speed=4.0) as replay:
         url = replay.serve_tcp("127.0.0.1", 0)
         with Pioneer.connect(
             url,

@@ -18,8 +18,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from robocli.protocols import scip2
+from robocli.protocols.scip2.framing import RequestFramer
 from robocli.sim.hokuyo import HokuyoSim
-from robocli.sim.hokuyo.framing import RequestFramer
 from robocli.sim.hokuyo.session import encode_array
 from robocli.sim.laser import cast
 from robocli.sim.world import World

@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-ok", action="store_true", help="exit 0 where no lab can be made")
     a = ap.parse_args(argv)
     if a.json:
-        from robocli.io.output import check_output
+        from robocli.output import check_output
 
         try:
             check_output(a.json, a.overwrite)  # before the lab runs, not after
@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         if runs:
             print(markdown(runs))
             if a.json:
-                from robocli.io.output import replace_output
+                from robocli.output import replace_output
 
                 with replace_output(a.json, a.overwrite, text=True) as f:
                     json.dump([r.as_dict() for r in runs], f, indent=1)

@@ -29,8 +29,8 @@ from robocli.errors import (
     TimeoutError,
     TransportError,
 )
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.model import RobotModel
+from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import find_refusal
 from robocli.protocols.simple_message import CommType, ReplyCode, SimpleMessageType, SpecialSeq

@@ -1,7 +1,7 @@
 """What the state port says, as Python values: joint samples and the status record.
 
 Also the preparation of a trajectory for upload (:func:`prepare`): points and durations from
-a :class:`~robocli.io.trajlog.TrajectoryLog`, checked against the robot model before
+a :class:`~robocli.kinematics.trajlog.TrajectoryLog`, checked against the robot model before
 anything is sent.
 """
 
@@ -16,9 +16,9 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import EXIT_FAILURE, InvalidArgument, TimeoutError
-from robocli.io.trajlog import TrajectoryLog
 from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import check_limits
+from robocli.kinematics.trajlog import TrajectoryLog
 
 __all__ = [
     "ABB_MAX_POINTS", "ArmStatus", "JointRecorder", "JointSample", "Point", "TooFewSamples",
@@ -167,10 +167,10 @@ class TooFewSamples(TimeoutError):
 class JointRecorder:
     """Joint samples collected from ``Arm.record()`` until :meth:`stop` (bounded).
 
-    :meth:`log` builds a :class:`~robocli.io.trajlog.TrajectoryLog`: on the controller's clock
-    when its messages carry one (JOINT_FEEDBACK), else on this computer's receive times,
-    counted from the first sample recorded (time 0, as a planned trajectory's start), that
-    clock's reading there kept as the log's ``origin``.
+    :meth:`log` builds a :class:`~robocli.kinematics.trajlog.TrajectoryLog`: on the
+    controller's clock when its messages carry one (JOINT_FEEDBACK), else on this computer's
+    receive times, counted from the first sample recorded (time 0, as a planned trajectory's
+    start), that clock's reading there kept as the log's ``origin``.
     """
 
     def __init__(self, arm: Any, max_samples: int) -> None:

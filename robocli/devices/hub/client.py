@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from robocli.addresses import DeviceURL, parse_device_url
+from robocli.addresses import parse_device_url
 from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
@@ -145,7 +145,7 @@ class Hub:
         if text == "sim" or text.startswith("sim://"):
             where = parse_device_url(text, what="hub URL")
             return simulators.connect_to(  # type: ignore[no-any-return]
-                _start_simulated_hub, where, lambda sim: cls.connect(
+                "hub", where, lambda sim: cls.connect(
                     sim.url, compress=compress, timeout=timeout, client_id=client_id,
                     clock=clock, hub_clock=hub_clock, token=token, listeners=listeners),
             )  # fmt: skip
@@ -457,13 +457,3 @@ __all__ = [
     "resolution",
     "subscribe_body",
 ]
-
-
-def _start_simulated_hub(url: DeviceURL, **fixed: Any) -> simulators.Simulator:
-    """The simulated hub of ``sim://`` (the hub server with simulated sensors)."""
-    from robocli.hub_server import HubServer
-
-    if url.model:
-        raise InvalidArgument(f"{url.text!r}: the simulated hub has no models (give sim://)")
-    server = HubServer("127.0.0.1", 0, **simulators.options(url, sim=True, **fixed)).start()
-    return simulators.Simulator(server, {"": f"127.0.0.1:{server.port}"})

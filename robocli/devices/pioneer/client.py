@@ -160,11 +160,11 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
 
         ``zenoh/NAME`` (``zenoh/NAME?zenoh=ENDPOINT``, or the endpoint or JSON5 file as
         ``zenoh=``; default tcp/127.0.0.1:7447) gives a
-        :class:`~robocli.bridge.remote.RemotePioneer`, the robot behind ``robocli bridge
-        pioneer``: it has what a script drives with (``state``, ``pose``, ``battery``,
-        ``enable_motors``, ``set_velocity``, ``stop``, ``wait_for_state``, listeners,
-        ``close``), not the ARCOS-only commands. ``timeout`` and ``listeners`` apply there;
-        the link's own arguments (``subtype``, ``baudrate``...) are refused.
+        :class:`~robocli.devices.pioneer.over_zenoh.RemotePioneer`, the robot behind
+        ``robocli bridge pioneer``: it has what a script drives with (``state``, ``pose``,
+        ``battery``, ``enable_motors``, ``set_velocity``, ``stop``, ``wait_for_state``,
+        listeners, ``close``), not the ARCOS-only commands. ``timeout`` and ``listeners``
+        apply there; the link's own arguments (``subtype``, ``baudrate``...) are refused.
 
         ``subtype`` overrides the robot's own (conversion factors from
         :data:`robocli.robots.pioneer.ROBOT_PARAMS`); ``params`` gives them outright.
@@ -197,8 +197,8 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
             not_over_zenoh(url, "Pioneer", subtype=subtype, params=params, baudrate=baudrate,
                            baud=baud, switch_baud=switch_baud, deadman=deadman,
                            require_config=require_config, laser=laser)  # fmt: skip
-            # imported here: the bridge's modules import this one
-            from robocli.bridge.remote import RemotePioneer
+            # imported here: it imports this package's modules
+            from robocli.devices.pioneer.over_zenoh import RemotePioneer
 
             remote = RemotePioneer.connect(url, zenoh, timeout=timeout, listeners=listeners)
             return cast("Pioneer", remote)  # the driving surface, duck-typed (see above)

@@ -87,7 +87,7 @@ class ZenohFrontend:
     defaults) started at :meth:`start`. ``period``: seconds between two puts of a sensor.
     ``history_s``: seconds of batches kept for late joiners. ``serial``: the hub's serial
     ports, streamed (:class:`ZenohSerial`). ``on_batch``: see :attr:`on_batch` (``serve
-    --ros2``: :class:`robocli.ros2.hub.HubTopics`). The session stays the
+    --ros2``: :class:`robocli.hub_server.frontends.ros2.HubTopics`). The session stays the
     caller's: :meth:`close` undeclares what this front-end declared.
     """
 

@@ -8,6 +8,9 @@ import math
 from collections.abc import Callable
 from typing import Any, Protocol
 
+from robocli.ros2.types import RAW_FRAME
+from robocli.ros2.types import RAW_SCHEMA as _RAW_SCHEMA
+
 __all__ = [
     "RAW_ENCODING",
     "RAW_SCHEMA",
@@ -24,7 +27,7 @@ __all__ = [
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
 #: the link (framing and checksum included), base64 in its ``data``, with its ``link``,
 #: ``protocol`` (also the channel's metadata, as ``direction`` and ``port``).
-RAW_SCHEMA = "robocli.RawFrame"
+RAW_SCHEMA = _RAW_SCHEMA
 #: Message encoding of the raw channels of recordings made before :data:`RAW_SCHEMA`: each
 #: message the frame's bytes themselves, without a schema (no viewer knows the encoding).
 #: Read, never written.
@@ -32,7 +35,7 @@ RAW_ENCODING = "robocli.raw"
 
 
 #: The raw channels' type in a ROS 2 bag (CDR, see :mod:`robocli.ros2.types`).
-ROS2_RAW_TYPE = "robocli_msgs/msg/RawFrame"
+ROS2_RAW_TYPE = RAW_FRAME
 
 
 def is_raw(encoding: str, schema: str) -> bool:

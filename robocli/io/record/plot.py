@@ -206,9 +206,9 @@ def plot(recording: str | Path, output: str | Path, channels: Sequence[str],
     Raises :class:`InvalidArgument` for a channel the file does not have, a channel that
     cannot be drawn without ``fields``, a field that is not numeric, or pose channels mixed
     with time series; :class:`~robocli.kinematics.plot.PlotUnavailableError` without
-    matplotlib; :class:`~robocli.io.output.OutputError` for an ``output`` that exists
+    matplotlib; :class:`~robocli.output.OutputError` for an ``output`` that exists
     (without ``overwrite``) or is a symbolic link, before reading."""
-    from robocli.io.output import check_output
+    from robocli.output import check_output
 
     topics = list(dict.fromkeys(channels))
     fields = list(fields)

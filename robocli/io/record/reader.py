@@ -329,7 +329,7 @@ def _framer(protocol: str, direction: str) -> Any:
     """The framer of one raw channel: the protocol's C framer, except for what a SCIP
     client sends (request lines, framed as the simulator frames them)."""
     if protocol == "scip2" and direction == "tx":
-        from robocli.sim.hokuyo.framing import RequestFramer
+        from robocli.protocols.scip2.framing import RequestFramer
 
         return RequestFramer()
     from robocli.core import Framer

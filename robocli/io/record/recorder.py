@@ -27,7 +27,7 @@ to the writer, ``lost`` what a failed write kept out of the file.
 
 **The file** is made only by :meth:`Recorder.begin` (at once, unless ``deferred``), never
 through a symbolic link, and an existing one only with ``overwrite`` (see
-:mod:`robocli.io.output`): a program connects its sources first, listening from their first
+:mod:`robocli.output`): a program connects its sources first, listening from their first
 byte, so that a source that fails leaves every file as it was.
 
 **Time.** Every message's log time is the host receive time in Unix-epoch nanoseconds: the
@@ -53,9 +53,9 @@ from typing import IO, Any
 
 from robocli._version import __version__
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.io.output import check_output, create_output
 from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
 from robocli.io.schemas import schema_bytes
+from robocli.output import check_output, create_output
 
 log = logging.getLogger("robocli.io.record")
 
@@ -124,7 +124,7 @@ class Recorder:
     refused); ``deferred``: make the file at :meth:`begin`, not now. ``ros2``: write a ROS 2
     bag (:mod:`robocli.ros2.bag`: every channel's messages mapped to standard ROS 2 types in
     CDR; ``prefix_frames``: see :class:`~robocli.ros2.mapping.Mapper`). Raises
-    :class:`~robocli.io.output.OutputError` when the file may not or cannot be created,
+    :class:`~robocli.output.OutputError` when the file may not or cannot be created,
     :class:`RecordingError` without the ``mcap`` package.
     """
 
@@ -195,7 +195,7 @@ class Recorder:
         ``Recorder(path)`` begins at once; ``Recorder(path, deferred=True)`` waits for this
         call, so that a program connects its sources (listening from their first byte) before
         the file is made: a source that fails leaves no file, and an existing one untouched.
-        Raises :class:`~robocli.io.output.OutputError` when the file cannot be created (it
+        Raises :class:`~robocli.output.OutputError` when the file cannot be created (it
         exists, without ``overwrite``; a symbolic link; no such folder),
         :class:`RecordingError` when its header cannot be written. Idempotent."""
         if self._thread is not None:

@@ -32,8 +32,8 @@ from pathlib import Path
 from typing import Any
 
 from robocli._version import __version__
-from robocli.io.output import OutputError, check_output, replace_output
 from robocli.io.record.mcapfile import BadRecording, McapFile
+from robocli.output import OutputError, check_output, replace_output
 
 log = logging.getLogger("robocli.io.record")
 
@@ -68,7 +68,7 @@ def default_output(path: str | Path) -> Path:
 
 def _check_output(src: Path, out: Path, overwrite: bool) -> None:
     """Refuse an output that is the input (under any name), then as every output is refused
-    (:func:`~robocli.io.output.check_output`: a symbolic link, a folder, an existing file
+    (:func:`~robocli.output.check_output`: a symbolic link, a folder, an existing file
     without ``overwrite``)."""
     with contextlib.suppress(OSError):
         if out.samefile(src):
@@ -81,7 +81,7 @@ def recover(path: str | Path, out: str | Path | None = None, *,
     """Rewrite the recording at ``path`` whole into ``out`` (default
     :func:`default_output`); see the module docstring. Raises :class:`BadRecording` for an
     input that is not MCAP or holds no complete record, and
-    :class:`~robocli.io.output.OutputError` for an output it may not or cannot write."""
+    :class:`~robocli.output.OutputError` for an output it may not or cannot write."""
     from mcap.records import Header
 
     src, dst = Path(path), Path(out) if out is not None else default_output(path)

@@ -1,4 +1,6 @@
-"""SCIP 2.0 reply framing in pure Python: :class:`ReplyFramer` finds whole reply blocks in
+"""SCIP 2.0 framing in pure Python, both ways: :class:`RequestFramer` splits what a client
+sends into request lines (the simulator's, and a recording's client side), and
+:class:`ReplyFramer` finds whole reply blocks in
 any chunking of a byte stream, resynchronising line by line after garbage and counting what
 it dropped. It is the reference of the C framer (``Framer("scip2")`` of :mod:`robocli.core`,
 wrapped by :mod:`robocli.protocols.scip2.fast`): the two return the same blocks and the
@@ -17,6 +19,11 @@ The rules (both implementations):
 * Counters: ``frames``; ``dropped_bytes``; ``bad_checksums`` (status lines of 3 chars whose
   sum is wrong); ``bad_lengths`` (candidates dropped for garbage bytes, over-long lines or
   blocks).
+
+Requests (:class:`RequestFramer`, the same interface as :class:`robocli.core.Framer`): a
+request ends in LF, CR or CR LF (one terminator); empty lines are skipped; a line longer than
+:data:`MAX_REQUEST` bytes without a terminator is dropped whole (counted), so a stream of
+garbage never grows the buffer.
 """
 
 from __future__ import annotations
@@ -24,6 +31,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
+from robocli.core import FramerStats
 from robocli.protocols.scip2.wire import MAX_BLOCK, MAX_ECHO, MAX_LINE, checksum
 
 
@@ -159,3 +167,64 @@ class ReplyFramer:
     def _first_line_len(self) -> int:
         at = self._buf.find(b"\n")
         return at + 1 if at >= 0 else len(self._buf)
+
+
+#: Longest request line taken (bytes, terminator excluded): ``MD`` + 13 digits + ``;`` +
+#: 16 string characters is 32; a sensor's buffer is not much larger.
+MAX_REQUEST = 64
+
+
+class RequestFramer:
+    """Splits a byte stream into request lines (without their terminator)."""
+
+    def __init__(self, max_line: int = MAX_REQUEST) -> None:
+        self.max_line = max_line
+        self._buf = bytearray()
+        self._after_cr = False  # the last terminator was a CR: a LF next belongs to it
+        self._skipping = False  # inside an over-long line: drop up to its terminator
+        self._frames = 0
+        self._dropped = 0
+        self._oversize = 0
+
+    def feed(self, data: bytes) -> list[bytes]:
+        """Append ``data``; every request line now complete, in order."""
+        out: list[bytes] = []
+        buf = self._buf
+        for b in data:
+            if b in (10, 13):
+                if b == 10 and self._after_cr:
+                    self._after_cr = False
+                    continue
+                self._after_cr = b == 13
+                if self._skipping:
+                    self._skipping = False
+                elif buf:
+                    out.append(bytes(buf))
+                    self._frames += 1
+                buf.clear()
+                continue
+            self._after_cr = False
+            if self._skipping:
+                self._dropped += 1
+                continue
+            buf.append(b)
+            if len(buf) > self.max_line:
+                self._dropped += len(buf)
+                self._oversize += 1
+                self._skipping = True
+                buf.clear()
+        return out
+
+    @property
+    def pending(self) -> int:
+        """Bytes of a request not yet terminated."""
+        return len(self._buf)
+
+    def reset(self) -> None:
+        """Forget the partial line (the counters are kept)."""
+        self._buf.clear()
+        self._after_cr = self._skipping = False
+
+    @property
+    def stats(self) -> FramerStats:
+        return FramerStats(self._frames, self._dropped, 0, self._oversize)

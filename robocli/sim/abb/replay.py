@@ -13,46 +13,39 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import Any
 
 from robocli.serving.server import Link
 from robocli.sim.abb.server import AbbSim
-from robocli.sim.replay import FrameSchedule, recorded_frames
+from robocli.sim.replay import FrameSchedule, PacketSource
 
 __all__ = ["AbbReplay"]
 
 TICK_S = 0.002  #: how often the stream is checked for frames due (wall s)
 
 
-def _wire(path: str | Path) -> tuple[Any, Any]:
-    """(byte order, real size) of the recording's arm link."""
-    from robocli.io.record import info
-    from robocli.io.record.links import is_raw
-
-    for channel in info(path).channels:
-        meta = channel.metadata
-        if is_raw(channel.encoding, channel.schema) and meta.get("protocol", "")[:2] == "sm":
-            order = ">" if meta.get("byte_order") == "big" or meta["protocol"] == "sm-be" else "<"
-            real = 8 if meta.get("real_size") == "8" else 4
-            return order, real
-    return "<", 4
+def _wire(source: PacketSource) -> tuple[Any, Any]:
+    """(byte order, real size) of the recorded arm link."""
+    meta = source.link_metadata("sm")
+    order = ">" if meta.get("byte_order") == "big" or meta.get("protocol") == "sm-be" else "<"
+    return order, 8 if meta.get("real_size") == "8" else 4
 
 
 class AbbReplay(AbbSim):
-    """:class:`~robocli.sim.abb.server.AbbSim`'s two ports playing back the arm recorded at
-    ``path`` on the state port (see the module docstring). Keyword arguments go to
+    """:class:`~robocli.sim.abb.server.AbbSim`'s two ports playing back the arm recorded in
+    ``source`` on the state port (see the module docstring; a recording's is
+    ``RecordedPackets(path)`` of :mod:`robocli.io.record.replay`). Keyword arguments go to
     :class:`AbbSim` (``robot``...)."""
 
-    def __init__(self, path: str | Path, *, speed: float = 1.0, loop: bool = False,
+    def __init__(self, source: PacketSource, *, speed: float = 1.0, loop: bool = False,
                  **options: Any) -> None:  # fmt: skip
-        frames = recorded_frames(path, "sm", "rx:state")
+        frames = source.frames("sm", "rx:state")
         self.schedule = FrameSchedule(frames, speed, loop)
-        order, real = _wire(path)
+        order, real = _wire(source)
         options.setdefault("byteorder", order)
         options.setdefault("real", real)
         super().__init__(**options)
-        self.path = str(path)
+        self.path = source.name
 
     def _publish_step(self) -> Callable[[], float]:
         """The recorded stream to the state client, restarted for each new one."""

@@ -29,9 +29,9 @@ import numpy as np
 import numpy.typing as npt
 
 from robocli.errors import InvalidArgument
+from robocli.protocols.scip2.framing import RequestFramer
 from robocli.serving.server import SIM_HANDSHAKE_S, Link, Server
 from robocli.serving.ticker import Ticker
-from robocli.sim.hokuyo.framing import RequestFramer
 from robocli.sim.hokuyo.model import MODELS, HokuyoModel, measure
 from robocli.sim.hokuyo.session import ScipSession
 from robocli.sim.world import World

@@ -19,7 +19,6 @@ starts the recording over. With ``loop`` it starts over at its end as well.
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from robocli.protocols.arcos import Command, PacketType
@@ -28,7 +27,7 @@ from robocli.sim.laser import LMS200
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.pioneer.session import ArcosController, ArcosSession
 from robocli.sim.pioneer.simext import LASER_EXTENDED, LASER_OFF, LASER_PLAIN
-from robocli.sim.replay import FrameSchedule, recorded_frames
+from robocli.sim.replay import FrameSchedule, PacketSource
 
 __all__ = ["PioneerReplay", "ReplayController"]
 
@@ -114,14 +113,15 @@ class ReplayController(ArcosController):
 
 class PioneerReplay(PioneerSim):
     """:class:`~robocli.sim.pioneer.server.PioneerSim`'s server (TCP or pty, one client at
-    a time) playing back the Pioneer recorded at ``path`` (see the module docstring).
-    Keyword arguments go to :class:`PioneerSim` (``watchdog_s``...)."""
+    a time) playing back the Pioneer recorded in ``source`` (see the module docstring; a
+    recording's is ``RecordedPackets(path)`` of :mod:`robocli.io.record.replay`). Keyword
+    arguments go to :class:`PioneerSim` (``watchdog_s``...)."""
 
-    def __init__(self, path: str | Path, *, speed: float = 1.0, loop: bool = False,
+    def __init__(self, source: PacketSource, *, speed: float = 1.0, loop: bool = False,
                  **options: Any) -> None:  # fmt: skip
         from robocli.robots.pioneer import ROBOT_PARAMS
 
-        frames = recorded_frames(path, "arcos", "rx")
+        frames = source.frames("arcos", "rx")
         name, subtype = _identity(frames)
         stream = [(t, f) for t, f in frames if f[3] not in _NOT_STREAMED]
         schedule = FrameSchedule(stream, speed, loop)
@@ -139,7 +139,7 @@ class PioneerReplay(PioneerSim):
             state_of_charge=options.get("state_of_charge", False),
         )  # fmt: skip
         self._ticker = Ticker(TICK_S, self._tick, "pioneer-replay-ticker")
-        self.path, self.schedule = str(path), schedule
+        self.path, self.schedule = source.name, schedule
 
     @property
     def withheld(self) -> int:

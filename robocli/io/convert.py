@@ -9,7 +9,7 @@ A channel whose schema has no ROS 2 mapping is left out and counted.
 ``OUT`` ending in ``.mcap`` is one file (what ``ros2 bag play OUT.mcap`` takes); any other
 name is a bag folder as ``ros2 bag record`` makes one: ``OUT/OUT_0.mcap`` and
 ``OUT/metadata.yaml``. The output is checked before the input is read, written beside its
-name and put in place once whole (:mod:`robocli.io.output`): an existing file is replaced
+name and put in place once whole (:mod:`robocli.output`): an existing file is replaced
 only with ``overwrite``, an existing folder never, and a failure leaves nothing behind.
 """
 
@@ -24,7 +24,7 @@ from typing import Any
 
 from robocli._version import __version__
 from robocli.errors import RobocliError
-from robocli.io.output import OutputError, check_output, replace_output
+from robocli.output import OutputError, check_output, replace_output
 
 log = logging.getLogger("robocli.ros2")
 
@@ -46,7 +46,7 @@ class ConvertStats:
 def convert(path: str | Path, out: str | Path, *, overwrite: bool = False,
             prefix_frames: bool = False) -> ConvertStats:  # fmt: skip
     """Rewrite the robocli recording at ``path`` as a ROS 2 bag at ``out`` (see the module
-    docstring). Raises :class:`~robocli.io.output.OutputError` for an output it may not
+    docstring). Raises :class:`~robocli.output.OutputError` for an output it may not
     write, :class:`~robocli.io.record.BadRecording` for an input that is not MCAP,
     :class:`~robocli.errors.RobocliError` for one that is a ROS 2 bag already or a message
     that does not decode, :class:`~robocli.ros2.types.Ros2Unavailable` without rosbags."""

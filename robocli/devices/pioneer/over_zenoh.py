@@ -33,7 +33,6 @@ import time
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
-from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
 from robocli.devices.base import ListenerHandle, deprecated, pick_kind, zenoh_where
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.pioneer.commands import _finite
@@ -47,6 +46,7 @@ from robocli.errors import (
     TimeoutError,
 )
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.robot_keys import JSON_ENCODING, control_key, decode, encode, holder_key
 from robocli.zenoh.session import (
     ZenohTarget,
     close_session,

@@ -111,11 +111,11 @@ def finite_difference(time: FloatArray, positions: FloatArray) -> FloatArray:
 
 def check_writable(path: str | Path, overwrite: bool = False) -> Path:
     """Raise :class:`LogFormatError` for an unknown suffix, and
-    :class:`~robocli.io.output.OutputError` unless a log could be written to ``path`` (see
-    :func:`~robocli.io.output.check_output`: an existing file only with ``overwrite``, never
+    :class:`~robocli.output.OutputError` unless a log could be written to ``path`` (see
+    :func:`~robocli.output.check_output`: an existing file only with ``overwrite``, never
     a symbolic link). For commands that record for a while (or move a robot) before they
     write: check first."""
-    from robocli.io.output import check_output
+    from robocli.output import check_output
 
     out = Path(path)
     _suffix(out)
@@ -125,8 +125,8 @@ def check_writable(path: str | Path, overwrite: bool = False) -> Path:
 def write_log(log: TrajectoryLog, path: str | Path, overwrite: bool = False) -> Path:
     """Write ``log`` to ``path`` in the format of its suffix; returns the path. The file
     appears whole or not at all; an existing one is replaced only with ``overwrite``
-    (:class:`~robocli.io.output.OutputError` otherwise, as for a symbolic link)."""
-    from robocli.io.output import replace_output
+    (:class:`~robocli.output.OutputError` otherwise, as for a symbolic link)."""
+    from robocli.output import replace_output
 
     out = Path(path)
     suffix = _suffix(out)
