@@ -41,6 +41,7 @@ from robocli.addresses import (
     parse_address,
     parse_host,
 )
+from robocli.closing import Closing
 from robocli.errors import ConnectionLost, DeviceError, StaleWrite, TransportError
 
 __all__ = [
@@ -64,7 +65,7 @@ __all__ = [
 WRITE_TIMEOUT = 1.0
 
 
-class Transport:
+class Transport(Closing):
     """A bidirectional byte stream. Subclasses implement ``_read``/``_write``/``_close`` and,
     where they can, ``_wait_readable``.
 
@@ -134,12 +135,6 @@ class Transport:
     @property
     def closed(self) -> bool:
         return self._closed
-
-    def __enter__(self) -> Transport:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} {self.url}{' closed' if self._closed else ''}>"

@@ -42,6 +42,7 @@ from robocli.bridge.keys import (
     reply,
     undeclare,
 )
+from robocli.closing import Closing
 from robocli.devices.arm import Arm
 from robocli.errors import ProtocolError, RobocliError, TimeoutError
 from robocli.kinematics import fk
@@ -53,7 +54,7 @@ if TYPE_CHECKING:
 log = logging.getLogger("robocli.bridge")
 
 
-class ArmBridge:
+class ArmBridge(Closing):
     """Put ``arm`` (state port needed; motion port for uploads) on ``session`` as ``name``
     until :meth:`close`. The bridge owns neither: close them after it."""
 
@@ -233,12 +234,6 @@ class ArmBridge:
         for entity in (self._info, self._state, self._status):  # type: ignore[assignment]
             undeclare(entity)
         self._done.set()
-
-    def __enter__(self) -> ArmBridge:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 __all__ = ["ArmBridge"]

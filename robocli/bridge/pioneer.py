@@ -43,6 +43,7 @@ from robocli.bridge.keys import (
     reply,
     undeclare,
 )
+from robocli.closing import Closing
 from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
 from robocli.errors import ProtocolError, RobocliError, TimeoutError
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
@@ -62,7 +63,7 @@ def state_json(state: PioneerState, n_sonar: int, offset: float) -> dict[str, An
     return data
 
 
-class PioneerBridge:
+class PioneerBridge(Closing):
     """Put ``robot`` on ``session`` as ``name`` until :meth:`close` (see the module).
 
     ``silence``: seconds without a command after which a moving robot is stopped (None: only
@@ -243,12 +244,6 @@ class PioneerBridge:
         for entity in (self._info, self._state, self._laser):  # type: ignore[assignment]
             undeclare(entity)
         self._done.set()
-
-    def __enter__(self) -> PioneerBridge:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 __all__ = ["PioneerBridge", "state_json"]

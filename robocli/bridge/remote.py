@@ -34,6 +34,7 @@ from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
 from robocli.bridge.keys import JSON_ENCODING, control_key, decode, encode, holder_key
+from robocli.closing import Closing
 from robocli.devices.base import ListenerHandle, deprecated, pick_kind, zenoh_where
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.pioneer.commands import _finite
@@ -77,7 +78,7 @@ def default_holder() -> str:
     return re.sub(r"[^A-Za-z0-9_.\-]", "-", raw)[:63].lstrip(".-") or f"robocli-{os.getpid()}"
 
 
-class RemotePioneer:
+class RemotePioneer(Closing):
     """A Pioneer behind a bridge named ``robot`` (see the module). Make one with
     :meth:`connect`, or hand it an open ``session`` (not closed by :meth:`close`)."""
 
@@ -319,12 +320,6 @@ class RemotePioneer:
             sub.undeclare()  # type: ignore[no-untyped-call]
         if self._own:
             close_session(self._session)
-
-    def __enter__(self) -> RemotePioneer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<RemotePioneer {self.robot} as {self.holder}>"

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from robocli.addresses import DeviceURL, parse_device_url
+from robocli.closing import Closing
 from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
@@ -68,7 +69,7 @@ from robocli.transports import Transport
 ZENOH_HUB: list[Callable[..., Hub]] = []
 
 
-class Hub:
+class Hub(Closing):
     """A client of a ros4mat v3 sensor hub (``robocli serve`` or the original server)."""
 
     def __init__(
@@ -431,12 +432,6 @@ class Hub:
     def remove_listener(self, listener: FrameListener, *, kind: str = "frames") -> None:
         pick_kind(kind, ("frames",), "Hub")
         self.session.listeners.remove(listener)
-
-    def __enter__(self) -> Hub:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<Hub {self.url} client {self.client_id}>"

@@ -27,6 +27,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from robocli.closing import Closing
 from robocli.devices.hub.decode import body_of
 from robocli.devices.hub.link import (
     handshake,
@@ -84,7 +85,7 @@ class LineSettings(dict[str, Any]):
                 "port": port}  # fmt: skip
 
 
-class VirtualSerial:
+class VirtualSerial(Closing):
     """The hub's serial ``port`` streamed to this machine (see the module docstring).
 
     ``on_data(bytes)``, if given, gets the bytes from the hub in the reader's thread (it
@@ -344,12 +345,6 @@ class VirtualSerial:
             except (RobocliError, OSError):
                 pass  # the link is gone already: so is the stream, with the connection
             session.close(goodbye)
-
-    def __enter__(self) -> VirtualSerial:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"VirtualSerial({self.host}:{self.hub_port} {self.port} {dict(self.settings)})"

@@ -17,6 +17,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
+from robocli.closing import Closing
 from robocli.devices.hub.serial import RESUME_S, LineSettings
 from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, RobocliError, TimeoutError
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
@@ -31,7 +32,7 @@ log = logging.getLogger("robocli.devices.hub.zenoh_serial")
 MAX_REPLY = 64 * 1024
 
 
-class ZenohSerialLine:
+class ZenohSerialLine(Closing):
     """The serial ``port`` of the hub named ``hub`` on Zenoh (see the module docstring).
     ``on_data(bytes)`` gets the port's bytes in Zenoh's thread (it must not block)."""
 
@@ -217,9 +218,3 @@ class ZenohSerialLine:
         if self.session is not None:
             close_session(self.session)
             self.session = None
-
-    def __enter__(self) -> ZenohSerialLine:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -31,10 +31,10 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
-from types import TracebackType
 from typing import Any
 
 from robocli.addresses import parse_device_url
+from robocli.closing import Closing
 from robocli.devices import simulators
 from robocli.devices.base import ListenerHandle, close_simulator, deprecated, pick_kind
 from robocli.devices.laser.clock import SensorClock
@@ -76,7 +76,7 @@ def _stat_name(payload: bytes, direction: str) -> str:
     return payload[:2].decode("latin-1") if payload[:2].isalnum() else "?"
 
 
-class Laser:
+class Laser(Closing):
     """A connected scanner. Make one with :meth:`connect`; use it as a context manager."""
 
     def __init__(
@@ -488,11 +488,3 @@ class Laser:
 
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the laser
     simulator: simulators.Simulator | None = None
-
-    def __enter__(self) -> Laser:
-        return self
-
-    def __exit__(
-        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()

@@ -33,6 +33,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
+from robocli.closing import Closing
 from robocli.errors import InvalidArgument, RobocliError, TransportError
 from robocli.io.record.links import RAW_SCHEMA
 from robocli.io.schemas import SCHEMAS, schema_bytes
@@ -67,7 +68,7 @@ def _server_class() -> type[FoxgloveServer]:
     return FoxgloveServer
 
 
-class LiveView:
+class LiveView(Closing):
     """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
     serving the channels of the devices :meth:`add` ed to it, or of a recorder that
     mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
@@ -234,12 +235,6 @@ class LiveView:
         if self._thread is not None:
             self._thread.join(timeout)
         self.server.stop()
-
-    def __enter__(self) -> LiveView:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<LiveView {self.url} messages={self.messages}>"

@@ -52,6 +52,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from robocli._version import __version__
+from robocli.closing import Closing
 from robocli.errors import InvalidArgument, RobocliError
 from robocli.io.output import check_output, create_output
 from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
@@ -112,7 +113,7 @@ def _mcap() -> Any:
     return mcap
 
 
-class Recorder:
+class Recorder(Closing):
     """Record devices into one MCAP file on one timeline. See the module docstring.
 
     ``compression``: ``"zstd"`` (default), ``"lz4"`` or ``"none"``. ``chunk_seconds``: the
@@ -482,12 +483,6 @@ class Recorder:
                                  "(a stalled disk?); complete chunks are readable")  # fmt: skip
         if self.error is not None:
             raise RecordingError(self._failure())
-
-    def __enter__(self) -> Recorder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<Recorder {self.path} messages={self.stats.messages}>"
