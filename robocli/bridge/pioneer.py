@@ -28,9 +28,9 @@ from __future__ import annotations
 import logging
 import math
 import threading
-import time
 from typing import TYPE_CHECKING, Any
 
+from robocli.bridge.base import Bridge
 from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
 from robocli.bridge.keys import (
     JSON_ENCODING,
@@ -40,13 +40,10 @@ from robocli.bridge.keys import (
     holder_of,
     number,
     put,
-    reply,
-    undeclare,
 )
-from robocli.closing import Closing
 from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
-from robocli.errors import ProtocolError, RobocliError, TimeoutError
-from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.errors import ProtocolError, RobocliError
+from robocli.zenoh.keys import alive_key, info_key, topic_key
 
 if TYPE_CHECKING:
     import zenoh
@@ -63,7 +60,7 @@ def state_json(state: PioneerState, n_sonar: int, offset: float) -> dict[str, An
     return data
 
 
-class PioneerBridge(Closing):
+class PioneerBridge(Bridge):
     """Put ``robot`` on ``session`` as ``name`` until :meth:`close` (see the module).
 
     ``silence``: seconds without a command after which a moving robot is stopped (None: only
@@ -71,20 +68,18 @@ class PioneerBridge(Closing):
     holder has to declare its liveliness token. The bridge does not own ``robot`` or
     ``session``: close them after it."""
 
+    device = "robot"
+
     def __init__(self, robot: Pioneer, session: zenoh.Session, name: str, *,
                  silence: float | None = DEFAULT_SILENCE_S,
                  token_wait: float = DEFAULT_TOKEN_WAIT_S) -> None:  # fmt: skip
+        super().__init__(name)
         self.robot = robot
-        self.name = check_name(name, "robot name")
-        self.failure: BaseException | None = None  #: what ended the robot's link, if it ended
-        self._done = threading.Event()
-        self._closed = False
         # a stall (the trip): motion refused until the holder stops; then that trip is
         # acknowledged, and the Pioneer's refusal of the next motion command for it is spent
         self._latched: WatchdogTrip | None = None
         self._acknowledged: WatchdogTrip | None = None
         self._bad_commands = 0
-        self._offset = time.time() - time.monotonic()
         z = session
         self.gate = ControlGate(z, self.name, stop=self._stop, grant=self._grant,
                                 silence=silence, token_wait=token_wait)  # fmt: skip
@@ -94,17 +89,14 @@ class PioneerBridge(Closing):
                                               self._on_velocity)  # fmt: skip
         self._info = z.declare_queryable(info_key(self.name), self._on_info)
         robot.add_listener(self._on_trip, kind="watchdog")
-        self._thread = threading.Thread(target=self._publish, daemon=True,
-                                        name=f"bridge-pioneer-{self.name}")  # fmt: skip
-        self._thread.start()
+        self._threads = [threading.Thread(target=self._publish, daemon=True,
+                                          name=f"bridge-pioneer-{self.name}")]  # fmt: skip
+        self._threads[0].start()
         self._alive = z.liveliness().declare_token(alive_key(self.name, "pioneer"))
+        self._inbound = (self._velocity, self._alive)
+        self._outbound = (self._info, self._state, self._laser)
 
     # ------------------------------------------------------------------ serving
-
-    def wait(self, timeout: float | None = None) -> bool:
-        """Block until the bridge ends (closed, or the robot's link failed: :attr:`failure`)
-        or ``timeout`` s pass; True when it ended."""
-        return self._done.wait(timeout)
 
     def info(self) -> dict[str, Any]:
         """What ``robocli/<robot>/@info`` answers."""
@@ -127,17 +119,9 @@ class PioneerBridge(Closing):
     def _publish(self) -> None:
         """Put every SIP's state (and each new laser scan) until closed or the link fails."""
         robot, n_sonar, last_scan = self.robot, len(self.robot.params.sonar), -math.inf
-        while not self._closed:
-            try:
-                state = robot.wait_for_sip(timeout=1.0)
-            except TimeoutError:
-                if robot.alive:
-                    continue
-                self._fail(robot)
-                return
-            except RobocliError:
-                self._fail(robot)
-                return
+
+        def put_one(state: PioneerState) -> None:
+            nonlocal last_scan
             data = state_json(state, n_sonar, self._offset)
             data["holder"] = self.gate.holder
             put(self._state, data)
@@ -150,18 +134,13 @@ class PioneerBridge(Closing):
                     "angles": list(scan.angles),
                     "ranges": [None if math.isinf(r) else r for r in scan.ranges],
                 })  # fmt: skip
-        self._done.set()
 
-    def _fail(self, robot: Pioneer) -> None:
-        try:
-            robot.state  # noqa: B018 - raises the error that ended the link
-        except RobocliError as exc:
-            self.failure = exc
-        else:
-            self.failure = TimeoutError(f"{robot.transport.url}: no SIP")
-        log.error("%s: the robot's link ended: %s", self.name, self.failure)
-        self.gate.event("fault", holder=self.gate.holder, reason=f"robot link: {self.failure}")
-        self._done.set()
+        self._put_each(lambda timeout: robot.wait_for_sip(timeout=timeout), lambda: robot.alive,
+                       put_one)  # fmt: skip
+
+    def _check_link(self) -> str:
+        self.robot.state  # noqa: B018 - raises the error that ended the link
+        return f"{self.robot.transport.url}: no SIP"
 
     # ------------------------------------------------------------------ commands
 
@@ -226,24 +205,6 @@ class PioneerBridge(Closing):
 
     def _stop(self, reason: str) -> None:
         self.robot.stop()
-
-    def _on_info(self, query: zenoh.Query) -> None:
-        reply(query, self.info())
-
-    # ------------------------------------------------------------------ closing
-
-    def close(self) -> None:
-        """Stop taking commands, stop the robot, undeclare everything. Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        for entity in (self._velocity, self._alive):
-            undeclare(entity)
-        self.gate.close("the bridge ended")
-        self._thread.join(timeout=5.0)
-        for entity in (self._info, self._state, self._laser):  # type: ignore[assignment]
-            undeclare(entity)
-        self._done.set()
 
 
 __all__ = ["PioneerBridge", "state_json"]
