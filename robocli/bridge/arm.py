@@ -34,7 +34,6 @@ from robocli.bridge.base import Bridge
 from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
 from robocli.bridge.keys import (
     JSON_ENCODING,
-    control_key,
     decode,
     holder_key,
     holder_of,
@@ -88,11 +87,7 @@ class ArmBridge(Bridge):
         return {
             "name": self.name, "kind": "arm", "model": model.name,
             "joints": model.n_joints, "holder": self.gate.holder,
-            "keys": {"state": topic_key(self.name, "state"),
-                     "status": topic_key(self.name, "status"),
-                     "control": control_key(self.name),
-                     "trajectory": holder_key(self.name, None, "trajectory"),
-                     "event": control_key(self.name, "event")},
+            "keys": self._keys(("state", "status"), "trajectory"),
         }  # fmt: skip
 
     # ------------------------------------------------------------------ state out

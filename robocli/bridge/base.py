@@ -16,10 +16,10 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any, TypeVar
 
 from robocli.bridge.control import ControlGate
-from robocli.bridge.keys import reply, undeclare
+from robocli.bridge.keys import control_key, holder_key, reply, undeclare
 from robocli.closing import Closing
 from robocli.errors import RobocliError, TimeoutError
-from robocli.zenoh.keys import check_name
+from robocli.zenoh.keys import check_name, topic_key
 
 if TYPE_CHECKING:
     import zenoh
@@ -56,6 +56,15 @@ class Bridge(Closing):
     def info(self) -> dict[str, Any]:
         """What ``robocli/<robot>/@info`` answers."""
         raise NotImplementedError
+
+    def _keys(self, topics: tuple[str, ...], command: str) -> dict[str, str]:
+        """The ``keys`` of :meth:`info`: each topic's, the control key, the holder's
+        ``command`` key (``<holder>`` as ``*``) and the event key."""
+        keys = {topic: topic_key(self.name, topic) for topic in topics}
+        keys["control"] = control_key(self.name)
+        keys[command] = holder_key(self.name, None, command)
+        keys["event"] = control_key(self.name, "event")
+        return keys
 
     def _on_info(self, query: zenoh.Query) -> None:
         reply(query, self.info())

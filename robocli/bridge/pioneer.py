@@ -34,7 +34,6 @@ from robocli.bridge.base import Bridge
 from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
 from robocli.bridge.keys import (
     JSON_ENCODING,
-    control_key,
     decode,
     holder_key,
     holder_of,
@@ -109,11 +108,7 @@ class PioneerBridge(Bridge):
             "max_velocity": r.max_velocity, "max_rot_velocity": r.max_rot_velocity,
             "sonar": len(r.params.sonar), "simulator": r.is_simulator,
             "holder": self.gate.holder, "silence": self.gate.silence,
-            "keys": {"state": topic_key(self.name, "state"),
-                     "laser": topic_key(self.name, "laser"),
-                     "control": control_key(self.name),
-                     "velocity": holder_key(self.name, None, "velocity"),
-                     "event": control_key(self.name, "event")},
+            "keys": self._keys(("state", "laser"), "velocity"),
         }  # fmt: skip
 
     def _publish(self) -> None:
