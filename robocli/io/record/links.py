@@ -4,9 +4,13 @@ from __future__ import annotations
 
 import base64
 import json
+import logging
 import math
+import time
 from collections.abc import Callable, Iterable
 from typing import Any, Protocol
+
+from robocli.closing import Closing
 
 __all__ = [
     "RAW_ENCODING",
@@ -14,6 +18,7 @@ __all__ = [
     "ROS2_RAW_TYPE",
     "RawLink",
     "Sink",
+    "SinkBase",
     "TopicDecoder",
     "is_raw",
     "json_text",
@@ -21,6 +26,8 @@ __all__ = [
     "raw_link",
     "record_scans",
 ]
+
+log = logging.getLogger("robocli.io.record")
 
 #: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
@@ -73,6 +80,45 @@ class Sink(Protocol):
     def write(self, cid: int, data: bytes, log_ns: int, publish_ns: int | None = None) -> None:
         """Add one message to channel ``cid`` (writer thread only)."""
         ...
+
+
+class SinkBase(Closing):
+    """The bookkeeping every :class:`Sink` shares: log times on an epoch fixed at the start
+    (they never jump with the clock), unique link names, and the listeners to detach when
+    it closes (:meth:`_detach_all`)."""
+
+    links: dict[str, Any]
+
+    def __init__(self) -> None:
+        self._epoch_ns = time.time_ns() - time.monotonic_ns()
+        self._names: set[str] = set()
+        self._detach: list[Callable[[], None]] = []
+
+    def log_ns(self, t_monotonic: float) -> int:
+        """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
+        return int(t_monotonic * 1e9) + self._epoch_ns
+
+    def unique_name(self, base: str) -> str:
+        """``base``, or ``base2``, ``base3``... the first not taken yet."""
+        name, k = base, 1
+        while name in self._names or name in self.links:
+            k += 1
+            name = f"{base}{k}"
+        self._names.add(name)
+        return name
+
+    def on_close(self, detach: Callable[[], None]) -> None:
+        """Call ``detach`` (remove a listener) when the sink closes."""
+        self._detach.append(detach)
+
+    def _detach_all(self) -> None:
+        """Call every ``detach`` given to :meth:`on_close` once (one that fails is logged)."""
+        detaches, self._detach = self._detach, []
+        for detach in detaches:
+            try:
+                detach()
+            except Exception:
+                log.debug("%s: detaching a listener failed", type(self).__name__, exc_info=True)
 
 
 _ENCODE = json.JSONEncoder(separators=(",", ":"), allow_nan=False).encode

@@ -33,9 +33,8 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
-from robocli.closing import Closing
 from robocli.errors import InvalidArgument, RobocliError, TransportError
-from robocli.io.record.links import RAW_SCHEMA
+from robocli.io.record.links import RAW_SCHEMA, SinkBase
 from robocli.io.schemas import SCHEMAS, schema_bytes
 
 if TYPE_CHECKING:
@@ -68,7 +67,7 @@ def _server_class() -> type[FoxgloveServer]:
     return FoxgloveServer
 
 
-class LiveView(Closing):
+class LiveView(SinkBase):
     """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
     serving the channels of the devices :meth:`add` ed to it, or of a recorder that
     mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
@@ -104,16 +103,14 @@ class LiveView(Closing):
         self.errors = 0
         #: messages handed to the server
         self.messages = 0
+        super().__init__()
         self.links: dict[str, Any] = {}
         self._by_topic: dict[str, int] = {}
-        self._names: set[str] = set()
-        self._detach: list[Callable[[], None]] = []
         self._lock = threading.Lock()
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._closing = False
         self._closed = False
         self._thread: threading.Thread | None = None
-        self._epoch_ns = time.time_ns() - time.monotonic_ns()
 
     @property
     def url(self) -> str:
@@ -135,20 +132,6 @@ class LiveView(Closing):
             self._thread = threading.Thread(target=self._run, name="live-view", daemon=True)
             self._thread.start()
         return sources.attach(self, device, name, **options)
-
-    def log_ns(self, t_monotonic: float) -> int:
-        return int(t_monotonic * 1e9) + self._epoch_ns
-
-    def unique_name(self, base: str) -> str:
-        name, k = base, 1
-        while name in self._names:
-            k += 1
-            name = f"{base}{k}"
-        self._names.add(name)
-        return name
-
-    def on_close(self, detach: Callable[[], None]) -> None:
-        self._detach.append(detach)
 
     def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
         """Queue ``handler(*args)`` for the decoding thread; never blocks (a full queue
@@ -225,11 +208,7 @@ class LiveView(Closing):
         if self._closed:
             return
         self._closed = True
-        for detach in self._detach:
-            try:
-                detach()
-            except Exception:
-                log.debug("live view: detaching a listener failed", exc_info=True)
+        self._detach_all()
         with self._lock:
             self._closing = True
         if self._thread is not None:

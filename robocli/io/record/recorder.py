@@ -52,10 +52,9 @@ from pathlib import Path
 from typing import IO, Any
 
 from robocli._version import __version__
-from robocli.closing import Closing
 from robocli.errors import InvalidArgument, RobocliError
 from robocli.io.output import check_output, create_output
-from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
+from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA, SinkBase
 from robocli.io.schemas import schema_bytes
 
 log = logging.getLogger("robocli.io.record")
@@ -113,7 +112,7 @@ def _mcap() -> Any:
     return mcap
 
 
-class Recorder(Closing):
+class Recorder(SinkBase):
     """Record devices into one MCAP file on one timeline. See the module docstring.
 
     ``compression``: ``"zstd"`` (default), ``"lz4"`` or ``"none"``. ``chunk_seconds``: the
@@ -170,8 +169,7 @@ class Recorder(Closing):
         self.stats = RecorderStats()
         #: the error that stopped the writer (a full disk), else None
         self.error: BaseException | None = None
-        # monotonic -> Unix epoch, fixed at the start: log times never jump with the clock
-        self._epoch_ns = time.time_ns() - time.monotonic_ns()
+        super().__init__()  # log times on an epoch fixed now, names, what to detach
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
@@ -183,8 +181,6 @@ class Recorder(Closing):
         self._closing = False
         self._closed = False
         self._decode_logged: set[str] = set()
-        self._detach: list[Callable[[], None]] = []
-        self._names: set[str] = set()
         #: raw links by name (see :meth:`listener`)
         self.links: dict[str, Any] = {}
         self._thread: threading.Thread | None = None
@@ -237,12 +233,6 @@ class Recorder(Closing):
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
 
-    # ------------------------------------------------------------------ time
-
-    def log_ns(self, t_monotonic: float) -> int:
-        """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
-        return int(t_monotonic * 1e9) + self._epoch_ns
-
     # ------------------------------------------------------------------ sources
 
     def add(self, device: Any, name: str | None = None, **options: Any) -> str:
@@ -270,19 +260,6 @@ class Recorder(Closing):
         from robocli.io.record import sources
 
         return sources.raw_link(self, name, protocol, **metadata)
-
-    def unique_name(self, base: str) -> str:
-        """``base``, or ``base2``, ``base3``... the first not taken yet."""
-        name, k = base, 1
-        while name in self._names:
-            k += 1
-            name = f"{base}{k}"
-        self._names.add(name)
-        return name
-
-    def on_close(self, detach: Callable[[], None]) -> None:
-        """Call ``detach`` (remove a listener) when the recorder closes."""
-        self._detach.append(detach)
 
     def mirror(self, sink: Any) -> None:
         """Also hand every message of the channels registered from now on to ``sink`` (its
@@ -461,11 +438,7 @@ class Recorder(Closing):
         if self._closed:
             return
         self._closed = True
-        for detach in self._detach:
-            try:
-                detach()
-            except Exception:
-                log.debug("recorder: detaching a listener failed", exc_info=True)
+        self._detach_all()
         with self._lock:
             self._closing = True
             if self._thread is None:
