@@ -93,6 +93,7 @@ class SinkBase(Closing):
         self._epoch_ns = time.time_ns() - time.monotonic_ns()
         self._names: set[str] = set()
         self._detach: list[Callable[[], None]] = []
+        self._closed = False
 
     def log_ns(self, t_monotonic: float) -> int:
         """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
@@ -110,6 +111,15 @@ class SinkBase(Closing):
     def on_close(self, detach: Callable[[], None]) -> None:
         """Call ``detach`` (remove a listener) when the sink closes."""
         self._detach.append(detach)
+
+    def _close_begins(self) -> bool:
+        """True once, for the first :meth:`close`: it is marked closed and detached from its
+        devices (:meth:`_detach_all`); False for every later one."""
+        if self._closed:
+            return False
+        self._closed = True
+        self._detach_all()
+        return True
 
     def _detach_all(self) -> None:
         """Call every ``detach`` given to :meth:`on_close` once (one that fails is logged)."""

@@ -109,7 +109,6 @@ class LiveView(SinkBase):
         self._lock = threading.Lock()
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._closing = False
-        self._closed = False
         self._thread: threading.Thread | None = None
 
     @property
@@ -205,10 +204,8 @@ class LiveView(SinkBase):
     def close(self, timeout: float = 10.0) -> None:
         """Stop listening to the devices, close the channels and stop the server.
         Idempotent."""
-        if self._closed:
+        if not self._close_begins():
             return
-        self._closed = True
-        self._detach_all()
         with self._lock:
             self._closing = True
         if self._thread is not None:

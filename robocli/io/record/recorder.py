@@ -179,7 +179,6 @@ class Recorder(SinkBase):
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._queued_bytes = 0
         self._closing = False
-        self._closed = False
         self._decode_logged: set[str] = set()
         #: raw links by name (see :meth:`listener`)
         self.links: dict[str, Any] = {}
@@ -435,10 +434,8 @@ class Recorder(SinkBase):
         Raises :class:`RecordingError` when writing failed (what was written before stays
         readable up to its last complete chunk). A recorder that never began (see
         :meth:`begin`) writes nothing: no file is made."""
-        if self._closed:
+        if not self._close_begins():
             return
-        self._closed = True
-        self._detach_all()
         with self._lock:
             self._closing = True
             if self._thread is None:
