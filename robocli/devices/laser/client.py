@@ -34,9 +34,14 @@ from collections.abc import Callable, Generator, Iterable
 from typing import Any
 
 from robocli.addresses import parse_device_url
-from robocli.closing import Closing
 from robocli.devices import simulators
-from robocli.devices.base import ListenerHandle, close_simulator, deprecated, pick_kind
+from robocli.devices.base import (
+    ListenerHandle,
+    SessionDevice,
+    close_simulator,
+    deprecated,
+    pick_kind,
+)
 from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
 from robocli.devices.listeners import FrameListener, Listeners
@@ -76,7 +81,7 @@ def _stat_name(payload: bytes, direction: str) -> str:
     return payload[:2].decode("latin-1") if payload[:2].isalnum() else "?"
 
 
-class Laser(Closing):
+class Laser(SessionDevice):
     """A connected scanner. Make one with :meth:`connect`; use it as a context manager."""
 
     def __init__(
@@ -405,12 +410,7 @@ class Laser(Closing):
         and reply block; ``"scans"``, ``listener(scan)`` for each streamed :class:`Scan`.
         Called in the reader thread; an exception there is counted and logged, never stops
         the stream."""
-        registry = self._listeners_of(kind)
-        registry.add(listener)
-        return ListenerHandle(listener, lambda: registry.remove(listener))
-
-    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
-        self._listeners_of(kind).remove(listener)
+        return self._add_listener(listener, kind)
 
     def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames", "scans"), "Laser")
@@ -425,17 +425,6 @@ class Laser(Closing):
         """Deprecated: ``remove_listener(listener, kind="scans")``."""
         deprecated("Laser.remove_scan_listener", 'Laser.remove_listener(..., kind="scans")')
         self.scan_listeners.remove(listener)
-
-    @property
-    def alive(self) -> bool:
-        """True until the link failed or :meth:`close` began. Never blocks."""
-        return self._session.alive
-
-    def check(self) -> None:
-        """Return while :attr:`alive`; else raise the error that ended the link
-        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
-        with self._session.cond:
-            self._session.check()
 
     @property
     def stats(self) -> LinkStats:
