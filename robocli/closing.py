@@ -7,9 +7,11 @@ and inherits ``__enter__``/``__exit__`` from here instead of writing them again.
 
 from __future__ import annotations
 
-from typing import TypeVar
+import contextlib
+from collections.abc import Iterator
+from typing import Any, TypeVar
 
-__all__ = ["Closing"]
+__all__ = ["Closing", "closed_on_error"]
 
 _C = TypeVar("_C", bound="Closing")
 
@@ -25,3 +27,14 @@ class Closing:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+@contextlib.contextmanager
+def closed_on_error(thing: Any) -> Iterator[None]:
+    """Close ``thing`` (what is being set up: a device, a link, a simulator) when the block
+    raises anything (Ctrl-C included), then let the exception through."""
+    try:
+        yield
+    except BaseException:
+        thing.close()
+        raise

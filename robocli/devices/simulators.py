@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from robocli.addresses import DeviceURL
+from robocli.closing import closed_on_error
 from robocli.errors import InvalidArgument
 
 log = logging.getLogger("robocli.devices.simulators")
@@ -129,10 +130,7 @@ def connect_to(device: str | Callable[..., Simulator], url: DeviceURL,
     """Start ``device``'s simulator for ``url``, ``connect(simulator)`` to it and hand the
     simulator to what that returns (:func:`adopt`); a connect that fails stops it again."""
     simulator = start(device, url, **fixed)
-    try:
+    with closed_on_error(simulator):
         client = connect(simulator)
-    except BaseException:
-        simulator.close()
-        raise
     adopt(client, simulator)
     return client

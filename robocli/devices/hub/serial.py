@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from robocli.closing import Closing
+from robocli.closing import Closing, closed_on_error
 from robocli.devices.hub.decode import body_of
 from robocli.devices.hub.link import (
     handshake,
@@ -157,11 +157,8 @@ class VirtualSerial(Closing):
         self._client_id = int(header[2])
         session.on_frame = self._on_frame
         session.start()
-        try:
+        with closed_on_error(session):
             self._open_on(session)
-        except BaseException:
-            session.close()
-            raise
         return session
 
     def _open_on(self, session: Session) -> None:

@@ -17,7 +17,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from robocli.closing import Closing
+from robocli.closing import Closing, closed_on_error
 from robocli.devices.hub.serial import RESUME_S, LineSettings
 from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, RobocliError, TimeoutError
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
@@ -85,11 +85,8 @@ class ZenohSerialLine(Closing):
         session = open_session(zenoh, "client")
         line = cls(session, hub, port, user, settings, secret, timeout, on_data, on_event,
                    resume)  # fmt: skip
-        try:
+        with closed_on_error(line):
             line._start()
-        except BaseException:
-            line.close()
-            raise
         return line
 
     def _start(self) -> None:

@@ -34,6 +34,7 @@ from collections.abc import Callable, Generator, Iterable
 from typing import Any
 
 from robocli.addresses import parse_device_url
+from robocli.closing import closed_on_error
 from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
@@ -153,7 +154,7 @@ class Laser(SessionDevice):
         laser = cls(transport, timeout=timeout, check=check, start=False)
         for one in listeners:
             laser.session.listeners.add(one)
-        try:
+        with closed_on_error(laser):
             laser._handshake()
             laser._session.start()
             laser.info = laser.read_info()
@@ -161,9 +162,6 @@ class Laser(SessionDevice):
                 laser.sync_clock(sync_samples)
             if laser_on:
                 laser.laser_on()
-        except BaseException:
-            laser.close()
-            raise
         return laser
 
     def _handshake(self) -> None:
