@@ -34,10 +34,10 @@ in :mod:`robocli.devices.arm.link`.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from types import TracebackType
 from typing import Any
 
 from robocli.addresses import ARM_PORTS, parse_device_url
+from robocli.closing import Closing
 from robocli.devices import simulators
 from robocli.devices.arm.link import first_state, no_refusal, open_session, stop_frame
 from robocli.devices.arm.motion import Motion
@@ -60,7 +60,7 @@ __all__ = ["Arm", "SampleListener", "StillMoving"]
 _ORDERS = {"little": "<", "big": ">", "<": "<", ">": ">"}
 
 
-class Arm(Motion):
+class Arm(Motion, Closing):
     """A connected arm controller. Make one with :meth:`connect`; use it as a context manager.
 
     ``robot``: the :class:`~robocli.kinematics.model.RobotModel` limits are checked against.
@@ -197,13 +197,6 @@ class Arm(Motion):
 
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the arm
     simulator: simulators.Simulator | None = None
-
-    def __enter__(self) -> Arm:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:  # fmt: skip
-        self.close()
 
     # ------------------------------------------------------------------ listeners
 
