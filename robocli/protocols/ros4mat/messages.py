@@ -1,5 +1,5 @@
 """ros4mat message declarations and tables (protocol version 3); the ids, sizes and
-sensor names are :mod:`.ids`'s, re-exported here.
+sensor names are :mod:`.ids`'s.
 
 Part of :mod:`robocli.protocols.ros4mat` (import from there; its docstring has the facts).
 """
@@ -13,59 +13,32 @@ import construct as cs
 
 from robocli.errors import ProtocolError
 from robocli.protocols.ros4mat.ids import (
-    ALIASES,
     BATTERY_MAX_CELLS,
-    HEADER_SIZE,
-    INFLATE_STEP,
-    MAX_BODY_SIZE,
-    PORT,
-    PROTOCOL_VERSION,
-    SENSORS,
-    BatteryState,
-    Compression,
-    ComputerState,
-    GpsState,
     MsgType,
-    SerialStatus,
-    sensor_type,
 )
 from robocli.protocols.ros4mat.stream import SerialOpen
 
-# the ids, sizes and sensor names are .ids's, importable from here as before
 __all__ = [
-    "ALIASES",
-    "BATTERY_MAX_CELLS",
     "DECLARATIONS",
-    "HEADER_SIZE",
-    "INFLATE_STEP",
     "INFO_RECORDS",
-    "MAX_BODY_SIZE",
     "PARAMS",
-    "PORT",
-    "PROTOCOL_VERSION",
     "RECORDS",
     "REQUEST_BODIES",
-    "SENSORS",
     "STRUCT_SIZES",
     "Adc",
     "Battery",
-    "BatteryState",
     "Cam",
     "CameraData",
-    "Compression",
     "Computer",
-    "ComputerState",
     "Connect",
     "DigitalOut",
     "Gps",
-    "GpsState",
     "Header",
     "Hokuyo",
     "HokuyoData",
     "Imu",
     "Kinect",
     "KinectData",
-    "MsgType",
     "Packet",
     "ParamsAdc",
     "ParamsBattery",
@@ -80,13 +53,11 @@ __all__ = [
     "SerialAnsReply",
     "SerialCmd",
     "SerialCmdRequest",
-    "SerialStatus",
     "StereoData",
     "Subscribe",
     "SubscribeRequest",
     "Unsubscribe",
     "body_length",
-    "sensor_type",
 ]
 
 # ------------------------------------------------------------------------------ declarations
