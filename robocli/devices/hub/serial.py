@@ -85,7 +85,21 @@ class LineSettings(dict[str, Any]):
                 "port": port}  # fmt: skip
 
 
-class VirtualSerial(Closing):
+class LineEvents(Closing):
+    """What a serial line through the hub tells of its link (``"lost"``, ``"resumed"``,
+    ``"ended"``): logged on :attr:`_log` and handed to ``on_event(kind, text)``."""
+
+    port: str
+    _on_event: Callable[[str, str], None] | None
+    _log = log
+
+    def _event(self, kind: str, text: str) -> None:
+        self._log.info("%s: %s: %s", self.port, kind, text)
+        if self._on_event is not None:
+            self._on_event(kind, text)
+
+
+class VirtualSerial(LineEvents):
     """The hub's serial ``port`` streamed to this machine (see the module docstring).
 
     ``on_data(bytes)``, if given, gets the bytes from the hub in the reader's thread (it
@@ -263,11 +277,6 @@ class VirtualSerial(Closing):
             raise ConnectionLost(f"{self.host}:{self.hub_port}: link to the hub down; "
                                  "reconnecting")  # fmt: skip
         return s
-
-    def _event(self, kind: str, text: str) -> None:
-        log.info("%s: %s: %s", self.port, kind, text)
-        if self._on_event is not None:
-            self._on_event(kind, text)
 
     def _end(self, exc: RobocliError) -> None:
         with self._cond:
