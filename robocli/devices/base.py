@@ -182,6 +182,22 @@ def deprecated(old: str, new: str, stacklevel: int = 3) -> None:
     warnings.warn(f"{old} is deprecated; use {new}", DeprecationWarning, stacklevel=stacklevel)
 
 
+def deprecated_listener(
+    device: str, old: str, kind: str, *, remove: bool = False
+) -> Callable[[Any, Callable[..., None]], None]:
+    """A deprecated method ``device.old(listener)``: warns once that it is now
+    ``add_listener(listener, kind=kind)`` (``remove``: ``remove_listener``), then does that."""
+    new = "remove_listener" if remove else "add_listener"
+
+    def method(self: Any, listener: Callable[..., None]) -> None:
+        deprecated(f"{device}.{old}", f'{device}.{new}(..., kind="{kind}")')
+        getattr(self, new)(listener, kind=kind)
+
+    method.__name__ = old
+    method.__doc__ = f'Deprecated: ``{new}(listener, kind="{kind}")``.'
+    return method
+
+
 def renamed_argument(where: str, old: str, new: str, old_value: Any, new_value: Any,
                      default: Any) -> Any:  # fmt: skip
     """The value of an argument renamed ``old`` -> ``new``: ``old_value`` (with a one-time

@@ -45,7 +45,7 @@ from robocli.devices.arm.tracking import SampleListener, StillMoving
 from robocli.devices.base import (
     ListenerHandle,
     close_simulator,
-    deprecated,
+    deprecated_listener,
     pick_kind,
     renamed_argument,
 )
@@ -225,15 +225,9 @@ class Arm(Motion, Closing):
         for s in self._sessions(ports):
             s.listeners.remove(listener)
 
-    def add_sample_listener(self, listener: SampleListener) -> None:
-        """Deprecated: ``add_listener(listener, kind="samples")``."""
-        deprecated("Arm.add_sample_listener", 'Arm.add_listener(..., kind="samples")')
-        self._sample_listeners.add(listener)
-
-    def remove_sample_listener(self, listener: SampleListener) -> None:
-        """Deprecated: ``remove_listener(listener, kind="samples")``."""
-        deprecated("Arm.remove_sample_listener", 'Arm.remove_listener(..., kind="samples")')
-        self._sample_listeners.remove(listener)
+    add_sample_listener = deprecated_listener("Arm", "add_sample_listener", "samples")
+    remove_sample_listener = deprecated_listener("Arm", "remove_sample_listener", "samples",
+                                                 remove=True)  # fmt: skip
 
     def _sessions(self, ports: str) -> list[Session]:
         if ports not in ("both", "motion", "state"):

@@ -41,6 +41,7 @@ from robocli.devices.base import (
     SessionDevice,
     close_simulator,
     deprecated,
+    deprecated_listener,
     pick_kind,
 )
 from robocli.devices.laser.clock import SensorClock
@@ -414,15 +415,9 @@ class Laser(SessionDevice):
         pick_kind(kind, ("frames", "scans"), "Laser")
         return self._session.listeners if kind == "frames" else self.scan_listeners
 
-    def on_scan(self, listener: ScanListener) -> None:
-        """Deprecated: ``add_listener(listener, kind="scans")``."""
-        deprecated("Laser.on_scan", 'Laser.add_listener(..., kind="scans")')
-        self.scan_listeners.add(listener)
-
-    def remove_scan_listener(self, listener: ScanListener) -> None:
-        """Deprecated: ``remove_listener(listener, kind="scans")``."""
-        deprecated("Laser.remove_scan_listener", 'Laser.remove_listener(..., kind="scans")')
-        self.scan_listeners.remove(listener)
+    on_scan = deprecated_listener("Laser", "on_scan", "scans")
+    remove_scan_listener = deprecated_listener("Laser", "remove_scan_listener", "scans",
+                                               remove=True)  # fmt: skip
 
     @property
     def stats(self) -> LinkStats:
