@@ -18,48 +18,6 @@ from robocli.protocols.ros4mat.ids import (
 )
 from robocli.protocols.ros4mat.stream import SerialOpen
 
-__all__ = [
-    "DECLARATIONS",
-    "INFO_RECORDS",
-    "PARAMS",
-    "RECORDS",
-    "REQUEST_BODIES",
-    "STRUCT_SIZES",
-    "Adc",
-    "Battery",
-    "Cam",
-    "CameraData",
-    "Computer",
-    "Connect",
-    "DigitalOut",
-    "Gps",
-    "Header",
-    "Hokuyo",
-    "HokuyoData",
-    "Imu",
-    "Kinect",
-    "KinectData",
-    "Packet",
-    "ParamsAdc",
-    "ParamsBattery",
-    "ParamsCamera",
-    "ParamsComputer",
-    "ParamsGps",
-    "ParamsHokuyo",
-    "ParamsImu",
-    "ParamsKinect",
-    "ParamsStereo",
-    "SerialAns",
-    "SerialAnsReply",
-    "SerialCmd",
-    "SerialCmdRequest",
-    "StereoData",
-    "Subscribe",
-    "SubscribeRequest",
-    "Unsubscribe",
-    "body_length",
-]
-
 # ------------------------------------------------------------------------------ declarations
 
 Header = cs.Struct(
