@@ -14,19 +14,22 @@ PKG_DEPS := pyproject.toml setup.py $(CSRC) csrc/robocli_core.h csrc/netio.h csr
 
 .PHONY: venv node-deps docs demo test test-load test-c asan valgrind bench lab lab-tools lint soak soak-record soak-serial wheel dist dist-check clean fuzz
 
-$(DEMO_STAMP): $(PKG_DEPS)
+DEMO_EXTRAS := plot,record
+TEST_EXTRAS := test,lint,docs
+# $(call install,EXTRAS): the venv, the package with EXTRAS in it (editable), then the stamp.
+define install
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
-	$(PY) -m pip install -q -e '.[plot,record]'
+	$(PY) -m pip install -q -e '.[$(1)]'
 	touch $@
+endef
+
+$(DEMO_STAMP): $(PKG_DEPS)
+	$(call install,$(DEMO_EXTRAS))
 
 $(STAMP): $(PKG_DEPS)
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip uninstall -q -y robocli 2>/dev/null || true; rm -rf robocli.egg-info  # the old name
-	$(PY) -m pip install -q -e '.[test,lint,docs]'
-	touch $@
+	$(call install,$(TEST_EXTRAS))
 
 venv: $(STAMP)
 
@@ -103,11 +106,11 @@ test-load: $(STAMP) test-c node-deps
 	exit $$rc
 
 # C tests read the golden vectors in specs/; warnings are errors.
-csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h csrc/netio.h
+csrc/test_core: $(CSRC) csrc/test_core.c csrc/robocli_core.h csrc/netio.h csrc/check.h
 	$(CC) $(CFLAGS_STRICT) -D_POSIX_C_SOURCE=200112L -Icsrc -o $@ csrc/test_core.c $(CSRC) -lpthread -lm
 
 # The benchmark peers (ping-pong, ARCOS responder) over real loopback sockets.
-csrc/test_bench: $(CSRC) csrc/test_bench.c csrc/robocli_core.h csrc/netio.h
+csrc/test_bench: $(CSRC) csrc/test_bench.c csrc/robocli_core.h csrc/netio.h csrc/check.h
 	$(CC) $(CFLAGS_STRICT) -Icsrc -o $@ csrc/test_bench.c $(CSRC) -lpthread -lm
 
 test-c: csrc/test_core csrc/test_bench

@@ -157,19 +157,6 @@ static void bn_unpin(int cpu, const bn_mask *saved)
 #endif
 }
 
-static double bn_now(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
-}
-
-static void bn_nodelay(int fd)
-{
-    int one = 1;
-    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, (const void *)&one, sizeof(one));
-}
-
 /* A listening loopback socket on an ephemeral port; its port in *port. -1 on failure. */
 static int bn_listen(int *port)
 {
@@ -271,8 +258,8 @@ rc_pingpong *rc_pingpong_new(size_t msg_size, int echo_cpu)
     }
     close(lfd);
     lfd = -1;
-    bn_nodelay(p->cfd);
-    bn_nodelay(p->sfd);
+    rc_net_nodelay(p->cfd);
+    rc_net_nodelay(p->sfd);
     if (pthread_create(&p->th, NULL, bn_echo_main, p) != 0) {
         goto fail;
     }
@@ -299,12 +286,12 @@ int rc_pingpong_run(rc_pingpong *p, size_t n, int cpu, double *out_rtt)
         return -2;
     }
     for (i = 0; i < n; i++) {
-        double t0 = bn_now();
+        double t0 = rc_net_now();
         if (rc_net_send_all(p->cfd, p->buf, p->msg_size) != 0 ||
             rc_net_recv_all(p->cfd, p->buf, p->msg_size) != 0) {
             break;
         }
-        out_rtt[i] = bn_now() - t0;
+        out_rtt[i] = rc_net_now() - t0;
     }
     bn_unpin(cpu, &saved);
     if (p->pin_failed) {
@@ -458,7 +445,7 @@ static void bn_serve(rc_responder *r, int fd)
     tv.tv_sec = BN_SEND_TIMEOUT_S;
     tv.tv_usec = 0;
     setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, (const void *)&tv, sizeof(tv));
-    bn_nodelay(fd);
+    rc_net_nodelay(fd);
     while (bn_wait(r, fd) == 1) {
         const unsigned char *frame;
         size_t len;

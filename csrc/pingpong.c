@@ -105,14 +105,14 @@ static void *echo_main(void *arg)
     return NULL;
 }
 
-static double now_s(void)
+double rc_net_now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (double)ts.tv_sec + (double)ts.tv_nsec * 1e-9;
 }
 
-static void set_nodelay(int fd)
+void rc_net_nodelay(int fd)
 {
     int one = 1;
     setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, (const void *)&one, sizeof(one));
@@ -165,8 +165,8 @@ int rc_pingpong_tcp(size_t n, size_t msg_size, double *out_rtt)
     if (sfd < 0) {
         goto done;
     }
-    set_nodelay(cfd);
-    set_nodelay(sfd);
+    rc_net_nodelay(cfd);
+    rc_net_nodelay(sfd);
 
     args.fd = sfd;
     args.n = n;
@@ -178,12 +178,12 @@ int rc_pingpong_tcp(size_t n, size_t msg_size, double *out_rtt)
     started = 1;
 
     for (i = 0; i < n; i++) {
-        double t0 = now_s();
+        double t0 = rc_net_now();
         if (rc_net_send_all(cfd, buf, msg_size) != 0 ||
             rc_net_recv_all(cfd, buf, msg_size) != 0) {
             break;
         }
-        out_rtt[i] = now_s() - t0;
+        out_rtt[i] = rc_net_now() - t0;
     }
     if (i == n) {
         rc = 0;

@@ -28,18 +28,7 @@ int main(void)
 #include <netinet/in.h>
 #include <arpa/inet.h>
 
-static unsigned long n_pass = 0;
-static unsigned long n_fail = 0;
-
-#define CHECK(cond, what)                                                   \
-    do {                                                                    \
-        if (cond) {                                                         \
-            n_pass++;                                                       \
-        } else {                                                            \
-            n_fail++;                                                       \
-            printf("FAIL %s:%d: %s\n", __FILE__, __LINE__, what);           \
-        }                                                                   \
-    } while (0)
+#include "check.h"
 
 static void test_pingpong_chunks(void)
 {

@@ -21,18 +21,7 @@
 
 #include "robocli_core.h"
 
-static unsigned long n_pass = 0;
-static unsigned long n_fail = 0;
-
-#define CHECK(cond, what)                                                                  \
-    do {                                                                                   \
-        if (cond) {                                                                        \
-            n_pass++;                                                                      \
-        } else {                                                                           \
-            n_fail++;                                                                      \
-            fprintf(stderr, "FAIL %s:%d: %s [%s]\n", __FILE__, __LINE__, (what), #cond);   \
-        }                                                                                  \
-    } while (0)
+#include "check.h"
 
 /* ------------------------------------------------------------------ helpers */
 

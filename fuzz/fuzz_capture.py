@@ -10,25 +10,21 @@ a whole frame of its protocol. Anything else is a finding.
 from __future__ import annotations
 
 import json
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import fuzz_framers
+from harness import scratch
 
 from robocli.errors import RobocliError
 from robocli.io.capture import CaptureStats, read_capture
 
 PROTOCOLS = ("arcos", "sm-le", "sm-be", "ros4mat")
 _OPT_JSONL = 0x04
-_dir: tempfile.TemporaryDirectory[str] | None = None
 
 
 def _path(suffix: str) -> Path:
-    global _dir
-    if _dir is None:
-        _dir = tempfile.TemporaryDirectory(prefix="robocli-fuzz-capture-")
-    return Path(_dir.name) / f"capture{suffix}"
+    return scratch("capture") / f"capture{suffix}"
 
 
 def fuzz_capture(data: bytes) -> None:

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import io
 import json
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
+from harness import scratch
 
 from robocli.errors import RobocliError
 from robocli.io.waypoints import read_waypoints
@@ -31,14 +31,10 @@ READERS: tuple[tuple[str, str], ...] = (
     ("waypoints", ".csv"),
     ("model", ".json"),
 )
-_dir: tempfile.TemporaryDirectory[str] | None = None
 
 
 def _path(suffix: str) -> Path:
-    global _dir
-    if _dir is None:
-        _dir = tempfile.TemporaryDirectory(prefix="robocli-fuzz-files-")
-    return Path(_dir.name) / f"input{suffix}"
+    return scratch("files") / f"input{suffix}"
 
 
 def fuzz_files(data: bytes) -> None:

@@ -18,12 +18,12 @@ import contextlib
 import functools
 import io
 import shutil
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from harness import scratch
 from mcap.reader import make_reader
 
 from robocli.cli import main
@@ -37,14 +37,10 @@ from robocli.sim.pioneer.replay import PioneerReplay
 #: The readers, by the option byte (modulo their number).
 READERS = ("info", "export", "dump-arcos", "dump-sm", "dump-ros4mat", "arm-log",
            "pioneer-replay", "abb-replay", "hub-replay", "recover", "plot")  # fmt: skip
-_dir: tempfile.TemporaryDirectory[str] | None = None
 
 
 def _folder() -> Path:
-    global _dir
-    if _dir is None:
-        _dir = tempfile.TemporaryDirectory(prefix="robocli-fuzz-recordings-")
-    return Path(_dir.name)
+    return scratch("recordings")
 
 
 def cli(*args: str) -> int:

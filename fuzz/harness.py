@@ -26,6 +26,17 @@ DEFAULTS = {
 }
 
 
+_scratch: dict[str, tempfile.TemporaryDirectory[str]] = {}
+
+
+def scratch(name: str) -> Path:
+    """A temporary folder for harness ``name``'s input files, made on first use and kept
+    for the process (one per harness, removed at exit)."""
+    if name not in _scratch:
+        _scratch[name] = tempfile.TemporaryDirectory(prefix=f"robocli-fuzz-{name}-")
+    return Path(_scratch[name].name)
+
+
 def seeds(kinds: Iterable[str]) -> list[bytes]:
     """The golden frames of the given framer kinds (``arcos``, ``sm-le``, ...)."""
     import reference

@@ -25,26 +25,24 @@ from __future__ import annotations
 import logging
 import queue
 import threading
-import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from robocli.bridge.base import Bridge
 from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
-from robocli.devices.arm import Arm
-from robocli.errors import ProtocolError, RobocliError, TimeoutError
+from robocli.devices.arm import Arm, JointSample
+from robocli.errors import ProtocolError, RobocliError
 from robocli.kinematics import fk
-from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.zenoh.keys import alive_key, info_key, topic_key
 from robocli.zenoh.robot_keys import (
     JSON_ENCODING,
-    control_key,
     decode,
     holder_key,
     holder_of,
     put,
     reply,
-    undeclare,
 )
 
 if TYPE_CHECKING:
@@ -53,18 +51,16 @@ if TYPE_CHECKING:
 log = logging.getLogger("robocli.bridge")
 
 
-class ArmBridge:
+class ArmBridge(Bridge):
     """Put ``arm`` (state port needed; motion port for uploads) on ``session`` as ``name``
     until :meth:`close`. The bridge owns neither: close them after it."""
 
+    device = "arm"
+
     def __init__(self, arm: Arm, session: zenoh.Session, name: str, *,
                  token_wait: float = DEFAULT_TOKEN_WAIT_S) -> None:  # fmt: skip
+        super().__init__(name)
         self.arm = arm
-        self.name = check_name(name, "robot name")
-        self.failure: BaseException | None = None  #: what ended the arm's link, if it ended
-        self._done = threading.Event()
-        self._closed = False
-        self._offset = time.time() - time.monotonic()
         self._uploads: queue.Queue[zenoh.Query | Callable[[], None] | None] = queue.Queue(4)
         z = session
         self.gate = ControlGate(z, self.name, stop=self._stop, silence=None,
@@ -82,11 +78,8 @@ class ArmBridge:
         for thread in self._threads:
             thread.start()
         self._alive = z.liveliness().declare_token(alive_key(self.name, "arm"))
-
-    def wait(self, timeout: float | None = None) -> bool:
-        """Block until the bridge ends (closed, or a link failed: :attr:`failure`) or
-        ``timeout`` s pass; True when it ended."""
-        return self._done.wait(timeout)
+        self._inbound = (self._trajectory, self._alive)
+        self._outbound = (self._info, self._state, self._status)
 
     def info(self) -> dict[str, Any]:
         """What ``robocli/<robot>/@info`` answers."""
@@ -94,50 +87,34 @@ class ArmBridge:
         return {
             "name": self.name, "kind": "arm", "model": model.name,
             "joints": model.n_joints, "holder": self.gate.holder,
-            "keys": {"state": topic_key(self.name, "state"),
-                     "status": topic_key(self.name, "status"),
-                     "control": control_key(self.name),
-                     "trajectory": holder_key(self.name, None, "trajectory"),
-                     "event": control_key(self.name, "event")},
+            "keys": self._keys(("state", "status"), "trajectory"),
         }  # fmt: skip
 
     # ------------------------------------------------------------------ state out
 
     def _publish(self) -> None:
-        arm, last_status = self.arm, None
-        while not self._closed:
-            try:
-                sample = arm.wait_for_state(timeout=1.0)
-            except TimeoutError:
-                if arm.alive:
-                    continue
-                self._fail()
-                return
-            except RobocliError:
-                self._fail()
-                return
-            pose = fk(arm.robot, sample.joints)[0]
+        last_status = None
+
+        def put_one(sample: JointSample) -> None:
+            nonlocal last_status
+            pose = fk(self.arm.robot, sample.joints)[0]
             put(self._state, {
                 "t": sample.t + self._offset, "joints": list(sample.joints),
                 "robot_time": sample.robot_time,
                 "tcp": {"position": pose[:3, 3].tolist(), "rotation": pose[:3, :3].tolist()},
             })  # fmt: skip
-            status = arm.status
+            status = self.arm.status
             if status is not None and status is not last_status:
                 last_status = status
                 put(self._status, {"t": status.t + self._offset, **status.as_dict()})
-        self._done.set()
 
-    def _fail(self) -> None:
-        try:
-            self.arm.check()
-        except RobocliError as exc:
-            self.failure = exc
-        else:
-            self.failure = TimeoutError(f"{self.name}: the arm's state stopped")
-        log.error("%s: the arm's link ended: %s", self.name, self.failure)
-        self.gate.event("fault", holder=self.gate.holder, reason=f"arm link: {self.failure}")
-        self._done.set()
+        arm = self.arm
+        self._put_each(lambda timeout: arm.wait_for_state(timeout=timeout), lambda: arm.alive,
+                       put_one)  # fmt: skip
+
+    def _check_link(self) -> str:
+        self.arm.check()
+        return f"{self.name}: the arm's state stopped"
 
     # ------------------------------------------------------------------ commands in
 
@@ -211,34 +188,13 @@ class ArmBridge:
         if self.arm.running():
             self.arm.stop()
 
-    def _on_info(self, query: zenoh.Query) -> None:
-        reply(query, self.info())
-
     # ------------------------------------------------------------------ closing
 
-    def close(self) -> None:
-        """Stop taking uploads, stop a running trajectory, undeclare everything."""
-        if self._closed:
-            return
-        self._closed = True
-        for entity in (self._trajectory, self._alive):
-            undeclare(entity)
+    def _stop_taking(self) -> None:
         try:
             self._uploads.put(None, timeout=1.0)
         except queue.Full:
             log.warning("%s: uploads still queued at close", self.name)
-        self.gate.close("the bridge ended")
-        for thread in self._threads:
-            thread.join(timeout=5.0)
-        for entity in (self._info, self._state, self._status):  # type: ignore[assignment]
-            undeclare(entity)
-        self._done.set()
-
-    def __enter__(self) -> ArmBridge:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 __all__ = ["ArmBridge"]

@@ -28,23 +28,20 @@ from __future__ import annotations
 import logging
 import math
 import threading
-import time
 from typing import TYPE_CHECKING, Any
 
+from robocli.bridge.base import Bridge
 from robocli.bridge.control import DEFAULT_SILENCE_S, DEFAULT_TOKEN_WAIT_S, ControlGate
 from robocli.devices.pioneer import Pioneer, PioneerState, WatchdogTrip, WatchdogTripped
-from robocli.errors import ProtocolError, RobocliError, TimeoutError
-from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
+from robocli.errors import ProtocolError, RobocliError
+from robocli.zenoh.keys import alive_key, info_key, topic_key
 from robocli.zenoh.robot_keys import (
     JSON_ENCODING,
-    control_key,
     decode,
     holder_key,
     holder_of,
     number,
     put,
-    reply,
-    undeclare,
 )
 
 if TYPE_CHECKING:
@@ -62,7 +59,7 @@ def state_json(state: PioneerState, n_sonar: int, offset: float) -> dict[str, An
     return data
 
 
-class PioneerBridge:
+class PioneerBridge(Bridge):
     """Put ``robot`` on ``session`` as ``name`` until :meth:`close` (see the module).
 
     ``silence``: seconds without a command after which a moving robot is stopped (None: only
@@ -70,20 +67,18 @@ class PioneerBridge:
     holder has to declare its liveliness token. The bridge does not own ``robot`` or
     ``session``: close them after it."""
 
+    device = "robot"
+
     def __init__(self, robot: Pioneer, session: zenoh.Session, name: str, *,
                  silence: float | None = DEFAULT_SILENCE_S,
                  token_wait: float = DEFAULT_TOKEN_WAIT_S) -> None:  # fmt: skip
+        super().__init__(name)
         self.robot = robot
-        self.name = check_name(name, "robot name")
-        self.failure: BaseException | None = None  #: what ended the robot's link, if it ended
-        self._done = threading.Event()
-        self._closed = False
         # a stall (the trip): motion refused until the holder stops; then that trip is
         # acknowledged, and the Pioneer's refusal of the next motion command for it is spent
         self._latched: WatchdogTrip | None = None
         self._acknowledged: WatchdogTrip | None = None
         self._bad_commands = 0
-        self._offset = time.time() - time.monotonic()
         z = session
         self.gate = ControlGate(z, self.name, stop=self._stop, grant=self._grant,
                                 silence=silence, token_wait=token_wait)  # fmt: skip
@@ -93,17 +88,14 @@ class PioneerBridge:
                                               self._on_velocity)  # fmt: skip
         self._info = z.declare_queryable(info_key(self.name), self._on_info)
         robot.add_listener(self._on_trip, kind="watchdog")
-        self._thread = threading.Thread(target=self._publish, daemon=True,
-                                        name=f"bridge-pioneer-{self.name}")  # fmt: skip
-        self._thread.start()
+        self._threads = [threading.Thread(target=self._publish, daemon=True,
+                                          name=f"bridge-pioneer-{self.name}")]  # fmt: skip
+        self._threads[0].start()
         self._alive = z.liveliness().declare_token(alive_key(self.name, "pioneer"))
+        self._inbound = (self._velocity, self._alive)
+        self._outbound = (self._info, self._state, self._laser)
 
     # ------------------------------------------------------------------ serving
-
-    def wait(self, timeout: float | None = None) -> bool:
-        """Block until the bridge ends (closed, or the robot's link failed: :attr:`failure`)
-        or ``timeout`` s pass; True when it ended."""
-        return self._done.wait(timeout)
 
     def info(self) -> dict[str, Any]:
         """What ``robocli/<robot>/@info`` answers."""
@@ -116,27 +108,15 @@ class PioneerBridge:
             "max_velocity": r.max_velocity, "max_rot_velocity": r.max_rot_velocity,
             "sonar": len(r.params.sonar), "simulator": r.is_simulator,
             "holder": self.gate.holder, "silence": self.gate.silence,
-            "keys": {"state": topic_key(self.name, "state"),
-                     "laser": topic_key(self.name, "laser"),
-                     "control": control_key(self.name),
-                     "velocity": holder_key(self.name, None, "velocity"),
-                     "event": control_key(self.name, "event")},
+            "keys": self._keys(("state", "laser"), "velocity"),
         }  # fmt: skip
 
     def _publish(self) -> None:
         """Put every SIP's state (and each new laser scan) until closed or the link fails."""
         robot, n_sonar, last_scan = self.robot, len(self.robot.params.sonar), -math.inf
-        while not self._closed:
-            try:
-                state = robot.wait_for_sip(timeout=1.0)
-            except TimeoutError:
-                if robot.alive:
-                    continue
-                self._fail(robot)
-                return
-            except RobocliError:
-                self._fail(robot)
-                return
+
+        def put_one(state: PioneerState) -> None:
+            nonlocal last_scan
             data = state_json(state, n_sonar, self._offset)
             data["holder"] = self.gate.holder
             put(self._state, data)
@@ -149,18 +129,13 @@ class PioneerBridge:
                     "angles": list(scan.angles),
                     "ranges": [None if math.isinf(r) else r for r in scan.ranges],
                 })  # fmt: skip
-        self._done.set()
 
-    def _fail(self, robot: Pioneer) -> None:
-        try:
-            robot.state  # noqa: B018 - raises the error that ended the link
-        except RobocliError as exc:
-            self.failure = exc
-        else:
-            self.failure = TimeoutError(f"{robot.transport.url}: no SIP")
-        log.error("%s: the robot's link ended: %s", self.name, self.failure)
-        self.gate.event("fault", holder=self.gate.holder, reason=f"robot link: {self.failure}")
-        self._done.set()
+        self._put_each(lambda timeout: robot.wait_for_sip(timeout=timeout), lambda: robot.alive,
+                       put_one)  # fmt: skip
+
+    def _check_link(self) -> str:
+        self.robot.state  # noqa: B018 - raises the error that ended the link
+        return f"{self.robot.transport.url}: no SIP"
 
     # ------------------------------------------------------------------ commands
 
@@ -225,30 +200,6 @@ class PioneerBridge:
 
     def _stop(self, reason: str) -> None:
         self.robot.stop()
-
-    def _on_info(self, query: zenoh.Query) -> None:
-        reply(query, self.info())
-
-    # ------------------------------------------------------------------ closing
-
-    def close(self) -> None:
-        """Stop taking commands, stop the robot, undeclare everything. Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        for entity in (self._velocity, self._alive):
-            undeclare(entity)
-        self.gate.close("the bridge ended")
-        self._thread.join(timeout=5.0)
-        for entity in (self._info, self._state, self._laser):  # type: ignore[assignment]
-            undeclare(entity)
-        self._done.set()
-
-    def __enter__(self) -> PioneerBridge:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 __all__ = ["PioneerBridge", "state_json"]

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from robocli._core import ffi, lib
@@ -50,6 +50,14 @@ def _as_int64(a: npt.NDArray[Any]) -> npt.NDArray[np.int64]:
     return a if a.dtype == np.dtype(np.int64) else a.astype(np.int64)
 
 
+def _per_stream(fn: Callable[..., None], ss: Sequence[npt.NDArray[Any]], r: npt.NDArray[Any],
+                outputs: Callable[[int], tuple[Any, ...]]) -> None:  # fmt: skip
+    """``fn(stream k, its length, ref, M, *outputs(k))`` for every stream k (the C calls)."""
+    rbuf = ffi.from_buffer("double[]", r)
+    for k, s in enumerate(ss):
+        fn(ffi.from_buffer("double[]", s), s.shape[0], rbuf, r.shape[0], *outputs(k))
+
+
 def align_nearest(
     streams: Sequence[npt.ArrayLike] | npt.NDArray[Any], ref: npt.ArrayLike, tol: float
 ) -> npt.NDArray[np.int64]:
@@ -65,16 +73,8 @@ def align_nearest(
     r = _times(ref, "ref")
     m = r.shape[0]
     out = _long_out((len(ss), m))
-    rbuf = ffi.from_buffer("double[]", r)
-    for k, s in enumerate(ss):
-        lib.rc_align_nearest(
-            ffi.from_buffer("double[]", s),
-            s.shape[0],
-            rbuf,
-            m,
-            float(tol),
-            ffi.from_buffer("long[]", out[k]),
-        )
+    _per_stream(lib.rc_align_nearest, ss, r,
+                lambda k: (float(tol), ffi.from_buffer("long[]", out[k])))  # fmt: skip
     res = _as_int64(out)
     return res[0] if single else res
 
@@ -97,16 +97,9 @@ def align_linear(
     m = r.shape[0]
     idx = _long_out((len(ss), m))
     w = np.empty((len(ss), m), dtype=np.float64)
-    rbuf = ffi.from_buffer("double[]", r)
-    for k, s in enumerate(ss):
-        lib.rc_align_linear(
-            ffi.from_buffer("double[]", s),
-            s.shape[0],
-            rbuf,
-            m,
-            ffi.from_buffer("long[]", idx[k]),
-            ffi.from_buffer("double[]", w[k]),
-        )
+    _per_stream(lib.rc_align_linear, ss, r,
+                lambda k: (ffi.from_buffer("long[]", idx[k]),
+                           ffi.from_buffer("double[]", w[k])))  # fmt: skip
     ires = _as_int64(idx)
     if single:
         return ires[0], w[0]

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from robocli._core import ffi, lib
+from robocli.closing import Closing
 from robocli.errors import TransportError
 
 if TYPE_CHECKING:
@@ -31,7 +32,7 @@ def _cpu_arg(cpu: int | None) -> int:
     return cpu
 
 
-class PingPong:
+class PingPong(Closing):
     """The machine's floor for request/acknowledge round trips: ``msg_size``-byte ping-pongs
     over one loopback TCP connection (TCP_NODELAY) between a C echo thread, pinned to
     ``echo_cpu``, and the thread that calls :meth:`run`, pinned to ``cpu`` for the call.
@@ -73,12 +74,6 @@ class PingPong:
             ffi.release(self._p)  # runs rc_pingpong_free now
             self._p = None
 
-    def __enter__(self) -> PingPong:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
 
 def pingpong_floor(
     n: int = 1000, msg_size: int = 16, cpu: int | None = None, echo_cpu: int | None = None
@@ -103,7 +98,7 @@ class ResponderStats:
     pin_failed: bool
 
 
-class Responder:
+class Responder(Closing):
     """A minimal ARCOS responder in C on 127.0.0.1: for every complete ARCOS frame whose
     payload (type byte + data) is a key of ``table`` it writes that key's reply bytes
     (already framed); other frames get no reply. One client at a time, in a C thread pinned
@@ -158,9 +153,3 @@ class Responder:
             self._final = self.stats
             ffi.release(self._r)  # rc_responder_free
             self._r = None
-
-    def __enter__(self) -> Responder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -28,9 +28,12 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
 
 from robocli.addresses import parse_device_url
-from robocli.errors import InvalidArgument
+from robocli.closing import Closing
+from robocli.errors import ConnectionLost, InvalidArgument
 
 if TYPE_CHECKING:
+    from robocli.devices.listeners import Listeners
+    from robocli.devices.session import Session
     from robocli.zenoh.session import ZenohTarget
 
 __all__ = ["Device", "ListenerHandle", "Stats", "deprecated", "renamed_argument"]
@@ -93,6 +96,70 @@ class ListenerHandle:
         return f"<ListenerHandle {self.listener!r} {state}>"
 
 
+class ListenersByKind(Closing):
+    """The listener part of :class:`Device` for a device that keeps one registry per kind:
+    the class says which with ``_listeners_of(kind)`` (an unknown kind:
+    :class:`InvalidArgument`) and documents the kinds on its ``add_listener``, which returns
+    :meth:`_add_listener`."""
+
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
+        raise NotImplementedError
+
+    def _add_listener(self, listener: Callable[..., None], kind: str) -> ListenerHandle:
+        registry = self._listeners_of(kind)
+        registry.add(listener)
+        return ListenerHandle(listener, lambda: registry.remove(listener))
+
+    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
+        """Take ``listener`` off (see ``add_listener``); one not there is ignored."""
+        self._listeners_of(kind).remove(listener)
+
+
+class SessionDevice(ListenersByKind):
+    """A device on one link :class:`~robocli.devices.session.Session` (``_session``): its
+    :attr:`alive` and :meth:`check` are the link's."""
+
+    _session: Session
+
+    @property
+    def alive(self) -> bool:
+        """True until the link failed (a device gone silent included) or :meth:`close`
+        began. Never blocks."""
+        return self._session.alive
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else raise the error that ended the link
+        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
+        with self._session.cond:
+            self._session.check()
+
+
+class ZenohPeer(ListenersByKind):
+    """A device reached through Zenoh (``url``): alive until its peer's liveliness token
+    goes (``_gone`` says why) or :meth:`close` begins (``_closed``)."""
+
+    _gone: str | None = None
+    _closed = False
+
+    @property
+    def url(self) -> str:
+        """``zenoh/NAME``."""
+        raise NotImplementedError
+
+    @property
+    def alive(self) -> bool:
+        """False once the peer left (its liveliness token went) or :meth:`close` began.
+        Never blocks."""
+        return self._gone is None and not self._closed
+
+    def check(self) -> None:
+        """Return while :attr:`alive`; else :class:`ConnectionLost` saying why. Never blocks."""
+        if self._closed:
+            raise ConnectionLost(f"{self.url}: closed")
+        if self._gone is not None:
+            raise ConnectionLost(f"{self.url}: {self._gone}")
+
+
 def pick_kind(kind: str, kinds: tuple[str, ...], device: str) -> str:
     """``kind`` if it is one of ``kinds``; else :class:`InvalidArgument` naming them."""
     if kind not in kinds:
@@ -113,6 +180,22 @@ def deprecated(old: str, new: str, stacklevel: int = 3) -> None:
             return
         _warned.add(old)
     warnings.warn(f"{old} is deprecated; use {new}", DeprecationWarning, stacklevel=stacklevel)
+
+
+def deprecated_listener(
+    device: str, old: str, kind: str, *, remove: bool = False
+) -> Callable[[Any, Callable[..., None]], None]:
+    """A deprecated method ``device.old(listener)``: warns once that it is now
+    ``add_listener(listener, kind=kind)`` (``remove``: ``remove_listener``), then does that."""
+    new = "remove_listener" if remove else "add_listener"
+
+    def method(self: Any, listener: Callable[..., None]) -> None:
+        deprecated(f"{device}.{old}", f'{device}.{new}(..., kind="{kind}")')
+        getattr(self, new)(listener, kind=kind)
+
+    method.__name__ = old
+    method.__doc__ = f'Deprecated: ``{new}(listener, kind="{kind}")``.'
+    return method
 
 
 def renamed_argument(where: str, old: str, new: str, old_value: Any, new_value: Any,

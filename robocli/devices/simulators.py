@@ -19,6 +19,7 @@ from typing import Any
 
 from robocli._wiring import SIMULATORS
 from robocli.addresses import DeviceURL
+from robocli.closing import closed_on_error
 from robocli.errors import InvalidArgument
 
 log = logging.getLogger("robocli.devices.simulators")
@@ -132,10 +133,7 @@ def connect_to(device: str | Callable[..., Simulator], url: DeviceURL,
     """Start ``device``'s simulator for ``url``, ``connect(simulator)`` to it and hand the
     simulator to what that returns (:func:`adopt`); a connect that fails stops it again."""
     simulator = start(device, url, **fixed)
-    try:
+    with closed_on_error(simulator):
         client = connect(simulator)
-    except BaseException:
-        simulator.close()
-        raise
     adopt(client, simulator)
     return client

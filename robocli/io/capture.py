@@ -43,6 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
 
+from robocli.closing import Closing
 from robocli.core import Framer
 from robocli.errors import EXIT_USAGE, RobocliError
 
@@ -282,7 +283,7 @@ def _skip_line(stream: IO[bytes], stats: CaptureStats, gap: _Gap) -> None:
         gap.check()
 
 
-class CaptureWriter:
+class CaptureWriter(Closing):
     """Record a session in the ``.jsonl`` capture format (see the module docstring), one
     line per packet, flushed as it goes so that an interrupted session keeps what it saw.
     Thread-safe: packets sent and received in different threads never interleave.
@@ -361,9 +362,3 @@ class CaptureWriter:
             self._closed = True
             if self._file is not None:
                 self._file.close()
-
-    def __enter__(self) -> CaptureWriter:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -38,6 +38,7 @@ from robocli.ros2.mapping import Mapper, Ros2Message
 from robocli.ros2.node import Ros2Node, Ros2Publisher
 from robocli.ros2.rmw import DEFAULT_QOS, LATCHED_QOS, Qos
 from robocli.ros2.types import RAW_SCHEMA
+from robocli.sink import SinkBase
 
 __all__ = ["Ros2Topics", "static_transforms"]
 
@@ -52,7 +53,7 @@ def _qos(topic: str) -> Qos:
     return Qos(depth=100) if topic == "tf" else DEFAULT_QOS
 
 
-class Ros2Topics:
+class Ros2Topics(SinkBase):
     """The sink (see the module) of robocli ``name``'s messages, published by ``node``.
 
     ``max_queue`` / ``max_queue_bytes``: the work items (and the bytes they carry) that may
@@ -60,6 +61,7 @@ class Ros2Topics:
 
     def __init__(self, node: Ros2Node, name: str, *, max_queue: int = 1024,
                  max_queue_bytes: int = 64 << 20) -> None:  # fmt: skip
+        super().__init__()
         self.node, self.name = node, name
         self.links: dict[str, Any] = {}
         self.mapper = Mapper()
@@ -71,8 +73,6 @@ class Ros2Topics:
         self._prefix = f"/{name}/"
         self._channels: list[tuple[str, str]] = []
         self._publishers: dict[tuple[str, str], Ros2Publisher] = {}
-        self._closers: list[Callable[[], None]] = []
-        self._epoch_ns = time.time_ns() - time.monotonic_ns()
         self._queue: queue.Queue[tuple[Callable[..., None], tuple[Any, ...], int] | None] = (
             queue.Queue(max_queue))  # fmt: skip
         self._max_bytes, self._queued_bytes = max_queue_bytes, 0
@@ -81,19 +81,6 @@ class Ros2Topics:
         self._thread.start()
 
     # ------------------------------------------------------------------ the Sink protocol
-
-    def log_ns(self, t_monotonic: float) -> int:
-        return int(t_monotonic * 1e9) + self._epoch_ns
-
-    def unique_name(self, base: str) -> str:
-        name, n = base, 1
-        while name in self.links:
-            n += 1
-            name = f"{base}{n}"
-        return name
-
-    def on_close(self, detach: Callable[[], None]) -> None:
-        self._closers.append(detach)
 
     def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
         with self._lock:
@@ -210,11 +197,7 @@ class Ros2Topics:
 
     def close(self) -> None:
         """Detach from the devices, finish the queued work (bounded), stop. Idempotent."""
-        while self._closers:
-            try:
-                self._closers.pop()()
-            except Exception:
-                log.debug("detach failed", exc_info=True)
+        self._detach_all()
         if self._thread.is_alive():
             try:
                 self._queue.put(None, timeout=1.0)

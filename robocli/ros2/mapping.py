@@ -83,6 +83,11 @@ __all__ = [
 ]
 
 _NAN = math.nan
+#: the fields of a Pioneer's and a Create's state shown in their diagnostics
+_PIONEER_KEYS = ("motors_enabled", "estop", "stall_left", "stall_right", "bumpers_front",
+                 "bumpers_rear", "digin", "digout", "analog", "battery", "sip_count")  # fmt: skip
+_CREATE_KEYS = ("mode", "bump_left", "bump_right", "wheel_drop_left", "wheel_drop_right",
+                "charging_state", "frame_count")  # fmt: skip
 _F4, _F8, _U1 = np.float32, np.float64, np.uint8
 
 
@@ -146,63 +151,46 @@ class Mapper:
         return Ros2Message(topic, msgtype, T.serialize(T.message(msgtype, **fields), msgtype), ns)
 
     def pioneer_state(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
-        base = topic.rsplit("/", 1)[0]
-        name = base.lstrip("/")
-        th = float(s.get("th", _NAN))
-        out = [self._one(
-            f"{base}/odom", "nav_msgs/msg/Odometry", ns,
-            header=self.header(ns, f"{name}/odom"), child_frame_id=self.frame(f"{name}/base_link"),
-            pose=_pose_cov(_pose(s.get("x", _NAN), s.get("y", _NAN), 0.0, _quat_z(th))),
-            twist=_twist_cov(_twist(s.get("v", _NAN), s.get("w", _NAN))))]  # fmt: skip
-        out.append(self._battery(f"{base}/battery", ns, name, s.get("battery", _NAN), _NAN, _NAN,
-                                 []))  # fmt: skip
         estop, stall = bool(s.get("estop")), bool(s.get("stall_left") or s.get("stall_right"))
-        level, text = (2, "emergency stop") if estop else (1, "stalled") if stall else (0, "ok")
-        keys = (
-            "motors_enabled",
-            "estop",
-            "stall_left",
-            "stall_right",
-            "bumpers_front",
-            "bumpers_rear",
-            "digin",
-            "digout",
-            "analog",
-            "battery",
-            "sip_count",
-        )
-        out.append(self._diagnostics(ns, name, level, text, s, keys))
-        return out
+        return self._mobile(
+            topic, s, ns,
+            pose=_pose(s.get("x", _NAN), s.get("y", _NAN), 0.0, _quat_z(float(s.get("th", _NAN)))),
+            twist=_twist(s.get("v", _NAN), s.get("w", _NAN)),
+            battery=(s.get("battery", _NAN), _NAN, _NAN),
+            status=(2, "emergency stop") if estop else (1, "stalled") if stall else (0, "ok"),
+            keys=_PIONEER_KEYS)  # fmt: skip
 
     def create_state(self, topic: str, s: dict[str, Any], ns: int) -> list[Ros2Message]:
         """An iRobot Create's stream frame: odometry (its pose; no velocity in the frame),
         its battery and its bumpers, wheel drops and OI mode as diagnostics."""
-        base = topic.rsplit("/", 1)[0]
-        name = base.lstrip("/")
-        out = [self._one(
-            f"{base}/odom", "nav_msgs/msg/Odometry", ns,
-            header=self.header(ns, f"{name}/odom"), child_frame_id=self.frame(f"{name}/base_link"),
-            pose=_pose_cov(_pose(s.get("x", _NAN), s.get("y", _NAN), 0.0,
-                                 _quat_z(float(s.get("th", _NAN))))),
-            twist=_twist_cov(_twist(_NAN, _NAN)))]  # fmt: skip
         charge, capacity = float(s.get("charge", _NAN)), float(s.get("capacity", _NAN))
-        soc = charge / capacity if capacity > 0 else _NAN
-        out.append(self._battery(f"{base}/battery", ns, name, s.get("voltage", _NAN),
-                                 s.get("current", _NAN), soc, []))  # fmt: skip
         drop = bool(s.get("wheel_drop_left") or s.get("wheel_drop_right"))
         bump = bool(s.get("bump_left") or s.get("bump_right"))
-        level, text = (2, "wheel dropped") if drop else (1, "bumped") if bump else (0, "ok")
-        keys = (
-            "mode",
-            "bump_left",
-            "bump_right",
-            "wheel_drop_left",
-            "wheel_drop_right",
-            "charging_state",
-            "frame_count",
-        )
-        out.append(self._diagnostics(ns, name, level, text, s, keys))
-        return out
+        return self._mobile(
+            topic, s, ns,
+            pose=_pose(s.get("x", _NAN), s.get("y", _NAN), 0.0, _quat_z(float(s.get("th", _NAN)))),
+            twist=_twist(_NAN, _NAN),
+            battery=(s.get("voltage", _NAN), s.get("current", _NAN),
+                     charge / capacity if capacity > 0 else _NAN),
+            status=(2, "wheel dropped") if drop else (1, "bumped") if bump else (0, "ok"),
+            keys=_CREATE_KEYS)  # fmt: skip
+
+    def _mobile(self, topic: str, s: dict[str, Any], ns: int, *, pose: Any, twist: Any,
+                battery: tuple[float, float, float], status: tuple[int, str],
+                keys: tuple[str, ...]) -> list[Ros2Message]:  # fmt: skip
+        """A mobile robot's state ``s`` on ``/NAME/state``: its odometry (``pose``,
+        ``twist``), its battery (voltage, current, state of charge) and its diagnostics
+        (``status``: level and text; ``keys``: the fields of ``s`` shown)."""
+        base = topic.rsplit("/", 1)[0]
+        name = base.lstrip("/")
+        return [
+            self._one(f"{base}/odom", "nav_msgs/msg/Odometry", ns,
+                      header=self.header(ns, f"{name}/odom"),
+                      child_frame_id=self.frame(f"{name}/base_link"),
+                      pose=_pose_cov(pose), twist=_twist_cov(twist)),
+            self._battery(f"{base}/battery", ns, name, *battery, []),
+            self._diagnostics(ns, name, *status, s, keys),
+        ]  # fmt: skip
 
     def _battery(self, topic: str, ns: int, name: str, voltage: float, current: float,
                  soc: float, cells: list[float]) -> Ros2Message:  # fmt: skip

@@ -32,7 +32,7 @@ def zenoh_missing() -> str | None:
 
     if importlib.util.find_spec("zenoh") is None:
         return "eclipse-zenoh is not installed (pip install 'robocli-robots[zenoh]')"
-    if importlib.util.find_spec("robocli.hub_server.frontends.zenoh") is None:
+    if importlib.util.find_spec("robocli.hub.frontends.zenoh") is None:
         return "this robocli has no Zenoh front-end for the hub (serve --zenoh)"
     return None
 
@@ -141,58 +141,48 @@ def main(argv: list[str] | None = None) -> int:
         return 0 if a.skip_ok else 1
     signal.signal(signal.SIGTERM, signal.default_int_handler)  # teardown on SIGTERM too
     runs: list[LabRun] = []
+    phase = ""  # what a LabError is about, in its message
     try:
-        for robots, laptops in sizes:
-            for mode in modes:
-                print(f"lab: {mode} {robots}x{laptops} ...", file=sys.stderr, flush=True)
-                opts = {"uplink_mbit": a.uplink or None, "poll": a.poll, "camera": a.camera,
-                        "bridge": a.bridge}  # fmt: skip
-                run = run_lab(mode, robots, laptops, seconds=a.seconds, **opts)
-                runs.append(run)
+        try:
+            for robots, laptops in sizes:
+                for mode in modes:
+                    print(f"lab: {mode} {robots}x{laptops} ...", file=sys.stderr, flush=True)
+                    opts = {"uplink_mbit": a.uplink or None, "poll": a.poll, "camera": a.camera,
+                            "bridge": a.bridge}  # fmt: skip
+                    run = run_lab(mode, robots, laptops, seconds=a.seconds, **opts)
+                    runs.append(run)
+        finally:
+            if runs:
+                print(markdown(runs))
+                if a.json:
+                    from robocli.output import replace_output
+
+                    with replace_output(a.json, a.overwrite, text=True) as f:
+                        json.dump([r.as_dict() for r in runs], f, indent=1)
+        if a.pioneer:
+            from robocli.bench.lab.pioneer import class_drives_pioneer
+
+            phase = "pioneer: "
+            p = class_drives_pioneer(a.pioneer, uplink_mbit=a.uplink or None)
+            delays = ", ".join(f"{d:.2f}" for d in p.stop_delays)
+            print(
+                f"\npioneer: {p.watchers_moving} of {a.pioneer - 1} watchers saw it move; "
+                f"driver killed: stopped after {delays} s (silence {p.silence} s)"
+            )
+        if a.faults:
+            from robocli.bench.lab.faults import fault_run
+
+            phase = "faults: "
+            fr = fault_run(uplink_mbit=a.uplink or None)
+            print(f"\nfaults: router down {fr.down_s:g} s: ADC silent {fr.gap_s:.2f} s, back "
+                  f"{fr.back_s:.2f} s after the restart, {fr.lost} samples never came; a hub "
+                  f"killed: left (liveliness) after {fr.left_s or 0:.3f} s")  # fmt: skip
     except KeyboardInterrupt:
         print("lab: interrupted", file=sys.stderr)
         return 130
     except LabError as exc:
-        print(f"lab: {exc}", file=sys.stderr)
+        print(f"lab: {phase}{exc}", file=sys.stderr)
         return 1
-    finally:
-        if runs:
-            print(markdown(runs))
-            if a.json:
-                from robocli.output import replace_output
-
-                with replace_output(a.json, a.overwrite, text=True) as f:
-                    json.dump([r.as_dict() for r in runs], f, indent=1)
-    if a.pioneer:
-        from robocli.bench.lab.pioneer import class_drives_pioneer
-
-        try:
-            p = class_drives_pioneer(a.pioneer, uplink_mbit=a.uplink or None)
-        except KeyboardInterrupt:
-            print("lab: interrupted", file=sys.stderr)
-            return 130
-        except LabError as exc:
-            print(f"lab: pioneer: {exc}", file=sys.stderr)
-            return 1
-        delays = ", ".join(f"{d:.2f}" for d in p.stop_delays)
-        print(
-            f"\npioneer: {p.watchers_moving} of {a.pioneer - 1} watchers saw it move; "
-            f"driver killed: stopped after {delays} s (silence {p.silence} s)"
-        )
-    if a.faults:
-        from robocli.bench.lab.faults import fault_run
-
-        try:
-            fr = fault_run(uplink_mbit=a.uplink or None)
-        except KeyboardInterrupt:
-            print("lab: interrupted", file=sys.stderr)
-            return 130
-        except LabError as exc:
-            print(f"lab: faults: {exc}", file=sys.stderr)
-            return 1
-        print(f"\nfaults: router down {fr.down_s:g} s: ADC silent {fr.gap_s:.2f} s, back "
-              f"{fr.back_s:.2f} s after the restart, {fr.lost} samples never came; a hub "
-              f"killed: left (liveliness) after {fr.left_s or 0:.3f} s")  # fmt: skip
     for r in runs:
         for e in r.errors[:5]:
             print(f"{r.mode} {r.robots}x{r.laptops}: {e}", file=sys.stderr)

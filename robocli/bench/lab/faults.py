@@ -25,7 +25,7 @@ from robocli.bench.lab.bench import (
     client_config,
     start_router,
 )
-from robocli.bench.lab.netns import Lab, Proc, wait_for
+from robocli.bench.lab.netns import Lab, wait_for
 
 START_S = 60.0
 
@@ -47,17 +47,6 @@ class FaultRun:
         return dict(self.__dict__)
 
 
-def _lines(proc: Proc) -> list[dict[str, Any]]:
-    out = []
-    for line in proc.tail(1_000_000).splitlines():
-        if line.startswith("{"):
-            try:
-                out.append(json.loads(line))
-            except ValueError:
-                continue
-    return out
-
-
 def fault_run(down_s: float = 2.0, *, uplink_mbit: float | None = 20.0) -> FaultRun:
     """Run the faults (see the module) and return what the laptop saw."""
     result = FaultRun(down_s)
@@ -77,7 +66,9 @@ def fault_run(down_s: float = 2.0, *, uplink_mbit: float | None = 20.0) -> Fault
                                           str(config), "r0,r1"], "watcher")  # fmt: skip
 
         def batches(hub: str, after: float = 0.0) -> list[dict[str, Any]]:
-            return [x for x in _lines(watch) if x.get("hub") == hub and x["t"] > after]
+            return [
+                x for x in watch.json_lines(1_000_000) if x.get("hub") == hub and x["t"] > after
+            ]
 
         wait_for(lambda: len(batches("r0")) > 20, START_S, "batches", [watch, router_proc])
         lab.stop(router_proc, sig_first=False)  # SIGKILL: no goodbye
@@ -96,7 +87,7 @@ def fault_run(down_s: float = 2.0, *, uplink_mbit: float | None = 20.0) -> Fault
         lab.stop(hubs[1], sig_first=False)
 
         def left() -> float | None:
-            return next((x["t"] for x in _lines(watch) if x.get("left") == "r1"
+            return next((x["t"] for x in watch.json_lines(1_000_000) if x.get("left") == "r1"
                          and x["t"] > gone), None)  # fmt: skip
 
         wait_for(lambda: left() is not None, START_S, "hub r1 leaving", [watch])

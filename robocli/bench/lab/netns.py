@@ -29,6 +29,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from robocli.errors import RobocliError
 
@@ -125,6 +126,18 @@ class Proc:
         except OSError:
             return ""
         return "\n".join(text.splitlines()[-lines:])
+
+    def json_lines(self, lines: int) -> list[dict[str, Any]]:
+        """The JSON objects among the last ``lines`` lines of its log (others are passed
+        over: a line cut short, a warning)."""
+        out = []
+        for line in self.tail(lines).splitlines():
+            if line.startswith("{"):
+                try:
+                    out.append(json.loads(line))
+                except ValueError:
+                    continue
+        return out
 
 
 @dataclass

@@ -45,17 +45,6 @@ class PioneerRun:
         return dict(self.__dict__)
 
 
-def _states(proc: Proc) -> list[dict[str, Any]]:
-    out = []
-    for line in proc.tail(100_000).splitlines():
-        if line.startswith("{"):
-            try:
-                out.append(json.loads(line))
-            except ValueError:
-                continue
-    return out
-
-
 def class_drives_pioneer(laptops: int = 3, *, uplink_mbit: float | None = 20.0) -> PioneerRun:
     """A lab of one robot and ``laptops`` laptops (at least 2): laptop 0 drives, the others
     watch; the driver is killed once every watcher saw the robot move."""
@@ -82,7 +71,7 @@ def class_drives_pioneer(laptops: int = 3, *, uplink_mbit: float | None = 20.0) 
         driver = lab.spawn(lab.laptop(0), [py, "-m", me, "drive", "r0", endpoint], "driver")
 
         def moving(w: Proc) -> bool:
-            return any(s["v"] > MOVING for s in _states(w))
+            return any(s["v"] > MOVING for s in w.json_lines(100_000))
 
         wait_for(lambda: all(moving(w) for w in watchers), START_S, "the class seeing the "
                  "robot move", [driver, bridge, *watchers])  # fmt: skip
@@ -91,7 +80,7 @@ def class_drives_pioneer(laptops: int = 3, *, uplink_mbit: float | None = 20.0) 
         os.killpg(driver.pid, signal.SIGKILL)
 
         def stopped_at(w: Proc) -> float | None:
-            return next((s["t"] for s in _states(w) if s["t"] > killed and
+            return next((s["t"] for s in w.json_lines(100_000) if s["t"] > killed and
                          abs(s["v"]) < STOPPED), None)  # fmt: skip
 
         wait_for(lambda: all(stopped_at(w) is not None for w in watchers), START_S,

@@ -34,10 +34,10 @@ in :mod:`robocli.devices.arm.link`.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping
-from types import TracebackType
 from typing import Any
 
 from robocli.addresses import ARM_PORTS, parse_device_url
+from robocli.closing import Closing
 from robocli.devices import simulators
 from robocli.devices.arm.link import first_state, no_refusal, open_session, stop_frame
 from robocli.devices.arm.motion import Motion
@@ -45,7 +45,7 @@ from robocli.devices.arm.tracking import SampleListener, StillMoving
 from robocli.devices.base import (
     ListenerHandle,
     close_simulator,
-    deprecated,
+    deprecated_listener,
     pick_kind,
     renamed_argument,
 )
@@ -60,7 +60,7 @@ __all__ = ["Arm", "SampleListener", "StillMoving"]
 _ORDERS = {"little": "<", "big": ">", "<": "<", ">": ">"}
 
 
-class Arm(Motion):
+class Arm(Motion, Closing):
     """A connected arm controller. Make one with :meth:`connect`; use it as a context manager.
 
     ``robot``: the :class:`~robocli.kinematics.model.RobotModel` limits are checked against.
@@ -198,13 +198,6 @@ class Arm(Motion):
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the arm
     simulator: simulators.Simulator | None = None
 
-    def __enter__(self) -> Arm:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:  # fmt: skip
-        self.close()
-
     # ------------------------------------------------------------------ listeners
 
     def add_listener(self, listener: Callable[..., None], ports: str = "both", *,
@@ -232,15 +225,9 @@ class Arm(Motion):
         for s in self._sessions(ports):
             s.listeners.remove(listener)
 
-    def add_sample_listener(self, listener: SampleListener) -> None:
-        """Deprecated: ``add_listener(listener, kind="samples")``."""
-        deprecated("Arm.add_sample_listener", 'Arm.add_listener(..., kind="samples")')
-        self._sample_listeners.add(listener)
-
-    def remove_sample_listener(self, listener: SampleListener) -> None:
-        """Deprecated: ``remove_listener(listener, kind="samples")``."""
-        deprecated("Arm.remove_sample_listener", 'Arm.remove_listener(..., kind="samples")')
-        self._sample_listeners.remove(listener)
+    add_sample_listener = deprecated_listener("Arm", "add_sample_listener", "samples")
+    remove_sample_listener = deprecated_listener("Arm", "remove_sample_listener", "samples",
+                                                 remove=True)  # fmt: skip
 
     def _sessions(self, ports: str) -> list[Session]:
         if ports not in ("both", "motion", "state"):

@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import numpy.typing as npt
 
+from robocli.closing import Closing
 from robocli.devices.keys import QUIT_KEYS, fresh_keys
 from robocli.errors import RobocliError, TimeoutError
 from robocli.kinematics import LimitError, UnreachableError, fk, ik
@@ -143,7 +144,7 @@ def jog_target(model: RobotModel, q: npt.ArrayLike, jog: Jog, dt: float, joint_s
     return target, max(dt, need)
 
 
-class ArmTeleop:
+class ArmTeleop(Closing):
     """Jog a connected :class:`~robocli.devices.arm.Arm` (state and motion ports).
 
     Feed keys with :meth:`key`, call :meth:`step` often (every few tens of ms); close it
@@ -167,12 +168,6 @@ class ArmTeleop:
         self._moving = False  # motion commanded since the last STOP
         self._seq = 0  # streaming: the next sequence number
         self._lead: FloatArray | None = None  # streaming: the last point sent
-
-    def __enter__(self) -> ArmTeleop:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     @property
     def quit(self) -> bool:

@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
+from robocli.closing import Closing
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import Session
 from robocli.errors import TimeoutError
@@ -94,7 +94,7 @@ def state_of(fields: dict[str, int], t: float, pose: tuple[float, float, float],
     )  # fmt: skip
 
 
-class Create:
+class Create(Closing):
     """A Create 2's sensors over a byte stream (see the module docstring)."""
 
     def __init__(self, transport: Transport, *, timeout: float = 2.0) -> None:
@@ -187,10 +187,3 @@ class Create:
     def close(self) -> None:
         """Pause the stream (bounded) and close the link. Idempotent."""
         self._session.close([oi.build_command(Op.PAUSE_RESUME_STREAM, resume=0)])
-
-    def __enter__(self) -> Create:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:  # fmt: skip
-        self.close()

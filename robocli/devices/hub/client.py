@@ -30,6 +30,7 @@ from robocli.addresses import parse_device_url
 from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
+    SessionDevice,
     close_simulator,
     not_over_zenoh,
     pick_kind,
@@ -56,7 +57,7 @@ from robocli.devices.hub.subscription import (
     subscribe_body,
     subscribe_request,
 )
-from robocli.devices.listeners import FrameListener
+from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.session import LinkStats, Session
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols.ros4mat import MsgType, SerialStatus, encode_request, sensor_type
@@ -68,7 +69,7 @@ from robocli.transports import Transport
 ZENOH_HUB: list[Callable[..., Hub]] = []
 
 
-class Hub:
+class Hub(SessionDevice):
     """A client of a ros4mat v3 sensor hub (``robocli serve`` or the original server)."""
 
     def __init__(
@@ -81,7 +82,7 @@ class Hub:
         clock: Callable[[], float],
         hub_clock: bool,
     ) -> None:
-        self.session = session
+        self._session = session
         self.client_id = client_id
         self.compress = compress
         self.timeout = timeout
@@ -409,34 +410,20 @@ class Hub:
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the hub
     simulator: simulators.Simulator | None = None
 
-    @property
-    def alive(self) -> bool:
-        """True until the link failed or :meth:`close` began. Never blocks."""
-        return self.session.alive
-
-    def check(self) -> None:
-        """Return while :attr:`alive`; else raise the error that ended the link
-        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
-        with self.session.cond:
-            self.session.check()
-
     def add_listener(self, listener: FrameListener, *, kind: str = "frames") -> ListenerHandle:
         """Call ``listener(direction "tx"/"rx", frame, t)`` for every frame sent or
         received; returns a handle whose ``remove()`` takes it off. One that raises is
         logged once, counted in ``stats.listener_errors``, never stops the client."""
+        return self._add_listener(listener, kind)
+
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames",), "Hub")
-        self.session.listeners.add(listener)
-        return ListenerHandle(listener, lambda: self.session.listeners.remove(listener))
+        return self.session.listeners
 
-    def remove_listener(self, listener: FrameListener, *, kind: str = "frames") -> None:
-        pick_kind(kind, ("frames",), "Hub")
-        self.session.listeners.remove(listener)
-
-    def __enter__(self) -> Hub:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
+    @property
+    def session(self) -> Session:
+        """The link to the hub."""
+        return self._session
 
     def __repr__(self) -> str:
         return f"<Hub {self.url} client {self.client_id}>"

@@ -30,7 +30,13 @@ from collections import deque
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
-from robocli.devices.base import ListenerHandle, pick_kind, renamed_argument, zenoh_where
+from robocli.devices.base import (
+    ListenerHandle,
+    ZenohPeer,
+    pick_kind,
+    renamed_argument,
+    zenoh_where,
+)
 from robocli.devices.hub.client import ZENOH_HUB, Hub
 from robocli.devices.hub.decode import HEADER, Reading, decode_reading
 from robocli.devices.hub.link import token_bytes
@@ -38,7 +44,6 @@ from robocli.devices.hub.subscription import subscribe_request
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.stats import LinkStats
 from robocli.errors import (
-    ConnectionLost,
     DeviceError,
     InvalidArgument,
     ProtocolError,
@@ -144,7 +149,7 @@ class _Queue:
         return out
 
 
-class ZenohHub(Hub):
+class ZenohHub(ZenohPeer, Hub):
     """A client of a hub's Zenoh front-end: :class:`Hub`'s reading API over Zenoh.
 
     Not over Zenoh: :meth:`pull` (raw ros4mat frames), :meth:`serial`,
@@ -427,36 +432,14 @@ class ZenohHub(Hub):
         self._alive_sub.undeclare()  # type: ignore[no-untyped-call]
         close_session(self.zsession)
 
-    _closed = False
-
-    @property
-    def alive(self) -> bool:
-        """False once the hub left (its liveliness token went; true again if a hub of that
-        name comes back) or :meth:`close` began. Never blocks. What arrived can still be
-        :meth:`read`; a query (:meth:`info`, a rate change) unanswered then raises
-        :class:`ConnectionLost`."""
-        return self._gone is None and not self._closed
-
-    def check(self) -> None:
-        """Return while :attr:`alive`; else :class:`ConnectionLost` saying why."""
-        if self._closed:
-            raise ConnectionLost(f"{self.url}: closed")
-        if self._gone is not None:
-            raise ConnectionLost(f"{self.url}: {self._gone}")
-
     def add_listener(self, listener: FrameListener, *, kind: str = "frames") -> ListenerHandle:
         """Call ``listener("rx", batch, t)`` with every batch received (the Zenoh payload,
         :mod:`robocli.zenoh.batch`); returns a handle whose ``remove()`` takes it off."""
-        pick_kind(kind, ("frames",), "ZenohHub")
-        self._frames.add(listener)
-        return ListenerHandle(listener, lambda: self._frames.remove(listener))
+        return self._add_listener(listener, kind)
 
-    def remove_listener(self, listener: FrameListener, *, kind: str = "frames") -> None:
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames",), "ZenohHub")
-        self._frames.remove(listener)
-
-    def __enter__(self) -> ZenohHub:
-        return self
+        return self._frames
 
     def __repr__(self) -> str:
         return f"<ZenohHub {self.name}>"

@@ -27,6 +27,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from robocli.closing import Closing, closed_on_error
 from robocli.devices.hub.decode import body_of
 from robocli.devices.hub.link import (
     handshake,
@@ -84,7 +85,21 @@ class LineSettings(dict[str, Any]):
                 "port": port}  # fmt: skip
 
 
-class VirtualSerial:
+class LineEvents(Closing):
+    """What a serial line through the hub tells of its link (``"lost"``, ``"resumed"``,
+    ``"ended"``): logged on :attr:`_log` and handed to ``on_event(kind, text)``."""
+
+    port: str
+    _on_event: Callable[[str, str], None] | None
+    _log = log
+
+    def _event(self, kind: str, text: str) -> None:
+        self._log.info("%s: %s: %s", self.port, kind, text)
+        if self._on_event is not None:
+            self._on_event(kind, text)
+
+
+class VirtualSerial(LineEvents):
     """The hub's serial ``port`` streamed to this machine (see the module docstring).
 
     ``on_data(bytes)``, if given, gets the bytes from the hub in the reader's thread (it
@@ -156,11 +171,8 @@ class VirtualSerial:
         self._client_id = int(header[2])
         session.on_frame = self._on_frame
         session.start()
-        try:
+        with closed_on_error(session):
             self._open_on(session)
-        except BaseException:
-            session.close()
-            raise
         return session
 
     def _open_on(self, session: Session) -> None:
@@ -266,11 +278,6 @@ class VirtualSerial:
                                  "reconnecting")  # fmt: skip
         return s
 
-    def _event(self, kind: str, text: str) -> None:
-        log.info("%s: %s: %s", self.port, kind, text)
-        if self._on_event is not None:
-            self._on_event(kind, text)
-
     def _end(self, exc: RobocliError) -> None:
         with self._cond:
             if self._error is None:
@@ -344,12 +351,6 @@ class VirtualSerial:
             except (RobocliError, OSError):
                 pass  # the link is gone already: so is the stream, with the connection
             session.close(goodbye)
-
-    def __enter__(self) -> VirtualSerial:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"VirtualSerial({self.host}:{self.hub_port} {self.port} {dict(self.settings)})"

@@ -17,7 +17,8 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from robocli.devices.hub.serial import RESUME_S, LineSettings
+from robocli.closing import closed_on_error
+from robocli.devices.hub.serial import RESUME_S, LineEvents, LineSettings
 from robocli.errors import ConnectionLost, DeviceError, InvalidArgument, RobocliError, TimeoutError
 from robocli.protocols.ros4mat import MAX_STREAM_CHUNK
 from robocli.zenoh.keys import alive_key, check_name, serial_data_key, serial_key
@@ -31,9 +32,11 @@ log = logging.getLogger("robocli.devices.hub.zenoh_serial")
 MAX_REPLY = 64 * 1024
 
 
-class ZenohSerialLine:
+class ZenohSerialLine(LineEvents):
     """The serial ``port`` of the hub named ``hub`` on Zenoh (see the module docstring).
     ``on_data(bytes)`` gets the port's bytes in Zenoh's thread (it must not block)."""
+
+    _log = log
 
     def __init__(self, session: Any, hub: str, port: str, user: str, settings: LineSettings,
                  token: bytes | None, timeout: float,
@@ -84,11 +87,8 @@ class ZenohSerialLine:
         session = open_session(zenoh, "client")
         line = cls(session, hub, port, user, settings, secret, timeout, on_data, on_event,
                    resume)  # fmt: skip
-        try:
+        with closed_on_error(line):
             line._start()
-        except BaseException:
-            line.close()
-            raise
         return line
 
     def _start(self) -> None:
@@ -145,7 +145,7 @@ class ZenohSerialLine:
                 return
             self._down = True
             self._back.clear()
-        self._say("lost", f"hub {self.hub} left Zenoh; {self.port} waiting up to "
+        self._event("lost", f"hub {self.hub} left Zenoh; {self.port} waiting up to "
                   f"{self.resume:g} s for it")  # fmt: skip
         threading.Thread(target=self._await_hub, name="zenoh-serial-resume", daemon=True).start()
 
@@ -161,19 +161,14 @@ class ZenohSerialLine:
             return
         self._down = False
         self.resumes += 1
-        self._say("resumed", f"hub back: {self.port} on {self.hub} resumed")
-
-    def _say(self, kind: str, text: str) -> None:
-        log.info("%s: %s: %s", self.port, kind, text)
-        if self._on_event is not None:
-            self._on_event(kind, text)
+        self._event("resumed", f"hub back: {self.port} on {self.hub} resumed")
 
     def _end(self, exc: RobocliError) -> None:
         with self._lock:
             if self._error is not None:
                 return
             self._error = exc
-        self._say("ended", str(exc))
+        self._event("ended", str(exc))
 
     def write(self, data: bytes | bytearray | memoryview) -> int:
         """Put ``data`` for the hub's port, in pieces of at most ``MAX_STREAM_CHUNK``."""
@@ -217,9 +212,3 @@ class ZenohSerialLine:
         if self.session is not None:
             close_session(self.session)
             self.session = None
-
-    def __enter__(self) -> ZenohSerialLine:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

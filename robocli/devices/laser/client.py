@@ -31,12 +31,19 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable, Generator, Iterable
-from types import TracebackType
 from typing import Any
 
 from robocli.addresses import parse_device_url
+from robocli.closing import closed_on_error
 from robocli.devices import simulators
-from robocli.devices.base import ListenerHandle, close_simulator, deprecated, pick_kind
+from robocli.devices.base import (
+    ListenerHandle,
+    SessionDevice,
+    close_simulator,
+    deprecated,
+    deprecated_listener,
+    pick_kind,
+)
 from robocli.devices.laser.clock import SensorClock
 from robocli.devices.laser.scan import LaserInfo, Scan, make_scan
 from robocli.devices.listeners import FrameListener, Listeners
@@ -76,7 +83,7 @@ def _stat_name(payload: bytes, direction: str) -> str:
     return payload[:2].decode("latin-1") if payload[:2].isalnum() else "?"
 
 
-class Laser:
+class Laser(SessionDevice):
     """A connected scanner. Make one with :meth:`connect`; use it as a context manager."""
 
     def __init__(
@@ -148,7 +155,7 @@ class Laser:
         laser = cls(transport, timeout=timeout, check=check, start=False)
         for one in listeners:
             laser.session.listeners.add(one)
-        try:
+        with closed_on_error(laser):
             laser._handshake()
             laser._session.start()
             laser.info = laser.read_info()
@@ -156,9 +163,6 @@ class Laser:
                 laser.sync_clock(sync_samples)
             if laser_on:
                 laser.laser_on()
-        except BaseException:
-            laser.close()
-            raise
         return laser
 
     def _handshake(self) -> None:
@@ -405,37 +409,15 @@ class Laser:
         and reply block; ``"scans"``, ``listener(scan)`` for each streamed :class:`Scan`.
         Called in the reader thread; an exception there is counted and logged, never stops
         the stream."""
-        registry = self._listeners_of(kind)
-        registry.add(listener)
-        return ListenerHandle(listener, lambda: registry.remove(listener))
-
-    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
-        self._listeners_of(kind).remove(listener)
+        return self._add_listener(listener, kind)
 
     def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames", "scans"), "Laser")
         return self._session.listeners if kind == "frames" else self.scan_listeners
 
-    def on_scan(self, listener: ScanListener) -> None:
-        """Deprecated: ``add_listener(listener, kind="scans")``."""
-        deprecated("Laser.on_scan", 'Laser.add_listener(..., kind="scans")')
-        self.scan_listeners.add(listener)
-
-    def remove_scan_listener(self, listener: ScanListener) -> None:
-        """Deprecated: ``remove_listener(listener, kind="scans")``."""
-        deprecated("Laser.remove_scan_listener", 'Laser.remove_listener(..., kind="scans")')
-        self.scan_listeners.remove(listener)
-
-    @property
-    def alive(self) -> bool:
-        """True until the link failed or :meth:`close` began. Never blocks."""
-        return self._session.alive
-
-    def check(self) -> None:
-        """Return while :attr:`alive`; else raise the error that ended the link
-        (:class:`ConnectionLost` for a lost one or once closed). Never blocks."""
-        with self._session.cond:
-            self._session.check()
+    on_scan = deprecated_listener("Laser", "on_scan", "scans")
+    remove_scan_listener = deprecated_listener("Laser", "remove_scan_listener", "scans",
+                                               remove=True)  # fmt: skip
 
     @property
     def stats(self) -> LinkStats:
@@ -488,11 +470,3 @@ class Laser:
 
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the laser
     simulator: simulators.Simulator | None = None
-
-    def __enter__(self) -> Laser:
-        return self
-
-    def __exit__(
-        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()

@@ -37,6 +37,7 @@ from robocli.core import Framer
 from robocli.devices import simulators
 from robocli.devices.base import (
     ListenerHandle,
+    SessionDevice,
     close_simulator,
     not_over_zenoh,
     pick_kind,
@@ -69,7 +70,7 @@ log = logging.getLogger("robocli.devices.pioneer")
 PacketListener = FrameListener
 
 
-class Pioneer(Commands, Decoding, DeprecatedNames):
+class Pioneer(Commands, Decoding, DeprecatedNames, SessionDevice):
     """A connected Pioneer. Make one with :meth:`connect`; use it as a context manager.
 
     Here: connecting, the state, listeners and closing. Its commands come from
@@ -313,12 +314,6 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
         return self.state.battery
 
     @property
-    def alive(self) -> bool:
-        """True while the session runs: False once the link failed, SIPs stopped or
-        :meth:`close` began. Never blocks."""
-        return self._session.alive
-
-    @property
     def is_simulator(self) -> bool:
         """The robot is a simulator: it says so in its name or its CONFIG serial (``SIM``),
         the vendor SDK's test before it asks for the simulated laser."""
@@ -332,12 +327,6 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
 
     def _on_laser(self, ptype: int, body: bytes, now: float) -> None:
         self._simulated._on_laser(ptype, body, now)
-
-    def check(self) -> None:
-        """Return while :attr:`alive`; else raise the error that ended the session
-        (:class:`ConnectionLost` for a lost link or once closed). Never blocks."""
-        with self._session.cond:
-            self._session.check()
 
     def wait_for_sip(self, timeout: float | None = None) -> PioneerState:
         """Block until the next SIP arrives and return it (``timeout`` defaults to
@@ -391,12 +380,7 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
         the thread that sent or read the packet: keep them short. One that raises is logged
         once with its traceback, counted in ``stats.listener_errors``, and never stops the
         client."""
-        registry = self._listeners_of(kind)
-        registry.add(listener)
-        return ListenerHandle(listener, lambda: registry.remove(listener))
-
-    def remove_listener(self, listener: Callable[..., None], *, kind: str = "frames") -> None:
-        self._listeners_of(kind).remove(listener)
+        return self._add_listener(listener, kind)
 
     def _listeners_of(self, kind: str) -> Listeners[Any]:
         pick_kind(kind, ("frames", "laser", "watchdog"), "Pioneer")
@@ -419,12 +403,6 @@ class Pioneer(Commands, Decoding, DeprecatedNames):
             self._session.close(link.STOP_SEQUENCE)
         finally:
             close_simulator(self)
-
-    def __enter__(self) -> Pioneer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     #: the in-process simulator of a ``sim://`` URL (None otherwise), closed with the robot
     simulator: simulators.Simulator | None = None

@@ -33,7 +33,7 @@ import time
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
 
-from robocli.devices.base import ListenerHandle, deprecated, pick_kind, zenoh_where
+from robocli.devices.base import ListenerHandle, ZenohPeer, deprecated, pick_kind, zenoh_where
 from robocli.devices.listeners import FrameListener, Listeners
 from robocli.devices.pioneer.commands import _finite
 from robocli.devices.pioneer.state import PioneerState
@@ -77,7 +77,7 @@ def default_holder() -> str:
     return re.sub(r"[^A-Za-z0-9_.\-]", "-", raw)[:63].lstrip(".-") or f"robocli-{os.getpid()}"
 
 
-class RemotePioneer:
+class RemotePioneer(ZenohPeer):
     """A Pioneer behind a bridge named ``robot`` (see the module). Make one with
     :meth:`connect`, or hand it an open ``session`` (not closed by :meth:`close`)."""
 
@@ -97,7 +97,6 @@ class RemotePioneer:
         self.holder = check_name(holder or default_holder(), "holder")
         self.timeout = timeout
         self.resend = resend
-        self.url = f"zenoh/{self.robot}"
         self._session = session
         self._own = own_session
         self._cond = threading.Condition()
@@ -178,9 +177,9 @@ class RemotePioneer:
             return self._laser
 
     @property
-    def alive(self) -> bool:
-        """False once the bridge left (its liveliness token went) or :meth:`close` began."""
-        return self._gone is None and not self._closed
+    def url(self) -> str:
+        """``zenoh/ROBOT``."""
+        return f"zenoh/{self.robot}"
 
     @property
     def connected(self) -> bool:
@@ -188,26 +187,16 @@ class RemotePioneer:
         deprecated("RemotePioneer.connected", "RemotePioneer.alive")
         return self.alive
 
-    def check(self) -> None:
-        """Return while :attr:`alive`; else :class:`ConnectionLost` saying why. Never blocks."""
-        if self._closed:
-            raise ConnectionLost(f"{self.url}: closed")
-        if self._gone is not None:
-            raise ConnectionLost(f"{self.url}: {self._gone}")
-
     def add_listener(self, listener: Any, *, kind: str = "frames") -> ListenerHandle:
         """Call ``listener`` with what ``kind`` names and return a handle whose ``remove()``
         takes it off: ``"frames"``, ``(direction "tx"/"rx", payload, t)`` for every state,
         laser and event sample received and every set-point sent (the JSON payloads);
         ``"states"``, ``listener(state)`` with each :class:`PioneerState`. Called in Zenoh's
         threads: keep it short; one that raises is counted and logged, never stops this."""
-        registry = self._listeners[pick_kind(kind, tuple(self._listeners), "RemotePioneer")]
-        registry.add(listener)
-        return ListenerHandle(listener, lambda: registry.remove(listener))
+        return self._add_listener(listener, kind)
 
-    def remove_listener(self, listener: Any, *, kind: str = "frames") -> None:
-        self._listeners[pick_kind(kind, tuple(self._listeners), "RemotePioneer")].remove(
-            listener)  # fmt: skip
+    def _listeners_of(self, kind: str) -> Listeners[Any]:
+        return self._listeners[pick_kind(kind, tuple(self._listeners), "RemotePioneer")]
 
     def _received(self, what: str, sample: zenoh.Sample) -> bytes:
         payload: bytes = sample.payload.to_bytes()
@@ -319,12 +308,6 @@ class RemotePioneer:
             sub.undeclare()  # type: ignore[no-untyped-call]
         if self._own:
             close_session(self._session)
-
-    def __enter__(self) -> RemotePioneer:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<RemotePioneer {self.robot} as {self.holder}>"

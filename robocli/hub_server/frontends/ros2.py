@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any
 
 from robocli.devices.hub.decode import HEADER
 from robocli.io.record.hub import HubDecoder
-from robocli.protocols.ros4mat.messages import Compression
+from robocli.protocols.ros4mat.ids import Compression
 from robocli.ros2.live import Ros2Topics
 from robocli.ros2.node import Ros2Node, node_name
 

@@ -12,7 +12,7 @@ import numpy as np
 
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, Sink, json_text
+from robocli.io.record.links import RawLink, Sink, TopicDecoder, json_text
 from robocli.io.record.models import add_model
 from robocli.robots.urdf import arm_transforms, arm_urdf, joint_origins
 
@@ -74,30 +74,22 @@ def _detach_arm(arm: Arm, link: RawLink, port: str) -> Callable[[], None]:
     return lambda: arm.remove_listener(link, ports=port)
 
 
-class ArmDecoder:
+class ArmDecoder(TopicDecoder):
     """State-port frames (writer thread) -> joint states, flange pose, link frames, status.
 
     The controller's clock (JOINT_FEEDBACK's time) is put on the host clock by the smallest
     receive-minus-controller time seen so far (the transport delay's floor is taken as 0)."""
 
     def __init__(self, rec: Sink, name: str, arm: Arm) -> None:
-        self.rec, self.model = rec, arm.robot
+        super().__init__(rec, name, ("joint_states", "joint_feedback", "tcp", "tf", "status"))
+        self.model = arm.robot
         self.order, self.real = arm.byteorder, arm.real
         n = self.model.n_joints
         self.names = [f"joint_{i + 1}" for i in range(n)]
         self.frames = [f"{name}/base", *(f"{name}/link_{i + 1}" for i in range(n))]
-        self.topics = {k: f"/{name}/{k}" for k in
-                       ("joint_states", "joint_feedback", "tcp", "tf", "status")}  # fmt: skip
         self.offset: float | None = None  #: host epoch s minus controller s (min so far)
         self._feedback = False  # JOINT_FEEDBACK seen: the frames follow it
-        self._cids: dict[str, int] = {}
         self._flange = joint_origins(self.model)[-1]
-
-    def _cid(self, key: str, schema: str) -> int:
-        cid = self._cids.get(key)
-        if cid is None:
-            cid = self._cids[key] = self.rec.channel(self.topics[key], schema)
-        return cid
 
     def __call__(self, direction: str, frame: bytes, ns: int) -> None:
         from robocli.protocols import simple_message as sm

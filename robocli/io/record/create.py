@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 from robocli.devices.create.client import CreateOdometry, state_of
 from robocli.errors import InvalidArgument, ProtocolError
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, Sink, json_text, new_link
+from robocli.io.record.links import RawLink, Sink, TopicDecoder, json_text, new_link
 from robocli.protocols import create_oi as oi
 
 if TYPE_CHECKING:
@@ -39,26 +39,18 @@ def attach_create(rec: Sink, robot: Create, name: str | None) -> str:
     return name
 
 
-class CreateDecoder:
+class CreateDecoder(TopicDecoder):
     """Stream frames (writer thread) -> ``pose`` (PoseInFrame in ``NAME/odom``), ``tf``
     (odom -> ``NAME/base_link``) and ``state`` (robocli.create.State). Keeps its own
     odometry, so that every recorded pose belongs to the frame it was decoded from. A frame
     that does not decode is counted (:attr:`bad_frames`) and skipped."""
 
     def __init__(self, rec: Sink, name: str) -> None:
-        self.rec = rec
+        super().__init__(rec, name, ("pose", "tf", "state"))
         self.claimed = False  #: a device was added on it (a link is recorded once)
         self.odo = CreateOdometry()
         self.frames = self.bad_frames = 0
         self.odom, self.base = f"{name}/odom", f"{name}/base_link"
-        self.topics = {k: f"/{name}/{k}" for k in ("pose", "tf", "state")}
-        self._cids: dict[str, int] = {}
-
-    def _cid(self, key: str, schema: str) -> int:
-        cid = self._cids.get(key)
-        if cid is None:
-            cid = self._cids[key] = self.rec.channel(self.topics[key], schema)
-        return cid
 
     def __call__(self, direction: str, payload: bytes, ns: int) -> None:
         if direction != "rx":

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, Sink, json_text, new_link
+from robocli.io.record.links import RawLink, Sink, json_text, new_link, record_scans
 
 if TYPE_CHECKING:
     from robocli.devices.laser import Laser, Scan
@@ -37,13 +37,7 @@ def attach_laser(rec: Sink, laser: Laser, name: str | None, *, parent: str | Non
     assert name is not None
     decoder = LaserDecoder(rec, name, laser.epoch(0.0), parent, mount)
     link.decoder = decoder.ignore  # the scans come decoded from the client: no second decode
-    put, on_scan = rec.put, decoder.scan
-
-    def listener(scan: Scan) -> None:
-        put(on_scan, (scan,), 8 * len(scan.ranges))
-
-    laser.add_listener(listener, kind="scans")
-    rec.on_close(lambda: laser.remove_listener(listener, kind="scans"))
+    record_scans(rec, laser, "scans", decoder.scan)
     return name
 
 

@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import base64
 import json
+import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from typing import Any, Protocol
 
 from robocli.ros2.types import RAW_FRAME
 from robocli.ros2.types import RAW_SCHEMA as _RAW_SCHEMA
+from robocli.sink import SinkBase
 
 __all__ = [
     "RAW_ENCODING",
@@ -17,11 +19,16 @@ __all__ = [
     "ROS2_RAW_TYPE",
     "RawLink",
     "Sink",
+    "SinkBase",
+    "TopicDecoder",
     "is_raw",
     "json_text",
     "new_link",
     "raw_link",
+    "record_scans",
 ]
+
+log = logging.getLogger("robocli.io.record")
 
 #: Schema of the raw channels (message encoding ``json``, schema encoding ``jsonschema``,
 #: as every channel: a viewer shows them): each message is one whole frame as it went over
@@ -148,6 +155,34 @@ class RawLink:
             sec, nsec, self._heads[direction], base64.b64encode(frame)), ns)  # fmt: skip
         if self.decoder is not None:
             self.decoder(direction, payload, ns)
+
+
+class TopicDecoder:
+    """A decoder's topics (``/NAME/KEY`` for each key) and their channels in ``rec``, each
+    made on first use by :meth:`_cid` (writer thread)."""
+
+    def __init__(self, rec: Sink, name: str, keys: Iterable[str]) -> None:
+        self.rec = rec
+        self.topics = {k: f"/{name}/{k}" for k in keys}
+        self._cids: dict[str, int] = {}
+
+    def _cid(self, key: str, schema: str) -> int:
+        cid = self._cids.get(key)
+        if cid is None:
+            cid = self._cids[key] = self.rec.channel(self.topics[key], schema)
+        return cid
+
+
+def record_scans(rec: Sink, device: Any, kind: str, on_scan: Callable[[Any], None]) -> None:
+    """Hand every scan of ``device``'s listeners of ``kind`` to ``on_scan`` on ``rec``'s
+    writer thread, until ``rec`` closes."""
+    put = rec.put
+
+    def listener(scan: Any) -> None:
+        put(on_scan, (scan,), 8 * len(scan.ranges))
+
+    device.add_listener(listener, kind=kind)
+    rec.on_close(lambda: device.remove_listener(listener, kind=kind))
 
 
 def raw_link(rec: Sink, name: str, protocol: str, **metadata: str) -> RawLink:

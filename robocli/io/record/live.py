@@ -34,7 +34,7 @@ from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
 from robocli.errors import InvalidArgument, RobocliError, TransportError
-from robocli.io.record.links import RAW_SCHEMA
+from robocli.io.record.links import RAW_SCHEMA, SinkBase
 from robocli.io.schemas import SCHEMAS, schema_bytes
 
 if TYPE_CHECKING:
@@ -67,7 +67,7 @@ def _server_class() -> type[FoxgloveServer]:
     return FoxgloveServer
 
 
-class LiveView:
+class LiveView(SinkBase):
     """A Foxglove WebSocket server on ``host:port`` (0: any free port, see :attr:`port`)
     serving the channels of the devices :meth:`add` ed to it, or of a recorder that
     mirrors into it. ``max_queue`` / ``max_queue_bytes``: what may wait for the decoding
@@ -103,16 +103,13 @@ class LiveView:
         self.errors = 0
         #: messages handed to the server
         self.messages = 0
+        super().__init__()
         self.links: dict[str, Any] = {}
         self._by_topic: dict[str, int] = {}
-        self._names: set[str] = set()
-        self._detach: list[Callable[[], None]] = []
         self._lock = threading.Lock()
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._closing = False
-        self._closed = False
         self._thread: threading.Thread | None = None
-        self._epoch_ns = time.time_ns() - time.monotonic_ns()
 
     @property
     def url(self) -> str:
@@ -134,20 +131,6 @@ class LiveView:
             self._thread = threading.Thread(target=self._run, name="live-view", daemon=True)
             self._thread.start()
         return sources.attach(self, device, name, **options)
-
-    def log_ns(self, t_monotonic: float) -> int:
-        return int(t_monotonic * 1e9) + self._epoch_ns
-
-    def unique_name(self, base: str) -> str:
-        name, k = base, 1
-        while name in self._names:
-            k += 1
-            name = f"{base}{k}"
-        self._names.add(name)
-        return name
-
-    def on_close(self, detach: Callable[[], None]) -> None:
-        self._detach.append(detach)
 
     def put(self, handler: Callable[..., None], args: tuple[Any, ...], size: int = 64) -> bool:
         """Queue ``handler(*args)`` for the decoding thread; never blocks (a full queue
@@ -221,25 +204,13 @@ class LiveView:
     def close(self, timeout: float = 10.0) -> None:
         """Stop listening to the devices, close the channels and stop the server.
         Idempotent."""
-        if self._closed:
+        if not self._close_begins():
             return
-        self._closed = True
-        for detach in self._detach:
-            try:
-                detach()
-            except Exception:
-                log.debug("live view: detaching a listener failed", exc_info=True)
         with self._lock:
             self._closing = True
         if self._thread is not None:
             self._thread.join(timeout)
         self.server.stop()
-
-    def __enter__(self) -> LiveView:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<LiveView {self.url} messages={self.messages}>"

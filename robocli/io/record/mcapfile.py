@@ -32,6 +32,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO, Any
 
+from robocli.closing import Closing
 from robocli.errors import EXIT_USAGE, RobocliError
 
 log = logging.getLogger("robocli.io.record")
@@ -213,7 +214,7 @@ def chunk_records(chunk: Any) -> Iterator[Any]:
         pos += length
 
 
-class McapFile:
+class McapFile(Closing):
     """One MCAP file open for reading (see the module docstring). ``with McapFile(path) as f:
     for record in f.records(): ...``. Raises :class:`BadRecording` for a file that is not
     MCAP and :class:`TruncatedRecording` for one cut before its first record ends."""
@@ -256,12 +257,6 @@ class McapFile:
 
     def close(self) -> None:
         self._file.close()
-
-    def __enter__(self) -> McapFile:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def read_at(self, offset: int, length: int) -> bytes:
         """``length`` bytes at ``offset``; :class:`BadRecording` when they are not all in the

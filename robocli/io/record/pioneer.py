@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from robocli.devices.pioneer.state import Odometry, build_state
 from robocli.errors import InvalidArgument
 from robocli.io import schemas as S
-from robocli.io.record.links import RawLink, Sink, json_text, new_link
+from robocli.io.record.links import RawLink, Sink, TopicDecoder, json_text, new_link, record_scans
 from robocli.protocols.arcos import Command, decode_sip
 
 if TYPE_CHECKING:
@@ -45,32 +45,24 @@ def attach_pioneer(rec: Sink, robot: Pioneer, name: str | None) -> str:
     add_model(rec, name, pioneer_urdf(robot.params, f"{name}/"))
     decoder = PioneerDecoder(rec, name, robot.params)
     link.decoder = decoder
-    put = rec.put
-    on_scan = decoder.scan
-
-    def laser(scan: LaserScan) -> None:
-        put(on_scan, (scan,), 8 * len(scan.ranges))
-
-    robot.add_listener(laser, kind="laser")
-    rec.on_close(lambda: robot.remove_listener(laser, kind="laser"))
+    record_scans(rec, robot, "laser", decoder.scan)
     return name
 
 
-class PioneerDecoder:
+class PioneerDecoder(TopicDecoder):
     """SIPs (writer thread) -> pose, transform, sonar scan, state; laser scans -> LaserScan.
 
     Keeps its own odometry (the 15-bit counters unwrapped as the client does, SETO seen in
     the frames sent), so that every recorded pose belongs to the SIP it was decoded from."""
 
     def __init__(self, rec: Sink, name: str, params: RobotParams) -> None:
-        self.rec, self.params = rec, params
+        super().__init__(rec, name, ("pose", "tf", "sonar", "laser", "state"))
+        self.params = params
         self.odo = Odometry()
         n = max(16, len(params.sonar))
         self.sonar = [math.nan] * n
         self.sips = 0
         self.odom, self.base = f"{name}/odom", f"{name}/base_link"
-        self.topics = {k: f"/{name}/{k}" for k in ("pose", "tf", "sonar", "laser", "state")}
-        self._cids: dict[str, int] = {}
         #: a sink that takes the samples as dicts (a live ROS 2 one): the state first, no JSON
         self._direct: Callable[..., None] | None = getattr(rec, "write_sample", None)
         self._step = step = 2 * math.pi / _SONAR_BINS
@@ -82,12 +74,6 @@ class PioneerDecoder:
         self._sonar_json = (f',"frame_id":"{self.base}","pose":{json_text(S.pose())},'
                             f'"start_angle":{-math.pi!r},"end_angle":{math.pi - step!r},'
                             '"ranges":[')  # fmt: skip
-
-    def _cid(self, key: str, schema: str) -> int:
-        cid = self._cids.get(key)
-        if cid is None:
-            cid = self._cids[key] = self.rec.channel(self.topics[key], schema)
-        return cid
 
     def __call__(self, direction: str, payload: bytes, ns: int) -> None:
         ptype = payload[0]

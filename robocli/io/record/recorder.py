@@ -53,7 +53,7 @@ from typing import IO, Any
 
 from robocli._version import __version__
 from robocli.errors import InvalidArgument, RobocliError
-from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA
+from robocli.io.record.links import RAW_ENCODING, RAW_SCHEMA, SinkBase
 from robocli.io.schemas import schema_bytes
 from robocli.output import check_output, create_output
 
@@ -112,7 +112,7 @@ def _mcap() -> Any:
     return mcap
 
 
-class Recorder:
+class Recorder(SinkBase):
     """Record devices into one MCAP file on one timeline. See the module docstring.
 
     ``compression``: ``"zstd"`` (default), ``"lz4"`` or ``"none"``. ``chunk_seconds``: the
@@ -169,8 +169,7 @@ class Recorder:
         self.stats = RecorderStats()
         #: the error that stopped the writer (a full disk), else None
         self.error: BaseException | None = None
-        # monotonic -> Unix epoch, fixed at the start: log times never jump with the clock
-        self._epoch_ns = time.time_ns() - time.monotonic_ns()
+        super().__init__()  # log times on an epoch fixed now, names, what to detach
         self._schemas: dict[str, int] = {}
         self._channels: dict[str, int] = {}
         self._sequence: dict[int, int] = {}
@@ -180,10 +179,7 @@ class Recorder:
         self._queue: deque[tuple[Callable[..., None], tuple[Any, ...]]] = deque()
         self._queued_bytes = 0
         self._closing = False
-        self._closed = False
         self._decode_logged: set[str] = set()
-        self._detach: list[Callable[[], None]] = []
-        self._names: set[str] = set()
         #: raw links by name (see :meth:`listener`)
         self.links: dict[str, Any] = {}
         self._thread: threading.Thread | None = None
@@ -236,12 +232,6 @@ class Recorder:
         self._thread = threading.Thread(target=self._run, name="recorder", daemon=True)
         self._thread.start()
 
-    # ------------------------------------------------------------------ time
-
-    def log_ns(self, t_monotonic: float) -> int:
-        """A monotonic time (s, as the devices stamp what they receive) in Unix-epoch ns."""
-        return int(t_monotonic * 1e9) + self._epoch_ns
-
     # ------------------------------------------------------------------ sources
 
     def add(self, device: Any, name: str | None = None, **options: Any) -> str:
@@ -269,19 +259,6 @@ class Recorder:
         from robocli.io.record import sources
 
         return sources.raw_link(self, name, protocol, **metadata)
-
-    def unique_name(self, base: str) -> str:
-        """``base``, or ``base2``, ``base3``... the first not taken yet."""
-        name, k = base, 1
-        while name in self._names:
-            k += 1
-            name = f"{base}{k}"
-        self._names.add(name)
-        return name
-
-    def on_close(self, detach: Callable[[], None]) -> None:
-        """Call ``detach`` (remove a listener) when the recorder closes."""
-        self._detach.append(detach)
 
     def mirror(self, sink: Any) -> None:
         """Also hand every message of the channels registered from now on to ``sink`` (its
@@ -457,14 +434,8 @@ class Recorder:
         Raises :class:`RecordingError` when writing failed (what was written before stays
         readable up to its last complete chunk). A recorder that never began (see
         :meth:`begin`) writes nothing: no file is made."""
-        if self._closed:
+        if not self._close_begins():
             return
-        self._closed = True
-        for detach in self._detach:
-            try:
-                detach()
-            except Exception:
-                log.debug("recorder: detaching a listener failed", exc_info=True)
         with self._lock:
             self._closing = True
             if self._thread is None:
@@ -482,12 +453,6 @@ class Recorder:
                                  "(a stalled disk?); complete chunks are readable")  # fmt: skip
         if self.error is not None:
             raise RecordingError(self._failure())
-
-    def __enter__(self) -> Recorder:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"<Recorder {self.path} messages={self.stats.messages}>"

@@ -16,23 +16,25 @@ import construct as cs
 from robocli.errors import FramingError, ProtocolError
 from robocli.protocols import layout
 from robocli.protocols.common import DECODE_ERRORS, enum_name, enum_or_int, plain, undecodable
-from robocli.protocols.ros4mat.messages import (
+from robocli.protocols.ros4mat.ids import (
     HEADER_SIZE,
     INFLATE_STEP,
-    INFO_RECORDS,
     MAX_BODY_SIZE,
+    Compression,
+    MsgType,
+    sensor_type,
+)
+from robocli.protocols.ros4mat.messages import (
+    INFO_RECORDS,
     RECORDS,
     REQUEST_BODIES,
     CameraData,
-    Compression,
     Header,
     HokuyoData,
     KinectData,
-    MsgType,
     SerialAnsReply,
     StereoData,
     body_length,
-    sensor_type,
 )
 
 if TYPE_CHECKING:
