@@ -27,13 +27,14 @@ from robocli.commands._common import (
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
-    unix_stamped,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._options import device_argument
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
+from robocli.views.pioneer import snapshot
+from robocli.views.pioneer import start_laser as start_laser
 
 if TYPE_CHECKING:
     from robocli.devices.laser import MountedLaser, PlacedScan
@@ -141,6 +142,14 @@ def connect(
             live_view(robot, hokuyo)
 
 
+def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
+    """The robot's snapshot (:func:`robocli.views.pioneer.snapshot`), with the ``--laser``
+    Hokuyo's placed scan."""
+    from robocli.commands._mounted import placed_json
+
+    return snapshot(robot, **({"hokuyo": placed_json(hokuyo)} if hokuyo is not None else {}))
+
+
 @contextlib.contextmanager
 def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLaser | None]:
     """The Hokuyo of ``--laser`` on ``robot`` (streaming unless ``once``), or None."""
@@ -158,40 +167,6 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
             yield mounted
         finally:
             mounted.close()
-
-
-def start_laser(robot: Pioneer, wait: bool) -> None:
-    """On a simulator (MobileSim, robocli sim), ask for its laser; with ``wait``, wait up
-    to a second for the first scan. Real robots are left alone (their laser has its own
-    port)."""
-    from robocli.errors import TimeoutError
-
-    if robot.sim is None:
-        return
-    robot.sim.start_laser()
-    if wait:
-        with contextlib.suppress(TimeoutError):
-            robot.sim.wait_for_laser(1.0)
-
-
-def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
-    """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
-    where nothing was seen; angles in rad), and the ``--laser`` Hokuyo's placed scan."""
-    data = robot.snapshot()
-    data["state"] = unix_stamped(data["state"])  # Unix t, as every --json; t_mono kept
-    if hokuyo is not None:
-        from robocli.commands._mounted import placed_json
-
-        data["hokuyo"] = placed_json(hokuyo)
-    scan = robot.sim.laser if robot.sim is not None else None
-    if scan is not None and "laser" not in data:
-        data["laser"] = unix_stamped({
-            "t": scan.t,
-            "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
-            "angles": list(scan.angles),
-            "ranges": [None if math.isinf(r) else r for r in scan.ranges],
-        })  # fmt: skip
-    return data
 
 
 def simulate(
@@ -295,13 +270,7 @@ def _load_map(world_type: Any, path: Path) -> Any:
 
 
 def _print_snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> None:
-    from robocli.commands._screens import (
-        hokuyo_text,
-        laser_text,
-        pose_text,
-        sonar_text,
-        velocity_text,
-    )
+    from robocli.views.pioneer import hokuyo_text, laser_text, pose_text, sonar_text, velocity_text
 
     st = robot.state
     ident = robot.identity
