@@ -34,6 +34,7 @@ RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 
 RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
 
+
 def arm_host(*address: Any, **options: Any) -> Any:
     """:func:`robocli.devices.arm.jobs.arm_address` (loaded when called, not with the CLI)."""
     from robocli.devices.arm.jobs import arm_address

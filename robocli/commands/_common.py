@@ -11,7 +11,7 @@ import math
 import re
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 from typer.core import TyperCommand
@@ -167,6 +167,15 @@ def reader_may_leave() -> Iterator[None]:
     except BrokenPipeError:
         stdout_to_devnull()
         raise typer.Exit(0) from None
+
+
+def wait_forever() -> NoReturn:
+    """Flush stdout and block until Ctrl-C or SIGTERM: a server runs in its own threads."""
+    import time
+
+    sys.stdout.flush()
+    while True:
+        time.sleep(3600)
 
 
 def stdout_to_devnull() -> None:

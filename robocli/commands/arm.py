@@ -43,9 +43,17 @@ from robocli.commands._common import (
     rounded,
     shielded,
     sigterm_as_interrupt,
+    wait_forever,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import count_option, duration_option, json_option, output_option
+from robocli.commands._options import (
+    BindOpt,
+    TimeScaleOpt,
+    count_option,
+    duration_option,
+    json_option,
+    output_option,
+)
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
 from robocli.commands.kinematics import _floats
 
@@ -56,68 +64,56 @@ if TYPE_CHECKING:
 # ------------------------------------------------------------------------------ sim abb
 
 
+def _model_option(flag: str, help: str, max: float = 10_000.0) -> Any:
+    """An option of ``sim abb``'s controller model: 0 (exact) by default."""
+    return typer.Option(0.0, flag, min=0.0, max=max, help=help)
+
+
+def _port_option(default: int, flag: str, server: str) -> Any:
+    return typer.Option(default, flag, min=0, max=65535, help=f"{server} TCP port (0: any).")
+
+
 def simulate(
-    motion_port: int = typer.Option(
-        11000, "--motion-port", min=0, max=65535, help="Motion server's TCP port (0: any)."
-    ),
-    state_port: int = typer.Option(
-        11002, "--state-port", min=0, max=65535, help="State server's TCP port (0: any)."
-    ),
+    motion_port: int = _port_option(11000, "--motion-port", "Motion server's"),
+    state_port: int = _port_option(11002, "--state-port", "State server's"),
     state_ms: float | None = typer.Option(
         None,
         "--state-ms",
         min=0.5,
         max=10_000.0,
         help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
-    ),
+    ),  # fmt: skip
     byte_order: ByteOrder = OrderOpt,
     real_size: RealSize = RealOpt,
     profile: Profile = typer.Option(
         "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
     ),
     robot: str = RobotOpt,
-    latency_ms: float = typer.Option(
-        0.0, "--latency-ms", min=0.0, max=10_000.0, help="Motion reply delay, ms."
+    latency_ms: float = _model_option("--latency-ms", "Motion reply delay, ms."),
+    jitter_ms: float = _model_option(
+        "--jitter-ms", "Motion reply jitter: std of a skewed extra delay, ms."
     ),
-    jitter_ms: float = typer.Option(
-        0.0,
-        "--jitter-ms",
-        min=0.0,
-        max=10_000.0,
-        help="Motion reply jitter: std of a skewed extra delay, ms.",
-    ),
-    noise_rad: float = typer.Option(
-        0.0, "--noise-rad", min=0.0, max=1.0, help="Gaussian noise on reported joints, rad."
-    ),
-    period_jitter_ms: float = typer.Option(
-        0.0,
+    noise_rad: float = _model_option("--noise-rad", "Gaussian noise on reported joints, rad.", 1.0),
+    period_jitter_ms: float = _model_option(
         "--period-jitter-ms",
-        min=0.0,
-        max=10_000.0,
-        help="State period std, ms (each period drawn afresh, skewed as the paper's).",
+        "State period std, ms (each period drawn afresh, skewed as the paper's).",
     ),
-    lag_ms: float = typer.Option(
-        0.0, "--lag-ms", min=0.0, max=10_000.0, help="Execution delay after activation, ms."
-    ),
+    lag_ms: float = _model_option("--lag-ms", "Execution delay after activation, ms."),
     paper: bool = typer.Option(False, "--paper", help="The paper-like controller model."),
     feedback: bool = typer.Option(
         False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
     ),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
+    time_scale: float = TimeScaleOpt,
+    bind: str = BindOpt,
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
 ) -> None:
     """Run a simulated ABB controller (RAPID motion and state servers) until Ctrl-C."""
-    from robocli.sim.abb.server import PROFILES, AbbSim, ControllerModel
+    from robocli.sim.launch import abb_controller
 
     rate = check_replay(replay, speed, loop)
     check_wire(byte_order, real_size)
-    if profile not in PROFILES:
-        raise typer.BadParameter(f"--profile is one of {', '.join(PROFILES)}, not {profile!r}")
     if motion_port == state_port != 0:
         raise typer.BadParameter(
             f"--motion-port and --state-port are both {motion_port}: the motion and the state "
@@ -126,35 +122,18 @@ def simulate(
     if replay is not None:
         abb_replay(replay, rate, loop, robot, profile, bind, motion_port, state_port)
         return
-    if state_ms is None:
-        state_ms = 20.0 if paper else 100.0
-    model = (
-        ControllerModel.paper()
-        if paper
-        else ControllerModel(latency_ms, jitter_ms, noise_rad, period_jitter_ms, lag_ms)
-    )
-    with (
-        sigterm_as_interrupt(),
-        AbbSim(
-            robot,
-            profile=profile,
-            state_ms=state_ms,
-            byteorder=">" if byte_order == "big" else "<",
-            real=8 if real_size == 8 else 4,
-            time_scale=time_scale,
-            model=model,
-            feedback=feedback,
-        ) as simulator,
-    ):
+    options = {"latency_ms": latency_ms, "jitter_ms": jitter_ms, "noise_rad": noise_rad,
+               "period_jitter_ms": period_jitter_ms, "lag_ms": lag_ms}  # fmt: skip
+    with sigterm_as_interrupt(), abb_controller(
+        robot, profile=profile, state_ms=state_ms, byte_order=byte_order, real_size=real_size,
+        time_scale=time_scale, paper=paper, feedback=feedback, **options) as simulator:  # fmt: skip
         with listening(bind):
             motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
         typer.echo(
-            f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, "
-            f"state every {state_ms:g} ms" + ("" if model.exact else ", model on")
+            f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, state every "
+            f"{simulator.state_ms:g} ms" + ("" if simulator.ctl_model.exact else ", model on")
         )
-        sys.stdout.flush()
-        while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
-            time.sleep(3600)
+        wait_forever()  # Ctrl-C, SIGTERM: the simulator closes, exit 130
 
 
 # ------------------------------------------------------------------------------ upload arm

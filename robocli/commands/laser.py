@@ -27,7 +27,14 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
     wait_forever,
 )
-from robocli.commands._options import count_option, device_argument, json_option
+from robocli.commands._options import (
+    BindOpt,
+    MapOpt,
+    TimeScaleOpt,
+    count_option,
+    device_argument,
+    json_option,
+)
 from robocli.views.laser import identity_lines, scan_json, scan_line
 
 if TYPE_CHECKING:
@@ -128,16 +135,12 @@ def simulate(
         None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
     ),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
-    map_file: Path | None = typer.Option(
-        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
-    ),
+    map_file: Path | None = MapOpt,
     pose: str | None = typer.Option(
         None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
     ),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
+    bind: str = BindOpt,
+    time_scale: float = TimeScaleOpt,
 ) -> None:
     """Run a simulated Hokuyo laser speaking SCIP 2.0 until Ctrl-C."""
     from robocli.commands.pioneer import _load_map

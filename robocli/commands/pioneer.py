@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-import sys
-import time
 from collections.abc import Iterator
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,9 +24,10 @@ from robocli.commands._common import (
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
+    wait_forever,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import device_argument
+from robocli.commands._options import BindOpt, MapOpt, TimeScaleOpt, device_argument
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
@@ -173,15 +171,11 @@ def simulate(
     port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
-    map_file: Path | None = typer.Option(
-        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
-    ),
+    map_file: Path | None = MapOpt,
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
     subtype: str = typer.Option("p3dx", "--subtype", help="Reported robot subtype."),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
+    bind: str = BindOpt,
+    time_scale: float = TimeScaleOpt,
     laser: bool = typer.Option(
         True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
     ),
@@ -197,35 +191,26 @@ def simulate(
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
     from robocli.robots.pioneer import ROBOT_PARAMS
-    from robocli.sim.pioneer.server import PioneerSim, serve_many
+    from robocli.sim.launch import pioneers
+    from robocli.sim.pioneer.server import PioneerSim
     from robocli.sim.world import World
 
     if subtype not in ROBOT_PARAMS:
         raise typer.BadParameter(f"unknown subtype {subtype!r}; known: {', '.join(ROBOT_PARAMS)}")
     rate = check_replay(replay, speed, loop)
     world = _load_map(World, map_file) if map_file else None
-    options: dict[str, Any] = {"georef": _georef(georef) if georef else None}
-    if not laser:
-        options["laser"] = None
-    if replay is not None:
-        from robocli.sim.pioneer.replay import PioneerReplay
-
-        options = {"factory": partial(PioneerReplay, replay, speed=rate, loop=loop), **options}
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
             with listening(bind):
-                sims = serve_many(
-                    robots, host=bind_address(bind), port=port, pty=pty,
-                    subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
-                    **options,
-                )  # fmt: skip
+                sims = pioneers(robots, host=bind_address(bind), port=port, pty=pty, world=world,
+                                laser=laser, georef=_georef(georef) if georef else None,
+                                replay=replay, speed=rate, loop=loop, subtype=subtype,
+                                sip_ms=sip_ms, time_scale=time_scale)  # fmt: skip
             what = f"replaying {replay}" if replay is not None else subtype
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {what} on {simulator.pty_path or simulator.url}")
-            sys.stdout.flush()
-            while True:
-                time.sleep(3600)
+            wait_forever()
         finally:
             for simulator in sims:
                 simulator.close()

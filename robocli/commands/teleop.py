@@ -29,7 +29,7 @@ from robocli.commands.pioneer import (
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
-    from robocli.commands._screens import KeyReader
+    from robocli.views.keys import KeyReader
 
 HostArg = device_argument("arm", ARM_ENV)
 
@@ -127,7 +127,8 @@ def _need_terminal() -> None:
 def _keys() -> Iterator[KeyReader]:
     """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
     left on a fresh line after the status line however the loop ends."""
-    from robocli.commands._screens import end_line, raw_terminal
+    from robocli.commands._screens import end_line
+    from robocli.views.keys import raw_terminal
 
     try:
         with raw_terminal() as read_key:
