@@ -138,6 +138,8 @@ def simulate(
 
 # ------------------------------------------------------------------------------ upload arm
 
+WAIT_HELP = "Seconds to wait for the end (0: do not wait; the arm moves on)."
+
 
 class _Progress:
     """A Rich bar on a terminal, plain lines otherwise."""
@@ -193,13 +195,7 @@ def upload(
     split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
     link: ArmLink = LINK,
-    wait: float = typer.Option(
-        600.0,
-        "--wait",
-        min=0.0,
-        max=86_400.0,
-        help="Seconds to wait for the end (0: do not wait; the arm moves on).",
-    ),
+    wait: float = typer.Option(600.0, "--wait", min=0.0, max=86_400.0, help=WAIT_HELP),
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
     from robocli.devices.arm.jobs import run_trajectory, shape_trajectory

@@ -50,6 +50,11 @@ def _check_subtype(value: str | None) -> str | None:
 
 
 PortArg = device_argument("pioneer", PIONEER_ENV)
+HOKUYO_HELP = (
+    "A Hokuyo laser on the robot (placed as the robot model says): serial device, pyserial "
+    "URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot."
+)
+GEOREF_HELP = "Map origin in degrees (and metres), for SIMSTAT's GPS fix."
 SubtypeOpt = typer.Option(
     None, "--subtype", metavar="NAME", callback=_check_subtype,
     help="Override the robot's subtype (p3dx, p3at, ...).",
@@ -89,12 +94,7 @@ def connect(
         False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
     ),
     laser: str | None = typer.Option(
-        None,
-        "--laser",
-        metavar="URL",
-        show_default=False,
-        help="A Hokuyo laser on the robot (placed as the robot model says): serial device, "
-        "pyserial URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot.",
+        None, "--laser", metavar="URL", show_default=False, help=HOKUYO_HELP
     ),
     no_laser: bool = typer.Option(
         False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
@@ -179,12 +179,7 @@ def simulate(
     laser: bool = typer.Option(
         True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
     ),
-    georef: str | None = typer.Option(
-        None,
-        "--georef",
-        metavar="LAT,LON[,ALT]",
-        help="Map origin in degrees (and metres), for SIMSTAT's GPS fix.",
-    ),
+    georef: str | None = typer.Option(None, "--georef", metavar="LAT,LON[,ALT]", help=GEOREF_HELP),
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
