@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import SIM, bundled, sigterm_as_interrupt
+from robocli.commands._common import bundled, sigterm_as_interrupt
 from robocli.commands._options import device_argument
 from robocli.defaults import ARM_ENV
 
@@ -34,41 +34,12 @@ RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 
 RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
 
-EMBEDDED_STATE_MS = 5.0
 
+def arm_host(*address: Any, **options: Any) -> Any:
+    """:func:`robocli.devices.arm.jobs.arm_address` (loaded when called, not with the CLI)."""
+    from robocli.devices.arm.jobs import arm_address
 
-@contextlib.contextmanager
-def arm_host(
-    host: str,
-    motion_port: int,
-    state_port: int,
-    byte_order: str = "little",
-    real_size: int = 4,
-    robot: str = "irb120",
-    profile: str = "abb",
-) -> Iterator[tuple[str, int, int]]:
-    """Yield ``(host, motion_port, state_port)``; for ``sim`` an embedded exact simulator on
-    ephemeral loopback ports, closed afterwards: the ABB RAPID servers, or with
-    ``profile="generic"`` an industrial_robot_client-style streaming server (what ``--stream``
-    needs: an ABB never executes streamed points)."""
-    if host != SIM:
-        from robocli.transports import InvalidURL, parse_host
-
-        host = host.removeprefix("tcp://").rstrip("/")
-        try:
-            host = parse_host(host, what="HOST")
-        except InvalidURL as exc:  # the ports have their own options
-            ports = "ports: --motion-port, --state-port"
-            raise InvalidURL(f"URL {host!r}: {exc.reason} ({ports})", exc.reason) from None
-        yield host, motion_port, state_port
-        return
-    from robocli.sim.abb.server import AbbSim
-
-    with AbbSim(robot, profile=profile, state_ms=EMBEDDED_STATE_MS, feedback=True,
-                real=8 if real_size == 8 else 4,
-                byteorder=">" if byte_order == "big" else "<") as simulator:  # fmt: skip
-        motion, state = simulator.serve_tcp("127.0.0.1", 0, 0)
-        yield "127.0.0.1", int(motion.rsplit(":", 1)[1]), int(state.rsplit(":", 1)[1])
+    return arm_address(*address, **options)
 
 
 def sim_profile(stream: bool) -> str:

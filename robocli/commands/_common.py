@@ -1,5 +1,6 @@
-"""What the commands share: the embedded `sim` target, connecting with the reasons a robot
-refuses spelled out, signal handling, JSON output rounded to the protocol's resolution."""
+"""What the commands share: the embedded `sim` target, man-page help, quiet ends of pipes,
+JSON Lines output (its data from :mod:`robocli.io.jsonlines`; signal handling, bind errors
+and refusals from :mod:`robocli.running`, re-exported here)."""
 
 from __future__ import annotations
 
@@ -8,13 +9,21 @@ import inspect
 import json
 import math
 import re
-import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 import typer
 from typer.core import TyperCommand
+
+from robocli.devices.pioneer.link import explain_refusal as explain_refusal
+from robocli.io.jsonlines import RESOLUTION as RESOLUTION
+from robocli.io.jsonlines import json_default
+from robocli.io.jsonlines import rounded as rounded
+from robocli.io.jsonlines import unix_stamped as unix_stamped
+from robocli.running import listening as listening
+from robocli.running import shielded as shielded
+from robocli.running import sigterm_as_interrupt as sigterm_as_interrupt
 
 SIM = "sim"
 PORT_HELP = (
@@ -149,68 +158,6 @@ def bundled(
 
 
 @contextlib.contextmanager
-def sigterm_as_interrupt() -> Iterator[None]:
-    """Let `kill` (SIGTERM) stop a command the way Ctrl-C does: robots stop, ports close."""
-
-    def _raise(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    try:
-        previous = signal.signal(signal.SIGTERM, _raise)
-    except ValueError:  # not the main thread (e.g. called from a test runner thread)
-        yield
-        return
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextlib.contextmanager
-def shielded() -> Iterator[None]:
-    """Ctrl-C and SIGTERM are ignored inside (a bounded step, such as writing a recording
-    on the way out): a second Ctrl-C must not leave the file half written."""
-    try:
-        saved = [(s, signal.signal(s, signal.SIG_IGN)) for s in (signal.SIGINT, signal.SIGTERM)]
-    except ValueError:  # not the main thread
-        yield
-        return
-    try:
-        yield
-    finally:
-        for sig, handler in saved:
-            signal.signal(sig, handler)
-
-
-@contextlib.contextmanager
-def listening(address: str) -> Iterator[None]:
-    """Around a server's bind on ``address`` (``sim``, ``serve``, ``dump --listen``): a port
-    already in use is no robot out of reach (exit 3) but a failure (exit 1); an address that
-    is not this machine's, or no address at all, a usage error (exit 2)."""
-    import errno
-    import socket
-
-    from robocli.errors import InvalidArgument, RobocliError, TransportError
-
-    try:
-        yield
-    except InvalidArgument:
-        raise
-    except UnicodeError as exc:  # the IDNA codec of the resolver: an empty label ("a..b")
-        why = str(exc.__cause__ or exc.__context__ or exc).removeprefix("UnicodeError: ")
-        raise InvalidArgument(f"cannot listen on {address!r}: not a host name ({why})") from None
-    except TransportError as exc:
-        cause = exc.__cause__
-        if isinstance(cause, (socket.gaierror, UnicodeError)) or (
-            isinstance(cause, OSError) and cause.errno == errno.EADDRNOTAVAIL
-        ):
-            raise InvalidArgument(
-                f"{exc} (give an address of this machine, e.g. 127.0.0.1)"
-            ) from None
-        raise RobocliError(str(exc)) from None
-
-
-@contextlib.contextmanager
 def reader_may_leave() -> Iterator[None]:
     """Around output to a pipe: when its reader goes away (``robocli dump ... | head``),
     stop quietly with exit code 0 (stdout goes to /dev/null, so that the final flush
@@ -220,6 +167,15 @@ def reader_may_leave() -> Iterator[None]:
     except BrokenPipeError:
         stdout_to_devnull()
         raise typer.Exit(0) from None
+
+
+def wait_forever() -> NoReturn:
+    """Flush stdout and block until Ctrl-C or SIGTERM: a server runs in its own threads."""
+    import time
+
+    sys.stdout.flush()
+    while True:
+        time.sleep(3600)
 
 
 def stdout_to_devnull() -> None:
@@ -232,73 +188,13 @@ def stdout_to_devnull() -> None:
         os.dup2(devnull, sys.stdout.fileno())
 
 
-@contextlib.contextmanager
-def explain_refusal(url: str) -> Iterator[None]:
-    """Around connecting: a link reset or closed by the peer during the handshake becomes
-    the :class:`DeviceError` of :func:`~robocli.devices.pioneer.link.busy_refusal` (the
-    Pioneer's handshake does this itself; other paths may lose the link around it)."""
-    from robocli.devices.pioneer.link import busy_refusal
-    from robocli.errors import ConnectionLost
-
-    try:
-        yield
-    except ConnectionLost as exc:
-        raise busy_refusal(url, exc) or exc from None
-
-
-#: Decimals kept in JSON output, by field name: the protocol's resolution in SI units
-#: (odometry 0.485 mm and 2*pi/4096 rad, speeds 1 mm/s and 0.1 deg/s, battery 0.1 V...).
-RESOLUTION = {
-    "t": 6, "t_mono": 6, "x": 4, "y": 4, "th": 4, "v": 3, "w": 4, "left_velocity": 3,
-    "right_velocity": 3, "battery": 1, "state_of_charge": 2, "sonar": 3, "analog": 3,
-    "temperature": 1, "ranges": 3, "angles": 4, "range": 3, "angle": 4,
-}  # fmt: skip
-
-
-def rounded(data: Any, digits: int = 6, resolution: dict[str, int] = RESOLUTION) -> Any:
-    """``data`` with every float rounded to its field's decimals in ``resolution`` (else
-    ``digits``): no ``0.9590000000000001`` noise in JSON. NaN and infinities become None."""
-    if isinstance(data, float):
-        return round(data, digits) if math.isfinite(data) else None
-    if isinstance(data, dict):
-        return {k: rounded(v, resolution.get(str(k), digits), resolution) for k, v in data.items()}
-    if isinstance(data, (list, tuple)):
-        return [rounded(v, digits, resolution) for v in data]
-    if hasattr(data, "tolist"):
-        return rounded(data.tolist(), digits, resolution)
-    return data
-
-
-def unix_stamped(data: dict[str, Any], key: str = "t") -> dict[str, Any]:
-    """``data`` with its ``time.monotonic()`` reading ``key`` given as Unix time (s), the one
-    time base of every ``--json`` output, and the monotonic reading kept as ``t_mono``."""
-    import time
-
-    out: dict[str, Any] = {}
-    for k, v in data.items():
-        if k == key and isinstance(v, (int, float)):
-            out[k] = v + time.time() - time.monotonic()
-            out["t_mono"] = v
-        else:
-            out[k] = v
-    return out
-
-
 def print_json(data: Any) -> None:
     """``data`` as one line of JSON on stdout (``--json`` is JSON Lines everywhere, ``--once``
     included; round floats first with :func:`rounded`)."""
-    typer.echo(json.dumps(data, default=_json_default, allow_nan=True))
+    typer.echo(json.dumps(data, default=json_default, allow_nan=True))
 
 
 def print_json_line(data: Any) -> None:
     """One compact JSON object on one line (JSON Lines), flushed: for pipes and scripts."""
-    sys.stdout.write(json.dumps(data, default=_json_default) + "\n")
+    sys.stdout.write(json.dumps(data, default=json_default) + "\n")
     sys.stdout.flush()
-
-
-def _json_default(obj: Any) -> Any:
-    if hasattr(obj, "tolist"):
-        return obj.tolist()
-    if isinstance(obj, (set, frozenset, tuple)):
-        return list(obj)
-    return str(obj)

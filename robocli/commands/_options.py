@@ -66,6 +66,14 @@ def rate_option(default: Any = None, help: str = "Rate, Hz.", **limits: Any) -> 
     return typer.Option(default, "--rate", "-r", help=help, **limits)
 
 
+#: What every simulator (``sim abb|pioneer|laser``) takes alike.
+BindOpt = typer.Option("127.0.0.1", "--bind", help="Address to listen on.")
+TimeScaleOpt = typer.Option(1.0, "--time-scale", min=0.1, max=100.0,
+                            help="Simulated seconds per wall second.")  # fmt: skip
+MapOpt = typer.Option(None, "--map", exists=True, dir_okay=False,
+                      help="Map: JSON or text walls (x1 y1 x2 y2).")  # fmt: skip
+
+
 def json_option(help: str = "JSON Lines: one object per line, t in Unix seconds, SI units.") -> Any:
     return typer.Option(False, "--json", help=help)
 

@@ -128,53 +128,47 @@ def rtt(
     responder (the client's own cost), then the client against the built-in simulator
     running in its own process; all pinned to one CPU.
     """
-    from robocli.bench import runs
-    from robocli.bench import stats as bs
+    from robocli.bench import reports
 
     _check_paper_model(target, paper)
     wire = _arm_wire(target, byte_order, real_size)
-    if target == "hub":  # the sensor hub's bench lives with its commands
-        from robocli.commands.hub import bench_rtt
-
-        return bench_rtt(url, n, json_out)
-    if target == "arm":  # JOINT_TRAJ_PT round trips (Table 5)
-        return _arm_bench("rtt", url, n, json_out, paper, floor_n, cpu, wire)
-    _check_target(target, also=("arm", "hub"))
     with sigterm_as_interrupt():
-        out = runs.pioneer_rtt(url, n, floor_n, cpu, stage=_Progress().stage)
-    floor_run = out.runs[0][0]
-    floor = bs.SampleStats.of(floor_run.values) if floor_run.count else None
-    results = [
-        bs.report(run.name, run.values, floor if i else None, targets, run.where)
-        for i, (run, targets) in enumerate(out.runs)
-        if run.count
-    ]
-    hist = {run.name: run.values for run, _ in out.runs if run.count and "floor" not in run.name}
-    _show(results, hist, json_out, floor_note="x floor = multiple of the same-CPU C floor median")
-    _finish(out.interrupted, out.samples)
+        report = reports.rtt(target, url, n, floor_n, cpu, paper=paper, wire=wire,
+                             stage=_Progress().stage)  # fmt: skip
+    if target == "hub":
+        _hub_table(report, json_out)
+    else:
+        _render(report, json_out)
 
 
-def _laser_jitter(url: str | None, n: int, json_out: bool) -> None:
-    """``bench jitter --target laser``: streamed scans of a laser (default: the embedded
-    UTM-30LX simulator, 25 ms)."""
-    from robocli.bench import runs
-    from robocli.bench import stats as bs
+def _render(report: Any, json_out: bool) -> None:
+    """A report's table and histograms (or JSON), the paper's Table 5 row for an arm; exit
+    130 when Ctrl-C ended the run."""
+    results, hist, paper = list(report.results), report.hist, report.paper
+    if paper is not None and json_out:
+        results.append({"name": f"paper Table 5: {paper[0]}", "unit": "us", "reference": True,
+                        **{k: v * 1e3 for k, v in paper[1].items()}})  # fmt: skip
+    if results or report.floor_note or paper:  # rtt and arm: the table even when empty
+        _show(results, {} if json_out and paper else hist, json_out, report.floor_note)
+    if paper is not None and not json_out:
+        typer.echo("paper's Table 5 (IRB120, ms): " +
+                   "  ".join(f"{k} {v:g}" for k, v in paper[1].items()))  # fmt: skip
+    _finish(report.interrupted, report.samples)
 
-    with sigterm_as_interrupt():
-        timing, interrupted = runs.laser_timing(url, n, stage=_Progress().stage)
-    names = {"period": "scan period (received)", "stamp_period": "scan period (stamped)",
-             "delay": "stamp to reception", "decode": "decode one frame"}  # fmt: skip
-    results = [bs.report(names[k], v) for k, v in timing.items() if v.size]
-    if results:
-        _show(results, {"period": timing["period"]} if timing["period"].size else {}, json_out)
-    _finish(interrupted)
 
-
-def _sip_timing(url: str | None, n: int) -> tuple[dict[str, Any], bool]:
-    from robocli.bench import runs
-
-    with sigterm_as_interrupt():
-        return runs.sip_timing(url, n, stage=_Progress().stage)
+def _hub_table(report: Any, json_out: bool) -> None:
+    """``bench rtt --target hub``: its one row, in microseconds."""
+    for result in report.results:
+        if json_out:
+            print_json([result])
+            continue
+        keys = ("mean", "median", "p90", "p99", "max")
+        typer.echo(f"{'measurement (us)':<22}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
+        typer.echo(f"{result['name']:<22}{result['n']:>7}" +
+                   "".join(f"{result[k]:>9.1f}" for k in keys))  # fmt: skip
+        typer.echo(f"  {result['where']}")
+    if report.interrupted:
+        raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def _finish(interrupted: bool, samples: int | None = None) -> None:
@@ -195,20 +189,13 @@ def jitter(
 ) -> None:
     """SIP period statistics (the robot's 100 ms cycle as the client sees it); laser: the
     scan period as received and as stamped, the stamp-to-reception delay, the decode time."""
-    from robocli.bench import stats as bs
+    from robocli.bench import reports
 
     _check_paper_model(target, paper)
-    if target == "laser":
-        return _laser_jitter(url, n, json_out)
-    wire = _arm_wire(target, byte_order, real_size)
-    if target == "arm":  # the state period (Table 5)
-        return _arm_bench("jitter", url, n, json_out, paper, wire=wire)
-    _check_target(target, also=("arm",))
-    timing, interrupted = _sip_timing(url, n)
-    period = timing.get("period")
-    if period is not None and period.size:
-        _show([bs.report("SIP period", period)], {"period": period}, json_out)
-    _finish(interrupted)
+    wire = _arm_wire(target, byte_order, real_size) if target != "laser" else ("little", 4)
+    with sigterm_as_interrupt():
+        report = reports.jitter(target, url, n, paper=paper, wire=wire, stage=_Progress().stage)
+    _render(report, json_out)
 
 
 def sip(
@@ -218,20 +205,11 @@ def sip(
     json_out: bool = JsonOpt,
 ) -> None:
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
-    from robocli.bench import stats as bs
+    from robocli.bench import reports
 
     _check_target(target)
-    timing, interrupted = _sip_timing(url, n)
-    results = []
-    work = timing.get("work")
-    if work is not None and work.size:
-        results.append(bs.report("client CPU per SIP", work))
-    keep = timing.get("keepalive")
-    if keep is not None and keep.size > 1:
-        results.append(bs.report("keep-alive period", keep))
-    if results:
-        _show(results, {"work": work} if work is not None and work.size else {}, json_out)
-    _finish(interrupted)
+    with sigterm_as_interrupt():
+        _render(reports.sip(url, n, stage=_Progress().stage), json_out)
 
 
 def _unit(median_us: float) -> tuple[float, str]:
@@ -292,38 +270,3 @@ def _print_results(
         typer.echo(f"histogram: {name} ({label})")
         for line in bs.histogram(samples, unit=unit, label=label):
             typer.echo(line)
-
-
-def _arm_bench(kind: str, url: str | None, n: int, json_out: bool, paper: bool = False,
-          floor_n: int | None = None, cpu: int | None = None,
-          wire: tuple[str, int] = ("little", 4)) -> None:  # fmt: skip
-    """``robocli bench rtt|jitter --target arm``: JOINT_TRAJ_PT round trips (after the C
-    floor, as the Pioneer bench) or the state period, against ``url`` or the built-in ABB
-    simulator in its own process (``paper``: its paper-like model), beside Table 5.
-    ``wire``: (byte order, real size) of the controller, and of that simulator."""
-    from robocli.bench import arm as ab
-    from robocli.bench import runs as bench_runs
-    from robocli.bench import stats as bs
-
-    with sigterm_as_interrupt():
-        out = bench_runs.arm_bench(kind, url, n, paper, floor_n, cpu, wire, _Progress().stage)
-    runs, interrupted = [run for run, _ in out.runs], out.interrupted
-    name = "JOINT_TRAJ_PT -> reply" if kind == "rtt" else "state period"
-    floor = bs.SampleStats.of(runs[0].values) if kind == "rtt" and runs[0].count else None
-    results = [bs.report(r.name, r.values, floor if "floor" not in r.name else None,
-                        where=r.where) for r in runs if r.count]  # fmt: skip
-    paper_row = ab.PAPER_TABLE5["rtt" if kind == "rtt" else "state period"]
-    if json_out:
-        results.append({"name": f"paper Table 5: {name}", "unit": "us", "reference": True,
-                        **{k: v * 1e3 for k, v in paper_row.items()}})  # fmt: skip
-    hist = {name: runs[-1].values} if runs and runs[-1].count else {}
-    _show(
-        results,
-        {} if json_out else hist,
-        json_out,
-        floor_note="x floor = multiple of the same-CPU C floor median" if floor else "",
-    )
-    if not json_out:
-        typer.echo("paper's Table 5 (IRB120, ms): " +
-                   "  ".join(f"{k} {v:g}" for k, v in paper_row.items()))  # fmt: skip
-    _finish(interrupted, out.samples)

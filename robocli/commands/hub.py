@@ -4,8 +4,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 from __future__ import annotations
 
 import io
-import json
-import math
 import os
 import sys
 import time
@@ -145,9 +143,9 @@ def subscribe(
     """Stream a hub sensor's timestamped samples to stdout until Ctrl-C, --duration or
     --count. Times are on this machine's clock (the hub's offset is estimated). With
     --zenoh, from a hub's Zenoh front-end (--hub NAME: which hub; default the one up)."""
-    from robocli.devices.hub.tools import columns_of, rows_of, stream
+    from robocli.devices.hub.streams import sample_rows
     from robocli.errors import InvalidArgument
-    from robocli.protocols.ros4mat import MsgType, adc_freq_send_default, sensor_type
+    from robocli.protocols.ros4mat import MsgType, sensor_type
 
     if duration is not None and count is not None:
         raise typer.BadParameter("give --duration or --count, not both")
@@ -160,69 +158,23 @@ def subscribe(
         raise typer.BadParameter(f"unknown sensor {sensor!r}; choose from {SENSOR_HELP}") from None
     if kind == MsgType.KINECT_DEPTH:
         raise typer.BadParameter(f"{sensor!r} (0x28) has no data pull in ros4mat; use depth")
-    mask = _mask(channels)
-    params: dict[str, Any] = {"channels": mask} if kind == MsgType.ADC else {}
-    pulls = poll or min(float(adc_freq_send_default(rate)), float(rate))
-    out: _Output | None = None
+    mask, out = _mask(channels), None
     with sigterm_as_interrupt(), reader_may_leave():
         try:
             with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
-                client.subscribe(sensor, rate, buffer=buffer, poll=poll, **params)
-                out = _Output(shape, columns_of(sensor, mask))
-                losses = _Losses(sensor, buffer or rate)
-                for reading in stream(client, sensor, pulls, duration=duration, count=count):
-                    out.write(rows_of(reading, mask))
-                    losses.update(client.lost.get(sensor.lower(), 0))
-                losses.update(client.lost.get(sensor.lower(), 0), final=True)
+                for batch in sample_rows(client, sensor, rate, buffer=buffer, poll=poll,
+                                         channels=mask, duration=duration,
+                                         count=count):  # fmt: skip
+                    out = out or _Output(shape, batch.columns)  # once subscribed
+                    if len(batch.rows):
+                        out.write(batch.rows)
+                    if batch.lost is not None:
+                        typer.echo(f"robocli: {batch.lost}", err=True)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:
             if out is not None:
                 out.close()
-
-
-LOSS_REPORT_S = 10.0  #: while streaming, samples lost are said at most this often
-
-
-class _Losses:
-    """Says on stderr that samples were lost (the library counts them): when it first
-    happens, then at most every :data:`LOSS_REPORT_S`, and the total at the end."""
-
-    def __init__(self, sensor: str, buffer: int) -> None:
-        self.sensor, self.buffer = sensor, buffer
-        self.said, self.said_at = 0, -LOSS_REPORT_S
-
-    def update(self, lost: int, final: bool = False) -> None:
-        now = time.monotonic()
-        if final:  # the total, even when the last "so far" gave the same number
-            if not lost:
-                return
-        elif lost <= self.said or now - self.said_at < LOSS_REPORT_S:
-            return
-        self.said, self.said_at = lost, now
-        typer.echo(
-            f"robocli: {lost} {self.sensor} samples lost{'' if final else ' so far'} (gaps in "
-            f"their times): the hub's buffer of {self.buffer} overflowed between pulls; raise "
-            "--buffer or pull more often (--poll)",
-            err=True,
-        )
-
-
-#: JSON is SI: the IMU's g, deg/s and uT (as the hub sends them; the table and CSV keep
-#: them) become m/s^2, rad/s and T, as in recordings and exports.
-TO_SI = {
-    **dict.fromkeys(("ax", "ay", "az"), 9.80665),
-    **dict.fromkeys(("gx", "gy", "gz"), math.pi / 180),
-    **dict.fromkeys(("mx", "my", "mz"), 1e-6),
-}
-
-
-def _json_value(value: float, integer: bool) -> float | int | None:
-    """A field as JSON has it: an integer field as an int, a float32 one at its 7 digits,
-    NaN (no reading, e.g. no CPU temperature sensor) as null (JSON has no NaN)."""
-    if not math.isfinite(value):
-        return None
-    return int(value) if integer else float(f"{value:.7g}")
 
 
 class _Output:
@@ -256,14 +208,9 @@ class _Output:
         if self.fmt == "csv":
             np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
         elif self.fmt == "jsonl":
-            from robocli.devices.hub.tools import INTEGER_COLUMNS
+            from robocli.devices.hub.streams import json_rows
 
-            ints = [c in INTEGER_COLUMNS for c in self.cols[1:]]
-            scale = [TO_SI.get(c, 1.0) for c in self.cols[1:]]
-            for row in rows.tolist():  # the precision of the wire: float32 fields, us times
-                si = [v * k for v, k in zip(row[1:], scale, strict=True)]
-                values = [round(row[0], 6), *map(_json_value, si, ints)]
-                buf.write(json.dumps(dict(zip(self.cols, values, strict=True))) + "\n")
+            buf.write(json_rows(self.cols, rows))
         elif self.live is None:
             np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
         else:
@@ -344,29 +291,6 @@ def _print_survey(info: dict[str, Any]) -> None:
             typer.echo(f"  {name:<14} running  {s['rate_hz']:>8} Hz")
         else:
             typer.echo(f"  {name:<14} idle     ({s['reason']})")
-
-
-def bench_rtt(url: str | None, n: int, json_out: bool) -> None:
-    """``robocli bench rtt --target hub``: empty-pull round trips through the client."""
-    from robocli.bench import runs
-    from robocli.bench import stats as bs
-
-    with sigterm_as_interrupt():
-        out = runs.hub_rtt(url, n)
-    run = out.runs[0][0]
-    if run.count:
-        result = bs.report(run.name, run.values, where=run.where)
-        if json_out:
-            print_json([result])
-        else:
-            keys = ("mean", "median", "p90", "p99", "max")
-            typer.echo(f"{'measurement (us)':<22}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
-            typer.echo(
-                f"{run.name:<22}{result['n']:>7}" + "".join(f"{result[k]:>9.1f}" for k in keys)
-            )
-            typer.echo(f"  {run.where}")
-    if out.interrupted:
-        raise typer.Exit(EXIT_INTERRUPTED)
 
 
 def throughput(

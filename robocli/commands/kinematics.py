@@ -74,36 +74,17 @@ def _outputs(out: Path, plot: Path | None, overwrite: bool) -> None:
 
 def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: Path | None,
             json_out: bool, overwrite: bool = False) -> None:  # fmt: skip
-    import numpy as np
+    from robocli.kinematics.files import write_trajectory
 
-    from robocli.kinematics.trajlog import write_log
-
-    if plot is not None:
-        from robocli.kinematics.plot import plot_trajectory
-
-        plot_trajectory(log, plot, title=f"{model.name} {shape}", overwrite=overwrite)
-    write_log(log, out, overwrite)
-    speeds = np.max(np.abs(log.velocities), axis=0)
-    fastest = int(np.argmax(speeds / model.max_speed))
-    fraction = float(speeds[fastest] / model.max_speed[fastest])
-    duration = float(log.time[-1] - log.time[0])
-    summary: dict[str, Any] = {
-        "robot": model.name,
-        "shape": shape,
-        "points": len(log),
-        "duration_s": duration,
-        "out": str(out),
-        "plot": None if plot is None else str(plot),
-        "max_speed_fraction": fraction,
-        "max_speed_joint": fastest + 1,
-    }
+    summary = write_trajectory(model, log, shape, out, plot, overwrite)
     if json_out:
         print_json(summary)
         return
+    fastest, fraction = summary["max_speed_joint"], summary["max_speed_fraction"]
     typer.echo(
-        f"{model.name} {shape}: {len(log)} points over {duration:.3f} s, "
-        f"fastest joint {fastest + 1} at {math.degrees(speeds[fastest]):.1f} deg/s "
-        f"({100 * fraction:.0f}% of its limit) -> {out}" + (f", plot {plot}" if plot else "")
+        f"{model.name} {shape}: {len(log)} points over {summary['duration_s']:.3f} s, "
+        f"fastest joint {fastest} at {math.degrees(fraction * model.max_speed[fastest - 1]):.1f}"
+        f" deg/s ({100 * fraction:.0f}% of its limit) -> {out}" + (f", plot {plot}" if plot else "")
     )
 
 
@@ -253,22 +234,12 @@ def validate(
     json_out: bool = json_option(),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
-    from robocli.io.export import read_any_log
-    from robocli.kinematics.validate import validate as compare
+    from robocli.io.compare import compare_files
     from robocli.output import check_output
 
     if plot is not None:
         check_output(plot, overwrite)  # before reading the logs
-
-    sim_log, real_log = read_any_log(sim), read_any_log(real)
-    model = _model(robot) if robot else None
-    if model is not None and model.n_joints != sim_log.n_joints:
-        model = None
-    result = compare(sim_log, real_log, model)
-    if plot is not None:
-        from robocli.kinematics.plot import plot_validation
-
-        plot_validation(sim_log, real_log, result, plot, model, overwrite)
+    result = compare_files(sim, real, robot, plot, overwrite)
     if json_out:
         print_json(result.to_dict())
         return

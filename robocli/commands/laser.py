@@ -11,7 +11,6 @@ from __future__ import annotations
 import contextlib
 import math
 import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
@@ -26,16 +25,23 @@ from robocli.commands._common import (
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
+    wait_forever,
 )
-from robocli.commands._options import count_option, device_argument, json_option
+from robocli.commands._options import (
+    BindOpt,
+    MapOpt,
+    TimeScaleOpt,
+    count_option,
+    device_argument,
+    json_option,
+)
+from robocli.views.laser import identity_lines, scan_json, scan_line
 
 if TYPE_CHECKING:
-    from robocli.devices.laser import Laser, Scan
+    from robocli.devices.laser import Laser
 
 MODELS = ("urg-04lx", "utm-30lx", "ust-10lx")
 Model = Literal["urg-04lx", "utm-30lx", "ust-10lx"]
-#: JSON decimals by field: 1 mm ranges, angles to 1e-6 rad (a step is 4.4e-3 rad).
-LASER_RESOLUTION = {"t": 6, "received": 6, "ranges": 3, "angles": 6, "intensities": 0}
 
 
 ModelOpt = typer.Option("utm-30lx", "--model", help="The simulated model.")
@@ -69,13 +75,6 @@ def connected(port: str, model: str, **options: Any) -> Iterator[Laser]:
     with reader_may_leave(), sigterm_as_interrupt(), laser_url(port, model) as url:
         with Laser.connect(url, **options) as laser:
             yield laser
-
-
-def scan_json(laser: Laser, scan: Scan) -> dict[str, Any]:
-    """One scan as JSON-ready SI data (see the module docstring)."""
-    out = scan.as_dict()
-    out["model"] = laser.info.model if laser.info else "?"
-    return rounded(out, 6, LASER_RESOLUTION)  # type: ignore[no-any-return]
 
 
 def connect(
@@ -126,41 +125,8 @@ def connect(
 
 
 def _print_identity(laser: Laser) -> None:
-    info = laser.info
-    assert info is not None
-    typer.echo(f"{info.model} serial {info.serial} on {laser.url}")
-    typer.echo(
-        f"firmware  {info.vv.get('FIRM', '?')}   protocol {info.vv.get('PROT', '?')}"
-        + ("  (switched from SCIP 1.1)" if laser.switched else "")
-    )
-    typer.echo(
-        f"range     {info.dmin / 1000:.3f} .. {info.dmax / 1000:.3f} m   steps "
-        f"{info.amin}..{info.amax} ({math.degrees(info.angle(info.amin)):.1f} .. "
-        f"{math.degrees(info.angle(info.amax)):.1f} deg)   {info.rpm} rpm "
-        f"({info.period * 1000:.0f} ms)"
-    )
-
-
-def scan_line(scan: Scan) -> str:
-    """One scan in one line: time, valid count, nearest range and its bearing, and the
-    nearest range in each of 8 sectors (m, '-' where nothing valid)."""
-    import numpy as np
-
-    valid = ~np.isnan(scan.ranges)
-    stamp = time.strftime("%H:%M:%S", time.localtime(scan.t)) + f".{int(scan.t * 1000) % 1000:03d}"
-    if not valid.any():
-        return f"{stamp}  {len(scan.ranges)} steps, no valid range"
-    i = int(np.nanargmin(scan.ranges))
-    sectors = []
-    n = len(scan.ranges)
-    for k in range(8):
-        part = scan.ranges[k * n // 8 : (k + 1) * n // 8]
-        ok = part[~np.isnan(part)]
-        sectors.append(f"{ok.min():5.2f}" if ok.size else "    -")
-    return (
-        f"{stamp}  {int(valid.sum())}/{n} valid  nearest {scan.ranges[i]:.3f} m at "
-        f"{math.degrees(scan.angles[i]):+6.1f} deg  sectors {' '.join(sectors)}"
-    )
+    for line in identity_lines(laser):
+        typer.echo(line)
 
 
 def simulate(
@@ -169,16 +135,12 @@ def simulate(
         None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
     ),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
-    map_file: Path | None = typer.Option(
-        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
-    ),
+    map_file: Path | None = MapOpt,
     pose: str | None = typer.Option(
         None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
     ),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
+    bind: str = BindOpt,
+    time_scale: float = TimeScaleOpt,
 ) -> None:
     """Run a simulated Hokuyo laser speaking SCIP 2.0 until Ctrl-C."""
     from robocli.commands.pioneer import _load_map
@@ -197,9 +159,7 @@ def simulate(
                 tcp_port = SIM_MODELS[model].tcp_port if port is None else port
                 url = sim.serve_tcp(bind_address(bind), tcp_port)
         typer.echo(f"laser: {model} on {url}")
-        sys.stdout.flush()
-        while True:
-            time.sleep(3600)
+        wait_forever()
 
 
 def _pose(text: str) -> tuple[float, float, float]:

@@ -9,10 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import math
-import sys
-import time
 from collections.abc import Iterator
-from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -27,13 +24,15 @@ from robocli.commands._common import (
     reader_may_leave,
     rounded,
     sigterm_as_interrupt,
-    unix_stamped,
+    wait_forever,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import device_argument
+from robocli.commands._options import BindOpt, MapOpt, TimeScaleOpt, device_argument
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
+from robocli.views.pioneer import snapshot
+from robocli.views.pioneer import start_laser as start_laser
 
 if TYPE_CHECKING:
     from robocli.devices.laser import MountedLaser, PlacedScan
@@ -51,6 +50,11 @@ def _check_subtype(value: str | None) -> str | None:
 
 
 PortArg = device_argument("pioneer", PIONEER_ENV)
+HOKUYO_HELP = (
+    "A Hokuyo laser on the robot (placed as the robot model says): serial device, pyserial "
+    "URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot."
+)
+GEOREF_HELP = "Map origin in degrees (and metres), for SIMSTAT's GPS fix."
 SubtypeOpt = typer.Option(
     None, "--subtype", metavar="NAME", callback=_check_subtype,
     help="Override the robot's subtype (p3dx, p3at, ...).",
@@ -90,12 +94,7 @@ def connect(
         False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
     ),
     laser: str | None = typer.Option(
-        None,
-        "--laser",
-        metavar="URL",
-        show_default=False,
-        help="A Hokuyo laser on the robot (placed as the robot model says): serial device, "
-        "pyserial URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot.",
+        None, "--laser", metavar="URL", show_default=False, help=HOKUYO_HELP
     ),
     no_laser: bool = typer.Option(
         False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
@@ -141,6 +140,14 @@ def connect(
             live_view(robot, hokuyo)
 
 
+def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
+    """The robot's snapshot (:func:`robocli.views.pioneer.snapshot`), with the ``--laser``
+    Hokuyo's placed scan."""
+    from robocli.commands._mounted import placed_json
+
+    return snapshot(robot, **({"hokuyo": placed_json(hokuyo)} if hokuyo is not None else {}))
+
+
 @contextlib.contextmanager
 def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLaser | None]:
     """The Hokuyo of ``--laser`` on ``robot`` (streaming unless ``once``), or None."""
@@ -160,102 +167,55 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
             mounted.close()
 
 
-def start_laser(robot: Pioneer, wait: bool) -> None:
-    """On a simulator (MobileSim, robocli sim), ask for its laser; with ``wait``, wait up
-    to a second for the first scan. Real robots are left alone (their laser has its own
-    port)."""
-    from robocli.errors import TimeoutError
-
-    if robot.sim is None:
-        return
-    robot.sim.start_laser()
-    if wait:
-        with contextlib.suppress(TimeoutError):
-            robot.sim.wait_for_laser(1.0)
-
-
-def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
-    """The robot's snapshot, with the latest laser scan when it has one (ranges in m, None
-    where nothing was seen; angles in rad), and the ``--laser`` Hokuyo's placed scan."""
-    data = robot.snapshot()
-    data["state"] = unix_stamped(data["state"])  # Unix t, as every --json; t_mono kept
-    if hokuyo is not None:
-        from robocli.commands._mounted import placed_json
-
-        data["hokuyo"] = placed_json(hokuyo)
-    scan = robot.sim.laser if robot.sim is not None else None
-    if scan is not None and "laser" not in data:
-        data["laser"] = unix_stamped({
-            "t": scan.t,
-            "pose": dict(zip(("x", "y", "th"), scan.pose, strict=True)),
-            "angles": list(scan.angles),
-            "ranges": [None if math.isinf(r) else r for r in scan.ranges],
-        })  # fmt: skip
-    return data
-
-
 def simulate(
     port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
     pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
-    map_file: Path | None = typer.Option(
-        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
-    ),
+    map_file: Path | None = MapOpt,
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
     subtype: str = typer.Option("p3dx", "--subtype", help="Reported robot subtype."),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on."),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
+    bind: str = BindOpt,
+    time_scale: float = TimeScaleOpt,
     laser: bool = typer.Option(
         True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
     ),
-    georef: str | None = typer.Option(
-        None,
-        "--georef",
-        metavar="LAT,LON[,ALT]",
-        help="Map origin in degrees (and metres), for SIMSTAT's GPS fix.",
-    ),
+    georef: str | None = typer.Option(None, "--georef", metavar="LAT,LON[,ALT]", help=GEOREF_HELP),
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
 ) -> None:
     """Run simulated Pioneers speaking ARCOS (like MobileSim) until Ctrl-C."""
     from robocli.robots.pioneer import ROBOT_PARAMS
-    from robocli.sim.pioneer.server import PioneerSim, serve_many
+    from robocli.sim.launch import pioneers
+    from robocli.sim.pioneer.server import PioneerSim
     from robocli.sim.world import World
 
     if subtype not in ROBOT_PARAMS:
         raise typer.BadParameter(f"unknown subtype {subtype!r}; known: {', '.join(ROBOT_PARAMS)}")
     rate = check_replay(replay, speed, loop)
     world = _load_map(World, map_file) if map_file else None
-    options: dict[str, Any] = {"georef": _georef(georef) if georef else None}
-    if not laser:
-        options["laser"] = None
-    if replay is not None:
-        from robocli.io.record.replay import RecordedPackets
-        from robocli.sim.pioneer.replay import PioneerReplay
-
-        recorded = RecordedPackets(replay)
-        options = {"factory": partial(PioneerReplay, recorded, speed=rate, loop=loop), **options}
     sims: list[PioneerSim] = []
     with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
             with listening(bind):
-                sims = serve_many(
-                    robots, host=bind_address(bind), port=port, pty=pty,
-                    subtype=subtype, sip_ms=sip_ms, world=world, time_scale=time_scale,
-                    **options,
-                )  # fmt: skip
+                sims = pioneers(robots, host=bind_address(bind), port=port, pty=pty, world=world,
+                                laser=laser, georef=_georef(georef) if georef else None,
+                                replay=_recorded(replay), speed=rate, loop=loop, subtype=subtype,
+                                sip_ms=sip_ms, time_scale=time_scale)  # fmt: skip
             what = f"replaying {replay}" if replay is not None else subtype
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {what} on {simulator.pty_path or simulator.url}")
-            sys.stdout.flush()
-            while True:
-                time.sleep(3600)
+            wait_forever()
         finally:
             for simulator in sims:
                 simulator.close()
+
+
+def _recorded(path: Path | None) -> Any:
+    """The packets of the recording at ``path`` (None: no replay)."""
+    from robocli.io.record.replay import RecordedPackets
+
+    return None if path is None else RecordedPackets(path)
 
 
 def _georef(text: str) -> tuple[float, float, float]:
@@ -297,13 +257,7 @@ def _load_map(world_type: Any, path: Path) -> Any:
 
 
 def _print_snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> None:
-    from robocli.commands._screens import (
-        hokuyo_text,
-        laser_text,
-        pose_text,
-        sonar_text,
-        velocity_text,
-    )
+    from robocli.views.pioneer import hokuyo_text, laser_text, pose_text, sonar_text, velocity_text
 
     st = robot.state
     ident = robot.identity

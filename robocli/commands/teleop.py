@@ -29,32 +29,25 @@ from robocli.commands.pioneer import (
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
-    from robocli.commands._screens import KeyReader
+    from robocli.views.keys import KeyReader
 
 HostArg = device_argument("arm", ARM_ENV)
+RELEASE_HELP = "Stop this long after the last key, s."
+
+
+def _limit(default: float, flag: str, most: float, help: str, least: float = 0.0,
+           **more: Any) -> Any:  # fmt: skip
+    """A speed or time option from ``least`` to ``most``."""
+    return typer.Option(default, flag, min=least, max=most, help=help, **more)
 
 
 def pioneer(
     port: str = PortArg,
-    max_v: float = typer.Option(
-        0.4, "--max-v", min=0.0, max=2.0, metavar="M/S", help="Top speed, m/s."
+    max_v: float = _limit(0.4, "--max-v", 2.0, "Top speed, m/s.", metavar="M/S"),
+    max_w: float = _limit(
+        1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).", metavar="RAD/S"
     ),
-    max_w: float = typer.Option(
-        1.0,
-        "--max-w",
-        min=0.0,
-        max=5.0,
-        metavar="RAD/S",
-        help="Top turn rate, rad/s (shown in deg/s).",
-    ),
-    release: float = typer.Option(
-        0.45,
-        "--release",
-        min=0.05,
-        max=0.5,
-        metavar="SECONDS",
-        help="Stop this long after the last key, s.",
-    ),
+    release: float = _limit(0.45, "--release", 0.5, RELEASE_HELP, 0.05, metavar="SECONDS"),
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -87,18 +80,12 @@ def pioneer(
 def arm(
     host: str = HostArg,
     stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    joint_speed: float = typer.Option(
-        0.1, "--joint-speed", min=0.01, max=1.0, help="Fraction of the joint speed limits."
+    joint_speed: float = _limit(
+        0.1, "--joint-speed", 1.0, "Fraction of the joint speed limits.", 0.01
     ),
-    cart_speed: float = typer.Option(
-        0.05, "--cart-speed", min=0.001, max=1.0, help="TCP speed, m/s."
-    ),
-    release: float = typer.Option(
-        0.45, "--release", min=0.05, max=1.0, help="Stop this long after the last key, s."
-    ),
-    stale: float = typer.Option(
-        1.0, "--stale", min=0.1, max=60.0, help="Stop when no joint state came this long, s."
-    ),
+    cart_speed: float = _limit(0.05, "--cart-speed", 1.0, "TCP speed, m/s.", 0.001),
+    release: float = _limit(0.45, "--release", 1.0, RELEASE_HELP, 0.05),
+    stale: float = _limit(1.0, "--stale", 60.0, "Stop when no joint state came this long, s.", 0.1),
     link: ArmLink = LINK,
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
@@ -127,7 +114,8 @@ def _need_terminal() -> None:
 def _keys() -> Iterator[KeyReader]:
     """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
     left on a fresh line after the status line however the loop ends."""
-    from robocli.commands._screens import end_line, raw_terminal
+    from robocli.commands._screens import end_line
+    from robocli.views.keys import raw_terminal
 
     try:
         with raw_terminal() as read_key:

@@ -4,9 +4,11 @@ and the link's counters (:class:`PioneerStats`)."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from collections import deque
+from collections.abc import Iterator
 from typing import Any
 
 from construct import ConstructError
@@ -246,3 +248,15 @@ def switch_baud(session: Session, config: dict[str, Any] | None, rate: int) -> b
         return False
     log.info("%s: switched to %d baud", session.transport.url, rate)
     return True
+
+
+@contextlib.contextmanager
+def explain_refusal(url: str) -> Iterator[None]:
+    """Around connecting: a link reset or closed by the peer during the handshake becomes
+    the :class:`~robocli.errors.DeviceError` of
+    :func:`busy_refusal` (the Pioneer's handshake does this
+    itself; other paths may lose the link around it)."""
+    try:
+        yield
+    except ConnectionLost as exc:
+        raise busy_refusal(url, exc) or exc from None
