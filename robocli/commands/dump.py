@@ -1,5 +1,5 @@
 """``robocli dump pioneer|arm|hub``: every packet of a session, named and decoded, like a
-protocol analyser; thin layers over the devices' links, :mod:`robocli.devices.proxy` and
+protocol analyser; thin layers over the devices' links, :mod:`robocli.analysis.proxy` and
 :mod:`robocli.io.capture`.
 
 ``dump pioneer`` and ``dump arm`` open the robot's link(s) as a client and show both
@@ -360,7 +360,7 @@ def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int,
     """Start a recording proxy per port (motion on ``listen``, state 2 above) on ``stack``;
     each frame goes to ``listener(port)("tx"|"rx", frame, t)``. Says where, on stderr.
     The controller is not probed: that would take its one client slot."""
-    from robocli.devices.proxy import Message, RecordingProxy
+    from robocli.analysis.proxy import Message, RecordingProxy
     from robocli.protocols import simple_message as sm
 
     def shown(put: Callable[[str, bytes, float], None]) -> Callable[[Message], None]:

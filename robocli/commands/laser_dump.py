@@ -1,5 +1,5 @@
 """``robocli dump laser PORT|--file CAPTURE``: every SCIP line both ways, named and decoded
-(:mod:`robocli.devices.laser.describe`), like a protocol analyser.
+(:mod:`robocli.analysis.scip`), like a protocol analyser.
 
 Live, it connects as a client (the handshake, VV/PP/II, TM, BM are shown as they happen) and
 streams MD until ``--count`` scans or Ctrl-C. ``--file`` decodes a capture: a ``.jsonl`` of
@@ -49,7 +49,7 @@ class _View:
             self.reader_left.set()
 
     def _show(self, direction: str, payload: bytes, t: float) -> None:
-        from robocli.devices.laser.describe import describe_reply, describe_request
+        from robocli.analysis.scip import describe_reply, describe_request
 
         if self.t0 is None:
             self.t0 = t

@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from robocli.devices import proxy
+from robocli.analysis import proxy
 from robocli.devices.hub.client import NO_HUB_HINT, Hub, Reading
 from robocli.devices.hub.decode import BATTERY_ROWS, COMPUTER_ROWS, GPS_ROWS
-from robocli.devices.proxy import Message, RecordingProxy
+from robocli.analysis.proxy import Message, RecordingProxy
 from robocli.errors import DeviceError, ProtocolError
 from robocli.protocols.common import plain
 from robocli.protocols.ros4mat import (
@@ -218,7 +218,7 @@ class DumpProxy(RecordingProxy):
     Clients connect to :attr:`port` (on ``bind``) instead of the hub; bytes pass through
     unchanged in both directions, and each complete ros4mat frame goes to ``on_message``
     (from the pumping threads; its exceptions are the caller's, they end that session).
-    The shared :class:`~robocli.devices.proxy.RecordingProxy` with ros4mat's framer and
+    The shared :class:`~robocli.analysis.proxy.RecordingProxy` with ros4mat's framer and
     :func:`describe`.
     """
 
