@@ -22,6 +22,7 @@ from typing import Any
 #: quick to start, and a decoder does not load the others).
 _WHERE = {
     "Line": "scip", "describe_reply": "scip", "describe_request": "scip",
+    "DumpProxy": "ros4mat",
     "RecordingProxy": "proxy", "Message": "proxy",
 }  # fmt: skip
 

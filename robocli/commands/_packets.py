@@ -279,12 +279,12 @@ def _short_sm(value: Any) -> str:
 
 class HubPacketView(PacketView):
     """``dump hub``'s view of ros4mat messages, live (from the proxy's threads, one at a
-    time) or from a capture: named and decoded as :func:`robocli.devices.hub.tools.describe`
+    time) or from a capture: named and decoded as :func:`robocli.analysis.ros4mat.describe`
     does, each printed at once (the proxy gives them in order)."""
 
     def show(self, direction: str, payload: bytes, t: float | None) -> None:
         """Print one whole frame now (``direction``: "tx" client to hub, "rx" back)."""
-        from robocli.devices.hub.tools import describe
+        from robocli.analysis.ros4mat import describe
 
         name, fields = describe(payload)
         if self.writer is not None:

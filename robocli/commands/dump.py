@@ -454,7 +454,7 @@ def _hub_live(view: Any, host: str, listen: str) -> None:
     import threading
 
     from robocli.devices.hub.client import parse_hub
-    from robocli.devices.hub.tools import DumpProxy, Message, check_upstream
+    from robocli.analysis.ros4mat import DumpProxy, Message, check_upstream
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.transports import parse_address
 

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import pytest
 
 from robocli import Hub
-from robocli.devices.hub.tools import DumpProxy, Message
+from robocli.analysis.ros4mat import DumpProxy, Message
 from robocli.hub import HubServer
 
 
