@@ -8,13 +8,14 @@ from collections.abc import Callable
 from typing import Any
 
 from robocli.analysis import proxy
+from robocli.analysis.packets import Packet
 from robocli.analysis.proxy import Message, RecordingProxy
 from robocli.devices.hub.client import NO_HUB_HINT
 from robocli.errors import ProtocolError
 from robocli.protocols.common import plain
 from robocli.protocols.ros4mat import HEADER_SIZE, MsgType, decode
 
-__all__ = ["DumpProxy", "Message", "check_upstream", "describe"]
+__all__ = ["DumpProxy", "Message", "check_upstream", "decode_packet", "describe"]
 
 
 def describe(frame: bytes) -> tuple[str, dict[str, Any]]:
@@ -71,3 +72,9 @@ class DumpProxy(RecordingProxy):
 def check_upstream(host: str, port: int, timeout: float = 2.0) -> None:
     """Raise :class:`TransportError` when nothing listens at the hub's address."""
     proxy.check_upstream(host, port, timeout, "hub", NO_HUB_HINT)
+
+
+def decode_packet(direction: str, frame: bytes, t: float | None) -> Packet:
+    """One whole ros4mat frame as a :class:`~robocli.analysis.packets.Packet`."""
+    name, fields = describe(frame)
+    return Packet(t, direction, name, fields, frame)
