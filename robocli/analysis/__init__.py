@@ -21,9 +21,13 @@ from typing import Any
 #: Public name -> the module that defines it (loaded on first use: ``robocli dump`` stays
 #: quick to start, and a decoder does not load the others).
 _WHERE = {
-    "Line": "scip", "describe_reply": "scip", "describe_request": "scip",
+    "Packet": "packets", "PacketLog": "packets",
+    "ArcosDecoder": "arcos", "guess_direction": "arcos",
+    "SimpleMessageDecoder": "simple_message", "describe_message": "simple_message",
     "DumpProxy": "ros4mat",
+    "Line": "scip", "ScipCapture": "scip", "describe_reply": "scip", "describe_request": "scip",
     "RecordingProxy": "proxy", "Message": "proxy",
+    "decoder": "sessions", "read_packets": "sessions", "replay_capture": "sessions",
 }  # fmt: skip
 
 __all__ = sorted(_WHERE)

@@ -15,15 +15,22 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from robocli.analysis.scip import Line
     from robocli.io.capture import CaptureWriter
 
-__all__ = ["REORDER", "WIRE_DIR", "Decode", "Packet", "PacketLog"]
+__all__ = ["REORDER", "WIRE_DIR", "Decode", "Line", "Packet", "PacketLog"]
 
 #: How long a packet waits for older ones from another thread before it is handed on (s).
 REORDER = 0.05
 #: The capture files' names of the directions: client to device, and back.
 WIRE_DIR = {"tx": "c2s", "rx": "s2c"}
+
+
+@dataclass(frozen=True)
+class Line:
+    """One line on the wire (without its LF) and what it is (a SCIP block's lines)."""
+
+    text: str
+    what: str
 
 
 @dataclass

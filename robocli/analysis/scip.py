@@ -8,11 +8,10 @@ from __future__ import annotations
 
 import json
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from robocli.analysis.packets import Packet
+from robocli.analysis.packets import Line, Packet
 from robocli.errors import RobocliError
 from robocli.protocols import scip2
 
@@ -20,14 +19,6 @@ __all__ = ["Line", "ScipCapture", "decode_packet", "describe_reply", "describe_r
 
 MAX_CAPTURE_LINE = 1 << 20  #: longest .jsonl line read
 MAX_GAP = 16 << 20  #: bytes read without a block before giving up (as robocli.io.capture)
-
-
-@dataclass(frozen=True)
-class Line:
-    """One line on the wire (without its LF) and what it is."""
-
-    text: str
-    what: str
 
 
 def _text(raw: bytes) -> str:
