@@ -87,6 +87,17 @@ class PacketLog:
             if self.writer is not None:
                 self.writer.begin(unix_time)
 
+    def open(self) -> None:
+        """Make the capture file being written (if any): the session is connected, and a
+        session that failed to connect writes none."""
+        if self.writer is not None:
+            self.writer.open()
+
+    def close(self) -> None:
+        """Close the capture file being written (if any)."""
+        if self.writer is not None:
+            self.writer.close()
+
     def start_now(self) -> None:
         """``t`` 0 is now, for the frames that :meth:`listener` takes."""
         self._zero = time.monotonic()

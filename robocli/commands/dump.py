@@ -88,7 +88,7 @@ def pioneer(
     try:
         with connected(port, listeners=[log.listener()], subtype=subtype, baudrate=baud,
                        timeout=timeout) as robot:  # fmt: skip
-            _begin(log)  # connected: now the capture is made
+            log.open()  # connected: now the capture is made
             if laser:
                 start_laser(robot, wait=False)
             from robocli.analysis.sessions import pioneer_check
@@ -97,7 +97,7 @@ def pioneer(
     finally:
         with reader_may_leave():
             log.drain()  # what was still queued, and the close sequence
-        _close(log)
+        log.close()
 
 
 @arm_link()
@@ -160,12 +160,12 @@ def arm(
                 else:
                     arms = sessions.arm_clients(stack, log, address, ports, timeout=link.timeout,
                                                 **wire)  # fmt: skip
-                _begin(log)  # connected (or listening): now the capture is made
+                log.open()  # connected (or listening): now the capture is made
                 log.follow(sessions.arm_check(arms, relays, ports, link.timeout))
             finally:
                 stack.close()  # nothing is queued after
                 log.drain()
-                _close(log)
+                log.close()
                 if log.dropped:
                     typer.echo(f"robocli: {log.dropped} messages not shown: the output was too "
                                "slow", err=True)  # fmt: skip
@@ -214,7 +214,7 @@ def hub(
             with listening(bind):
                 proxy = hub_proxy(log, upstream, bind, port)
             with proxy.start():
-                _begin(log)  # listening: now the capture is made
+                log.open()  # listening: now the capture is made
                 typer.echo(f"dump: clients connect to {bind}:{proxy.port}, relayed to "
                            f"{upstream[0]}:{upstream[1]}", err=True)  # fmt: skip
                 while not log.stopped.wait(0.25):
@@ -223,7 +223,7 @@ def hub(
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:
-            _close(log)
+            log.close()
 
 
 def laser(
@@ -289,7 +289,7 @@ def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
          **options: Any) -> PacketLog:  # fmt: skip
     """A packet log of ``protocol`` handing each packet to ``render``, with a capture
     writer on ``output`` checked now (a .jsonl name, no existing file without --overwrite: exit 2
-    before anything connects) and made by :func:`_begin` once the session is connected."""
+    before anything connects) and made by ``log.open()`` once the session is connected."""
     from robocli.analysis.packets import PacketLog
     from robocli.analysis.sessions import decoder
 
@@ -311,27 +311,16 @@ def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | 
     from robocli.analysis.sessions import replay_capture
 
     assert file is not None
-    _begin(log)
+    log.open()
     try:
         with reader_may_leave(), sigterm_as_interrupt():
             stats = replay_capture(log, file, protocol)
     finally:
-        _close(log)
+        log.close()
     if stats is not None and stats.dropped_bytes and protocol == "arcos":
         typer.echo(f"robocli: {file}: {stats.frames} packets decoded, {stats.dropped_bytes} "
                    "bytes dropped", err=True)  # fmt: skip
     return stats
-
-
-def _begin(log: PacketLog) -> None:
-    """Make the capture file (if any): the session is connected."""
-    if log.writer is not None:
-        log.writer.open()
-
-
-def _close(log: PacketLog) -> None:
-    if log.writer is not None:
-        log.writer.close()
 
 
 def _listen_address(text: str) -> tuple[str, int]:
