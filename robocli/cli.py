@@ -14,7 +14,7 @@ import typer
 from typer.core import TyperGroup
 
 from robocli._version import __version__
-from robocli.commands import arm, bench, kinematics, laser_dump, pioneer, plot, ports, record
+from robocli.commands import arm, bench, kinematics, pioneer, plot, ports, record
 from robocli.commands import bridge as bridge_commands
 from robocli.commands import convert as convert_command
 from robocli.commands import create as create_commands
@@ -148,7 +148,7 @@ app.command("record", cls=PlainCommand)(record.record)
 connect.command("laser", cls=PlainCommand)(laser_commands.connect)
 sim.command("laser", cls=PlainCommand)(laser_commands.simulate)
 sim.command("create", cls=PlainCommand)(create_commands.simulate)
-dump.command("laser", cls=PlainCommand)(laser_dump.dump)
+dump.command("laser", cls=PlainCommand)(dump_commands.laser)
 
 bridge = _group("bridge", "Put a robot on Eclipse Zenoh: state for many, commands from one.")
 bridge.command("pioneer", cls=ZenohCommand)(bridge_commands.pioneer)

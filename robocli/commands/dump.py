@@ -1,24 +1,21 @@
-"""``robocli dump pioneer|arm|hub``: every packet of a session, named and decoded, like a
-protocol analyser; thin layers over the devices' links, :mod:`robocli.devices.proxy` and
-:mod:`robocli.io.capture`.
+"""``robocli dump pioneer|arm|hub|laser``: every packet of a session, named and decoded, like
+a protocol analyser; thin layers over :mod:`robocli.analysis` (which names, decodes and
+orders the packets) that render them as text lines or JSON Lines.
 
-``dump pioneer`` and ``dump arm`` open the robot's link(s) as a client and show both
-directions in time order (sent and received packets come from different threads, so each
-waits :data:`REORDER` s for older ones); ``--file`` decodes a capture instead, ``--output``
-records one. ``dump arm`` opens the motion and the state port as two clients (``--ports``
-picks one; an ABB takes one client per port, so a dump holding the motion port keeps others
-from uploading), or with ``--listen`` relays other programs' sessions as a recording proxy;
-``dump hub`` is always such a proxy, between ros4mat clients and the hub.
-The views that name and render the packets are in :mod:`robocli.commands._packets`.
+Live, ``dump`` is a client of the device (``dump arm`` opens both ports; with ``--listen``
+it relays other programs' sessions as a recording proxy, as ``dump hub`` always does);
+``--file`` decodes a capture instead, and ``--output`` records one.
 """
 
 from __future__ import annotations
 
 import contextlib
+import json
 import os
-import queue
+import sys
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -29,213 +26,88 @@ from robocli.commands._common import (
     OverwriteOpt,
     from_env,
     listening,
+    print_json_line,
     reader_may_leave,
+    rounded,
     sigterm_as_interrupt,
 )
-from robocli.commands._options import DEVICE_FORMS, json_option
+from robocli.commands._options import DEVICE_FORMS, count_option, device_argument, json_option
+from robocli.commands.laser import BaudOpt as LaserBaudOpt
+from robocli.commands.laser import Model, ModelOpt, laser_url
+from robocli.commands.laser import TimeoutOpt as LaserTimeoutOpt
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 
 if TYPE_CHECKING:
+    from robocli.analysis.packets import Packet, PacketLog
     from robocli.io.capture import CaptureStats
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-#: How long a packet waits for older ones from another thread before it is printed (s).
-REORDER = 0.05
+#: Longest text line of a packet unless ``-v`` (the rest is cut with an ellipsis).
+LINE_MAX = 160
+_ARROWS = {"tx": "->", "rx": "<-"}
+#: Short names of Simple Message fields in text lines (JSON keeps the protocol's names).
+_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
+          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
+          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
+_HexOpt = typer.Option(False, "--hex", help="Also print the raw frame bytes.")
 
 
 def pioneer(
     ctx: typer.Context,
-    port: str | None = typer.Argument(
-        None,
-        help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit with --file.",
-        show_default=False,
-        metavar="URL",
-        envvar=PIONEER_ENV,
-        show_envvar=True,
-    ),
-    count: int = typer.Option(
-        0, "--count", "-n", min=0, metavar="N", help="Stop after N packets (0: none)."
-    ),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
+    port: str | None = typer.Argument(None, help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit "
+                                      "with --file.", show_default=False, metavar="URL",
+                                      envvar=PIONEER_ENV, show_envvar=True),  # fmt: skip
+    count: int = count_option(0, "Stop after N packets (0: none).", min=0),
+    hex_out: bool = _HexOpt,
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None,
-        "--output",
-        "-o",
-        metavar="FILE.jsonl",
-        dir_okay=False,
-        help="Also record the packets to a .jsonl capture (what --file reads).",
-    ),
+    output: Path | None = typer.Option(None, "--output", "-o", metavar="FILE.jsonl", dir_okay=False,
+                                       help="Also record the packets to a .jsonl capture (what "
+                                       "--file reads)."),  # fmt: skip
     overwrite: bool = OverwriteOpt,
-    laser: bool = typer.Option(
-        False, "--laser", help="Start a simulator's laser, to see its packets (0x60/0x61)."
-    ),
-    file: Path | None = typer.Option(
-        None,
-        "--file",
-        "-f",
-        metavar="CAPTURE",
-        exists=True,
-        dir_okay=False,
-        help="Decode a capture (.jsonl trace or raw bytes) instead of a robot.",
-    ),
+    laser: bool = typer.Option(False, "--laser", help="Start a simulator's laser, to see its "
+                               "packets (0x60/0x61)."),  # fmt: skip
+    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
+                                     dir_okay=False, help="Decode a capture (.jsonl trace or "
+                                     "raw bytes) instead of a robot."),  # fmt: skip
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
 ) -> None:
     """Print every packet in both directions, in time order, with its name and decoded
     fields (raw units; lines cut at 160 characters unless -v)."""
-    from robocli.commands._packets import PacketView
-
-    if file is not None and from_env(ctx, "port"):
-        port = None  # $ROBOCLI_PIONEER names a robot; --file reads a capture instead
-    if port is None and file is None:
-        raise typer.BadParameter("give PORT or --file")
-    if port is not None and file is not None:
-        raise typer.BadParameter("give PORT or --file, not both")
-    if output is not None and file is not None and _same_file(output, file):
-        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
     full = bool(ctx.find_root().params.get("verbose"))
-    writer = _capture(output, overwrite)
-    try:
-        view = PacketView(json_out=json_out, hex_out=hex_out, full=full, count=count, writer=writer)
-        if file is not None:
-            _begin(view)
-            _pioneer_file(view, file)
-        else:
-            assert port is not None
-            _pioneer_live(view, port, laser, subtype=subtype, baudrate=baud, timeout=timeout)
-    finally:
-        if writer is not None:
-            writer.close()
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet)
-        return False
-
-
-def _pioneer_file(view: Any, file: Path) -> None:
-    """Show the packets of a capture, streamed; exit 1 when it holds none, or when
-    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``). Bytes that
-    formed no packet are said on stderr."""
-    from robocli.errors import RobocliError
-
-    with reader_may_leave(), sigterm_as_interrupt():
-        stats = _show_capture(view, file, "arcos", "packets", slice(3, -2))  # ARCOS payloads
-    if stats is None:
+    port = _one(ctx, "port", port, file, output)
+    log = _log("arcos", partial(_pioneer_line, json_out=json_out, hex_out=hex_out, full=full),
+               count, output, overwrite)  # fmt: skip
+    if port is None:
+        _replay(log, file, "arcos")
         return
-    summary = f"{stats.frames} packets decoded, {stats.dropped_bytes} bytes dropped"
-    if stats.frames == 0:
-        raise RobocliError(f"{file}: {summary}")
-    if stats.dropped_bytes:
-        typer.echo(f"robocli: {file}: {summary}", err=True)
-
-
-def _show_capture(view: Any, file: Path, protocol: str, noun: str,
-                  part: slice = slice(None)) -> CaptureStats | None:  # fmt: skip
-    """Show each frame of a capture (its ``part`` that ``view`` takes), streamed, until
-    ``--count``: None when that ended it, else what the reading found. After
-    :data:`~robocli.io.capture.MAX_GAP` bytes without a frame, a :class:`NoFrameError` that
-    says how many ``noun`` came before."""
-    from robocli.io.capture import CaptureStats, NoFrameError, read_capture
-
-    stats = CaptureStats()
+    log.start_now()  # t 0, for JSON and a capture being written
     try:
-        for item in read_capture(file, protocol, stats):
-            if view.epoch is None:
-                view.start(stats.start_unix)  # read before the first frame, when it says
-            view.show(item.direction, item.frame[part], item.t)
-            if view.done:
-                return None
-    except NoFrameError as exc:
-        raise NoFrameError(
-            f"{exc} ({stats.frames} {noun} decoded, {stats.dropped_bytes} bytes dropped)"
-        ) from None
-    return stats
-
-
-def _pioneer_live(view: Any, port: str, laser: bool, **options: Any) -> None:
-    """Show a live session's packets in time order (sent and received ones come from
-    different threads), until Ctrl-C or ``--count``; after Ctrl-C, also the packets that
-    stop the robot and close the session."""
-    feed = _Feed(view)
-    try:
-        with connected(port, listeners=[feed.listener()], **options) as robot:
-            _begin(view)  # connected: now the capture is made
+        with connected(port, listeners=[log.listener()], subtype=subtype, baudrate=baud,
+                       timeout=timeout) as robot:  # fmt: skip
+            log.open()  # connected: now the capture is made
             if laser:
                 start_laser(robot, wait=False)
-            while not view.done:
-                feed.show()
-                if not robot.alive:
-                    robot.wait_for_sip(0)  # raises the reason the session ended
+            from robocli.analysis.sessions import pioneer_check
+
+            log.follow(pioneer_check(robot))
     finally:
         with reader_may_leave():
-            feed.drain()  # what was still queued, and the close sequence
-
-
-class _Feed:
-    """Packets from the links' reader threads, shown by ``view`` in time order (each waits
-    :data:`REORDER` s for older ones from another thread). At most ``bound`` are queued
-    (0: no bound); a packet that finds the queue full is lost and counted in ``dropped``:
-    a link's reader never waits for a stalled stdout."""
-
-    def __init__(self, view: Any, bound: int = 0) -> None:
-        self.view = view
-        self.start = time.monotonic()
-        view.start(time.time())  # Unix time of t 0, for JSON and a capture being written
-        self.queue: queue.Queue[tuple[str, bytes, float]] = queue.Queue(bound)
-        self.dropped = 0
-
-    def listener(self, port: str = "") -> Callable[[str, bytes, float], None]:
-        """A link's listener ``(direction, frame, t)``; with ``port``, its packets are queued
-        as ``"tx:motion"``-style directions."""
-
-        def put(direction: str, frame: bytes, t: float) -> None:
-            try:
-                self.queue.put_nowait(
-                    (f"{direction}:{port}" if port else direction, frame, t - self.start)
-                )
-            except queue.Full:
-                self.dropped += 1
-
-        return put
-
-    def show(self) -> None:
-        """Take what comes within :data:`REORDER` s; print what is older than that."""
-        self._take(REORDER)
-        self.view.flush(before=time.monotonic() - self.start - REORDER)
-
-    def drain(self) -> None:
-        """Print everything still queued, in time order."""
-        self._take()
-        self.view.flush()
-
-    def _take(self, wait: float = 0.0) -> None:
-        with contextlib.suppress(queue.Empty):
-            if wait:
-                self.view.add(*self.queue.get(timeout=wait))
-            while True:
-                self.view.add(*self.queue.get_nowait())
+            log.drain()  # what was still queued, and the close sequence
+        log.close()
 
 
 @arm_link()
 def arm(
     ctx: typer.Context,
-    host: str | None = typer.Argument(
-        None,
-        help=f"The arm: {DEVICE_FORMS['arm']}; omit with --file.",
-        show_default=False,
-        metavar="URL",
-        envvar=ARM_ENV,
-        show_envvar=True,
-    ),
+    host: str | None = typer.Argument(None, help=f"The arm: {DEVICE_FORMS['arm']}; omit with "
+                                      "--file.", show_default=False, metavar="URL",
+                                      envvar=ARM_ENV, show_envvar=True),  # fmt: skip
     count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw frame bytes."),
+    hex_out: bool = _HexOpt,
     json_out: bool = json_option(),
     output: Path | None = typer.Option(
         None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
@@ -247,56 +119,208 @@ def arm(
     ports: Literal["both", "motion", "state"] = typer.Option(
         "both", "--ports", help="both (two clients), motion or state."
     ),
-    listen: str | None = typer.Option(
-        None,
-        "--listen",
-        metavar="[ADDR:]PORT",
-        help="Be a recording proxy: other programs connect to the motion port PORT and the "
-        "state port PORT+2 (0: ephemeral) instead of the controller.",
-    ),
+    listen: str | None = typer.Option(None, "--listen", metavar="[ADDR:]PORT", help="Be a "
+                                      "recording proxy: other programs connect to the motion "
+                                      "port PORT and the state port PORT+2 (0: ephemeral) "
+                                      "instead of the controller."),  # fmt: skip
     link: ArmLink = LINK,
 ) -> None:
     """Print every Simple Message on the motion and state ports, in time order, named and
     decoded (joints in rad)."""
-    from robocli.commands._packets import ArmPacketView
+    from robocli.analysis import sessions
     from robocli.kinematics import load_model
 
-    if file is not None and from_env(ctx, "host"):
-        host = None  # $ROBOCLI_ARM names a controller; --file reads a capture instead
-    if (host is None) == (file is None):
-        raise typer.BadParameter("give HOST or --file (one of them)")
-    if ports not in ("both", "motion", "state"):
-        raise typer.BadParameter(f"--ports is both, motion or state, not {ports!r}")
+    host = _one(ctx, "host", host, file, None)
     if listen is not None and host is None:
         raise typer.BadParameter("--listen relays to a HOST; not with --file")
     bind_to = _listen_address(listen) if listen is not None else None
-    order = ">" if link.byte_order == "big" else "<"
-    n = load_model(link.robot).n_joints
-    writer = _capture(output, overwrite)
-    view = ArmPacketView(order, link.real_size, n, json_out=json_out, hex_out=hex_out,  # type: ignore[arg-type]
-                         count=count, writer=writer)  # fmt: skip
+    protocol = f"sm-{link.byte_order[0]}e"
+    log = _log(protocol, partial(_arm_line, json_out=json_out, hex_out=hex_out), count, output,
+               overwrite, n_joints=load_model(link.robot).n_joints, real=link.real_size,
+               bound=MAX_QUEUED)  # fmt: skip
+    with reader_may_leave(), sigterm_as_interrupt():
+        if host is None:
+            _replay(log, file, protocol)
+            return
+        log.start_now()
+        wire: dict[str, Any] = {"byte_order": link.byte_order, "real_size": link.real_size,
+                                "robot": link.robot}  # fmt: skip
+        with arm_host(host, link.motion_port, link.state_port, **wire) as address, \
+                contextlib.ExitStack() as stack:  # fmt: skip
+            arms, relays = [], []
+            try:
+                if bind_to is not None:
+                    with listening(bind_to[0]):  # in use: exit 1; not this machine's: 2
+                        relays = sessions.arm_relays(stack, log, address, ports, bind_to,
+                                                     link.byte_order)  # fmt: skip
+                    names = [n for n in ("motion", "state") if ports in ("both", n)]
+                    typer.echo("dump: clients connect to " + ", ".join(
+                        f"{n} {bind_to[0]}:{r.port} -> {r.upstream[0]}:{r.upstream[1]}"
+                        for n, r in zip(names, relays, strict=True)), err=True)  # fmt: skip
+                else:
+                    arms = sessions.arm_clients(stack, log, address, ports, timeout=link.timeout,
+                                                **wire)  # fmt: skip
+                log.open()  # connected (or listening): now the capture is made
+                log.follow(sessions.arm_check(arms, relays, ports, link.timeout))
+            finally:
+                stack.close()  # nothing is queued after
+                log.drain()
+                log.close()
+                if log.dropped:
+                    typer.echo(f"robocli: {log.dropped} messages not shown: the output was too "
+                               "slow", err=True)  # fmt: skip
+
+
+def hub(
+    ctx: typer.Context,
+    host: str | None = typer.Argument(None, help=f"The hub: {DEVICE_FORMS['hub']}; omit with "
+                                      "--file.", show_default=False, metavar="URL",
+                                      envvar=HUB_ENV, show_envvar=True),  # fmt: skip
+    listen: str = typer.Option(
+        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
+    ),
+    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
+    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
+    json_out: bool = json_option(),
+    output: Path | None = typer.Option(
+        None, "--output", "-o", help="Also record the session (.jsonl capture)."
+    ),
+    overwrite: bool = OverwriteOpt,
+    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
+                                     dir_okay=False, help="Decode a capture (dump hub -o, or a "
+                                     "record .mcap) instead."),  # fmt: skip
+) -> None:
+    """A recording proxy: point ros4mat clients at --listen; every message both ways is
+    printed, named and decoded, and passed on unchanged. --file decodes a capture."""
+    from robocli.analysis.ros4mat import check_upstream
+    from robocli.analysis.sessions import hub_proxy
+    from robocli.devices.hub.client import parse_hub
+    from robocli.errors import EXIT_INTERRUPTED
+    from robocli.transports import parse_address
+
+    host = _one(ctx, "host", host, file, output)
+    log = _log("ros4mat", partial(_hub_line, json_out=json_out, hex_out=hex_out), count, output,
+               overwrite)  # fmt: skip
+    if host is None:
+        _replay(log, file, "ros4mat")
+        return
+    upstream = parse_hub(host)
+    bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
+                               port_range=(0, 65535))  # fmt: skip
+    check_upstream(*upstream)
+    with sigterm_as_interrupt(), reader_may_leave():
+        try:
+            check_upstream(*upstream)
+            with listening(bind):
+                proxy = hub_proxy(log, upstream, bind, port)
+            with proxy.start():
+                log.open()  # listening: now the capture is made
+                typer.echo(f"dump: clients connect to {bind}:{proxy.port}, relayed to "
+                           f"{upstream[0]}:{upstream[1]}", err=True)  # fmt: skip
+                while not log.stopped.wait(0.25):
+                    pass
+            log.check()  # `dump hub ... | head`: what the proxy's thread met, said here
+        except KeyboardInterrupt:
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        finally:
+            log.close()
+
+
+def laser(
+    port: str | None = device_argument("laser", default=None),
+    count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
+    json_out: bool = json_option(),
+    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
+                                     dir_okay=False, help="Decode a capture (.jsonl chunks, a "
+                                     ".mcap recording or raw sensor bytes)."),  # fmt: skip
+    model: Model = ModelOpt,
+    baud: int = LaserBaudOpt,
+    timeout: float = LaserTimeoutOpt,
+) -> None:
+    """Show every SCIP line of a laser session both ways, named and decoded."""
+    from robocli.analysis.sessions import laser_check
+
+    if (port is None) == (file is None):
+        raise typer.BadParameter("give a URL or --file CAPTURE (one of them)")
+    log = _log("scip2", partial(_laser_lines, t0=[], json_out=json_out), 0, None, False)
+    with reader_may_leave(), sigterm_as_interrupt():
+        if file is not None:
+            stats = _replay(log, file, "scip2")
+            if stats is not None and stats.dropped_bytes:
+                typer.echo(f"robocli: {file}: {stats.frames} blocks decoded, "
+                           f"{stats.dropped_bytes} bytes dropped", err=True)  # fmt: skip
+            return
+        from robocli.devices.laser import Laser
+
+        assert port is not None
+        log.start(time.time() - time.monotonic())  # the link stamps on time.monotonic()
+        with laser_url(port, model) as url:
+            with Laser.connect(url, baudrate=baud, timeout=timeout, listeners=[log.direct]) as dev:
+                laser_check(log, dev, count)
+
+
+# ---------------------------------------------------------------------- the steps
+
+
+def _one(ctx: typer.Context, name: str, device: str | None, file: Path | None,
+         output: Path | None) -> str | None:  # fmt: skip
+    """The device, or None for ``--file`` (whose choice overrides the device's environment
+    variable); a usage error unless exactly one is given, or for ``--output`` on the file."""
+    if file is not None and from_env(ctx, name):
+        device = None
+    if name == "port" and (device is None) == (file is None):  # dump pioneer's own words
+        raise typer.BadParameter("give PORT or --file" + (", not both" if file else ""))
+    if (device is None) == (file is None):
+        raise typer.BadParameter("give HOST or --file (one of them)")
+    if output is not None and file is not None and _same_file(output, file):
+        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
+    return device
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # one of them does not exist (yet)
+        return False
+
+
+def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
+         output: Path | None, overwrite: bool, bound: int = 0,
+         **options: Any) -> PacketLog:  # fmt: skip
+    """A packet log of ``protocol`` handing each packet to ``render``, with a capture
+    writer on ``output`` checked now (a .jsonl name, no existing file without --overwrite: exit 2
+    before anything connects) and made by ``log.open()`` once the session is connected."""
+    from robocli.analysis.packets import PacketLog
+    from robocli.analysis.sessions import decoder
+
+    writer = None
+    if output is not None:
+        from robocli.io.capture import CaptureWriter
+
+        if output.suffix != ".jsonl":
+            raise typer.BadParameter(f"{output}: the capture format needs a .jsonl name",
+                                     param_hint="'--output'")  # fmt: skip
+        writer = CaptureWriter(output, overwrite, deferred=True)
+    log: PacketLog = PacketLog(decoder(protocol, **options), lambda p: render(log, p),
+                               count=count, writer=writer, bound=bound)  # fmt: skip
+    return log
+
+
+def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | None:
+    """Show a capture's packets (exit 1 when it holds none); a note of dropped bytes."""
+    from robocli.analysis.sessions import replay_capture
+
+    assert file is not None
+    log.open()
     try:
         with reader_may_leave(), sigterm_as_interrupt():
-            if file is not None:
-                _begin(view)
-                _arm_file(view, file, "sm-be" if order == ">" else "sm-le")
-            else:
-                assert host is not None
-                _arm_live(view, host, ports, link, bind_to)
+            stats = replay_capture(log, file, protocol)
     finally:
-        if writer is not None:
-            writer.close()
-
-
-def _arm_file(view: Any, file: Path, protocol: str) -> None:
-    """Show the messages of a capture; exit 1 when it holds none, or when
-    :data:`~robocli.io.capture.MAX_GAP` bytes come without one (``/dev/zero``)."""
-    from robocli.errors import RobocliError
-
-    stats = _show_capture(view, file, protocol, "messages")
-    if stats is not None and stats.frames == 0:
-        raise RobocliError(f"{file}: no Simple Message frame ({stats.dropped_bytes} bytes "
-                           "dropped)")  # fmt: skip
+        log.close()
+    if stats is not None and stats.dropped_bytes and protocol == "arcos":
+        typer.echo(f"robocli: {file}: {stats.frames} packets decoded, {stats.dropped_bytes} "
+                   "bytes dropped", err=True)  # fmt: skip
+    return stats
 
 
 def _listen_address(text: str) -> tuple[str, int]:
@@ -311,208 +335,105 @@ def _listen_address(text: str) -> tuple[str, int]:
         ) from None
 
 
-def _arm_live(view: Any, host: str, ports: str, link: ArmLink,
-              listen: tuple[str, int] | None) -> None:  # fmt: skip
-    """Both ports as two clients (or, with ``listen``, as two recording proxies), their
-    frames queued by their threads and printed here in time order until ``--count`` or
-    Ctrl-C (then what was still queued)."""
-    from robocli.devices.arm import Arm
-    from robocli.errors import TransportError
-
-    feed = _Feed(view, MAX_QUEUED)  # a stalled stdout loses messages, counted
-    with arm_host(host, link.motion_port, link.state_port, link.byte_order, link.real_size,
-                  link.robot) as (h, mp, sp), contextlib.ExitStack() as arms:  # fmt: skip
-        try:
-            state, opened = None, []
-            relays = []
-            if listen is not None:  # other programs' sessions, through recording proxies
-                relays = _relay(arms, feed.listener, (h, mp, sp), ports, listen, link.byte_order)
-            for name in () if listen else ("motion", "state") if ports == "both" else (ports,):
-                arm = arms.enter_context(Arm.connect(
-                    h, mp, sp, motion=name == "motion", state=name == "state",
-                    history=16, listeners=[feed.listener(name)], stop_on_failure=False,
-                    byte_order=link.byte_order, real_size=link.real_size, robot=link.robot,
-                    timeout=link.timeout))  # fmt: skip
-                opened.append(arm)
-                state = arm if name == "state" else state
-            _begin(view)  # connected (or listening): now the capture is made
-            while not view.done:
-                feed.show()
-                for arm in opened:  # raises when a link was lost (the motion port is quiet)
-                    arm.check()
-                for relay in relays:  # a client came, the controller could not be reached
-                    if relay.upstream_error is not None:
-                        up, exc = relay.upstream, relay.upstream_error
-                        raise TransportError(f"no controller at {up[0]}:{up[1]} "
-                                             f"({exc.strerror or exc})")  # fmt: skip
-                if state is not None:  # raises when the state link is silent
-                    state.wait_for_state(link.timeout)
-        finally:
-            arms.close()  # nothing is queued after
-            feed.drain()
-            if feed.dropped:
-                typer.echo(f"robocli: {feed.dropped} messages not shown: the output was too slow",
-                           err=True)  # fmt: skip
+# ---------------------------------------------------------------------- rendering
 
 
-def _relay(stack: contextlib.ExitStack, listener: Any, upstream: tuple[str, int, int],
-           ports: str, listen: tuple[str, int], byte_order: str) -> list[Any]:  # fmt: skip
-    """Start a recording proxy per port (motion on ``listen``, state 2 above) on ``stack``;
-    each frame goes to ``listener(port)("tx"|"rx", frame, t)``. Says where, on stderr.
-    The controller is not probed: that would take its one client slot."""
-    from robocli.devices.proxy import Message, RecordingProxy
-    from robocli.protocols import simple_message as sm
-
-    def shown(put: Callable[[str, bytes, float], None]) -> Callable[[Message], None]:
-        def on_message(m: Message) -> None:
-            put("tx" if m.direction == "c2s" else "rx", m.frame, time.monotonic())
-
-        return on_message
-
-    host, mp, sp = upstream
-    bind, port = listen
-    framer = "sm-be" if byte_order == "big" else "sm-le"
-    said, relays = [], []
-    for name, offset, target in (("motion", 0, mp), ("state", 2, sp)):
-        if ports not in ("both", name):
-            continue
-        with listening(bind):  # a port in use: exit 1, an address not this machine's: 2
-            proxy = RecordingProxy(
-                (host, target), shown(listener(name)), framer=framer, max_frame=sm.MAX_FRAME_SIZE,
-                bind=bind, port=port + offset if port else 0, max_clients=2,
-                name=f"arm-dump-{name}")  # fmt: skip
-        stack.enter_context(proxy.start())
-        said.append(f"{name} {bind}:{proxy.port} -> {host}:{target}")
-        relays.append(proxy)
-    typer.echo("dump: clients connect to " + ", ".join(said), err=True)
-    return relays
+def _out(line: str, payload: bytes | None = None, indent: int = 13) -> None:
+    sys.stdout.write(line + "\n")
+    if payload is not None:
+        sys.stdout.write(f"{'':{indent}}{payload.hex(' ')}\n")
+    sys.stdout.flush()
 
 
-def hub(
-    ctx: typer.Context,
-    host: str | None = typer.Argument(
-        None,
-        help=f"The hub: {DEVICE_FORMS['hub']}; omit with --file.",
-        show_default=False,
-        metavar="URL",
-        envvar=HUB_ENV,
-        show_envvar=True,
-    ),
-    listen: str = typer.Option(
-        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
-    ),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
-    json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None, "--output", "-o", help="Also record the session (.jsonl capture)."
-    ),
-    overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(
-        None,
-        "--file",
-        "-f",
-        metavar="CAPTURE",
-        exists=True,
-        dir_okay=False,
-        help="Decode a capture (dump hub -o, or a record .mcap) instead.",
-    ),
-) -> None:
-    """A recording proxy: point ros4mat clients at --listen; every message both ways is
-    printed, named and decoded, and passed on unchanged. --file decodes a capture."""
-    from robocli.commands._packets import HubPacketView
+def _pioneer_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool, full: bool) -> None:
+    if json_out:
+        return print_json_line(rounded({**log.stamp(p.t), "dir": p.wire_dir, "type": p.type,
+                                        "name": p.name, "fields": p.fields}))  # fmt: skip
+    stamp = f"{p.t:9.3f} " if p.t is not None else ""
+    text = " ".join(f"{k}={_short(v, full)}" for k, v in p.fields.items())
+    line = f"{stamp}{_ARROWS.get(p.direction, '  ')} {p.name:<12} {text}".rstrip()
+    _out(line if full else _cut(line), p.frame if hex_out else None)
 
-    if file is not None and from_env(ctx, "host"):
-        host = None  # $ROBOCLI_HUB names a hub; --file reads a capture instead
-    if (host is None) == (file is None):
-        raise typer.BadParameter("give HOST or --file (one of them)")
-    if output is not None and file is not None and _same_file(output, file):
-        raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
-    writer = _capture(output, overwrite)  # checked before connecting
-    view = HubPacketView(json_out=json_out, hex_out=hex_out, count=count, writer=writer)
-    try:
-        if file is not None:
-            _begin(view)
-            with reader_may_leave(), sigterm_as_interrupt():
-                stats = _show_capture(view, file, "ros4mat", "messages")
-            if stats is not None and stats.frames == 0:
-                from robocli.errors import RobocliError
 
-                raise RobocliError(f"{file}: no ros4mat message ({stats.dropped_bytes} bytes "
-                                   "dropped)")  # fmt: skip
+def _arm_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
+    if json_out:
+        hexed = {"hex": p.frame.hex()} if hex_out else {}
+        return print_json_line(rounded({**log.stamp(p.t), "port": p.port, "dir": p.wire_dir,
+                                        "name": p.name, "fields": p.fields, **hexed}))  # fmt: skip
+    text = " ".join(f"{_SHORT.get(k, k)}={_short_sm(v)}" for k, v in p.fields.items())
+    stamp = f"{p.t:9.3f} " if p.t is not None else ""
+    line = f"{stamp}{p.port or '-':<6} {_ARROWS.get(p.direction, '  ')} {p.name:<22} {text}"
+    _out(_cut(line.rstrip()), p.frame if hex_out else None)
+
+
+def _hub_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
+    if json_out:
+        record = {**log.stamp(p.t), "dir": p.wire_dir, "name": p.name, **p.fields}
+        record.update(rounded(log.stamp(p.t)))  # a field of the message never hides it
+        return _out(json.dumps({**record, **({"hex": p.frame.hex()} if hex_out else {})},
+                               default=str))  # fmt: skip
+    stamp = f"{p.t:10.6f}" if p.t is not None else f"{'-':>10}"
+    text = " ".join(f"{k}={v}" for k, v in p.fields.items())
+    _out(f"{stamp} {_ARROWS[p.direction]} {p.name:<14} {text}",
+         p.frame[:256] if hex_out else None, 14)  # fmt: skip
+
+
+def _laser_lines(log: PacketLog, p: Packet, t0: list[float], json_out: bool) -> None:
+    """Each line of a SCIP block: ``t`` Unix time (None when unknown), ``t_rel`` seconds
+    since the first line."""
+    t = p.t or 0.0
+    if not t0:
+        t0.append(t)
+    rel = t - t0[0]
+    for line in p.lines:
+        if json_out:
+            unix = None if log.epoch is None else round(t + log.epoch, 6)
+            print_json_line({"t": unix, "t_rel": round(rel, 6), "dir": p.wire_dir,
+                             "line": line.text, "what": line.what})  # fmt: skip
         else:
-            assert host is not None
-            _hub_live(view, host, listen)
-    finally:
-        if writer is not None:
-            writer.close()
+            typer.echo(f"{rel:10.6f} {_ARROWS[p.direction]} {line.text[:70]:<70} {line.what}")
 
 
-def _hub_live(view: Any, host: str, listen: str) -> None:
-    """Relay ros4mat clients on ``listen`` to the hub at ``host``, each message shown by
-    ``view`` from the proxy's threads, until ``--count``, Ctrl-C (exit 130) or ``| head``."""
-    import threading
-
-    from robocli.devices.hub.client import parse_hub
-    from robocli.devices.hub.tools import DumpProxy, Message, check_upstream
-    from robocli.errors import EXIT_INTERRUPTED
-    from robocli.transports import parse_address
-
-    upstream = parse_hub(host)
-    bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
-                               port_range=(0, 65535))  # fmt: skip
-    check_upstream(*upstream)
-    done = threading.Event()
-    broken = threading.Event()
-
-    def show(msg: Message) -> None:
-        if done.is_set():
-            return
-        view.start(time.time() - msg.t)  # the first message dates the proxy's start
-        try:
-            view.show("tx" if msg.direction == "c2s" else "rx", msg.frame, msg.t)
-        except BrokenPipeError:  # `dump hub ... | head`: the main thread stops quietly
-            broken.set()
-            done.set()
-            return
-        if view.done:
-            done.set()
-
-    with sigterm_as_interrupt(), reader_may_leave():
-        try:
-            check_upstream(*upstream)
-            with listening(bind):
-                proxy = DumpProxy(upstream, show, bind=bind, port=port)
-            with proxy.start():
-                _begin(view)  # listening: now the capture is made
-                typer.echo(
-                    f"dump: clients connect to {bind}:{proxy.port}, relayed to "
-                    f"{upstream[0]}:{upstream[1]}",
-                    err=True,
-                )
-                while not done.wait(0.25):
-                    pass
-            if broken.is_set():
-                raise BrokenPipeError
-        except KeyboardInterrupt:
-            raise typer.Exit(EXIT_INTERRUPTED) from None
+def _cut(line: str) -> str:
+    if len(line) <= LINE_MAX:
+        return line
+    mark = ellipsis()
+    return line[: LINE_MAX - len(mark)] + mark
 
 
-def _capture(path: Path | None, overwrite: bool) -> Any:
-    """A capture writer on ``path`` (JSON Lines), or None: checked now (a name or place it
-    cannot have, an existing file without --overwrite, a symbolic link: exit 2, before
-    anything connects), made by :func:`_begin` once the session is connected."""
-    if path is None:
-        return None
-    from robocli.io.capture import CaptureWriter
-
-    if path.suffix != ".jsonl":
-        raise typer.BadParameter(f"{path}: the capture format needs a .jsonl name",
-                                 param_hint="'--output'")  # fmt: skip
-    return CaptureWriter(path, overwrite, deferred=True)
+def ellipsis() -> str:
+    """``…`` where standard output can encode it, else ``...`` (a latin-1 or ASCII
+    terminal, ``PYTHONIOENCODING=ascii``)."""
+    try:
+        "\u2026".encode(getattr(sys.stdout, "encoding", None) or "ascii")
+    except (UnicodeEncodeError, LookupError):
+        return "..."
+    return "\u2026"
 
 
-def _begin(view: Any) -> None:
-    """Make the capture file of ``view`` (if any): its session is connected."""
-    if view.writer is not None:
-        view.writer.open()
+def _short(value: Any, full: bool) -> str:
+    """A field's value in a text line: unless ``full``, long lists (sonar pairs, laser
+    readings) as how many and the nearest."""
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list) and value and isinstance(value[0], (tuple, dict)):
+        if full:
+            return "[" + ",".join(_short(v, full) for v in value) + "]"
+        ranges = [v["range"] if isinstance(v, dict) else v[-1] for v in value]
+        return f"{len(value)}(min {min(ranges)})"  # how many, the nearest
+    if isinstance(value, tuple):
+        return ":".join(map(str, value))
+    if isinstance(value, list) and len(value) > 8 and not full:
+        return f"{len(value)}(min {min(value)})"  # laser ranges: how many, the nearest
+    if isinstance(value, dict):
+        return "{" + ",".join(f"{k}={_short(v, full)}" for k, v in value.items()
+                              if v is not None) + "}"  # fmt: skip
+    return str(value)
+
+
+def _short_sm(value: Any) -> str:
+    if isinstance(value, float):
+        return f"{value:.4g}"
+    if isinstance(value, list):
+        return "[" + ",".join(_short_sm(v) for v in value) + "]"
+    return str(value)

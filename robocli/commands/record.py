@@ -11,7 +11,6 @@ file is written all the same), 1 when the file could not be written.
 from __future__ import annotations
 
 import contextlib
-import math
 import sys
 import time
 from collections.abc import Callable, Iterator
@@ -35,40 +34,20 @@ Compression = Literal["zstd", "lz4", "none"]
 
 if TYPE_CHECKING:
     from robocli.io.record import Recorder, RecordingInfo
+    from robocli.io.record.session import RecordingSession
 
-#: Sample rates (Hz) and settings a hub sensor is subscribed with unless ``NAME:RATE``.
-HUB_DEFAULTS: dict[str, dict[str, Any]] = {
-    "imu": {"rate": 200}, "adc": {"rate": 1000}, "laser": {"rate": 40},
-    "camera": {"rate": 30, "resolution": "320x240"}, "gps": {"rate": 5},
-    "battery": {"rate": 10}, "sysinfo": {"rate": 10},
-    "depth": {"rate": 10, "resolution": "320x240"},
-    "stereo": {"rate": 15, "resolution": "320x240"},
-}  # fmt: skip
-
+#: The hub's sensors ``--sensors`` names (robocli.io.record.session.HUB_DEFAULTS).
+HUB_SENSORS = ("imu", "adc", "laser", "camera", "gps", "battery", "sysinfo", "depth", "stereo")
 
 def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
-    """``imu,adc:500`` -> [("imu", {rate 200}), ("adc", {rate 500})]; usage error otherwise."""
-    out = []
-    for item in (s.strip() for s in text.split(",")):
-        if not item:
-            continue
-        name, _, rate = item.partition(":")
-        name = name.lower()
-        if name not in HUB_DEFAULTS:
-            raise typer.BadParameter(
-                f"{name!r} is not a hub sensor; choose from {', '.join(HUB_DEFAULTS)}",
-                param_hint="'--sensors'",
-            )
-        args = dict(HUB_DEFAULTS[name])
-        if rate:
-            if not rate.isdigit() or not 1 <= int(rate) <= 65535:
-                raise typer.BadParameter(f"{item!r}: the rate is 1..65535 Hz",
-                                         param_hint="'--sensors'")  # fmt: skip
-            args["rate"] = int(rate)
-        out.append((name, args))
-    if not out:
-        raise typer.BadParameter("name at least one sensor", param_hint="'--sensors'")
-    return out
+    """``--sensors``, parsed: a usage error when it names no hub sensor or a bad rate."""
+    from robocli.errors import InvalidArgument
+    from robocli.io.record.session import hub_sensors
+
+    try:
+        return hub_sensors(text)
+    except InvalidArgument as exc:
+        raise typer.BadParameter(str(exc), param_hint="'--sensors'") from None
 
 
 @arm_link(motion=False)
@@ -93,7 +72,7 @@ def record(
         "imu,adc",
         "--sensors",
         metavar="NAME[:HZ],...",
-        help="Hub sensors: " + ", ".join(HUB_DEFAULTS) + " (rate in Hz after a colon).",
+        help="Hub sensors: " + ", ".join(HUB_SENSORS) + " (rate in Hz after a colon).",
     ),
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
     duration: float | None = duration_option(min=0.0, max=1e6),
@@ -123,8 +102,10 @@ def record(
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
     --count or Ctrl-C. The file is made once every source is connected; an existing one is refused
     unless --overwrite. To record an arm while uploading to it: upload --record."""
+    from robocli.commands.create import connect_create
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.record import COMPRESSIONS, Recorder
+    from robocli.io.record.session import RecordingSession
     from robocli.output import check_output
 
     if not (pioneer or arm or hub or laser or create):
@@ -137,7 +118,6 @@ def record(
                                  f"not {compression!r}")  # fmt: skip
     hub_sensors = _sensors(sensors) if hub else []
     check_output(output, overwrite)  # refused now, before anything connects
-    start = time.monotonic()
     interrupted = False
     with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
         view = stack.enter_context(live_view(foxglove, foxglove_host))
@@ -145,22 +125,16 @@ def record(
                        ros2=ros2)  # fmt: skip
         if view is not None:
             rec.mirror(view)
+        run = RecordingSession(rec, stack)
         try:
             try:
-                devices = _connect(stack, rec, pioneer, arm, hub, hub_sensors, not no_laser,
-                                   link, laser)  # fmt: skip
-                devices.update(_connect_creates(stack, rec, create, link.timeout))
+                _connect(run, pioneer, arm, hub, hub_sensors, not no_laser, link, laser)
+                for i, port in enumerate(create):
+                    run.devices[f"create{i or ''}"] = connect_create(stack, rec, port,
+                                                                     link.timeout)  # fmt: skip
                 rec.begin()  # every source connected: now the file is made
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
-                start = time.monotonic()  # --duration counts from here, not from connecting
-                done = _until(rec, start, duration, count, devices)
-                if hub is not None:
-                    from robocli.io.record import pull_hub
-
-                    pull_hub(devices["hub"], [n for n, _ in hub_sensors], poll, done)
-                else:
-                    while not done():
-                        time.sleep(0.05)
+                run.run(duration, count, poll, progress_line(run) if sys.stderr.isatty() else None)
             except KeyboardInterrupt:
                 interrupted = True
             finally:
@@ -168,7 +142,7 @@ def record(
                     stack.close()  # devices stop first: their stop sequences are recorded
         finally:
             with shielded():
-                close_recording(rec, time.monotonic() - start)
+                close_recording(rec, time.monotonic() - run.start)
     if interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
@@ -190,125 +164,46 @@ def close_recording(rec: Recorder, seconds: float) -> None:
                        f"{rec.path}{lost}{dropped}", err=True)  # fmt: skip
 
 
-def progress_line(rec: Recorder, start: float, every: float = 0.5) -> Callable[[], None]:
+def progress_line(run: RecordingSession, every: float = 0.5) -> Callable[[], None]:
     """A function that rewrites one status line on stderr (a terminal's): messages, bytes
     written and the message rate, at most every ``every`` seconds."""
-    import os
-
     last = [0.0]
 
     def show() -> None:
-        now = time.monotonic()
-        if now - last[0] < every:
-            return
-        last[0] = now
-        try:
-            size = os.stat(rec.path).st_size
-        except OSError:
-            size = 0
-        n, seconds = rec.stats.added, max(now - start, 1e-9)
-        sys.stderr.write(f"\r\x1b[K{n} messages, {_size(size)}, {n / seconds:.0f} msg/s, "
-                         f"{seconds:.0f} s")  # fmt: skip
-        sys.stderr.flush()
+        if time.monotonic() - last[0] >= every:
+            last[0] = time.monotonic()
+            p = run.progress()
+            sys.stderr.write(f"\r\x1b[K{p.messages} messages, {_size(p.size)}, "
+                             f"{p.rate:.0f} msg/s, {p.seconds:.0f} s")  # fmt: skip
+            sys.stderr.flush()
 
     return show
 
 
-def _until(rec: Recorder, start: float, duration: float | None, count: int | None,
-           devices: dict[str, Any]) -> Callable[[], bool]:  # fmt: skip
-    """A ``done()`` for the recording loop: True once the duration or count is reached;
-    raises the error of a device whose link was lost."""
-    end = start + duration if duration is not None else math.inf
-    show = progress_line(rec, start) if sys.stderr.isatty() else None  # quiet in a pipe
-
-    def done() -> bool:
-        rec.check()  # the disk is full: stop now, what was written stays readable
-        if show is not None:
-            show()
-        for name, device in devices.items():
-            if name.startswith("pioneer") and not device.alive:
-                device.wait_for_sip(0)  # raises why the session ended
-            elif name.startswith("arm"):
-                device.check()
-            elif name.startswith(("laser", "create")):
-                device.session.check()
-        return time.monotonic() >= end or (count is not None and rec.stats.added >= count)
-
-    return done
-
-
-def _connect(stack: contextlib.ExitStack, rec: Recorder, pioneers: list[str], arms: list[str],
-             hub: str | None, sensors: list[tuple[str, dict[str, Any]]], laser: bool,
-             link: ArmLink, hokuyo: str | None = None) -> dict[str, Any]:  # fmt: skip
-    """Connect every source (simulators started on ``stack``) and add it to ``rec``, each
-    recorded from its first byte; ``hokuyo``: a Hokuyo laser's URL (streamed with MD)."""
-    from robocli.commands._arm import arm_host, connect_at
+def _connect(run: RecordingSession, pioneers: list[str], arms: list[str], hub: str | None,
+             sensors: list[tuple[str, dict[str, Any]]], sim_laser: bool, link: ArmLink,
+             hokuyo: str | None) -> None:  # fmt: skip
+    """Connect every source, ``sim`` starting a simulator on ``run``'s stack."""
+    from robocli.commands._arm import arm_host
     from robocli.commands._common import explain_refusal
-    from robocli.devices.pioneer import Pioneer
-    from robocli.io.record.arm import arm_links
-
-    devices: dict[str, Any] = {}
-    for port in pioneers:
-        url = port
-        listener = rec.listener("pioneer", "arcos", url=url)
-        with explain_refusal(url):
-            robot = stack.enter_context(
-                Pioneer.connect(url, listeners=[listener], timeout=link.timeout)
-            )
-        name = rec.add(robot, listener.name)
-        devices[name] = robot
-        if laser and robot.sim is not None:
-            robot.sim.start_laser()
-    for host in arms:
-        address = stack.enter_context(arm_host(host, link.motion_port, link.state_port,
-                                               link.byte_order, link.real_size,
-                                               link.robot))  # fmt: skip
-        name, links = arm_links(rec, "arm", byte_order=link.byte_order,
-                                real_size=link.real_size, ports="state")  # fmt: skip
-        device = stack.enter_context(connect_at(address, link, stop_on_failure=False,
-                                                listeners={"state": [links["state"]]}))  # fmt: skip
-        devices[rec.add(device, name)] = device
-    if hokuyo is not None:  # on the first Pioneer, as its robot model says
-        first = next((n for n in devices if n.startswith("pioneer")), None)
-        on = {} if first is None else {"parent": f"{first}/base_link",
-                                       "mount": devices[first].params.laser_mount}  # fmt: skip
-        devices.update(_connect_laser(stack, rec, hokuyo, link.timeout, on))
-    if hub is not None:
-        hub_at = stack.enter_context(_hub_address(hub))
-        from robocli.commands.hub import open_hub
-
-        names = [n for n, _ in sensors]
-        listener = rec.listener("hub", "ros4mat", url=hub_at, sensors=",".join(names))
-        client = stack.enter_context(open_hub(hub_at, timeout=link.timeout,
-                                              listeners=[listener]))  # fmt: skip
-        rec.add(client, listener.name, sensors=names)
-        for name, args in sensors:
-            client.subscribe(name, **args)
-        devices["hub"] = client
-    return devices
-
-
-def _connect_creates(stack: contextlib.ExitStack, rec: Recorder, ports: list[str],
-                     timeout: float) -> dict[str, Any]:  # fmt: skip
-    """Each Create of ``--create``, recorded from its first byte (closing pauses its stream)."""
-    from robocli.commands.create import connect_create
-
-    return {f"create{i or ''}": connect_create(stack, rec, p, timeout) for i, p in enumerate(ports)}
-
-
-def _connect_laser(stack: contextlib.ExitStack, rec: Recorder, port: str, timeout: float,
-                   on: dict[str, Any]) -> dict[str, Any]:  # fmt: skip
-    """A Hokuyo recorded from its handshake on, streaming (closing sends QT, recorded);
-    ``on``: the frame it is mounted on and where (see :func:`attach_laser`)."""
+    from robocli.commands.hub import open_hub
     from robocli.commands.laser import laser_url
-    from robocli.devices.laser import Laser
 
-    url = stack.enter_context(laser_url(port))
-    listener = rec.listener("laser", "scip2", url=url)
-    laser = stack.enter_context(Laser.connect(url, timeout=max(timeout, 2.0), listeners=[listener]))
-    name = rec.add(laser, listener.name, **on)
-    laser.start()
-    return {name: laser}
+    stack = run.stack
+    for url in pioneers:
+        with explain_refusal(url):
+            run.add_pioneer(url, link.timeout, sim_laser)
+    wire: dict[str, Any] = {"byte_order": link.byte_order, "real_size": link.real_size,
+                            "robot": link.robot}  # fmt: skip
+    for host in arms:
+        address = stack.enter_context(arm_host(host, link.motion_port, link.state_port, **wire))
+        run.add_arm(address, timeout=link.timeout, **wire)
+    if hokuyo is not None:
+        run.add_laser(stack.enter_context(laser_url(hokuyo)), link.timeout)
+    if hub is not None:
+        at = stack.enter_context(_hub_address(hub))
+        run.add_hub(lambda listeners: open_hub(at, timeout=link.timeout, listeners=listeners), at,
+                    sensors)  # fmt: skip
 
 
 @contextlib.contextmanager

@@ -5,7 +5,6 @@ its summary, indexes and footer, so that every MCAP reader opens it; a thin laye
 from __future__ import annotations
 
 import contextlib
-import logging
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -42,33 +41,11 @@ def recover(
                f"{stats.chunks} chunks{cut}{skipped} into {stats.path}", err=True)  # fmt: skip
 
 
-class _TruncationNotes(logging.Handler):
-    """Prints the readers' warning that a file is cut short (see
-    :func:`~robocli.io.record.mcapfile.warn_truncated`) as one note line on stderr, once
-    per file; other log records are left to the logging set up (none by default)."""
-
-    def __init__(self) -> None:
-        super().__init__(logging.WARNING)
-        self.seen: set[str] = set()
-
-    def emit(self, record: logging.LogRecord) -> None:
-        from robocli.io.record.mcapfile import TRUNCATED_ATTR, truncated_hint
-
-        path = getattr(record, TRUNCATED_ATTR, None)
-        if path is None or path in self.seen:
-            return
-        self.seen.add(path)
-        typer.echo(f"robocli: note: {truncated_hint(path)}", err=True)
-
-
 @contextlib.contextmanager
 def truncation_notes() -> Iterator[None]:
     """While the block runs, a reader that meets a recording cut short says so on stderr
     (one line naming ``robocli recover``) and goes on with what the file holds."""
-    handler = _TruncationNotes()
-    logger = logging.getLogger("robocli.io.record")
-    logger.addHandler(handler)
-    try:
+    from robocli.io.record.mcapfile import truncation_notes as notes
+
+    with notes(lambda hint: typer.echo(f"robocli: note: {hint}", err=True)):
         yield
-    finally:
-        logger.removeHandler(handler)

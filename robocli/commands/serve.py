@@ -28,14 +28,15 @@ from robocli.commands._zenoh import (
     zenoh_option,
     zenoh_session,
 )
+from robocli.errors import InvalidArgument
 
 if TYPE_CHECKING:
-    from robocli.hub_server import HubServer, tune_hub_process
+    from robocli.hub_server import HubServer
+    from robocli.hub_server.service import HubService
 
-    tune_hub_process()
 STATUS_PERIOD_S = 0.5
+#: What ``serve --zenoh`` publishes from the start (robocli.hub_server.service.ZENOH_PUBLISH).
 ZENOH_PUBLISH = "adc,imu,gps,battery,sysinfo"
-"""What ``serve --zenoh`` publishes from the start, at each sensor's default settings."""
 
 
 def token_from_file(path: Path | None) -> bytes | None:
@@ -118,154 +119,47 @@ def serve(
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C. With --zenoh,
     also publish its sensors on robocli/NAME/SENSOR (--no-tcp: on Zenoh only)."""
-    from robocli.hub_server import HubServer, tune_hub_process
+    from robocli.hub_server import tune_hub_process
+    from robocli.hub_server.service import HubService
 
     if not tcp and zenoh is None:
         raise typer.BadParameter("--no-tcp serves nothing without --zenoh")
     ros2_check(ros2, zenoh)
-    sources = replay_sources(replay, speed, loop)
+    rate = check_replay(replay, speed, loop)
     tune_hub_process()
     token = token_from_file(token_file)
-    sources = sources or {}
-    if laser:
-        from robocli.hub_server.sources.hokuyo import HokuyoSource
+    service = HubService(bind_address(bind), port, sim=sim, laser=laser, replay=replay, speed=rate,
+                         loop=loop, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
+                         token=token, max_clients=max_clients)  # fmt: skip
+    with sigterm_as_interrupt(), service:  # Ctrl-C, SIGTERM: every connection closes, exit 130
+        if tcp:
+            with listening(bind):
+                service.start_tcp()
+        if zenoh is not None:
+            from robocli.zenoh.keys import default_name
 
-        sources["laser"] = HokuyoSource(laser)
-    srv = HubServer(
-        bind_address(bind), port, sim=sim, serial_ports=tuple(serial), gpsd=gpsd, pioneer=pioneer,
-        token=token, max_clients=max_clients, sources=sources,
-    )  # fmt: skip
-    frontend: Any = None
-    ros: Any = None
-    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: every connection closes, exit 130
-        try:
-            if tcp:
-                with listening(bind):
-                    srv.start()
-            if zenoh is not None:
-                frontend = _zenoh_frontend(srv, zenoh, name, publish, token)
-                if ros2:
-                    from robocli.hub_server.frontends.ros2 import HubTopics
-
-                    ros = HubTopics(srv.hub, frontend.session, frontend.name,
-                                    domain=ros2_domain, namespace=ros2_namespace)  # fmt: skip
-                    frontend.on_batch = ros.batch
-            for warning in srv.warnings:
-                typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
-            for note in _replaced(sim, pioneer, gpsd, laser):
-                typer.echo(note, err=True)
-            what = f"hub replaying {replay}: " if replay is not None else "hub "
-            where = [srv.url] if tcp else []
-            if frontend is not None:
-                where.append(f"zenoh robocli/{frontend.name}/* ({zenoh})")
-            if ros is not None:
-                where.append(f"ROS 2 domain {ros2_domain}")
-            served = [*srv.sensors, *(f"serial port {p}" for p in srv.serial_ports)]
-            typer.echo(f"{what}serving {', '.join(served)} on {' and '.join(where)}")
-            sys.stdout.flush()
-            with hub_live_view(foxglove, foxglove_host, srv, token):  # what clients make it run
-                if sys.stdout.isatty():
-                    _live(srv)
-                else:
-                    _log(srv)
-        finally:
-            if frontend is not None:
-                from robocli.zenoh.session import close_session
-
-                frontend.close()
-                if ros is not None:
-                    ros.close()
-                close_session(frontend.session)
-            srv.close()
+            hub_name = server_name(name, zenoh, default_name())
+            try:
+                sensors = service.published(publish)
+            except InvalidArgument as exc:
+                raise typer.BadParameter(str(exc), param_hint="'--publish'") from None
+            ros = {"domain": ros2_domain, "namespace": ros2_namespace} if ros2 else None
+            service.start_zenoh(zenoh_session(zenoh, "server"), hub_name, sensors, ros, zenoh)
+        for warning in service.server.warnings:
+            typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
+        for note in service.notes(pioneer, gpsd):
+            typer.echo(note, err=True)
+        typer.echo(service.served())
+        sys.stdout.flush()
+        with hub_live_view(foxglove, foxglove_host, service.server, token):  # what clients run
+            (_live if sys.stdout.isatty() else _log)(service)
 
 
-def replay_sources(replay: Path | None, speed: float | None, loop: bool) -> Any:
-    """``--replay``'s sources (None without it)."""
-    rate = check_replay(replay, speed, loop)
-    if replay is None:
-        return None
-    from robocli.hub_server.sources.replay import replay_sources as sources_of
-
-    return sources_of(replay, rate, loop)
-
-
-def _zenoh_frontend(
-    srv: HubServer, zenoh: str, name: str | None, publish: str, token: bytes | None
-) -> Any:
-    """The hub's Zenoh front-end, started (its session listening on ``zenoh``)."""
-    from robocli.hub_server.frontends.zenoh import ZenohFrontend
-    from robocli.zenoh.keys import default_name
-    from robocli.zenoh.session import close_session
-
-    hub_name = server_name(name, zenoh, default_name())
-    sensors = _published(publish, srv)
-    session = zenoh_session(zenoh, "server")
-    try:
-        return ZenohFrontend(srv.hub, session, hub_name, token=token, publish=sensors,
-                             serial=srv.serial).start()  # fmt: skip
-    except BaseException:
-        close_session(session)
-        raise
-
-
-def _published(text: str, srv: HubServer) -> dict[str, dict[str, Any] | None]:
-    """``--publish``: sensor -> its settings (None: defaults); sensors this hub does not
-    have are left out of the default list, refused when named."""
-    from robocli.devices.hub.over_zenoh import hub_name_of
-    from robocli.devices.hub.subscription import subscribe_request
-    from robocli.errors import InvalidArgument
-
-    out: dict[str, dict[str, Any] | None] = {}
-    for item in filter(None, (part.strip() for part in text.split(","))):
-        sensor, _, rate = item.partition("=")
-        try:
-            hub_sensor = hub_name_of(sensor.strip())
-            params = subscribe_request(sensor.strip(), float(rate))["params"] if rate else None
-        except (InvalidArgument, ValueError) as exc:
-            raise typer.BadParameter(f"{item!r}: {exc}", param_hint="'--publish'") from None
-        if hub_sensor in srv.hub.channels:
-            out[hub_sensor] = params
-        elif text != ZENOH_PUBLISH:
-            raise typer.BadParameter(f"this hub has no {hub_sensor}", param_hint="'--publish'")
-    return out
-
-
-def _replaced(
-    sim: bool, pioneer: str | None, gpsd: str | None, laser: str | None = None
-) -> list[str]:
-    """What replaces simulated sensors when real ones are given with ``--sim``."""
-    if not sim:
-        return []
-    notes = []
-    if pioneer:
-        notes.append(f"adc and battery: from the Pioneer at {pioneer.strip()} (--pioneer "
-                     "replaces the simulated ones)")  # fmt: skip
-    if gpsd:
-        notes.append(f"gps: from gpsd at {gpsd} (--gpsd replaces the simulated one)")
-    if laser:
-        notes.append(f"laser: from the Hokuyo at {laser.strip()} (--laser replaces the "
-                     "simulated one)")  # fmt: skip
-    return notes
-
-
-def status_lines(srv: HubServer) -> list[str]:
-    """One line per active sensor and per known client (what the log prints on change)."""
-    lines = []
-    for name, s in srv.sensors.items():
-        if s["active"]:
-            lines.append(f"sensor {name}: {s['rate']:g} Hz, {s['subscribers']} subscriber(s)")
-    for c in srv.clients:
-        state = "connected" if c.connected else "detached"
-        subs = ", ".join(f"{n}[{b}]" for n, b in c.subscriptions.items()) or "nothing"
-        lines.append(f"client {c.id} {c.peer} {state}: {subs}")
-    return lines
-
-
-def _log(srv: HubServer) -> None:
+def _log(service: HubService) -> None:
     """Plain lines: what changed, every :data:`STATUS_PERIOD_S`."""
     shown: set[str] = set()
     while True:
-        lines = status_lines(srv)
+        lines = service.status_lines()
         for line in lines:
             if line not in shown:
                 typer.echo(line)
@@ -293,10 +187,10 @@ def _table(srv: HubServer) -> Any:
     return table
 
 
-def _live(srv: HubServer) -> None:
+def _live(service: HubService) -> None:
     from rich.live import Live
 
-    with Live(_table(srv), refresh_per_second=4, transient=False) as live:
+    with Live(_table(service.server), refresh_per_second=4, transient=False) as live:
         while True:
             time.sleep(STATUS_PERIOD_S)
-            live.update(_table(srv))
+            live.update(_table(service.server))

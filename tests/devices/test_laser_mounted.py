@@ -10,8 +10,8 @@ import time
 import numpy as np
 import pytest
 
-from robocli.commands._mounted import on_robot
 from robocli.devices.laser import LaserInfo, MountedLaser, PlacedScan, Scan, scan_points
+from robocli.devices.laser.mounted import on_robot
 from robocli.devices.laser.scan import make_scan
 from robocli.devices.pioneer import Pioneer
 from robocli.robots.geometry import Mount

@@ -8,7 +8,7 @@ from collections.abc import Iterator
 import pytest
 
 from robocli import Hub
-from robocli.devices.hub.tools import DumpProxy, Message
+from robocli.analysis.ros4mat import DumpProxy, Message
 from robocli.hub_server import HubServer
 
 
@@ -33,7 +33,7 @@ def test_the_shared_proxy_checks_its_framer_and_says_why_it_could_not_relay() ->
     is made; a client it cannot relay is closed, and ``upstream_error`` says why."""
     import socket
 
-    from robocli.devices.proxy import RecordingProxy
+    from robocli.analysis.proxy import RecordingProxy
 
     with pytest.raises(ValueError, match="unknown protocol"):
         RecordingProxy(("127.0.0.1", 1), print, framer="nope")
@@ -51,7 +51,7 @@ def test_a_listen_address_in_use_or_unresolvable_is_a_typed_error(server: HubSer
     """Where the proxy listens is the user's: a name that does not resolve or is not this
     machine's is a usage error (InvalidArgument), a port in use a TransportError; no
     OSError escapes (``dump hub`` and ``dump arm --listen`` both listen through it)."""
-    from robocli.devices.proxy import RecordingProxy
+    from robocli.analysis.proxy import RecordingProxy
     from robocli.errors import InvalidArgument, TransportError
 
     upstream = ("127.0.0.1", server.port)
@@ -71,7 +71,7 @@ def test_closing_lets_a_reply_in_flight_reach_the_client(server: HubServer) -> N
     import socket
     import threading
 
-    from robocli.devices.proxy import RecordingProxy
+    from robocli.analysis.proxy import RecordingProxy
     from robocli.protocols import ros4mat as r4m
     from tests.hub.conftest import wait_for
 

@@ -12,9 +12,11 @@ does. :class:`MountedLaser` does that for every streamed scan.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -29,7 +31,7 @@ if TYPE_CHECKING:
     from robocli.devices.laser.scan import Scan
     from robocli.devices.pioneer import Pioneer
 
-__all__ = ["MountedLaser", "PlacedScan", "scan_points"]
+__all__ = ["MountedLaser", "PlacedScan", "on_robot", "scan_points"]
 
 FloatArray = npt.NDArray[np.float64]
 Pose = tuple[float, float, float]
@@ -138,3 +140,51 @@ class MountedLaser:
     def close(self) -> None:
         """Stop listening to the laser (idempotent; the laser stays open)."""
         self.laser.remove_listener(self._on_scan, kind="scans")
+
+
+@contextlib.contextmanager
+def on_robot(port: str, robot: Pioneer, model: str = "utm-30lx", world: Any = None,
+             **options: Any) -> Iterator[Laser]:  # fmt: skip
+    """A laser on ``port`` mounted on ``robot``. For ``sim``: a simulated one in ``world``
+    (default: the simulators' default room), placed after every SIP at the robot's odometric
+    pose (from the world's start) composed with the robot model's mount, so that it sees the
+    room the Pioneer simulator's robot is in (``PORT sim``, or ``robocli sim pioneer``
+    without ``--map``)."""
+    from robocli.devices.laser import Laser
+
+    if port != "sim":
+        with Laser.connect(port, **options) as laser:
+            yield laser
+        return
+    from robocli.sim.hokuyo import HokuyoSim
+
+    with HokuyoSim(model, world=world) as sim, _following(sim, robot):
+        with Laser.connect(sim.serve_tcp("127.0.0.1", 0), **options) as laser:
+            yield laser
+
+
+@contextlib.contextmanager
+def _following(sim: Any, robot: Pioneer) -> Iterator[None]:
+    """Move ``sim`` (a HokuyoSim) with ``robot``'s odometry until the block ends."""
+    mount, start, stop = robot.params.laser_mount, sim.world.start, threading.Event()
+
+    def place() -> None:
+        sim.set_pose(mount.place(Mount(*robot.pose).place(start)))
+
+    def follow() -> None:
+        while not stop.is_set():
+            try:
+                robot.wait_for_sip(0.5)
+                place()
+            except RobocliError:
+                if not robot.alive:
+                    return
+
+    place()
+    thread = threading.Thread(target=follow, name="hokuyo-sim-follow", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(2.0)

@@ -24,11 +24,12 @@ Two kinds of bad file, both :class:`BadRecording` (exit 2 at the CLI):
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import struct
 import zlib
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import IO, Any
 
@@ -88,6 +89,33 @@ def warn_truncated(path: str | Path) -> None:
     """Log (warning) that the file at ``path`` was read up to where it is cut, with
     :func:`truncated_hint`; the record carries ``path`` as :data:`TRUNCATED_ATTR`."""
     log.warning("%s", truncated_hint(path), extra={TRUNCATED_ATTR: str(path)})
+
+
+class _TruncationNotes(logging.Handler):
+    """Hands each file's :func:`warn_truncated` hint, once per file, to ``say``."""
+
+    def __init__(self, say: Callable[[str], None]) -> None:
+        super().__init__(logging.WARNING)
+        self.say, self.seen = say, set[str]()
+
+    def emit(self, record: logging.LogRecord) -> None:
+        path = getattr(record, TRUNCATED_ATTR, None)
+        if path is not None and path not in self.seen:
+            self.seen.add(path)
+            self.say(truncated_hint(path))
+
+
+@contextlib.contextmanager
+def truncation_notes(say: Callable[[str], None]) -> Iterator[None]:
+    """While the block runs, a reader that meets a recording cut short tells ``say`` (once
+    per file, :func:`truncated_hint`'s sentence) and goes on with what the file holds."""
+    handler = _TruncationNotes(say)
+    logger = logging.getLogger("robocli.io.record")
+    logger.addHandler(handler)
+    try:
+        yield
+    finally:
+        logger.removeHandler(handler)
 
 
 class _Malformed(Exception):
