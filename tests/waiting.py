@@ -1,4 +1,4 @@
-"""Waiting for an event in a test (``from waiting import wait_for``): poll a condition until
+"""Waiting for an event in a test (``from tests.waiting import wait_for``): poll a condition until
 it holds, with a deadline that only bounds a failure, never a duration that is asserted."""
 
 from __future__ import annotations

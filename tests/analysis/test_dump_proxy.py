@@ -73,7 +73,7 @@ def test_closing_lets_a_reply_in_flight_reach_the_client(server: HubServer) -> N
 
     from robocli.devices.proxy import RecordingProxy
     from robocli.protocols import ros4mat as r4m
-    from tests.hub.conftest import wait_for
+    from tests.hub_server.conftest import wait_for
 
     held, release = threading.Event(), threading.Event()
     replies: list[bytes] = []

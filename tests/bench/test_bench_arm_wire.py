@@ -9,9 +9,9 @@ from collections.abc import Iterator
 
 import pytest
 
-from cli.helpers import one_line_error, run
 from robocli.errors import TransportError
 from robocli.sim.abb.server import AbbSim
+from tests.commands.helpers import one_line_error, run
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,9 @@ import signal
 import subprocess
 
 import pytest
-from cli.helpers import ROBOCLI
-from cli.test_screens import terminal
+
+from tests.commands.helpers import ROBOCLI
+from tests.commands.test_screens import terminal
 
 pytestmark = pytest.mark.skipif(os.name != "posix", reason="POSIX signals")
 

@@ -8,7 +8,7 @@ import re
 
 import pytest
 
-from cli.helpers import run
+from tests.commands.helpers import run
 
 
 def test_jitter_table_and_histogram_in_ms() -> None:

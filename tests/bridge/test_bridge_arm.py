@@ -10,7 +10,9 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import (
+from robocli.sim.abb.server import AbbSim
+from robocli.zenoh import open_session
+from tests.bridge.bridge_helpers import (
     Events,
     acquire,
     bridge_process,
@@ -18,8 +20,8 @@ from on_zenoh.bridge_helpers import (
     query,
     wait_for,
 )
-from robocli.sim.abb.server import AbbSim
-from robocli.zenoh import open_session
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 @pytest.fixture

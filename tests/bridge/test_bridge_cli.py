@@ -10,12 +10,14 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from cli.helpers import one_line_error, read_lines, run, running
-from cli.test_screens import terminal
 
-from on_zenoh.bridge_helpers import DEADLINE, bridge_process, wait_for
 from robocli.bridge import RemotePioneer
 from robocli.sim.pioneer.server import PioneerSim
+from tests.bridge.bridge_helpers import DEADLINE, bridge_process, wait_for
+from tests.commands.helpers import one_line_error, read_lines, run, running
+from tests.commands.test_screens import terminal
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 @pytest.fixture

@@ -11,11 +11,13 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import Events, bridge_process, wait_for
 from robocli.bridge import RemotePioneer
 from robocli.bridge.control import ControlGate
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import open_session
+from tests.bridge.bridge_helpers import Events, bridge_process, wait_for
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 @pytest.fixture

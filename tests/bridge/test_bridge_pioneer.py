@@ -16,7 +16,11 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import (
+from robocli.bridge import RemotePioneer
+from robocli.errors import ConnectionLost, DeviceError
+from robocli.sim.pioneer.server import PioneerSim
+from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
+from tests.bridge.bridge_helpers import (
     DEADLINE,
     Events,
     acquire,
@@ -25,10 +29,8 @@ from on_zenoh.bridge_helpers import (
     read_line,
     wait_for,
 )
-from robocli.bridge import RemotePioneer
-from robocli.errors import ConnectionLost, DeviceError
-from robocli.sim.pioneer.server import PioneerSim
-from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 #: The stop rule's 0.5 s. How soon after it the robot stops is measured, not asserted (a
 #: loaded machine delays it): the README gives the figures; the deadline bounds a failure.

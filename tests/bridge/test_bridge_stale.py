@@ -11,9 +11,7 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from stalling import WAIT, MotionProbe, StallingTransport
 
-from on_zenoh.bridge_helpers import Events, query, wait_for
 from robocli.bridge import RemotePioneer
 from robocli.bridge.control import ControlGate
 from robocli.bridge.pioneer import PioneerBridge
@@ -22,6 +20,10 @@ from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import open_transport
 from robocli.zenoh import open_session
+from tests.bridge.bridge_helpers import Events, query, wait_for
+from tests.stalling import WAIT, MotionProbe, StallingTransport
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 class StallingController(RemotePioneer):

@@ -11,7 +11,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import IO
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "arcos"
+from tests import paths
+
+DATA = paths.DATA / "arcos"
 ROBOCLI = [sys.executable, "-m", "robocli"]
 
 

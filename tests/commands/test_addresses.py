@@ -10,10 +10,10 @@ from collections.abc import Iterator
 
 import pytest
 
-from cli.helpers import one_line_error, run, running
 from robocli.hub import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
+from tests.commands.helpers import one_line_error, run, running
 
 
 def _ipv6_loopback() -> bool:

@@ -13,9 +13,9 @@ from typing import Any
 
 import pytest
 
-from cli.helpers import ROBOCLI, one_line_error, run
-from cli.test_grammar import COMMANDS
 from robocli.cli import main
+from tests.commands.helpers import ROBOCLI, one_line_error, run
+from tests.commands.test_grammar import COMMANDS
 
 
 def _one_line(capsys: pytest.CaptureFixture[str], args: list[str], code: int) -> str:

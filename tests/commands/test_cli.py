@@ -12,11 +12,12 @@ import threading
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, read_lines, run
 
 from robocli.devices.pioneer import Pioneer
+from tests import paths
+from tests.commands.helpers import one_line_error, read_lines, run
 
-DATA = Path(__file__).resolve().parent / "data" / "arcos"
+DATA = paths.DATA / "arcos"
 
 
 def test_help_and_version() -> None:

@@ -14,10 +14,10 @@ from collections.abc import Iterator
 
 import pytest
 
-from cli.helpers import one_line_error, run, running
 from robocli.commands._common import RESOLUTION
 from robocli.devices.pioneer import Pioneer
 from robocli.sim.pioneer.server import PioneerSim
+from tests.commands.helpers import one_line_error, run, running
 
 
 @pytest.fixture

@@ -13,9 +13,10 @@ from pathlib import Path
 
 import pytest
 
-from cli.helpers import one_line_error, read_lines, run, running
+from tests.commands.helpers import one_line_error, read_lines, run, running
+from tests.paths import DATA
 
-DRIVER = Path(__file__).resolve().parents[1] / "data" / "create" / "pycreate2_drive.py"
+DRIVER = DATA / "create" / "pycreate2_drive.py"
 
 
 def test_sim_create_on_a_pty_drives_pycreate2_unchanged() -> None:

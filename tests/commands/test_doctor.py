@@ -13,7 +13,6 @@ from typing import Any
 
 import pytest
 
-from cli.helpers import run
 from robocli import __version__
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 from robocli.devices.pioneer import Pioneer
@@ -21,6 +20,7 @@ from robocli.errors import RobocliError
 from robocli.hub import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
+from tests.commands.helpers import run
 
 PROBES = ("pioneer", "arm_motion", "arm_state", "hub")
 

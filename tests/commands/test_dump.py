@@ -16,9 +16,10 @@ from typing import BinaryIO
 
 import pytest
 
-from cli.helpers import DATA, bytes_read, one_line_error, peak_rss_kib, run, running
 from robocli.io import capture
 from robocli.io.capture import CaptureStats, read_capture
+from tests.commands.helpers import DATA, bytes_read, one_line_error, peak_rss_kib, run, running
+from tests.paths import EXAMPLES
 
 STAMP = re.compile(r"^\s*(\d+\.\d+) (->|<-)\s+(\S+)")
 
@@ -287,7 +288,7 @@ def test_a_terminal_that_cannot_show_an_ellipsis_gets_three_dots() -> None:
     import os
 
     env = {**os.environ, "PYTHONIOENCODING": "ascii"}
-    capture = Path(__file__).parents[2] / "examples" / "pioneer_drive.jsonl"
+    capture = EXAMPLES / "pioneer_drive.jsonl"
     proc = run("dump", "pioneer", "--file", str(capture), "-n", "40", env=env)
     assert proc.returncode == 0, proc.stderr
     cut = [line for line in proc.stdout.splitlines() if line.endswith("...")]

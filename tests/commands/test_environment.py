@@ -8,18 +8,17 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
-from cli.helpers import one_line_error, run
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
 from robocli.hub import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
+from tests.commands.helpers import one_line_error, run
+from tests.paths import DATA, EXAMPLES
 
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
-ARM_DATA = Path(__file__).resolve().parents[1] / "data" / "simple_message"
+ARM_DATA = DATA / "simple_message"
 
 
 def env(**values: str) -> dict[str, str]:
@@ -39,7 +38,7 @@ def hub_address() -> Iterator[str]:
 
 
 def test_the_suite_and_the_cli_read_the_same_names() -> None:
-    from hardware import VARIABLES
+    from tests.hardware import VARIABLES
 
     assert VARIABLES == {"pioneer": PIONEER_ENV, "arm": ARM_ENV, "hub": HUB_ENV}
     assert (PIONEER_ENV, ARM_ENV, HUB_ENV) == ("ROBOCLI_PIONEER", "ROBOCLI_ARM", "ROBOCLI_HUB")

@@ -24,8 +24,8 @@ from typing import Any
 
 import pytest
 
-from cli.helpers import ROBOCLI
 from robocli.cli import main
+from tests.commands.helpers import ROBOCLI
 
 ROOT = Path(__file__).resolve().parents[2]
 TIMEOUT = 60.0

@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 import typer.main
 
-from cli.helpers import one_line_error, run
 from robocli.cli import app, main
+from tests.commands.helpers import one_line_error, run
 
 
 def _commands(

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from cli.helpers import run
 from robocli.hub import HubServer
+from tests.commands.helpers import run
 
 
 def _lines(*args: str) -> list[dict[str, object]]:

@@ -17,8 +17,8 @@ from typing import Any
 
 import pytest
 
-from cli.helpers import run
 from robocli.hub import HubServer
+from tests.commands.helpers import run
 
 #: How far a ``t`` may lie from now (s): the command ran within the last minutes.
 SLACK = 300.0

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from cli.helpers import one_line_error, read_lines, run, running
 from robocli import Laser
 from robocli.sim.hokuyo import HokuyoSim
+from tests.commands.helpers import one_line_error, read_lines, run, running
 
 
 @pytest.fixture

@@ -10,7 +10,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from cli.helpers import ROBOCLI, run
+from tests.commands.helpers import ROBOCLI, run
 
 
 def test_record_shows_progress_on_a_terminal(tmp_path: Path) -> None:

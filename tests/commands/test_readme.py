@@ -7,7 +7,7 @@ import re
 import shlex
 from pathlib import Path
 
-from cli.helpers import run
+from tests.commands.helpers import run
 
 ROOT = Path(__file__).resolve().parents[2]
 README = (ROOT / "README.md").read_text(encoding="utf-8")

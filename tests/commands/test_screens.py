@@ -18,7 +18,7 @@ from contextlib import contextmanager
 
 import pytest
 
-from cli.helpers import ROBOCLI, env_without_rich_width
+from tests.commands.helpers import ROBOCLI, env_without_rich_width
 
 ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
 

@@ -8,10 +8,10 @@ import signal
 from pathlib import Path
 
 import pytest
-from hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
-from cli.helpers import one_line_error, read_lines, run, running
 from robocli.hub import HubServer
+from tests.commands.helpers import one_line_error, read_lines, run, running
+from tests.devices.hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 

@@ -10,8 +10,7 @@ import pytest
 
 from robocli import Pioneer
 from robocli.errors import TimeoutError
-
-from .helpers import one_line_error, run, running
+from tests.commands.helpers import one_line_error, run, running
 
 
 def _served_url(proc) -> str:  # type: ignore[no-untyped-def]

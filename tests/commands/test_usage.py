@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from cli.helpers import one_line_error, run
+from tests.commands.helpers import one_line_error, run
+from tests.paths import EXAMPLES
 
 
 @pytest.mark.parametrize(
@@ -53,7 +54,7 @@ def test_both_port_and_file(tmp_path: Path) -> None:
 
 def test_output_over_the_file_being_read_is_refused(tmp_path: Path) -> None:
     capture = tmp_path / "c.jsonl"
-    text = (Path(__file__).parents[2] / "examples" / "pioneer_drive.jsonl").read_text()
+    text = (EXAMPLES / "pioneer_drive.jsonl").read_text()
     capture.write_text(text)
     line = one_line_error(
         run("dump", "pioneer", "--file", str(capture), "--output", str(capture)), 2

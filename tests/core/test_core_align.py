@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.core import align_linear, align_nearest
+from tests import reference
 
 TS = np.array([0.0, 1.0, 2.0, 2.0, 3.0, 5.0])
 REF = np.array([-1.0, -0.2, 0.5, 1.4, 1.6, 2.0, 2.5, 4.0, 5.0, 5.2, 7.0])

@@ -9,16 +9,16 @@ import struct
 import subprocess
 
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.core import PROTOCOLS, Framer, FramerStats, arcos_checksum
+from tests import paths, reference
 
 GOLDEN = reference.golden_frames()
 #: The ARCOS vectors of specs/arcos.json (the manual's worked examples and recorded frames).
 ARCOS = {name: frame for kind, name, frame in GOLDEN if kind == "arcos"}
-ROOT = pathlib.Path(__file__).resolve().parent.parent
+ROOT = paths.ROOT
 
 
 def _stats(ref: reference.RefFramer) -> FramerStats:

@@ -6,11 +6,11 @@ import threading
 
 import numpy as np
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.core import Ring
+from tests import reference
 
 
 def _rec(i: int, size: int) -> bytes:

@@ -83,12 +83,6 @@ def wait_for(pred: Callable[[], Any], timeout: float = TIMEOUT, what: str = "con
 
 
 @pytest.fixture
-def hub() -> Iterator[HubServer]:
-    with HubServer(port=0, sim=True) as srv:
-        yield srv
-
-
-@pytest.fixture
 def client_factory(hub: HubServer) -> Iterator[Callable[[], RawClient]]:
     made: list[RawClient] = []
 

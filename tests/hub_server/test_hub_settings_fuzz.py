@@ -13,11 +13,13 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from on_zenoh.conftest import free_endpoint
-from on_zenoh.test_hub_zenoh import Lab, wait_for
 from robocli.zenoh import open_session
 from robocli.zenoh.keys import settings_key
 from robocli.zenoh.session import close_session
+from tests.hub_server.test_hub_zenoh import Lab, wait_for
+from tests.peers import free_endpoint
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 SENSORS = ("adc", "imu", "battery", "gps", "camera", "sysinfo", "laser", "depth", "stereo")
 QUIET = {"freq_acquisition": 20, "fps": 10, "fps_rgb": 10, "width": 32, "height": 24,

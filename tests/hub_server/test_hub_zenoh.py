@@ -26,6 +26,8 @@ from robocli.zenoh import open_session
 from robocli.zenoh.batch import BATCH_HEADER, decode_batch, encode_head
 from robocli.zenoh.session import close_session
 
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
+
 DEADLINE_S = 30.0
 
 

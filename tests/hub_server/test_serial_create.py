@@ -16,15 +16,16 @@ import termios
 from pathlib import Path
 
 import pytest
-from cli.helpers import read_lines, running
 
 from robocli.hub import HubServer
 from robocli.sim.create import CreateSim
+from tests.commands.helpers import read_lines, running
+from tests.paths import DATA
 
 pytest.importorskip("pycreate2")
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 
-DRIVER = Path(__file__).resolve().parents[1] / "data" / "create" / "pycreate2_drive.py"
+DRIVER = DATA / "create" / "pycreate2_drive.py"
 SAFE, OFF = 2, 0
 WAIT = 10.0
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import socket
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -11,8 +10,9 @@ import pytest
 
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
+from tests import paths
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
+DATA = paths.DATA / "ros4mat"
 
 
 def _session() -> dict[str, bytes]:

@@ -7,10 +7,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from peers import closed_by_peer
-
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
+from tests.peers import closed_by_peer
 
 TOKEN = b"lab-token"
 

@@ -22,8 +22,9 @@ from robocli.hub.sources import AdcSource, BatterySource, GpsSource, ImuSource, 
 from robocli.hub.sources.imaging import DepthSource, robot_pose
 from robocli.protocols import ros4mat as r4m
 from robocli.sim.world import World
+from tests import paths
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "ros4mat"
+DATA = paths.DATA / "ros4mat"
 
 
 def _pull_until(c: Any, sensor: str, n: int, wait: Any) -> r4m.Message:

@@ -70,7 +70,7 @@ def test_laser_away_is_an_error_reply(raw: Any) -> None:
 
 
 def test_serve_sim_with_a_laser_url(laser_sim: HokuyoSim) -> None:
-    from cli.helpers import read_lines, running
+    from tests.commands.helpers import read_lines, running
 
     with running("serve", "--sim", "--port", "0", "--laser", str(laser_sim.url)) as proc:
         assert proc.stdout is not None and proc.stderr is not None

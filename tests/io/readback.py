@@ -16,6 +16,8 @@ from typing import Any
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 
+from tests.paths import DATA
+
 WAIT = 30.0  #: bounds a failure only: every wait polls for an event
 
 
@@ -69,7 +71,7 @@ def stream_messages(path: Path) -> tuple[list[Any], bool]:
 #: 2.1.0, vendored: tests/data/foxglove_schemas/README.md), by schema name.
 FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
     p.stem: json.loads(p.read_text())
-    for p in (Path(__file__).parents[1] / "data" / "foxglove_schemas").glob("foxglove.*.json")
+    for p in (DATA / "foxglove_schemas").glob("foxglove.*.json")
 }
 #: What the subset Foxglove and Lichtblick read has no use for: a field has one type.
 _UNIONS = ("anyOf", "oneOf", "allOf", "not", "$ref", "if", "patternProperties")

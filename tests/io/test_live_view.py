@@ -16,14 +16,13 @@ import pytest
 
 pytest.importorskip("websockets")
 
-from cli.helpers import one_line_error, run, running
-
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
 from robocli.io.record import Recorder, pull_hub
 from robocli.io.record.live import LiveView
+from tests.commands.helpers import one_line_error, run, running
 from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
 from tests.io.readback import by_topic, decoded, wait_for
 

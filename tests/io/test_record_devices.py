@@ -23,6 +23,7 @@ from robocli.kinematics import load_model
 from robocli.kinematics.fk import fk
 from robocli.protocols import arcos
 from tests.io.readback import by_topic, decoded, messages, wait_for
+from tests.paths import DATA
 
 FOXGLOVE_PIONEER = {
     "/pioneer/pose": "foxglove.PoseInFrame",
@@ -123,7 +124,7 @@ def test_pioneer_raw_channels_are_the_live_dumps_packets(pioneer_url: str,
 
 #: Made by robocli before raw channels had a schema (message encoding ``robocli.raw``, the
 #: frame's bytes as the message): a Pioneer simulator's session, five SIPs.
-OLD_RAW = Path(__file__).parents[1] / "data" / "recordings" / "pioneer-robocli-raw.mcap"
+OLD_RAW = DATA / "recordings" / "pioneer-robocli-raw.mcap"
 
 
 def test_raw_channels_of_older_recordings_still_read() -> None:

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-import reference
 
 from robocli.errors import FramingError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
+from tests import reference
 
 ROOT = Path(__file__).resolve().parents[2]
 SPEC = reference.load_spec("ros4mat")

@@ -9,12 +9,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.errors import FramingError, ProtocolError
 from robocli.protocols import simple_message as sm
+from tests import reference
 
 ROOT = Path(__file__).resolve().parents[2]
 SPEC = reference.load_spec("simple_message")
@@ -484,7 +484,7 @@ def test_framer_exchange_stream(variant: str) -> None:
 
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_framer_recovers_after_garbage(variant: str) -> None:
-    import reference  # type: ignore[import-not-found]  # the framer model in tests/
+    from tests import reference  # type: ignore[import-not-found]  # the framer model in tests/
 
     Framer = _core_framer()
     framer_name = VARIANTS[variant][2]

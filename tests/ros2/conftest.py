@@ -11,15 +11,14 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cli.helpers import run
-
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.hub import HubServer
 from robocli.io.record import Recorder
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
-from tests.arm.conftest import port_of
+from tests.commands.helpers import run
+from tests.devices.arm.conftest import port_of
 from tests.io.readback import wait_for
 
 HUB_SENSORS = {"imu": {"rate": 100}, "adc": {"rate": 200, "channels": 0xFF},

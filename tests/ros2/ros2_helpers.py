@@ -15,8 +15,8 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import robocli_process
-from on_zenoh.conftest import free_endpoint
+from tests.bridge.bridge_helpers import robocli_process
+from tests.peers import free_endpoint
 
 __all__ = ["client_config", "node_names", "robocli_process", "router", "sdk", "topics"]
 

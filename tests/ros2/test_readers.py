@@ -14,13 +14,12 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cli.helpers import one_line_error, run, running
-
 from robocli.devices.pioneer import Pioneer
 from robocli.io.capture import read_capture
 from robocli.io.export import arm_log, export
 from robocli.io.record import info, recover
 from robocli.sim.pioneer.replay import PioneerReplay
+from tests.commands.helpers import one_line_error, run, running
 from tests.io.readback import wait_for
 from tests.ros2.conftest import pioneer_recording
 

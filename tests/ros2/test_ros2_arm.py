@@ -11,9 +11,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from on_zenoh.bridge_helpers import Events, query, wait_for
-from on_zenoh.ros2_helpers import client_config, robocli_process, router, sdk, topics
 from robocli.sim.abb.server import AbbSim
+from tests.bridge.bridge_helpers import Events, query, wait_for
+from tests.ros2.ros2_helpers import client_config, robocli_process, router, sdk, topics
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 ARM_TYPES = {
     "/joint_states": "sensor_msgs/msg/JointState",

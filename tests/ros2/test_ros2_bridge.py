@@ -12,9 +12,11 @@ from typing import Any
 
 import pytest
 
-from on_zenoh.bridge_helpers import Events, holder_token, query, wait_for
-from on_zenoh.ros2_helpers import client_config, node_names, robocli_process, router, sdk, topics
 from robocli.sim.pioneer.server import PioneerSim
+from tests.bridge.bridge_helpers import Events, holder_token, query, wait_for
+from tests.ros2.ros2_helpers import client_config, node_names, robocli_process, router, sdk, topics
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 PIONEER_TYPES = {
     "/odom": "nav_msgs/msg/Odometry",

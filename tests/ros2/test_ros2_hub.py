@@ -8,8 +8,10 @@ from __future__ import annotations
 import math
 import time
 
-from on_zenoh.bridge_helpers import wait_for
-from on_zenoh.ros2_helpers import (
+import pytest
+
+from tests.bridge.bridge_helpers import wait_for
+from tests.ros2.ros2_helpers import (
     client_config,
     node_names,
     robocli_process,
@@ -17,6 +19,8 @@ from on_zenoh.ros2_helpers import (
     sdk,
     topics,
 )
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 HUB_TYPES = {
     "/adc": "std_msgs/msg/Float64MultiArray",
@@ -100,7 +104,7 @@ def test_a_sensor_nobody_reads_on_ros2_is_not_decoded_until_someone_does(endpoin
 
 
 def test_ros2_without_zenoh_is_a_one_line_usage_error() -> None:
-    from on_zenoh.test_cli_zenoh import robocli
+    from tests.zenoh.test_cli_zenoh import robocli
 
     done = robocli("serve", "--sim", "--no-tcp", "--ros2")
     assert done.returncode == 2  # --no-tcp without --zenoh: the first usage error

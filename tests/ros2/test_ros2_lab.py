@@ -8,14 +8,17 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
+import pytest
 
-from on_zenoh.bridge_helpers import wait_for
-from on_zenoh.ros2_helpers import robocli_process
-from on_zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the fixture
 from robocli.ros2 import types as T
 from robocli.ros2.node import Ros2Node
 from robocli.ros2.rmw import Attachment, topic_key
 from robocli.sim.pioneer.server import PioneerSim
+from tests.bridge.bridge_helpers import wait_for
+from tests.ros2.ros2_helpers import robocli_process
+from tests.zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the fixture
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
 

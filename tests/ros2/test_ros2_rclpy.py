@@ -6,7 +6,7 @@ its own that has it, as ``ROBOCLI_RCLPY_PYTHON``::
     python3.11 -m venv /tmp/rclpy-venv
     /tmp/rclpy-venv/bin/pip install ros-rclpy ros-rmw-fastrtps-cpp ros-nav-msgs \\
         ros-geometry-msgs ros-std-msgs ros-sensor-msgs ros-diagnostic-msgs
-    ROBOCLI_RCLPY_PYTHON=/tmp/rclpy-venv/bin/python pytest tests/on_zenoh/test_ros2_rclpy.py
+    ROBOCLI_RCLPY_PYTHON=/tmp/rclpy-venv/bin/python pytest tests/ros2/test_ros2_rclpy.py
 
 Skipped at once, with its reason, where the variable is not set or rclpy does not import
 there (without an rmw implementation wheel it does not: librmw_fastrtps_cpp.so). tf2_msgs
@@ -21,11 +21,13 @@ import subprocess
 
 import pytest
 
-from on_zenoh.bridge_helpers import wait_for
-from on_zenoh.ros2_helpers import client_config, robocli_process, router
 from robocli.ros2 import types as T
 from robocli.ros2.rmw import Attachment, parse_token
 from robocli.sim.pioneer.server import PioneerSim
+from tests.bridge.bridge_helpers import wait_for
+from tests.ros2.ros2_helpers import client_config, robocli_process, router
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 _DECODE = """
 import importlib, json, sys

@@ -6,10 +6,14 @@ from __future__ import annotations
 
 import threading
 
-from on_zenoh.bridge_helpers import wait_for
+import pytest
+
 from robocli.ros2.live import Ros2Topics
 from robocli.ros2.node import Ros2Node
 from robocli.zenoh.session import close_session, open_session
+from tests.bridge.bridge_helpers import wait_for
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 def test_the_sink_drops_what_goes_past_its_bytes_and_counts_it(endpoint) -> None:

@@ -13,10 +13,10 @@ import select
 import time
 
 import pytest
-from waiting import wait_for
 
 from robocli.protocols import arcos
 from robocli.sim.serving import Server
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs a pty")
 WAIT = 10.0

@@ -13,7 +13,6 @@ import os
 import socket
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,15 +24,15 @@ from robocli.protocols.arcos import Command, PacketType
 from robocli.protocols.common import find_refusal
 from robocli.sim.pioneer.server import PioneerSim, SimState, serve_many, sonar_batch
 from robocli.sim.world import MapError, World
+from tests.paths import DATA
 
 pytestmark = pytest.mark.timeout(30)
 
 if TYPE_CHECKING:
-    from conftest import RawClient
+    from tests.sim.conftest import RawClient
 
 MakeSim = Callable[..., PioneerSim]
 Connect = Callable[[PioneerSim], "RawClient"]
-DATA = Path(__file__).resolve().parent.parent / "data"
 SPEED = 10.0  # trace replay speed-up (and the simulator's time_scale)
 #: observation 1 of tests/data/arcos/README.md
 HANDSHAKE = {

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from on_zenoh.conftest import free_endpoint
+from tests.peers import free_endpoint
 
 DEADLINE_S = 30.0
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}

@@ -19,9 +19,6 @@ from typing import Any
 import numpy as np
 import pytest
 
-from on_zenoh.bridge_helpers import DEADLINE, Events, bridge_process, read_line, wait_for
-from on_zenoh.conftest import free_endpoint
-from on_zenoh.test_cli_zenoh import robocli, running
 from robocli.bridge import RemotePioneer
 from robocli.devices.hub.over_zenoh import ZenohHub
 from robocli.errors import DeviceError, TimeoutError
@@ -29,8 +26,10 @@ from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import open_session
 from robocli.zenoh.acl import lab_access_control
 from robocli.zenoh.batch import encode_head
-
-EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+from tests.bridge.bridge_helpers import DEADLINE, Events, bridge_process, read_line, wait_for
+from tests.paths import EXAMPLES
+from tests.peers import free_endpoint
+from tests.zenoh.test_cli_zenoh import robocli, running
 
 
 @dataclass

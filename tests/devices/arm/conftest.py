@@ -9,15 +9,15 @@ import struct
 import threading
 import time
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from robocli.devices.arm import Arm
 from robocli.sim.abb.server import AbbSim
+from tests import paths
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "simple_message"
+DATA = paths.DATA / "simple_message"
 VARIANTS = {"le": ("<", 4), "bswap": (">", 4), "float64": ("<", 8)}
 
 

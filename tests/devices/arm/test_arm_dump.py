@@ -16,8 +16,9 @@ import pytest
 
 from robocli.io.capture import read_capture
 from robocli.protocols import simple_message as sm
+from tests import paths
 
-DATA = Path(__file__).resolve().parent.parent / "data" / "simple_message"
+DATA = paths.DATA / "simple_message"
 CLI = [sys.executable, "-m", "robocli", "dump", "arm"]
 
 

@@ -10,14 +10,14 @@ import struct
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, run
 from mcap.reader import make_reader
 
 from robocli.io.record import info
 from robocli.io.record.reader import raw_frame
 from robocli.protocols import simple_message as sm
 from robocli.sim.abb.server import AbbSim
-from tests.arm.conftest import port_of
+from tests.commands.helpers import one_line_error, run
+from tests.devices.arm.conftest import port_of
 from tests.io.readback import decoded
 
 

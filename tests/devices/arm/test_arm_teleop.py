@@ -11,12 +11,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from cli.helpers import ROBOCLI
-from cli.test_screens import terminal
 
 from robocli.devices.arm.teleop import ArmTeleop, Jog, JogKeys, jog_target, run_arm_teleop
 from robocli.errors import ConnectionLost, TimeoutError
 from robocli.kinematics import LimitError, fk, load_model
+from tests.commands.helpers import ROBOCLI
+from tests.commands.test_screens import terminal
 
 IRB120 = load_model("irb120")
 

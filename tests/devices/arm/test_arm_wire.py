@@ -15,7 +15,7 @@ from robocli.errors import DeviceError, TransportError
 from robocli.kinematics import load_model
 from robocli.kinematics.trajectory import circle
 from robocli.protocols import simple_message as sm
-from tests.arm.conftest import VARIANTS, RawSM, exchange, vectors
+from tests.devices.arm.conftest import VARIANTS, RawSM, exchange, vectors
 
 IRB = load_model("irb120")
 

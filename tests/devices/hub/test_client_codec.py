@@ -7,12 +7,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-import reference
 
 from robocli.devices.hub.client import ClockSync, parse_hub, resolution, subscribe_body
 from robocli.devices.hub.decode import decode_jpeg, decode_reading
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
+from tests import reference
 
 SPEC = {v["name"]: bytes.fromhex(v["hex"]) for v in reference.load_spec("ros4mat")["vectors"]}
 

@@ -16,7 +16,7 @@ from robocli.devices.hub.client import subscribe_body
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.protocols.ros4mat import MsgType, encode_request
-from tests.hub.conftest import wait_for as until
+from tests.hub_server.conftest import wait_for as until
 
 # sensor -> (subscribe arguments, the hub's name, expected data shape without N)
 SENSORS: dict[str, tuple[dict[str, Any], str, tuple[int, ...]]] = {

@@ -11,15 +11,17 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
 
-from on_zenoh.bridge_helpers import wait_for
-from on_zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the lab fixture
 from robocli.devices.hub.zenoh_serial import ZenohSerialLine
 from robocli.errors import DeviceError
 from robocli.hub import HubServer
 from robocli.hub.frontends.zenoh import ZenohFrontend
 from robocli.zenoh.keys import serial_key
+from tests.bridge.bridge_helpers import wait_for
+from tests.devices.hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
+from tests.zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the lab fixture
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 TOKEN = b"lab-token"
 

@@ -12,14 +12,14 @@ from collections.abc import Callable, Iterator
 from typing import Any
 
 import pytest
-from serial_device import TIMEOUT, Device, device_fixture, duplex  # noqa: F401
-from waiting import wait_for
 
 from robocli.devices.hub.relay import PtyRelay
 from robocli.devices.hub.serial import VirtualSerial
 from robocli.errors import ConnectionLost, DeviceError
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
+from tests.devices.hub.serial_device import TIMEOUT, Device, device_fixture, duplex  # noqa: F401
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "openpty"), reason="needs pseudo-terminals")
 

@@ -7,7 +7,6 @@ import socket
 import sys
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,8 +25,9 @@ from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import FaultyTransport, SocketTransport
+from tests.paths import EXAMPLES
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "examples"))
+sys.path.insert(0, str(EXAMPLES))
 
 
 def settle(sim: PioneerSim, robot: Pioneer) -> None:
@@ -338,7 +338,7 @@ def test_bumping_a_wall_shows_in_the_state() -> None:
 
 def test_sips_stopping_mid_session_raise_timeout() -> None:
     """The link stays open but the robot stops talking: the caller gets TimeoutError."""
-    from test_pioneer_replay import DATA, ReplayServer
+    from tests.devices.pioneer.test_pioneer_replay import DATA, ReplayServer
 
     server = ReplayServer(DATA / "a_simpleConnect.jsonl")
     with Pioneer.connect(server.url, sip_timeout=0.5) as robot:

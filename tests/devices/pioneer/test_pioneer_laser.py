@@ -10,7 +10,6 @@ import threading
 import time
 import tracemalloc
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -30,8 +29,9 @@ from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
+from tests import paths
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
+DATA = paths.DATA / "arcos"
 WALL_X = 2.0  #: m: a wall across the robot's path, from y = -5 to 5
 BOSTON = (42.3601, -71.0589, 10.0)
 

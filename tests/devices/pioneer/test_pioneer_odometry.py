@@ -3,8 +3,6 @@ and the built-in simulator."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
 
 from robocli.devices.pioneer import Pioneer
@@ -12,8 +10,9 @@ from robocli.devices.pioneer.state import Odometry, sip_essentials
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
+from tests import paths
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
+DATA = paths.DATA / "arcos"
 SETO = arcos.encode_command(arcos.Command.SETO)
 
 

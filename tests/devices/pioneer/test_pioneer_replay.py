@@ -16,8 +16,9 @@ from robocli.core import Framer
 from robocli.devices.pioneer import Pioneer
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
+from tests import paths
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
+DATA = paths.DATA / "arcos"
 
 
 class ReplayServer:

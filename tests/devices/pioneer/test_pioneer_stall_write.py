@@ -12,12 +12,12 @@ import time
 from collections.abc import Iterator
 
 import pytest
-from stalling import WAIT, MotionProbe, StallingTransport
 
 from robocli.devices.pioneer import Pioneer, WatchdogTrip, WatchdogTripped
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import open_transport
+from tests.stalling import WAIT, MotionProbe, StallingTransport
 
 
 @pytest.fixture
