@@ -73,7 +73,7 @@ def test_closing_lets_a_reply_in_flight_reach_the_client(server: HubServer) -> N
 
     from robocli.devices.proxy import RecordingProxy
     from robocli.protocols import ros4mat as r4m
-    from tests.hub_server.conftest import wait_for
+    from tests.waiting import wait_for
 
     held, release = threading.Event(), threading.Event()
     replies: list[bytes] = []
@@ -99,7 +99,7 @@ def test_closing_lets_a_reply_in_flight_reach_the_client(server: HubServer) -> N
 
         # the idle way sees the proxy closing and ends (its thread is gone), or, as before
         # the fix, cuts the whole session on its way out
-        wait_for(lambda: cut() or not pumps["c2s"].is_alive(), 30, "the client's way to end")
+        wait_for(lambda: cut() or not pumps["c2s"].is_alive(), "the client's way to end")
         release.set()
         got = b""
         while chunk := client.recv(65536):

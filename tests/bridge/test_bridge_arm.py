@@ -12,14 +12,8 @@ import pytest
 
 from robocli.sim.abb.server import AbbSim
 from robocli.zenoh import open_session
-from tests.bridge.bridge_helpers import (
-    Events,
-    acquire,
-    bridge_process,
-    holder_token,
-    query,
-    wait_for,
-)
+from tests.bridge.bridge_helpers import Events, acquire, bridge_process, holder_token, query
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

@@ -13,9 +13,10 @@ import pytest
 
 from robocli.bridge import RemotePioneer
 from robocli.sim.pioneer.server import PioneerSim
-from tests.bridge.bridge_helpers import DEADLINE, bridge_process, wait_for
+from tests.bridge.bridge_helpers import DEADLINE, bridge_process
 from tests.commands.helpers import one_line_error, read_lines, run, running
 from tests.commands.test_screens import terminal
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

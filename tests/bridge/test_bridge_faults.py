@@ -15,7 +15,8 @@ from robocli.bridge import RemotePioneer
 from robocli.bridge.control import ControlGate
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import open_session
-from tests.bridge.bridge_helpers import Events, bridge_process, wait_for
+from tests.bridge.bridge_helpers import Events, bridge_process
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

@@ -20,15 +20,8 @@ from robocli.bridge import RemotePioneer
 from robocli.errors import ConnectionLost, DeviceError
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
-from tests.bridge.bridge_helpers import (
-    DEADLINE,
-    Events,
-    acquire,
-    bridge_process,
-    query,
-    read_line,
-    wait_for,
-)
+from tests.bridge.bridge_helpers import DEADLINE, Events, acquire, bridge_process, query, read_line
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

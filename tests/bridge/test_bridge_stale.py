@@ -20,8 +20,9 @@ from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import open_transport
 from robocli.zenoh import open_session
-from tests.bridge.bridge_helpers import Events, query, wait_for
+from tests.bridge.bridge_helpers import Events, query
 from tests.stalling import WAIT, MotionProbe, StallingTransport
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

@@ -11,13 +11,13 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
 from robocli import Hub
 from robocli.hub import HubServer
+from tests.waiting import wait_for
 
 
 @pytest.fixture(scope="module")
@@ -162,8 +162,7 @@ def test_connect_hub_once_json(server: HubServer) -> None:
     assert info["rtt_ms"] is not None and info["rtt_ms"] < 1000
 
 
-def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
-                                              wait: Any) -> None:  # fmt: skip
+def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path) -> None:
     capture = tmp_path / "session.jsonl"
     proc = cli("dump", "hub", f"127.0.0.1:{server.port}", "--listen", "127.0.0.1:0", "--json",
                "--count", "6", "--output", str(capture))  # fmt: skip
@@ -175,7 +174,7 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
         ring = server.hub.channel("adc").ring
         assert ring is not None
         pushed = ring.pushed
-        wait(lambda: ring.pushed > pushed, 30, "a batch of ADC samples")  # one pull gets it
+        wait_for(lambda: ring.pushed > pushed, "a batch of ADC samples")  # one pull gets it
         assert len(h.read("adc"))  # the 6th message: the proxy stops after it
     code, out, err = finish(proc)
     assert code == 0, err
@@ -190,7 +189,7 @@ def test_dump_hub_names_and_decodes_a_session(server: HubServer, tmp_path: Path,
 
 @pytest.mark.parametrize("json_out", [False, True])
 def test_dump_hub_file_reads_back_what_the_live_dump_showed(
-    server: HubServer, tmp_path: Path, wait: Any, json_out: bool
+    server: HubServer, tmp_path: Path, json_out: bool
 ) -> None:
     """``dump hub -o`` wrote captures that nothing read back: ``dump hub --file`` shows the
     same messages, decoded the same, as the live dump did (JSON: the same Unix ``t``)."""
@@ -207,7 +206,7 @@ def test_dump_hub_file_reads_back_what_the_live_dump_showed(
         ring = server.hub.channel("adc").ring
         assert ring is not None
         pushed = ring.pushed
-        wait(lambda: ring.pushed > pushed, 30, "a batch of ADC samples")
+        wait_for(lambda: ring.pushed > pushed, "a batch of ADC samples")
         h.read("adc")
         h.read("imu")  # the 10th message: the proxy stops after it
     code, live, err = finish(proc)
@@ -324,9 +323,7 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
         start_new_session=True,
     )  # fmt: skip
     try:
-        end = time.monotonic() + 60
-        while len(_children(proc.pid)) < 2 and time.monotonic() < end:  # hub + a worker
-            time.sleep(0.1)
+        wait_for(lambda: len(_children(proc.pid)) >= 2, "the hub and a worker", timeout=60)
         kids = _children(proc.pid)
         assert len(kids) >= 2, kids
         time.sleep(1.0)  # the workers' clients are running
@@ -337,9 +334,8 @@ def test_ctrl_c_during_bench_throughput_exits_130_in_one_line() -> None:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait(10)
     assert code == 130 and err.strip() == "robocli: interrupted", err
-    end = time.monotonic() + 30  # the workers end with their parent: no worker left behind
-    while [k for k in kids if Path(f"/proc/{k}").exists()] and time.monotonic() < end:
-        time.sleep(0.05)
+    # the workers end with their parent: no worker left behind
+    wait_for(lambda: not [k for k in kids if Path(f"/proc/{k}").exists()], "the workers' end")
     assert not [k for k in kids if Path(f"/proc/{k}").exists()]
 
 

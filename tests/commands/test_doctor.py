@@ -21,6 +21,7 @@ from robocli.hub import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 from tests.commands.helpers import run
+from tests.waiting import wait_for
 
 PROBES = ("pioneer", "arm_motion", "arm_state", "hub")
 
@@ -35,14 +36,6 @@ def dead_port() -> int:
     """A loopback port nothing listens on (bound, then closed)."""
     with socket.create_server(("127.0.0.1", 0)) as s:
         return int(s.getsockname()[1])
-
-
-def wait_for(condition: Any, what: str, deadline_s: float = 15.0) -> None:
-    deadline = time.monotonic() + deadline_s
-    while not condition():
-        if time.monotonic() > deadline:
-            pytest.fail(f"not within {deadline_s:g} s: {what}")
-        time.sleep(0.02)
 
 
 @pytest.fixture

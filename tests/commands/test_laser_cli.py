@@ -17,6 +17,7 @@ import pytest
 from robocli import Laser
 from robocli.sim.hokuyo import HokuyoSim
 from tests.commands.helpers import one_line_error, read_lines, run, running
+from tests.waiting import wait_for
 
 
 @pytest.fixture
@@ -119,9 +120,7 @@ def test_ctrl_c_on_connect_stops_the_stream_with_qt() -> None:
             assert session.stream is not None
             proc.send_signal(signal.SIGINT)
             assert proc.wait(20) == 130
-        end = time.monotonic() + 20  # bounds a failure only
-        while session.stream is not None and time.monotonic() < end:
-            time.sleep(0.01)
+        wait_for(lambda: session.stream is None, "the stream stopped")
         assert session.stream is None and not session.laser  # QT went out before the exit
 
 

@@ -4,7 +4,6 @@ speaks only bytes built with :mod:`robocli.protocols.ros4mat`."""
 from __future__ import annotations
 
 import socket
-import time
 from collections.abc import Callable, Iterator
 from typing import Any
 
@@ -12,6 +11,7 @@ import pytest
 
 from robocli.hub import HubServer
 from robocli.protocols import ros4mat as r4m
+from tests.waiting import wait_for
 
 TIMEOUT = 10.0
 
@@ -68,18 +68,6 @@ class RawClient:
 
     def close(self) -> None:
         self.sock.close()
-
-
-def wait_for(pred: Callable[[], Any], timeout: float = TIMEOUT, what: str = "condition") -> Any:
-    """Poll ``pred`` until truthy (short sleeps), failing after ``timeout`` s."""
-    end = time.monotonic() + timeout
-    while True:
-        value = pred()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.01)
 
 
 @pytest.fixture

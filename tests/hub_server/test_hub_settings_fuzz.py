@@ -16,8 +16,9 @@ from hypothesis import strategies as st
 from robocli.zenoh import open_session
 from robocli.zenoh.keys import settings_key
 from robocli.zenoh.session import close_session
-from tests.hub_server.test_hub_zenoh import Lab, wait_for
+from tests.hub_server.test_hub_zenoh import Lab
 from tests.peers import free_endpoint
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
@@ -93,8 +94,10 @@ def lab_and_asker() -> Iterator[tuple[Lab, Asker]]:
 
 def _still_published(lab: Lab, sensor: str) -> None:
     before = lab.published(sensor)
-    wait_for(f"{sensor} published after a refused request",
-             lambda: lab.published(sensor) > before)  # fmt: skip
+    wait_for(
+        lambda: lab.published(sensor) > before,
+        f"{sensor} published after a refused request",
+    )  # fmt: skip
 
 
 @pytest.mark.parametrize(

@@ -7,7 +7,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
@@ -25,21 +25,11 @@ from robocli.protocols.ros4mat import MsgType
 from robocli.zenoh import open_session
 from robocli.zenoh.batch import BATCH_HEADER, decode_batch, encode_head
 from robocli.zenoh.session import close_session
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 DEADLINE_S = 30.0
-
-
-def wait_for(what: str, condition: Callable[[], Any], deadline: float = DEADLINE_S) -> Any:
-    """Poll ``condition`` until it is truthy (bounds a failure only)."""
-    end = time.monotonic() + deadline
-    while time.monotonic() < end:
-        value = condition()
-        if value:
-            return value
-        time.sleep(0.02)
-    raise AssertionError(f"not within {deadline} s: {what}")
 
 
 class Lab:
@@ -79,7 +69,7 @@ def read_some(hub: Hub, sensor: str, n: int = 3) -> Any:
         got.append(hub.read(sensor))
         return sum(len(r) for r in got) >= n
 
-    wait_for(f"{n} samples of {sensor}", enough)
+    wait_for(enough, f"{n} samples of {sensor}")
     return [r for r in got if len(r)]
 
 
@@ -121,7 +111,7 @@ def test_arrays_match_ros4mat(lab: Lab, sensor: str, rate: int, params: dict[str
 
 
 def test_late_joiner_gets_history(lab: Lab) -> None:
-    wait_for("a second of adc published", lambda: lab.published("adc") >= 1000)
+    wait_for(lambda: lab.published("adc") >= 1000, "a second of adc published")
     joined = lab.server.hub.clock()
     with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
         # join what is published, with the hub's recent history; a buffer of 10 s, so that a
@@ -141,7 +131,7 @@ def test_gap_is_detected_and_counted(lab: Lab) -> None:
         lab.front._ticker.close()  # the hub stops publishing: its own cursor overflows
         state = lab.front._state
         assert state is not None
-        wait_for("the hub's cursor overflow", lambda: lab.server.hub.dropped(state, "adc") > 0)
+        wait_for(lambda: lab.server.hub.dropped(state, "adc") > 0, "the hub's cursor overflow")
         dropped = lab.server.hub.dropped(state, "adc")
         lab.front._tick(0.0)  # publishing again: the next batch follows a gap
         got: list[Any] = []
@@ -150,7 +140,7 @@ def test_gap_is_detected_and_counted(lab: Lab) -> None:
             got.append(zh.read("adc"))
             return sum(r.lost for r in got) > 0
 
-        wait_for("the batch after the gap", gap_read)
+        wait_for(gap_read, "the batch after the gap")
         readings = [r for r in got if len(r)]
         lost = sum(r.lost for r in got)
         assert lost >= dropped > 0
@@ -188,7 +178,7 @@ def test_info_and_encoding_readable_without_robocli(lab: Lab) -> None:
         assert adc["published"] and adc["rate"] == 1000 and adc["key"] == "robocli/lab/adc"
         got: list[Any] = []
         sub = client.declare_subscriber("robocli/lab/adc", got.append)
-        wait_for("a batch", lambda: got)
+        wait_for(lambda: got, "a batch")
         sub.undeclare()
         sample = got[0]
         assert str(sample.encoding) == "application/octet-stream;robocli.batch.v1;sensor=adc"
@@ -260,7 +250,7 @@ def test_a_reader_drops_and_counts_batches_that_cannot_be_its_hubs(lab: Lab) -> 
                 got.append(zh.read("adc"))
                 return zh.rejected.get("adc", 0) >= 4
 
-            wait_for("4 batches rejected", rejected)
+            wait_for(rejected, "4 batches rejected")
         finally:
             close_session(forger)
         got += read_some(zh, "adc", 10)
@@ -309,13 +299,13 @@ def test_a_sensor_a_ros4mat_client_starts_is_published_while_it_runs(lab: Lab) -
     assert not published("laser")
     tcp = Hub.connect(lab.server.url)
     tcp.subscribe("laser", 10)
-    wait_for("laser published", lambda: published("laser"))
+    wait_for(lambda: published("laser"), "laser published")
     with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
         zh.subscribe("laser")  # silent: joins what the ros4mat client started
         assert read_some(zh, "laser", 1)[0].data.shape[0] == 1081
         tcp.close()  # QUIT: nobody else keeps the laser running
-        wait_for("laser no longer published", lambda: not published("laser"))
-        wait_for("the laser stopped", lambda: not lab.server.sensors["laser"]["active"])
+        wait_for(lambda: not published("laser"), "laser no longer published")
+        wait_for(lambda: not lab.server.sensors["laser"]["active"], "the laser stopped")
 
 
 def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
@@ -323,7 +313,7 @@ def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
     not duplicates of the old ones."""
     with ZenohHub.connect("lab", zenoh=lab.endpoint) as zh:
         zh.subscribe("adc")
-        wait_for("a second of adc read", lambda: sum(len(r) for r in read_some(zh, "adc", 1000)))
+        wait_for(lambda: sum(len(r) for r in read_some(zh, "adc", 1000)), "a second of adc read")
         lab.front.close()  # the hub goes; another starts under the same name
         lab.front = ZenohFrontend(lab.server.hub, lab.session, "lab",
                                   publish={"adc": {"freq_acquisition": 1000}}).start()  # fmt: skip
@@ -335,7 +325,7 @@ def test_a_restarted_hub_is_read_again(lab: Lab) -> None:
             new.extend(t[t > restarted])
             return len(new) >= 100
 
-        wait_for("100 samples of the new hub", read_new)
+        wait_for(read_new, "100 samples of the new hub")
         assert zh.duplicates.get("adc", 0) < 10  # at most the history overlapping what we read
 
 
@@ -349,7 +339,7 @@ def test_without_a_name_the_one_hub_up_is_taken(lab: Lab) -> None:
     finally:
         other.close()
     lab.front.close()
-    wait_for("no hub up", lambda: not alive_names(lab.endpoint))
+    wait_for(lambda: not alive_names(lab.endpoint), "no hub up")
     with pytest.raises(TransportError, match="no hub is up on Zenoh at tcp/127.0.0.1:"):
         ZenohHub.connect(zenoh=lab.endpoint)
 

@@ -8,8 +8,6 @@ from __future__ import annotations
 import base64
 import binascii
 import json
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -19,18 +17,6 @@ from mcap.stream_reader import StreamReader
 from tests.paths import DATA
 
 WAIT = 30.0  #: bounds a failure only: every wait polls for an event
-
-
-def wait_for(pred: Callable[[], Any], timeout: float = WAIT, what: str = "condition") -> Any:
-    """Poll ``pred`` until it is truthy; fail after ``timeout`` s."""
-    end = time.monotonic() + timeout
-    while True:
-        value = pred()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.01)
 
 
 def messages(path: Path, topics: list[str] | None = None) -> list[tuple[Any, Any, Any]]:

@@ -20,7 +20,8 @@ from robocli.hub import HubServer
 from robocli.io.export import arm_log, export, read_any_log
 from robocli.io.record import Recorder
 from robocli.io.trajlog import finite_difference, read_log
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -103,7 +104,10 @@ def arm_recording(abb: tuple[int, int], tmp_path: Path) -> tuple[Path, list[Any]
         rec.add(arm)
         arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
         arm.wait_until_idle(20)
-        wait_for(lambda: sum(s.source == "joint_feedback" for s in samples) > 20)
+        wait_for(
+            lambda: sum(s.source == "joint_feedback" for s in samples) > 20,
+            "more than 20 joint_feedback samples",
+        )
     return path, samples
 
 

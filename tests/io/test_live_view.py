@@ -24,7 +24,8 @@ from robocli.io.record import Recorder, pull_hub
 from robocli.io.record.live import LiveView
 from tests.commands.helpers import one_line_error, run, running
 from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 def test_a_pioneer_live(pioneer_url: str) -> None:
@@ -125,7 +126,7 @@ def test_record_foxglove_serves_while_recording(tmp_path: Path) -> None:
         assert proc.wait(30) == 130
         err = proc.stderr.read()
     assert "recorded" in err and "Traceback" not in err
-    wait_for(lambda: path.stat().st_size > 0)
+    wait_for(lambda: path.stat().st_size > 0, "a non-empty recording")
     assert by_topic(path)["/pioneer/pose"]
 
 

@@ -26,7 +26,8 @@ from robocli.io.record import Recorder
 from robocli.io.record.links import json_text
 from robocli.io.record.plot import plot
 from tests.commands.helpers import one_line_error, run
-from tests.io.readback import by_topic, wait_for
+from tests.io.readback import by_topic
+from tests.waiting import wait_for
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

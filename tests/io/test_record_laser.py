@@ -16,7 +16,8 @@ from robocli.devices.laser import Laser, Scan
 from robocli.io.record import RAW_SCHEMA, Recorder, info, raw_frames
 from robocli.sim.hokuyo import HokuyoSim
 from tests.commands.helpers import run, running
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 @pytest.fixture

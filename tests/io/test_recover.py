@@ -16,7 +16,7 @@ from mcap.reader import make_reader
 from robocli.io.record import info, recover
 from robocli.io.record.mcapfile import truncated_hint
 from tests.commands.helpers import one_line_error, run, running
-from tests.io.readback import wait_for
+from tests.waiting import wait_for
 
 
 def _read_whole(path: Path) -> int:

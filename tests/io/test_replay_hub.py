@@ -17,8 +17,8 @@ from robocli.errors import RobocliError
 from robocli.hub import HubServer
 from robocli.hub.sources.replay import read_hub_recording, replay_sources
 from robocli.io.record import Recorder
-from tests.io.readback import wait_for
 from tests.paths import DATA
+from tests.waiting import wait_for
 
 SENSORS = {"imu": {"rate": 200}, "adc": {"rate": 500, "channels": 0xFF},
            "camera": {"rate": 10, "resolution": "160x120"}, "laser": {"rate": 10},

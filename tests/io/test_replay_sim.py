@@ -19,7 +19,8 @@ from robocli.io.record import Recorder
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
 from robocli.sim.replay import FrameSchedule
-from tests.io.readback import by_topic, decoded, frame_of, wait_for
+from tests.io.readback import by_topic, decoded, frame_of
+from tests.waiting import wait_for
 
 Frames = list[tuple[str, bytes]]
 
@@ -156,7 +157,10 @@ def arm_recording(abb: tuple[int, int], tmp_path: Path) -> Path:
         rec.add(arm)
         arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
         arm.wait_until_idle(20)
-        wait_for(lambda: sum(s.source == "joint_feedback" for s in samples) > 20)
+        wait_for(
+            lambda: sum(s.source == "joint_feedback" for s in samples) > 20,
+            "more than 20 joint_feedback samples",
+        )
     return path
 
 

@@ -19,7 +19,7 @@ from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 from tests.commands.helpers import run
 from tests.devices.arm.conftest import port_of
-from tests.io.readback import wait_for
+from tests.waiting import wait_for
 
 HUB_SENSORS = {"imu": {"rate": 100}, "adc": {"rate": 200, "channels": 0xFF},
                "camera": {"rate": 5, "resolution": "160x120"}, "laser": {"rate": 10},

@@ -20,8 +20,8 @@ from robocli.io.export import arm_log, export
 from robocli.io.record import info, recover
 from robocli.sim.pioneer.replay import PioneerReplay
 from tests.commands.helpers import one_line_error, run, running
-from tests.io.readback import wait_for
 from tests.ros2.conftest import pioneer_recording
+from tests.waiting import wait_for
 
 
 def _read(path: Path) -> dict[str, list[object]]:

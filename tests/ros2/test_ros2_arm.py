@@ -12,8 +12,9 @@ import numpy as np
 import pytest
 
 from robocli.sim.abb.server import AbbSim
-from tests.bridge.bridge_helpers import Events, query, wait_for
+from tests.bridge.bridge_helpers import Events, query
 from tests.ros2.ros2_helpers import client_config, robocli_process, router, sdk, topics
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

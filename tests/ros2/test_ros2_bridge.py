@@ -13,8 +13,9 @@ from typing import Any
 import pytest
 
 from robocli.sim.pioneer.server import PioneerSim
-from tests.bridge.bridge_helpers import Events, holder_token, query, wait_for
+from tests.bridge.bridge_helpers import Events, holder_token, query
 from tests.ros2.ros2_helpers import client_config, node_names, robocli_process, router, sdk, topics
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

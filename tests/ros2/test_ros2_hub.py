@@ -10,7 +10,6 @@ import time
 
 import pytest
 
-from tests.bridge.bridge_helpers import wait_for
 from tests.ros2.ros2_helpers import (
     client_config,
     node_names,
@@ -19,6 +18,7 @@ from tests.ros2.ros2_helpers import (
     sdk,
     topics,
 )
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

@@ -14,8 +14,8 @@ from robocli.ros2 import types as T
 from robocli.ros2.node import Ros2Node
 from robocli.ros2.rmw import Attachment, topic_key
 from robocli.sim.pioneer.server import PioneerSim
-from tests.bridge.bridge_helpers import wait_for
 from tests.ros2.ros2_helpers import robocli_process
+from tests.waiting import wait_for
 from tests.zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the fixture
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")

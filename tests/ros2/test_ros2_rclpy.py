@@ -24,8 +24,8 @@ import pytest
 from robocli.ros2 import types as T
 from robocli.ros2.rmw import Attachment, parse_token
 from robocli.sim.pioneer.server import PioneerSim
-from tests.bridge.bridge_helpers import wait_for
 from tests.ros2.ros2_helpers import client_config, robocli_process, router
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

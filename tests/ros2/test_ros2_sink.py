@@ -11,7 +11,7 @@ import pytest
 from robocli.ros2.live import Ros2Topics
 from robocli.ros2.node import Ros2Node
 from robocli.zenoh.session import close_session, open_session
-from tests.bridge.bridge_helpers import wait_for
+from tests.waiting import wait_for
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 

@@ -22,6 +22,7 @@ from robocli.protocols import arcos
 from robocli.protocols.common import REFUSAL_PREFIX, find_refusal
 from robocli.sim.serving import BUSY_REASON, Link, Server
 from robocli.sim.ticker import Ticker
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -102,13 +103,6 @@ def echo_ok(sock: socket.socket, payload: bytes = b"\x00") -> None:
     assert read_exactly(sock, len(f)) == f
 
 
-def wait_for(cond: Callable[[], bool], timeout: float = 30.0) -> None:
-    end = time.monotonic() + timeout
-    while not cond():
-        assert time.monotonic() < end, "condition not met"
-        time.sleep(0.005)
-
-
 def server_threads(name: str = "echo") -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name.startswith(f"{name}-")]
 
@@ -120,11 +114,14 @@ def test_request_reply_inline(make_server: Any) -> None:
         echo_ok(sock, bytes((i,)) * (i % 7 + 1))
     sock.sendall(arcos.frame(b"\x01") + arcos.frame(b"\x02"))  # two frames, one segment
     assert read_exactly(sock, 12) == arcos.frame(b"\x01") + arcos.frame(b"\x02")
-    wait_for(lambda: server.stats().bytes_out == 459)  # counted just after the write
+    wait_for(
+        lambda: server.stats().bytes_out == 459,
+        "the 459 bytes counted",
+    )  # counted just after the write
     s = server.stats()
     assert (s.frames, s.bytes_in, s.dropped_bytes) == (52, 459, 0)
     sock.close()
-    wait_for(lambda: not server.links())
+    wait_for(lambda: not server.links(), "no link left")
     assert events[0][0] == "open" and events[-1][0] == "close"
 
 
@@ -140,7 +137,7 @@ def test_limit_refuses_with_a_reason_the_client_can_show(make_server: Any) -> No
     echo_ok(first)  # the holder is undisturbed
     assert (server.accepted, server.refused, len(server.links())) == (1, 1, 1)
     first.close()
-    wait_for(lambda: not server.links())
+    wait_for(lambda: not server.links(), "no link left")
     third = dial(server)  # the place is free again
     echo_ok(third)
 
@@ -188,7 +185,7 @@ def test_a_session_that_raises_drops_only_its_link(
     good, bad = dial(server), dial(server)
     bad.sendall(arcos.frame(b"boom"))
     assert read_to_eof(bad) == b""
-    wait_for(lambda: len(server.links()) == 1)
+    wait_for(lambda: len(server.links()) == 1, "one link")
     echo_ok(good)
     assert server.stats().session_errors == 1
     assert "session failed" in caplog.text and "RuntimeError: session bug" in caplog.text
@@ -210,7 +207,7 @@ def test_a_client_that_stops_reading_is_dropped_without_blocking_the_ticker(
 
     reader = dial(server)
     stuck = dial(server, rcvbuf=4096)  # never reads
-    wait_for(lambda: len(server.links()) == 2)
+    wait_for(lambda: len(server.links()) == 2, "two links")
     received = [0]
     stop = threading.Event()
 
@@ -226,9 +223,13 @@ def test_a_client_that_stops_reading_is_dropped_without_blocking_the_ticker(
     ticker = Ticker(0.01, push, "pusher")
     ticker.start()
     try:
-        wait_for(lambda: len(server.links()) == 1, timeout=15.0)
+        wait_for(lambda: len(server.links()) == 1, "one link", timeout=15.0)
         ticks, got = ticker.ticks, received[0]
-        wait_for(lambda: ticker.ticks > ticks + 10 and received[0] > got, timeout=3.0)
+        wait_for(
+            lambda: ticker.ticks > ticks + 10 and received[0] > got,
+            "ten more ticks and more bytes received",
+            timeout=3.0,
+        )
     finally:
         ticker.close()
         stop.set()
@@ -250,7 +251,10 @@ def test_close_joins_every_thread(make_server: Any, monkeypatch: pytest.MonkeyPa
     echo_ok(a)
     b.sendall(b"\xfa\xfb\x10\x01")  # mid-frame
     refused = dial(server)  # lingering refusal thread
-    wait_for(lambda: len(server.links()) == 2 and server.refused == 1)
+    wait_for(
+        lambda: len(server.links()) == 2 and server.refused == 1,
+        "two links and one refused",
+    )
     line = b""  # read before close(): close() may drop a line not yet sent ("or is lost")
     refused.settimeout(30.0)
     while not line.endswith(b"\n"):
@@ -358,7 +362,7 @@ def test_a_client_that_closed_does_not_hold_its_place_against_its_reconnect(
             assert got == f, (i, got)  # not the refusal line
             sock.close()
     assert server.refused == 0
-    wait_for(lambda: not server.links())
+    wait_for(lambda: not server.links(), "no link left")
     assert sum(1 for e in events if e[0] == "close") == 100
 
 

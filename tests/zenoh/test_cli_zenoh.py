@@ -15,6 +15,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from tests.peers import free_endpoint
+from tests.waiting import wait_for
 
 DEADLINE_S = 30.0
 ENV = {**os.environ, "PYTHONUNBUFFERED": "1"}
@@ -69,15 +70,6 @@ def hubs_listed(endpoint: str) -> list[str]:
     return [f"{x['kind']} {x['name']}" for x in json.loads(out.stdout)]
 
 
-def wait_until(what: str, condition: object) -> None:
-    end = time.monotonic() + DEADLINE_S
-    while time.monotonic() < end:
-        if condition():  # type: ignore[operator]
-            return
-        time.sleep(0.1)
-    raise AssertionError(f"not within {DEADLINE_S} s: {what}")
-
-
 def test_subscribe_prints_the_rows_of_a_hub_serving_on_zenoh() -> None:
     ep = free_endpoint()
     with running("serve", "--sim", "--port", "0", "--zenoh", ep, "--name", "lab1",
@@ -114,13 +106,13 @@ def test_list_shows_the_hub_through_a_router_and_loses_it_when_it_dies(tmp_path:
         assert hubs_listed(router_ep) == []
         with running("serve", "--sim", "--no-tcp", "--zenoh", str(config), "--name", "robot1",
                      ready="hub serving") as hub:  # fmt: skip
-            wait_until("the hub listed", lambda: hubs_listed(router_ep) == ["hub robot1"])
+            wait_for(lambda: hubs_listed(router_ep) == ["hub robot1"], "the hub listed")
             out = robocli("subscribe", "adc", "--rate", "100", "--zenoh", router_ep,
                           "--count", "3")  # fmt: skip
             assert out.returncode == 0 and len(out.stdout.splitlines()) == 4, out.stderr
             hub.kill()  # no goodbye: its liveliness goes with its connection
             hub.wait(DEADLINE_S)
-            wait_until("the hub gone from the list", lambda: hubs_listed(router_ep) == [])
+            wait_for(lambda: hubs_listed(router_ep) == [], "the hub gone from the list")
 
 
 def test_router_refuses_a_wrong_password(tmp_path: Path) -> None:

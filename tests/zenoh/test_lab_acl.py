@@ -26,9 +26,10 @@ from robocli.sim.pioneer.server import PioneerSim
 from robocli.zenoh import open_session
 from robocli.zenoh.acl import lab_access_control
 from robocli.zenoh.batch import encode_head
-from tests.bridge.bridge_helpers import DEADLINE, Events, bridge_process, read_line, wait_for
+from tests.bridge.bridge_helpers import DEADLINE, Events, bridge_process, read_line
 from tests.paths import EXAMPLES
 from tests.peers import free_endpoint
+from tests.waiting import wait_for
 from tests.zenoh.test_cli_zenoh import robocli, running
 
 

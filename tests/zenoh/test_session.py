@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -28,6 +27,7 @@ from robocli.zenoh import (
     topic_key,
     zenoh_config,
 )
+from tests.waiting import wait_for
 
 DEADLINE_S = 20.0
 
@@ -63,10 +63,8 @@ def test_server_listens_and_client_connects_there(endpoint: str) -> None:
         sub = server.declare_subscriber("robocli/t/adc", lambda s: got.append(s.payload.to_bytes()))
         client = open_session(endpoint, "client")
         try:
-            deadline = time.monotonic() + DEADLINE_S
-            while not got and time.monotonic() < deadline:  # until the subscription is known
-                client.put("robocli/t/adc", b"x")
-                time.sleep(0.05)
+            # put until the subscription is known
+            wait_for(lambda: client.put("robocli/t/adc", b"x") or got, "a put received")
             assert got and got[0] == b"x"
         finally:
             client.close()

@@ -12,6 +12,7 @@ from robocli.devices.arm import Arm
 from robocli.errors import InvalidArgument, TimeoutError
 from robocli.kinematics import load_model
 from robocli.kinematics.trajectory import circle
+from tests.waiting import wait_for
 
 IRB = load_model("irb120")
 
@@ -151,9 +152,7 @@ def test_alive_and_check_follow_each_link(make_sim, make_arm, ports) -> None:
     assert arm.alive
     arm.check()  # returns
     sim.close()
-    deadline = time.monotonic() + 10.0
-    while arm.alive and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_for(lambda: not arm.alive, "the arm to see the link lost")
     assert not arm.alive
     with pytest.raises(ConnectionLost):
         arm.check()

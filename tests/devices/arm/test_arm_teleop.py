@@ -17,6 +17,7 @@ from robocli.errors import ConnectionLost, TimeoutError
 from robocli.kinematics import LimitError, fk, load_model
 from tests.commands.helpers import ROBOCLI
 from tests.commands.test_screens import terminal
+from tests.waiting import wait_for
 
 IRB120 = load_model("irb120")
 
@@ -33,11 +34,8 @@ def hold(teleop: ArmTeleop, key: str, seconds: float) -> None:
 def release(teleop: ArmTeleop, timeout: float = 5.0) -> None:
     """Step without keys until the release timeout sent STOP."""
     stops = teleop.sent["stops"]
-    deadline = time.monotonic() + timeout
-    while teleop.sent["stops"] == stops:
-        assert time.monotonic() < deadline, "no STOP after the key was released"
-        teleop.step()
-        time.sleep(0.02)
+    wait_for(lambda: teleop.step() or teleop.sent["stops"] != stops,
+             "a STOP after the key was released", timeout=timeout)  # fmt: skip
 
 
 def test_keys_release_and_modes() -> None:

@@ -16,7 +16,7 @@ from robocli.devices.hub.client import subscribe_body
 from robocli.errors import DeviceError, InvalidArgument, ProtocolError, TransportError
 from robocli.hub import HubServer
 from robocli.protocols.ros4mat import MsgType, encode_request
-from tests.hub_server.conftest import wait_for as until
+from tests.waiting import wait_for
 
 # sensor -> (subscribe arguments, the hub's name, expected data shape without N)
 SENSORS: dict[str, tuple[dict[str, Any], str, tuple[int, ...]]] = {
@@ -44,17 +44,18 @@ def hub(server: HubServer) -> Iterator[Hub]:
         yield client
 
 
-def wait_for(read: Callable[[], Any], n: int, timeout: float = 10.0) -> list[Any]:
-    """Readings until they hold ``n`` samples in all (bounded by ``timeout``)."""
+def samples_of(read: Callable[[], Any], n: int, timeout: float = 10.0) -> list[Any]:
+    """Readings until they hold ``n`` samples in all (``timeout`` bounds a failure)."""
     got: list[Any] = []
-    deadline = time.monotonic() + timeout
-    while sum(len(r) for r in got) < n:
-        assert time.monotonic() < deadline, f"only {sum(len(r) for r in got)} of {n} samples"
-        reading = read()
-        if len(reading):
+
+    def enough() -> bool:  # reads back to back while samples come, as a client would
+        while len(reading := read()):
             got.append(reading)
-        else:
-            time.sleep(0.01)
+            if sum(len(r) for r in got) >= n:
+                return True
+        return False
+
+    wait_for(enough, f"{n} samples", timeout=timeout)
     return got
 
 
@@ -64,7 +65,7 @@ def test_every_sensor_in_the_original_shapes(server: HubServer, hub: Hub, name: 
     if hub_name not in server.sensors:
         pytest.skip(f"this hub does not serve {hub_name} yet")
     hub.subscribe(name, **kwargs)
-    reading = wait_for(lambda: hub.read(name), 2)[0]
+    reading = samples_of(lambda: hub.read(name), 2)[0]
     data, t = reading
     assert data.shape[:-1] == shape and data.shape[-1] == len(t) == len(reading) >= 1
     assert np.all(np.diff(t) > 0) and np.isfinite(t).all()
@@ -94,9 +95,9 @@ def test_pull_is_destructive_and_cursors_independent(server: HubServer) -> None:
             pulls_a.append(a.read("adc"))
             return len(pulls_a[-1]) > 0 and pulls_a[-1].hub_t[-1] > b_joined + 0.05
 
-        until(a_is_past_b_joining, 30)
-        more_a = wait_for(lambda: a.read("adc"), 1)
-        all_b = wait_for(lambda: b.read("adc"), 30)
+        wait_for(a_is_past_b_joining, "a past the time b joined", timeout=30)
+        more_a = samples_of(lambda: a.read("adc"), 1)
+        all_b = samples_of(lambda: b.read("adc"), 30)
         ta = np.concatenate([r.hub_t for r in pulls_a + more_a])
         tb = np.concatenate([r.hub_t for r in all_b])
         assert np.all(np.diff(ta) > 0) and np.all(np.diff(tb) > 0)  # nothing twice for a
@@ -114,7 +115,7 @@ def test_many_clients_at_once(server: HubServer) -> None:
         try:
             with Hub.connect("127.0.0.1", server.port) as h:
                 h.subscribe("imu", 100) if i == 0 else h.subscribe("imu", 100, buffer=500)
-                got = wait_for(lambda: h.read("imu"), 20, timeout=30)
+                got = samples_of(lambda: h.read("imu"), 20, timeout=30)
                 counts[i] = sum(len(r) for r in got)
                 # the hub's times: Reading.t is on this client's clock through an offset
                 # that each pull may refine (by up to half a round trip, long under load)
@@ -135,15 +136,10 @@ def test_many_clients_at_once(server: HubServer) -> None:
 def test_compression_gives_the_same_readings(server: HubServer) -> None:
     with Hub.connect("127.0.0.1", server.port, compress=True) as h:
         h.subscribe("adc", 200)
-        frame = b""
-        deadline = time.monotonic() + 10
-        while time.monotonic() < deadline:
-            frame = h.pull("adc")
-            if frame[6] or frame[7]:  # size > 0
-                break
-            time.sleep(0.02)
+        frame = wait_for(lambda: f if (f := h.pull("adc"))[6] or f[7] else b"",  # size > 0
+                         "a frame with samples")  # fmt: skip
         assert frame[18] == 1  # compressionType zlib
-        reading = wait_for(lambda: h.read("adc"), 5)[0]
+        reading = samples_of(lambda: h.read("adc"), 5)[0]
         assert reading.data.shape[0] == 8 and reading.data.dtype == np.float32
 
 
@@ -177,20 +173,20 @@ def test_clock_offset_within_half_a_millisecond(server: HubServer) -> None:
         # the times follow the estimate by slewing (1 % of hub time): they get there
         deadline = time.monotonic() + 30.0
         while True:
-            reading = wait_for(lambda: h.read("adc"), 1)[-1]
+            reading = samples_of(lambda: h.read("adc"), 1)[-1]
             if np.abs(reading.t - reading.hub_t - injected).max() <= 0.5e-3:
                 break
             assert time.monotonic() < deadline, reading.t[-1] - reading.hub_t[-1] - injected
     with Hub.connect("127.0.0.1", server.port, hub_clock=True) as h:
         h.subscribe("adc", 100)
-        reading = wait_for(lambda: h.read("adc"), 1)[0]
+        reading = samples_of(lambda: h.read("adc"), 1)[0]
         assert (reading.t == reading.hub_t).all()
 
 
 def test_reconnect_keeps_buffers(server: HubServer) -> None:
     h = Hub.connect("127.0.0.1", server.port)
     h.subscribe("adc", 200)
-    wait_for(lambda: h.read("adc"), 1)
+    samples_of(lambda: h.read("adc"), 1)
     cid = h.client_id
     h.close(quit=False)
     time.sleep(0.1)
@@ -229,7 +225,7 @@ def test_samples_the_hub_dropped_for_a_small_buffer_are_counted(server: HubServe
         readings = []
         for _ in range(3):
             time.sleep(0.3)  # pulls far apart, so that the buffer of 10 overflows between them
-            readings.append(wait_for(lambda: h.read("adc"), 1)[0])
+            readings.append(samples_of(lambda: h.read("adc"), 1)[0])
         assert sum(len(r) for r in readings) <= 30
         assert sum(r.lost for r in readings) == h.lost["adc"]
         assert readings[0].lost > 100  # about 300 acquired before the first pull, 10 kept
@@ -253,13 +249,13 @@ def test_the_token_of_a_hub_that_has_one() -> None:
     with HubServer(bind="127.0.0.1", port=0, sim=True, token=b"s3cret") as srv:
         with Hub.connect("127.0.0.1", srv.port, token="s3cret") as owner:
             owner.subscribe("adc", 200)
-            assert len(wait_for(lambda: owner.read("adc"), 2))
+            assert len(samples_of(lambda: owner.read("adc"), 2))
             for token in (None, b"guess"):
                 with Hub.connect("127.0.0.1", srv.port, token=token) as other:
                     with pytest.raises(DeviceError, match="unauthorized"):
                         other.subscribe("adc", 100)
                     other.subscribe("adc")  # silent: joins, changes nothing
-                    assert len(wait_for(lambda o=other: o.read("adc"), 2))
+                    assert len(samples_of(lambda o=other: o.read("adc"), 2))
     for bad in (b"", "x" * 5000):
         with pytest.raises(InvalidArgument, match="token"):
             Hub.connect("127.0.0.1", srv.port, token=bad)
@@ -286,7 +282,7 @@ def test_raw_camera_buffers_fit_one_reply(server: HubServer) -> None:
             5.0,
         )
         assert ack[1] == 0
-        got = wait_for(lambda: h.read("camera"), 1)  # drain, then let 30 frames pile up
+        got = samples_of(lambda: h.read("camera"), 1)  # drain, then let 30 frames pile up
         assert got[0].data.shape[:3] == (480, 640, 3)
         time.sleep(1.3)
         with pytest.raises(ProtocolError, match="exceeds 16 MiB"):
@@ -299,11 +295,11 @@ def test_read_aligned_on_camera_frames(server: HubServer, hub: Hub) -> None:
     hub.subscribe("imu", 200)
     hub.subscribe("camera", rate=30, resolution="320x240")
     hub.subscribe("hokuyo", 40)
-    wait_for(lambda: hub.read("camera"), 1, 30)  # start from now
+    samples_of(lambda: hub.read("camera"), 1, 30)  # start from now
     ring = server.hub.channel("camera").ring
     assert ring is not None
     pushed = ring.pushed
-    until(lambda: ring.pushed >= pushed + 3, 30, "frames to align")  # not a fixed sleep
+    wait_for(lambda: ring.pushed >= pushed + 3, "frames to align", timeout=30)  # not a fixed sleep
     out = hub.read_aligned(["camera", "imu", "hokuyo"], reference="camera")
     m = len(out["t"])
     assert m >= 2 and out["camera"].shape == (240, 320, 3, m)
@@ -321,7 +317,7 @@ def test_jpeg_frames_decode_to_the_scene_of_their_time(server: HubServer, name: 
     assert server.sensors["camera"]["jpeg"] == "pillow"
     with Hub.connect("127.0.0.1", server.port) as hub:
         hub.subscribe(name, rate=15, resolution="160x120", quality=90)
-        reading = wait_for(lambda: hub.read(name), 2)[0]
+        reading = samples_of(lambda: hub.read(name), 2)[0]
         hub.unsubscribe(name)
     data, t = reading
     assert data.shape[:3] == (120, 160, 3) and data.dtype == np.uint8
@@ -371,7 +367,7 @@ def test_a_refused_digital_out_raises() -> None:
                     with pytest.raises(DeviceError, match=r"refused DOUT_CTRL: unauthorized"):
                         other.digital_out(0, 0, 0, 0)
                     other.subscribe("adc")  # the link goes on: silent subscribe, a pull
-                    assert len(wait_for(lambda o=other: o.read("adc"), 1))
+                    assert len(samples_of(lambda o=other: o.read("adc"), 1))
             assert srv.sensors["adc"]["digital_out"] == [1, 1, 0, 1]
 
 
@@ -407,19 +403,19 @@ def test_sample_times_never_step_back_when_the_offset_estimate_moves(server: Hub
     clock = ScriptedClock()
     with Hub.connect("127.0.0.1", server.port, clock=clock) as h:
         h.subscribe("adc", 1000)
-        readings = wait_for(lambda: h.read("adc"), 20)
+        readings = samples_of(lambda: h.read("adc"), 20)
         before = h.clock_offset
         assert before is not None
         h0, applied0 = readings[-1].hub_t[-1], readings[-1].hub_t[-1] - readings[-1].t[-1]
         clock.shift(0.5)
-        readings += wait_for(lambda: h.read("adc"), 50)
+        readings += samples_of(lambda: h.read("adc"), 50)
         after = h.clock_offset
         assert after is not None and after - before == pytest.approx(0.5, abs=0.05)
         assert_increasing(readings)
         h1, applied1 = readings[-1].hub_t[-1], readings[-1].hub_t[-1] - readings[-1].t[-1]
         assert 0 < applied1 - applied0 <= CLOCK_SLEW * (h1 - h0) + 1e-6  # slewing toward it
         clock.shift(-1.0)  # and the other way: times jump forward, never back
-        readings += wait_for(lambda: h.read("adc"), 50)
+        readings += samples_of(lambda: h.read("adc"), 50)
         assert h.clock_offset is not None and h.clock_offset < before - 0.4
     steps, hub_steps = assert_increasing(readings)
     spacing = steps[hub_steps < 0.0015]  # consecutive samples (1 ms apart)

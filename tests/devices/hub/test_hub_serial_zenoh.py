@@ -17,8 +17,8 @@ from robocli.errors import DeviceError
 from robocli.hub import HubServer
 from robocli.hub.frontends.zenoh import ZenohFrontend
 from robocli.zenoh.keys import serial_key
-from tests.bridge.bridge_helpers import wait_for
 from tests.devices.hub.serial_device import TIMEOUT, Device, device_fixture  # noqa: F401
+from tests.waiting import wait_for
 from tests.zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the lab fixture
 
 pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")

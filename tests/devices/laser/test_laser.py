@@ -9,7 +9,6 @@ import math
 import subprocess
 import sys
 import time
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -26,17 +25,10 @@ from robocli.errors import (
 )
 from robocli.protocols import scip2
 from robocli.sim.hokuyo import HokuyoSim
+from tests.waiting import wait_for
 
 DEADLINE = 20.0  #: bounds a failure only
 MODELS = ["urg-04lx", "utm-30lx", "ust-10lx"]
-
-
-def wait_for(pred: Callable[[], Any], what: str, timeout: float = DEADLINE) -> Any:
-    end = time.monotonic() + timeout
-    while not (value := pred()):
-        assert time.monotonic() < end, f"timed out waiting for {what}"
-        time.sleep(0.01)
-    return value
 
 
 @pytest.fixture(params=["tcp", "pty"])

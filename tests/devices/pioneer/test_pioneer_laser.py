@@ -30,6 +30,7 @@ from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from tests import paths
+from tests.waiting import wait_for
 
 DATA = paths.DATA / "arcos"
 WALL_X = 2.0  #: m: a wall across the robot's path, from y = -5 to 5
@@ -384,9 +385,8 @@ def test_client_against_amrisims_recorded_stream() -> None:
         assert robot.is_simulator  # serial SIM, name AMRISim
         robot.on_laser(lambda scan: poses.append(scan.pose[:2]))
         listening.set()
-        deadline = time.monotonic() + 10.0
-        while robot.stats.laser_scans < 111 and time.monotonic() < deadline:
-            time.sleep(0.01)  # the last scan's packets come after the last SIP
+        # the last scan's packets come after the last SIP
+        wait_for(lambda: robot.stats.laser_scans >= 111, "the 111 scans")
         assert robot.stats.laser_scans == 111 and robot.stats.laser_dropped == 0
         assert robot.stats.decode_errors == 0
     thread.join(5.0)

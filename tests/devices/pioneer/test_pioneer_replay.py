@@ -17,6 +17,7 @@ from robocli.devices.pioneer import Pioneer
 from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from tests import paths
+from tests.waiting import wait_for
 
 DATA = paths.DATA / "arcos"
 
@@ -91,9 +92,8 @@ def test_client_decodes_recorded_session(stem: str) -> None:
     assert state.state_of_charge is None  # AMRISim sends 0: not modelled, as ARIA reads it
     assert state.sonar[:16] == pytest.approx([5.0] * 16) or not state.sonar_enabled
     # the client closed the session as ARIA does: stop, motors off, CLOSE
-    deadline = time.monotonic() + 30  # the server reads them in its own thread
-    while server.received[-1:] != [arcos.Command.CLOSE] and time.monotonic() < deadline:
-        time.sleep(0.01)
+    # the server reads them in its own thread
+    wait_for(lambda: server.received[-1:] == [arcos.Command.CLOSE], "the client's CLOSE")
     assert server.received[-4:] == [
         arcos.Command.VEL,
         arcos.Command.RVEL,

@@ -12,13 +12,13 @@ import signal
 import subprocess
 import sys
 import threading
-import time
 from collections.abc import Iterator
 
 import pytest
 
 from robocli.sim.pioneer.server import PioneerSim, SimState
 from robocli.sim.world import World
+from tests.waiting import wait_for
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="POSIX signals")
 
@@ -110,14 +110,12 @@ def test_a_stalled_client_does_not_drive_off_again(sim: PioneerSim) -> None:
         os.kill(child.proc.pid, signal.SIGCONT)
 
         # the keep-alive runs again: a stop, then PULSEs; never the stale VEL 300
-        deadline = time.monotonic() + WAIT
-        while True:
+        def pulsing() -> SimState | None:
             s = sim.snapshot()
             assert s.trans_vel_set == 0.0 and s.trans_vel == 0.0, "the robot drove off again"
-            if s.commands["PULSE"] >= pulses + 3:
-                break
-            assert time.monotonic() < deadline, "the keep-alive stopped after the trip"
-            time.sleep(0.005)
+            return s if s.commands["PULSE"] >= pulses + 3 else None
+
+        s = wait_for(pulsing, "the keep-alive after the trip", timeout=WAIT)
         assert keepalives(s) > keepalives(stopped)
 
         word, silence, watchdog = child.line().split()

@@ -8,7 +8,6 @@ SIGSTOP timing."""
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Iterator
 
 import pytest
@@ -18,6 +17,7 @@ from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from robocli.transports import open_transport
 from tests.stalling import WAIT, MotionProbe, StallingTransport
+from tests.waiting import wait_for
 
 
 @pytest.fixture
@@ -104,10 +104,8 @@ def test_a_re_send_waiting_behind_a_stalled_write_is_dropped_after_the_trip(
         assert link.stalled.wait(WAIT)
         keepalives = robot.stats.keepalives
         # the keep-alive has read the set-points and waits for the link
-        deadline = time.monotonic() + WAIT
-        while robot.stats.keepalives == keepalives:
-            assert time.monotonic() < deadline, "the keep-alive never tried again"
-            time.sleep(0.005)
+        wait_for(lambda: robot.stats.keepalives != keepalives,
+                 "the keep-alive trying again", timeout=WAIT)  # fmt: skip
         sim.wait_until(lambda s: s.watchdog_trips >= 1 and s.rot_vel == 0.0, WAIT)
         pulses = sim.snapshot().commands["PULSE"]
         link.release.set()
