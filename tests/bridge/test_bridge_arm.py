@@ -15,8 +15,6 @@ from robocli.zenoh import open_session
 from tests.bridge.bridge_helpers import Events, acquire, bridge_process, holder_token, query
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 
 @pytest.fixture
 def arm(endpoint: str) -> Iterator[tuple[AbbSim, Any]]:

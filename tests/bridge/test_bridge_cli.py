@@ -18,8 +18,6 @@ from tests.commands.helpers import one_line_error, read_lines, run, running
 from tests.commands.test_screens import terminal
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 
 @pytest.fixture
 def bridged(endpoint: str) -> Iterator[PioneerSim]:

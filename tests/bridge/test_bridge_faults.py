@@ -18,8 +18,6 @@ from robocli.zenoh import open_session
 from tests.bridge.bridge_helpers import Events, bridge_process
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 
 @pytest.fixture
 def server(endpoint: str) -> Iterator[Any]:

@@ -23,8 +23,6 @@ from robocli.zenoh import ALIVE_ALL, open_session, parse_alive
 from tests.bridge.bridge_helpers import DEADLINE, Events, acquire, bridge_process, query, read_line
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 #: The stop rule's 0.5 s. How soon after it the robot stops is measured, not asserted (a
 #: loaded machine delays it): the README gives the figures; the deadline bounds a failure.
 SILENCE_S = 0.5

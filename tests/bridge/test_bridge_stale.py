@@ -21,10 +21,9 @@ from robocli.sim.world import World
 from robocli.transports import open_transport
 from robocli.zenoh import open_session
 from tests.bridge.bridge_helpers import Events, query
+from tests.simulators import pioneer_on_loopback
 from tests.stalling import WAIT, MotionProbe, StallingTransport
 from tests.waiting import wait_for
-
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 
 class StallingController(RemotePioneer):
@@ -63,8 +62,7 @@ class StallingController(RemotePioneer):
 
 @pytest.fixture
 def sim() -> Iterator[PioneerSim]:
-    with PioneerSim("p3dx", time_scale=2.0, world=World.empty(), watchdog_s=1.0) as simulator:
-        simulator.serve_tcp("127.0.0.1", 0)
+    with pioneer_on_loopback(time_scale=2.0, world=World.empty(), watchdog_s=1.0) as simulator:
         yield simulator
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -59,6 +60,18 @@ def running(*args: str, **kwargs: object) -> Iterator[subprocess.Popen[str]]:
         for stream in (proc.stdout, proc.stderr):
             if stream is not None:
                 stream.close()
+
+
+def ctrl_c(proc: subprocess.Popen[str], timeout: float = 30.0) -> tuple[str, str]:
+    """Ctrl-C to a running ``robocli``: its stdout and stderr once it ended (killed if it
+    has not within ``timeout``, which only bounds a failure)."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        return proc.communicate(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait(timeout)
 
 
 def read_lines(stream: IO[str], n: int, timeout: float = 30.0) -> list[str]:

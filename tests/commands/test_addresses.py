@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import re
-import socket
 from collections.abc import Iterator
 
 import pytest
@@ -14,26 +13,13 @@ from robocli.hub import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
 from tests.commands.helpers import one_line_error, run, running
-
-
-def _ipv6_loopback() -> bool:
-    if not socket.has_ipv6:
-        return False
-    try:
-        with socket.socket(socket.AF_INET6, socket.SOCK_STREAM) as s:
-            s.bind(("::1", 0))
-    except OSError:
-        return False
-    return True
-
-
-needs_ipv6 = pytest.mark.skipif(not _ipv6_loopback(), reason="no IPv6 loopback ([::1]) here")
+from tests.peers import ipv6_loopback, needs_ipv6
 
 
 @pytest.fixture(scope="module")
 def hub6() -> Iterator[int]:
     """A simulated hub listening on [::1] only; yields its port."""
-    if not _ipv6_loopback():
+    if not ipv6_loopback():
         pytest.skip("no IPv6 loopback ([::1]) here")
     with HubServer(bind="::1", port=0, sim=True) as srv:
         yield srv.port

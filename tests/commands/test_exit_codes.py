@@ -25,7 +25,7 @@ from typing import Any
 import pytest
 
 from robocli.cli import main
-from tests.commands.helpers import ROBOCLI
+from tests.commands.helpers import ROBOCLI, ctrl_c
 
 ROOT = Path(__file__).resolve().parents[2]
 TIMEOUT = 60.0
@@ -302,8 +302,7 @@ def test_a_recorder_writes_what_it_has_on_ctrl_c(tmp_path: Path) -> None:
             sim.wait_until(lambda s: s.state_accepted, TIMEOUT)
             sent = sim.snapshot().states_sent
             sim.wait_until(lambda s: s.states_sent >= sent + 100, TIMEOUT)  # 0.5 s of states
-            proc.send_signal(signal.SIGINT)
-            _, err = proc.communicate(timeout=TIMEOUT)
+            _, err = ctrl_c(proc, TIMEOUT)
         finally:
             if proc.poll() is None:
                 proc.kill()

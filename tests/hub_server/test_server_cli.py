@@ -16,6 +16,7 @@ from typing import Any
 import pytest
 
 from robocli.cli import main
+from tests.commands.helpers import ctrl_c, running
 
 TIMEOUT = 10.0
 
@@ -49,11 +50,7 @@ class Lines:
 
 def test_serve_sim_logs_clients_and_stops_on_ctrl_c(raw: Any) -> None:
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "robocli", "serve", "--sim", "--port", "0"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-    )  # fmt: skip
-    try:
+    with running("serve", "--sim", "--port", "0", env=env) as proc:
         lines = Lines(proc)
         first = lines.until("hub serving ", 30.0)  # interpreter start-up under load
         assert "adc" in first, first
@@ -67,12 +64,7 @@ def test_serve_sim_logs_clients_and_stops_on_ctrl_c(raw: Any) -> None:
         lines.until("sensor adc: 100 Hz")
         c.close()
         lines.until("detached")
-        proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(TIMEOUT)
+        out, err = ctrl_c(proc, TIMEOUT)
     assert proc.returncode == 130 and err.strip().splitlines()[-1] == "robocli: interrupted", err
 
 
@@ -102,20 +94,10 @@ def test_a_pioneer_url_is_checked_when_the_hub_is_made() -> None:
 
 
 def test_serve_says_which_sensors_the_pioneer_replaces() -> None:
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "robocli", "serve", "--sim", "--port", "0", "--pioneer",
-         "tcp://127.0.0.1:1"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        env={**os.environ, "PYTHONUNBUFFERED": "1"},
-    )  # fmt: skip
-    try:
+    with running("serve", "--sim", "--port", "0", "--pioneer", "tcp://127.0.0.1:1",
+                 env={**os.environ, "PYTHONUNBUFFERED": "1"}) as proc:  # fmt: skip
         Lines(proc).until("hub serving ", 30.0)
-        proc.send_signal(signal.SIGINT)
-        _, err = proc.communicate(timeout=TIMEOUT)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait(TIMEOUT)
+        _, err = ctrl_c(proc, TIMEOUT)
     assert "adc and battery: from the Pioneer at tcp://127.0.0.1:1" in err, err
 
 

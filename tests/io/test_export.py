@@ -8,12 +8,10 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
-from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.errors import InvalidArgument, RobocliError
 from robocli.hub import HubServer
@@ -95,25 +93,9 @@ def test_jsonl_and_npz(hub_recording: Path, tmp_path: Path) -> None:
     assert np.array_equal(ranges, np.array(scans, dtype=float), equal_nan=True)
 
 
-@pytest.fixture
-def arm_recording(abb: tuple[int, int], tmp_path: Path) -> tuple[Path, list[Any]]:
-    path = tmp_path / "arm.mcap"
-    samples: list[Any] = []
-    with Recorder(path) as rec, Arm.connect("127.0.0.1", *abb) as arm:
-        arm.add_sample_listener(samples.append)
-        rec.add(arm)
-        arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
-        arm.wait_until_idle(20)
-        wait_for(
-            lambda: sum(s.source == "joint_feedback" for s in samples) > 20,
-            "more than 20 joint_feedback samples",
-        )
-    return path, samples
-
-
-def test_irb120_json_is_the_recorded_feedback(arm_recording: tuple[Path, list[Any]],
+def test_irb120_json_is_the_recorded_feedback(arm_recording: Path,
                                               tmp_path: Path) -> None:  # fmt: skip
-    path, _ = arm_recording
+    path = arm_recording
     [out] = export(path, "irb120-json", tmp_path / "log")
     assert out == tmp_path / "log" / "arm.json"
     log = read_log(out)
@@ -131,9 +113,9 @@ def test_irb120_json_is_the_recorded_feedback(arm_recording: tuple[Path, list[An
     assert json.loads(out.read_text())["time_origin"] == pytest.approx(log.origin)
 
 
-def test_validate_takes_a_recording(arm_recording: tuple[Path, list[Any]],
+def test_validate_takes_a_recording(arm_recording: Path,
                                     tmp_path: Path) -> None:  # fmt: skip
-    path, _ = arm_recording
+    path = arm_recording
     assert read_any_log(path).positions.tolist() == arm_log(path).positions.tolist()
     [log] = export(path, "irb120-json", tmp_path)
     for args in ((str(path), str(log)), (str(log), str(path))):

@@ -494,21 +494,13 @@ def test_framer_recovers_after_garbage(variant: str) -> None:
     rng = random.Random(f"sm-garbage-{variant}")
     tried = 0
     for _ in range(20):
-        pieces, garbage = [], 0
-        for frame in frames:
-            junk = bytes(rng.randrange(1, 256) for _ in range(rng.randrange(0, 12)))
-            garbage += len(junk)
-            pieces += [junk, frame]
-        stream = b"".join(pieces)
+        stream, garbage = reference.with_garbage(frames, rng, (1, 256), 12)
         # Skip the rare draw where garbage happens to form a plausible frame.
         if reference.RefFramer(framer_name, max_frame=sm.MAX_FRAME_SIZE).feed(stream) != frames:
             continue
         tried += 1
         framer = Framer(framer_name, max_frame=sm.MAX_FRAME_SIZE)
-        out: list[bytes] = []
-        for i in range(0, len(stream), 7):
-            out += framer.feed(stream[i : i + 7])
-        assert out == frames
+        assert reference.fed_in_chunks(framer, stream, 7) == frames
         assert framer.stats.frames == len(frames)
         assert framer.stats.dropped_bytes == garbage
         assert framer.stats.bad_lengths == garbage

@@ -2,7 +2,7 @@
 configuration that makes a robocli server a client of it, and ``zenoh-ros2-sdk`` (an
 independent Python implementation of rmw_zenoh) set up on that router with the ``.msg``
 files of the standard types (written from rosbags' type store: the SDK computes each type's
-RIHS01 hash from them itself)."""
+RIHS01 hash from them itself). A test module that imports it is skipped without Zenoh."""
 
 from __future__ import annotations
 
@@ -17,6 +17,8 @@ import pytest
 
 from tests.bridge.bridge_helpers import robocli_process
 from tests.peers import free_endpoint
+
+pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 __all__ = ["client_config", "node_names", "robocli_process", "router", "sdk", "topics"]
 

@@ -16,8 +16,6 @@ from tests.bridge.bridge_helpers import Events, query
 from tests.ros2.ros2_helpers import client_config, robocli_process, router, sdk, topics
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 ARM_TYPES = {
     "/joint_states": "sensor_msgs/msg/JointState",
     "/robot_description": "std_msgs/msg/String",

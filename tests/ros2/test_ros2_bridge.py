@@ -17,8 +17,6 @@ from tests.bridge.bridge_helpers import Events, holder_token, query
 from tests.ros2.ros2_helpers import client_config, node_names, robocli_process, router, sdk, topics
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 PIONEER_TYPES = {
     "/odom": "nav_msgs/msg/Odometry",
     "/tf": "tf2_msgs/msg/TFMessage",

@@ -8,8 +8,6 @@ from __future__ import annotations
 import math
 import time
 
-import pytest
-
 from tests.ros2.ros2_helpers import (
     client_config,
     node_names,
@@ -19,8 +17,6 @@ from tests.ros2.ros2_helpers import (
     topics,
 )
 from tests.waiting import wait_for
-
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 HUB_TYPES = {
     "/adc": "std_msgs/msg/Float64MultiArray",

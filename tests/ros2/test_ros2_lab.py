@@ -8,7 +8,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import pytest
 
 from robocli.ros2 import types as T
 from robocli.ros2.node import Ros2Node
@@ -17,8 +16,6 @@ from robocli.sim.pioneer.server import PioneerSim
 from tests.ros2.ros2_helpers import robocli_process
 from tests.waiting import wait_for
 from tests.zenoh.test_lab_acl import Lab, lab  # noqa: F401 - the fixture
-
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
 
 ODOM, TWIST = "nav_msgs/msg/Odometry", "geometry_msgs/msg/Twist"
 

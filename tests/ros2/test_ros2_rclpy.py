@@ -27,8 +27,6 @@ from robocli.sim.pioneer.server import PioneerSim
 from tests.ros2.ros2_helpers import client_config, robocli_process, router
 from tests.waiting import wait_for
 
-pytest.importorskip("zenoh", reason="needs robocli-robots[zenoh] (eclipse-zenoh)")
-
 _DECODE = """
 import importlib, json, sys
 from rclpy.serialization import deserialize_message

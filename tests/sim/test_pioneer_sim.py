@@ -25,6 +25,7 @@ from robocli.protocols.common import find_refusal
 from robocli.sim.pioneer.server import PioneerSim, SimState, serve_many, sonar_batch
 from robocli.sim.world import MapError, World
 from tests.paths import DATA
+from tests.refusals import refused
 
 pytestmark = pytest.mark.timeout(30)
 
@@ -748,10 +749,8 @@ def test_a_file_that_is_not_a_map_is_refused_naming_it(
 ) -> None:
     """Each of these once gave a traceback, or a simulator whose ticks failed on overflow."""
     path = tmp_path / name
-    path.write_text(text)
-    with pytest.raises(MapError, match=message) as info:
-        World.load(path)
-    assert str(path) in str(info.value) and info.value.exit_code == 2
+    error = refused(path, text, World.load, MapError, message)
+    assert str(path) in str(error) and isinstance(error, MapError) and error.exit_code == 2
 
 
 def test_an_endless_map_file_is_read_in_bounded_memory(

@@ -5,7 +5,6 @@ and the messages and exit codes of each."""
 from __future__ import annotations
 
 import json
-import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -16,6 +15,7 @@ import pytest
 from robocli.cli import main
 from robocli.kinematics import load_model
 from robocli.kinematics.trajectory import circle
+from tests.commands.helpers import ctrl_c
 
 IRB = load_model("irb120")
 
@@ -152,8 +152,7 @@ def test_connect_ctrl_c_exits_130(make_sim) -> None:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
     assert proc.stdout is not None
     proc.stdout.readline()  # it runs
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=20)
+    _, err = ctrl_c(proc, 20)
     assert proc.returncode == 130
     assert err.splitlines() == ["robocli: interrupted"]
 

@@ -17,6 +17,7 @@ import pytest
 from robocli.io.capture import read_capture
 from robocli.protocols import simple_message as sm
 from tests import paths
+from tests.commands.helpers import ctrl_c
 
 DATA = paths.DATA / "simple_message"
 CLI = [sys.executable, "-m", "robocli", "dump", "arm"]
@@ -107,8 +108,7 @@ def test_ctrl_c_exits_130_with_one_line() -> None:
                             text=True)  # fmt: skip
     assert proc.stdout is not None
     proc.stdout.readline()  # it runs
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=20)
+    _, err = ctrl_c(proc, 20)
     assert proc.returncode == 130
     assert err.splitlines() == ["robocli: interrupted"]
 

@@ -14,6 +14,7 @@ import pytest
 from robocli import Hub
 from robocli.errors import DeviceError
 from robocli.hub import HubServer
+from tests.waiting import run_together
 
 
 @pytest.fixture
@@ -92,11 +93,7 @@ def test_a_client_queued_behind_others_hears_busy(pty_hub: tuple[HubServer, str,
             except DeviceError as exc:
                 results.append(exc)
 
-    users = [threading.Thread(target=user) for _ in range(3)]
-    for u in users:
-        u.start()
-    for u in users:
-        u.join(30)
+    run_together(user, 3, timeout=30)
     assert len(results) == 3
     assert results.count(b"") == 1, results  # the first: its read timed out, nothing came
     busy = [r for r in results if isinstance(r, DeviceError)]

@@ -18,6 +18,7 @@ import pytest
 
 from robocli.sim.pioneer.server import PioneerSim, SimState
 from robocli.sim.world import World
+from tests.simulators import pioneer_on_loopback
 from tests.waiting import wait_for
 
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGSTOP"), reason="POSIX signals")
@@ -88,8 +89,7 @@ class Child:
 
 @pytest.fixture
 def sim() -> Iterator[PioneerSim]:
-    with PioneerSim("p3dx", time_scale=2.0, world=World.empty(), watchdog_s=2.0) as simulator:
-        simulator.serve_tcp("127.0.0.1", 0)
+    with pioneer_on_loopback(time_scale=2.0, world=World.empty(), watchdog_s=2.0) as simulator:
         yield simulator
 
 
