@@ -5,6 +5,7 @@ when the controller's commands stop, when the controller is killed, when the bri
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -36,6 +37,19 @@ def sim() -> Iterator[tuple[PioneerSim, str]]:
 
 def _bridge(sim: tuple[PioneerSim, str], endpoint: str, *extra: str) -> Any:
     return bridge_process(["pioneer", sim[1], "--zenoh", endpoint, "--name", "r1", *extra])
+
+
+@contextlib.contextmanager
+def _driving(
+    sim: tuple[PioneerSim, str], endpoint: str, holder: str
+) -> Iterator[tuple[subprocess.Popen[str], RemotePioneer]]:
+    """A bridge (silence watchdog 60 s) and ``holder`` driving the robot through it, once
+    the robot moves."""
+    with _bridge(sim, endpoint, "--silence", "60") as (bridge, _):
+        with RemotePioneer.connect("r1", endpoint, holder=holder) as driver:
+            driver.set_velocity(0.3, 0.1)
+            wait_for(lambda: _moving(sim[0]), "the robot moves")
+            yield bridge, driver
 
 
 def _moving(simulator: PioneerSim) -> bool:
@@ -154,32 +168,26 @@ def test_the_robot_stops_when_the_controller_is_killed(sim, endpoint) -> None:
 
 def test_the_robot_stops_when_the_bridge_ends(sim, endpoint) -> None:
     simulator, _ = sim
-    with _bridge(sim, endpoint, "--silence", "60") as (bridge, _):
-        with RemotePioneer.connect("r1", endpoint, holder="erin") as driver:
-            driver.set_velocity(0.3, 0.1)
-            wait_for(lambda: _moving(simulator), "the robot moves")
-            bridge.send_signal(signal.SIGTERM)
-            wait_for(lambda: _stopped(simulator), "the robot stops")
-            assert bridge.wait(DEADLINE) == 130  # interrupted, as Ctrl-C
-            # the client sees the bridge leave (liveliness), not a timeout
-            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
-            with pytest.raises(ConnectionLost, match="left"):
-                driver.wait_for_state(timeout=DEADLINE)
+    with _driving(sim, endpoint, "erin") as (bridge, driver):
+        bridge.send_signal(signal.SIGTERM)
+        wait_for(lambda: _stopped(simulator), "the robot stops")
+        assert bridge.wait(DEADLINE) == 130  # interrupted, as Ctrl-C
+        # the client sees the bridge leave (liveliness), not a timeout
+        wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+        with pytest.raises(ConnectionLost, match="left"):
+            driver.wait_for_state(timeout=DEADLINE)
 
 
 def test_a_killed_bridge_stops_the_robot_and_its_clients_see_it_leave(sim, endpoint) -> None:
     simulator, _ = sim
-    with _bridge(sim, endpoint, "--silence", "60") as (bridge, _):
-        with RemotePioneer.connect("r1", endpoint, holder="oscar") as driver:
-            driver.set_velocity(0.3, 0.1)
-            wait_for(lambda: _moving(simulator), "the robot moves")
-            bridge.kill()
-            wait_for(lambda: _stopped(simulator), "the robot stops (its link dropped)")
-            wait_for(lambda: not driver.connected, "the client sees the bridge leave")
-            with pytest.raises(ConnectionLost, match="left"):
-                driver.wait_for_state(timeout=DEADLINE)
-            driver.close()  # stops and releases nothing: the bridge is gone
-            assert not driver.held
+    with _driving(sim, endpoint, "oscar") as (bridge, driver):
+        bridge.kill()
+        wait_for(lambda: _stopped(simulator), "the robot stops (its link dropped)")
+        wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+        with pytest.raises(ConnectionLost, match="left"):
+            driver.wait_for_state(timeout=DEADLINE)
+        driver.close()  # stops and releases nothing: the bridge is gone
+        assert not driver.held
 
 
 def test_a_bad_command_is_ignored_and_the_bridge_goes_on(sim, endpoint) -> None:

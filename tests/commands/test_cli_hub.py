@@ -42,6 +42,15 @@ def finish(proc: subprocess.Popen[str], timeout: float = 60) -> tuple[int, str, 
     return proc.returncode, out, err
 
 
+def subscribed(server: HubServer, sensor: str, rate: str, *args: str) -> str:
+    """The output of ``robocli subscribe SENSOR --rate RATE ARGS`` from ``server``, which
+    exited 0."""
+    code, out, err = finish(cli("subscribe", sensor, "--rate", rate, "--hub",
+                                f"127.0.0.1:{server.port}", *args))  # fmt: skip
+    assert code == 0, err
+    return out
+
+
 def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: HubServer) -> None:
     hub = f"127.0.0.1:{server.port}"
     args = ("subscribe", "adc", "--rate", "100", "--format", "csv", "--duration", "2")
@@ -65,10 +74,8 @@ def test_two_concurrent_csv_subscribers_get_about_100_rows_per_second(server: Hu
 
 
 def test_count_jsonl_channel_mask_compressed(server: HubServer) -> None:
-    proc = cli("subscribe", "adc", "--rate", "200", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "25", "--json", "--channels", "0x5", "--compress")  # fmt: skip
-    code, out, err = finish(proc)
-    assert code == 0, err
+    out = subscribed(server, "adc", "200", "--count", "25", "--json", "--channels", "0x5",
+                     "--compress")  # fmt: skip
     rows = [json.loads(line) for line in out.splitlines()]
     assert len(rows) == 25 and set(rows[0]) == {"t", "ch0", "ch2"}
     assert all(a["t"] < b["t"] for a, b in zip(rows, rows[1:], strict=False))
@@ -98,10 +105,7 @@ def test_unknown_sensor_is_a_usage_error_naming_the_known_ones(server: HubServer
 
 
 def test_table_without_a_terminal(server: HubServer) -> None:
-    proc = cli("subscribe", "imu", "--rate", "50", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "5", "--format", "table")  # fmt: skip
-    code, out, err = finish(proc)
-    assert code == 0, err
+    out = subscribed(server, "imu", "50", "--count", "5", "--format", "table")
     lines = out.splitlines()
     assert lines[0].split() == ["t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"]
     assert len(lines) == 6 and len(lines[1].split()) == 10
@@ -224,10 +228,7 @@ def test_dump_hub_file_reads_back_what_the_live_dump_showed(
 
 
 def test_laser_rows_summarise_each_scan(server: HubServer) -> None:
-    proc = cli("subscribe", "hokuyo", "--rate", "40", "--hub", f"127.0.0.1:{server.port}",
-               "--count", "3", "--format", "csv")  # fmt: skip
-    code, out, err = finish(proc)
-    assert code == 0, err
+    out = subscribed(server, "hokuyo", "40", "--count", "3", "--format", "csv")
     lines = out.splitlines()
     assert lines[0] == "t,beams,min,max,mean" and len(lines) == 4
     beams, low, high = (float(x) for x in lines[1].split(",")[1:4])

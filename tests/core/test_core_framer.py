@@ -311,21 +311,23 @@ def _compare(proto: str, data: bytes, cuts: list[int], max_frame: int | None) ->
         assert c.pending == r.pending
 
 
+def _stream_and_cuts(data: st.DataObject, proto: str, max_cuts: int) -> tuple[bytes, list[int]]:
+    """A drawn stream of ``proto`` and up to ``max_cuts`` places to cut it."""
+    return data.draw(streams(proto)), data.draw(st.lists(st.integers(0, 10_000), max_size=max_cuts))
+
+
 @pytest.mark.parametrize("proto", PROTOCOLS)
 @settings(max_examples=200, deadline=None)
 @given(data=st.data())
 def test_matches_reference(proto: str, data: st.DataObject) -> None:
-    stream = data.draw(streams(proto))
-    cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=12))
-    _compare(proto, stream, cuts, None)
+    _compare(proto, *_stream_and_cuts(data, proto, 12), None)
 
 
 @pytest.mark.parametrize("proto", PROTOCOLS)
 @settings(max_examples=100, deadline=None)
 @given(data=st.data())
 def test_matches_reference_small_max_frame(proto: str, data: st.DataObject) -> None:
-    stream = data.draw(streams(proto))
-    cuts = data.draw(st.lists(st.integers(0, 10_000), max_size=6))
+    stream, cuts = _stream_and_cuts(data, proto, 6)
     low = {"arcos": 6, "sm-le": 16, "sm-be": 16, "ros4mat": 27, "scip2": 8}[proto]
     _compare(proto, stream, cuts, data.draw(st.integers(low, low + 60)))
 

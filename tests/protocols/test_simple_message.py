@@ -226,11 +226,14 @@ def load_checks(variant: str) -> list[dict[str, Any]]:
 CHECKS = [(variant, c) for variant in VARIANTS for c in load_checks(variant)]
 
 
-@pytest.mark.parametrize(
-    ("variant", "check"),
-    [(v, c) for v, c in CHECKS if c["name"].startswith("rx_")],
-    ids=[f"{v}-{c['name']}" for v, c in CHECKS if c["name"].startswith("rx_")],
-)
+def _checks(prefix: str) -> list[Any]:
+    """The library checks whose name starts with ``prefix``, as parameters named
+    ``variant-name``."""
+    return [pytest.param(v, c, id=f"{v}-{c['name']}") for v, c in CHECKS
+            if c["name"].startswith(prefix)]  # fmt: skip
+
+
+@pytest.mark.parametrize(("variant", "check"), _checks("rx_"))
 def test_library_receive_checks(variant: str, check: dict[str, Any]) -> None:
     byteorder, real, _ = VARIANTS[variant]
     frame = bytes.fromhex(check["hex"])
@@ -265,11 +268,7 @@ def test_library_receive_checks(variant: str, check: dict[str, Any]) -> None:
             assert isinstance(msg.body, bytes)
 
 
-@pytest.mark.parametrize(
-    ("variant", "check"),
-    [(v, c) for v, c in CHECKS if c["name"].startswith("tx_")],
-    ids=[f"{v}-{c['name']}" for v, c in CHECKS if c["name"].startswith("tx_")],
-)
+@pytest.mark.parametrize(("variant", "check"), _checks("tx_"))
 def test_library_send_checks(variant: str, check: dict[str, Any]) -> None:
     byteorder, real, _ = VARIANTS[variant]
     header = (check["msg_type"], check["comm_type"], check["reply_code"])

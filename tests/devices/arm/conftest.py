@@ -150,6 +150,18 @@ class TalkingServer:
 
 
 @pytest.fixture
+def sim_arm(
+    make_sim: Callable[..., tuple[AbbSim, int, int]], make_arm: Callable[..., Arm]
+) -> tuple[AbbSim, Arm]:
+    """A simulator (``make_sim``'s defaults) and an arm connected to it that has its first
+    state."""
+    sim, mp, sp = make_sim()
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    return sim, arm
+
+
+@pytest.fixture
 def talking_server() -> Iterator[Callable[[bytes], TalkingServer]]:
     servers: list[TalkingServer] = []
 

@@ -5,10 +5,11 @@ proxy that cuts the link at that moment."""
 
 from __future__ import annotations
 
+import contextlib
 import socket
 import struct
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 
 import pytest
 
@@ -115,15 +116,25 @@ class CutAfterActivation:
             s.close()
 
 
-def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:
-    sim, mp, sp = make_sim(time_scale=2.0)
-    proxy = CutAfterActivation(mp, lambda: sim.wait_until(lambda s: s.motion_clients == 0, WAIT))
+@contextlib.contextmanager
+def _cut_download(proxy: CutAfterActivation, sp: int) -> Iterator[tuple[Arm, str]]:
+    """An arm connected through ``proxy`` whose download of a long circle ended in
+    ConnectionLost: the arm and the error's message (arm and proxy closed afterwards)."""
     arm = Arm.connect("127.0.0.1", proxy.port, sp, timeout=WAIT)
     try:
         arm.wait_for_state()
         with pytest.raises(ConnectionLost) as info:
             arm.download(circle(IRB, 20, duration=60.0))
-        message = str(info.value)
+        yield arm, str(info.value)
+    finally:
+        arm.close()
+        proxy.close()
+
+
+def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:
+    sim, mp, sp = make_sim(time_scale=2.0)
+    proxy = CutAfterActivation(mp, lambda: sim.wait_until(lambda s: s.motion_clients == 0, WAIT))
+    with _cut_download(proxy, sp) as (arm, message):
         assert "after the last point (-3) went out, before its acknowledgement" in message
         assert "the arm may be moving" in message
         assert "STOP (-4) sent over a new connection, and acknowledged" in message
@@ -134,9 +145,6 @@ def test_link_lost_before_the_activation_is_acknowledged(make_sim) -> None:
         assert proxy.sequences[1] == [STOP]
         sim.wait_until(lambda s: not s.in_motion, WAIT)  # stopped, long before its 60 s
         assert not arm.running()
-    finally:
-        arm.close()
-        proxy.close()
 
 
 def test_no_stop_when_nothing_was_activated(make_sim) -> None:
@@ -167,18 +175,10 @@ def test_the_error_says_when_the_stop_could_not_be_sent(make_sim) -> None:
         proxy.srv.close()
 
     proxy = CutAfterActivation(mp, unreachable)
-    arm = Arm.connect("127.0.0.1", proxy.port, sp, timeout=WAIT)
-    try:
-        arm.wait_for_state()
-        with pytest.raises(ConnectionLost) as info:
-            arm.download(circle(IRB, 20, duration=60.0))
-        message = str(info.value)
+    with _cut_download(proxy, sp) as (arm, message):
         assert message.count("tcp://") == 1 and (
             "the arm may be moving, and STOP (-4) could not be sent over a new connection "
             "(connection refused)" in message
         )
         assert message.endswith("stop it at the controller"), message
         assert sim.snapshot().stops == 0 and sim.snapshot().in_motion
-    finally:
-        arm.close()
-        proxy.close()

@@ -95,10 +95,8 @@ def test_paper_model_gives_paper_like_errors(make_sim, make_arm) -> None:
     assert float(np.max(result.mae)) < 0.0065
 
 
-def test_more_than_100_points_refused_before_sending(make_sim, make_arm) -> None:
-    sim, mp, sp = make_sim()
-    arm = make_arm(mp, sp)
-    arm.wait_for_state()
+def test_more_than_100_points_refused_before_sending(sim_arm) -> None:
+    sim, arm = sim_arm
     with pytest.raises(InvalidArgument, match="101 points"):
         arm.download(circle(IRB, 101))
     assert sim.snapshot().points_received == 0
@@ -132,10 +130,8 @@ def test_limits_checked_before_sending(make_sim, make_arm) -> None:
     assert sim.snapshot().points_received == 0
 
 
-def test_stop_in_mid_motion(make_sim, make_arm) -> None:
-    sim, mp, sp = make_sim()
-    arm = make_arm(mp, sp)
-    arm.wait_for_state()
+def test_stop_in_mid_motion(sim_arm) -> None:
+    sim, arm = sim_arm
     move = far_move(duration=8.0)
     arm.download(move)
     sim.wait_until(lambda s: s.in_motion and s.sim_time > 1.0, 10)
@@ -147,10 +143,8 @@ def test_stop_in_mid_motion(make_sim, make_arm) -> None:
     assert 0.0 < travelled < np.abs(move.positions[-1] - IRB.work).max()
 
 
-def test_new_trajectory_preempts_running_one(make_sim, make_arm) -> None:
-    sim, mp, sp = make_sim()
-    arm = make_arm(mp, sp)
-    arm.wait_for_state()
+def test_new_trajectory_preempts_running_one(sim_arm) -> None:
+    sim, arm = sim_arm
     arm.download(far_move(duration=8.0))
     sim.wait_until(lambda s: s.in_motion, 10)
     back = ptp_joint(IRB, IRB.home, n=10, q_start=arm.wait_for_state().joints, duration=1.0)

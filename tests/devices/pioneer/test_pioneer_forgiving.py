@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
+from collections.abc import Iterator
 
 import pytest
 
@@ -30,18 +32,27 @@ def test_motion_arguments_must_be_finite_numbers(sim: PioneerSim, v: object, w: 
         assert sim.snapshot().trans_vel_set == 0
 
 
-def test_mm_per_second_habit_is_clamped_with_one_warning(
+@contextlib.contextmanager
+def _warnings_while_connected(
     sim: PioneerSim, caplog: pytest.LogCaptureFixture
-) -> None:
+) -> Iterator[Pioneer]:
+    """A robot connected to ``sim`` while ``caplog`` captures the driver's warnings."""
     assert sim.url is not None
     with caplog.at_level(logging.WARNING, "robocli.devices.pioneer"):
         with Pioneer.connect(sim.url) as robot:
-            robot.enable_motors()
-            robot.set_velocity(200, 0)  # the vendor SDK's mm/s
-            s = sim.wait_until(lambda s: s.trans_vel_set != 0, timeout=30)
-            robot.set_velocity(-300, 0)
-            sim.wait_until(lambda s: s.trans_vel_set < 0, timeout=30)
-            top = robot.config["transvel_top"] / 1000.0  # type: ignore[index]
+            yield robot
+
+
+def test_mm_per_second_habit_is_clamped_with_one_warning(
+    sim: PioneerSim, caplog: pytest.LogCaptureFixture
+) -> None:
+    with _warnings_while_connected(sim, caplog) as robot:
+        robot.enable_motors()
+        robot.set_velocity(200, 0)  # the vendor SDK's mm/s
+        s = sim.wait_until(lambda s: s.trans_vel_set != 0, timeout=30)
+        robot.set_velocity(-300, 0)
+        sim.wait_until(lambda s: s.trans_vel_set < 0, timeout=30)
+        top = robot.config["transvel_top"] / 1000.0  # type: ignore[index]
     assert s.trans_vel_set == pytest.approx(top)
     warnings = [r for r in caplog.records if "beyond the robot's limit" in r.getMessage()]
     assert len(warnings) == 1 and "v=200" in warnings[0].getMessage()
@@ -52,16 +63,14 @@ def test_mm_per_second_habit_is_clamped_with_one_warning(
 def test_moving_with_motors_off_warns_once(
     sim: PioneerSim, caplog: pytest.LogCaptureFixture
 ) -> None:
-    assert sim.url is not None
-    with caplog.at_level(logging.WARNING, "robocli.devices.pioneer"):
-        with Pioneer.connect(sim.url) as robot:
-            assert not robot.state.motors_enabled
-            robot.set_velocity(0.2, 0.0)
-            robot.set_velocity(0.3, 0.0)
-            robot.enable_motors()
-            robot.wait_for_sip()
-            robot.wait_for_sip()
-            assert robot.state.motors_enabled
+    with _warnings_while_connected(sim, caplog) as robot:
+        assert not robot.state.motors_enabled
+        robot.set_velocity(0.2, 0.0)
+        robot.set_velocity(0.3, 0.0)
+        robot.enable_motors()
+        robot.wait_for_sip()
+        robot.wait_for_sip()
+        assert robot.state.motors_enabled
     warned = [r for r in caplog.records if "motors are disabled" in r.getMessage()]
     assert len(warned) == 1
 
