@@ -30,7 +30,7 @@ def _random_q(model: RobotModel, n: int, seed: int) -> np.ndarray:
 
 
 @pytest.mark.parametrize("name", ALL)
-def test_vectorised_fk_equals_the_per_posedh_product(name: str) -> None:
+def test_vectorised_fk_equals_the_per_pose_dh_product(name: str) -> None:
     model = load_model(name)
     q = _random_q(model, 300, 1)
     want = np.stack([dh_product(model, row) for row in q])
