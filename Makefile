@@ -277,7 +277,7 @@ soak: $(STAMP)
 SOAK_SERIAL_S ?= 600
 soak-serial: $(STAMP)
 	SOAK_SERIAL_S=$(SOAK_SERIAL_S) $(PY) -m pytest -q -p no:cacheprovider -m slow --timeout=$$(( $(SOAK_SERIAL_S) + 300 )) \
-	  tests/hub/test_serial_stream.py -k soak
+	  tests/devices/hub/test_serial_stream.py -k soak
 
 # Ten minutes of `record --hub` (IMU 200 Hz, ADC 1 kHz, laser 40 Hz, camera 30 Hz) from a
 # `serve --sim`: drops, the recorder's CPU and resident memory over time, MB per minute with

@@ -21,6 +21,7 @@ import pytest
 from robocli.kinematics import fk, fk_positions, ik_path, load_model
 from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import circle, circle_path
+from tests.kinematics.dh import dh_product
 
 N_FK = 1_000_000
 N_LOOP = 2_000
@@ -39,23 +40,8 @@ def poses(irb120: RobotModel) -> np.ndarray:
 
 
 def _dh_loop(model: RobotModel, q: np.ndarray) -> np.ndarray:
-    out = np.empty((q.shape[0], 4, 4))
-    for k in range(q.shape[0]):
-        t = np.eye(4)
-        for i in range(6):
-            th = q[k, i] + model.offset[i]
-            ct, st = math.cos(th), math.sin(th)
-            ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
-            t = t @ np.array(
-                [
-                    [ct, -st * ca, st * sa, model.a[i] * ct],
-                    [st, ct * ca, -ct * sa, model.a[i] * st],
-                    [0.0, sa, ca, model.d[i]],
-                    [0.0, 0.0, 0.0, 1.0],
-                ]
-            )
-        out[k] = t
-    return out
+    """The per-pose loop: tests' textbook DH product, one pose at a time."""
+    return np.stack([dh_product(model, row) for row in q])
 
 
 def _rate(benchmark: Any, count: int, key: str) -> float:

@@ -1,18 +1,19 @@
-"""Shared pytest configuration: tests/ is importable (``import reference``), the hardware
-variables are read (``hardware.py``), Hypothesis runs without per-example deadlines, and the
-CLI processes the tests start can be interrupted."""
+"""Shared pytest configuration: the hardware variables are read (``hardware.py``), Hypothesis
+runs without per-example deadlines, the CLI processes the tests start can be interrupted, and
+the fixtures that tests in several folders use (a hub server, a Zenoh endpoint). tests/ is a
+package: helpers are imported as ``from tests.waiting import wait_for``."""
 
 from __future__ import annotations
 
-import os
 import signal
-import sys
+from collections.abc import Iterator
 
+import pytest
 from hypothesis import HealthCheck, settings
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-import hardware  # noqa: F401 - reads ROBOCLI_PIONEER/ARM/HUB, then clears them
+from robocli.hub_server import HubServer
+from tests import hardware  # noqa: F401 - reads ROBOCLI_PIONEER/ARM/HUB, then clears them
+from tests.peers import free_endpoint
 
 # Hypothesis checks properties, not speed: on a loaded 2-vCPU machine one example can take
 # longer than its default 200 ms deadline, which would make a correct test flaky.
@@ -26,3 +27,17 @@ settings.load_profile("robocli")
 # the children.
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+@pytest.fixture
+def hub() -> Iterator[HubServer]:
+    """A simulated hub server on an ephemeral loopback port (tests of the server and of its
+    clients)."""
+    with HubServer(port=0, sim=True) as srv:
+        yield srv
+
+
+@pytest.fixture
+def endpoint() -> str:
+    """A Zenoh ``tcp/127.0.0.1:PORT`` endpoint on a port free a moment ago."""
+    return free_endpoint()

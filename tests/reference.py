@@ -10,12 +10,13 @@ Python test (and the fuzzers) use.
 from __future__ import annotations
 
 import json
+import random
 import struct
 from bisect import bisect_left, bisect_right
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
 from robocli.protocols.scip2.framing import ReplyFramer
 
@@ -349,3 +350,28 @@ def align_linear(ts: list[float], ref: list[float]) -> tuple[list[int], list[flo
             idx.append(k - 1)
             w.append((x - ts[k - 1]) / (ts[k] - ts[k - 1]))
     return idx, w
+
+
+def with_garbage(
+    frames: list[bytes], rng: random.Random, byte_range: tuple[int, int], longest: int
+) -> tuple[bytes, int]:
+    """``frames`` each preceded by 0 to ``longest - 1`` random bytes drawn from
+    ``range(*byte_range)``: the stream, and how many garbage bytes it holds."""
+    pieces, garbage = [], 0
+    for frame in frames:
+        junk = bytes(rng.randrange(*byte_range) for _ in range(rng.randrange(0, longest)))
+        garbage += len(junk)
+        pieces += [junk, frame]
+    return b"".join(pieces), garbage
+
+
+class Feeds(Protocol):
+    def feed(self, data: bytes) -> list[bytes]: ...
+
+
+def fed_in_chunks(framer: Feeds, stream: bytes, size: int) -> list[bytes]:
+    """The frames ``framer`` returns when fed ``stream`` ``size`` bytes at a time."""
+    out: list[bytes] = []
+    for i in range(0, len(stream), size):
+        out += framer.feed(stream[i : i + size])
+    return out

@@ -10,7 +10,9 @@ from pathlib import Path
 
 import pytest
 
-EXAMPLES = sorted((Path(__file__).parent.parent / "examples").glob("*.py"))
+from tests import paths
+
+EXAMPLES = sorted(paths.EXAMPLES.glob("*.py"))
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.name for p in EXAMPLES])
@@ -29,7 +31,7 @@ def test_an_example_imports_no_private_module(path: Path) -> None:
 
 
 def test_wander_runs_on_a_sim_url() -> None:
-    wander = Path(__file__).parent.parent / "examples" / "wander.py"
+    wander = paths.EXAMPLES / "wander.py"
     done = subprocess.run([sys.executable, str(wander), "sim://?time_scale=4", "--seconds", "1"],
                           capture_output=True, text=True, timeout=120)  # fmt: skip
     assert done.returncode == 0, done.stderr

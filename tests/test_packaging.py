@@ -28,7 +28,7 @@ TIMEOUT = 300  # s; bounds a hung build only: a build takes seconds
 NOT_SHIPPED = (".ci/", ".github/", ".gitignore", ".pre-commit-config.yaml")
 # tests that read tests/data and fuzz/ (at import or in the test), run from the unpacked sdist
 SHIPPED_TESTS = (
-    "tests/hub/test_server.py::test_original_client_bytes_are_served",  # original_client.hex
+    "tests/hub_server/test_server.py::test_original_client_bytes_are_served",  # original_client.hex
     "tests/sim/test_laser_sim.py::test_reflectors_follow_the_lms200_rules",  # laser_room.map
     "tests/test_fuzz_smoke.py::test_every_target_is_runnable",  # fuzz/
 )

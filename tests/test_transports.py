@@ -21,6 +21,7 @@ from robocli.transports import (
     parse_address,
     parse_host,
 )
+from tests.peers import needs_ipv6
 
 
 @pytest.fixture
@@ -161,21 +162,6 @@ def test_writes_from_two_threads_never_interleave() -> None:
         for t in threads:
             t.join(5.0)
         assert bytes(got) in (b"A" * n + b"B" * n, b"B" * n + b"A" * n)
-
-
-def _ipv6_loopback() -> bool:
-    """Whether this machine can listen on [::1] (containers often have no IPv6)."""
-    if not socket.has_ipv6:
-        return False
-    try:
-        with socket.socket(socket.AF_INET6, socket.SOCK_STREAM) as s:
-            s.bind(("::1", 0))
-    except OSError:
-        return False
-    return True
-
-
-needs_ipv6 = pytest.mark.skipif(not _ipv6_loopback(), reason="no IPv6 loopback ([::1]) here")
 
 
 @pytest.mark.parametrize(

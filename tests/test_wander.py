@@ -10,15 +10,15 @@ from __future__ import annotations
 import math
 import sys
 import threading
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from robocli import Pioneer
 from robocli.sim.pioneer.server import PioneerSim
+from tests.paths import EXAMPLES
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "examples"))
+sys.path.insert(0, str(EXAMPLES))
 from demo import WANDER_SIPS
 from wander import wander
 

@@ -1,8 +1,10 @@
-"""Waiting for an event in a test (``from waiting import wait_for``): poll a condition until
-it holds, with a deadline that only bounds a failure, never a duration that is asserted."""
+"""Waiting for an event in a test (``from tests.waiting import wait_for``): poll a condition until
+it holds, or wait for threads to end, with a deadline that only bounds a failure, never a
+duration that is asserted."""
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from typing import TypeVar
@@ -26,4 +28,14 @@ def wait_for(condition: Callable[[], T], what: str, timeout: float = DEADLINE_S)
         time.sleep(POLL_S)
 
 
-__all__ = ["DEADLINE_S", "wait_for"]
+def run_together(target: Callable[[], object], n: int, timeout: float = DEADLINE_S) -> None:
+    """``target`` run by ``n`` threads at once; returns once each has ended (or ``timeout``
+    seconds passed for it: the caller asserts what the threads did)."""
+    threads = [threading.Thread(target=target) for _ in range(n)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout)
+
+
+__all__ = ["DEADLINE_S", "run_together", "wait_for"]

@@ -10,7 +10,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from waiting import wait_for
 
 from robocli.analysis import PacketLog, read_packets
 from robocli.analysis.packets import Packet
@@ -21,6 +20,7 @@ from robocli.hub_server import HubServer
 from robocli.io.record import Recorder, info
 from robocli.io.record.session import HUB_DEFAULTS, RecordingSession, hub_sensors
 from robocli.sim.abb.server import AbbSim
+from tests.waiting import wait_for
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 

@@ -9,19 +9,18 @@ import pytest
 
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
+from tests.simulators import pioneer_on_loopback
 
 
 @pytest.fixture
 def sim() -> Iterator[PioneerSim]:
     """A P3-DX in the default room, 5x faster than real time."""
-    with PioneerSim("p3dx", time_scale=5.0) as simulator:
-        simulator.serve_tcp("127.0.0.1", 0)
+    with pioneer_on_loopback(time_scale=5.0) as simulator:
         yield simulator
 
 
 @pytest.fixture
 def empty_sim() -> Iterator[PioneerSim]:
     """A P3-DX in an empty world (sonar reads max range), 20x faster than real time."""
-    with PioneerSim("p3dx", time_scale=20.0, world=World.empty()) as simulator:
-        simulator.serve_tcp("127.0.0.1", 0)
+    with pioneer_on_loopback(time_scale=20.0, world=World.empty()) as simulator:
         yield simulator

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
-from waiting import wait_for
 
 import robocli
 from robocli.devices.base import Device, ListenerHandle
 from robocli.errors import ConnectionLost
+from tests.waiting import wait_for
 
 DEADLINE_S = 20.0  # generous: the suite runs with the CPU oversubscribed
 

@@ -4,12 +4,12 @@ connect, read the state, leave without moving anything. Skipped otherwise."""
 from __future__ import annotations
 
 import pytest
-from hardware import HARDWARE, VARIABLES
 
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.hub.tools import survey
 from robocli.devices.pioneer import Pioneer
+from tests.hardware import HARDWARE, VARIABLES
 
 
 def _needs(device: str) -> pytest.MarkDecorator:

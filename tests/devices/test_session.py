@@ -14,6 +14,7 @@ from robocli.devices.pioneer import Pioneer
 from robocli.errors import ConnectionLost, TransportError
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
+from tests.waiting import run_together
 
 
 class Relay:
@@ -216,11 +217,7 @@ def test_concurrent_callers_and_the_reader_share_the_link(sim: PioneerSim) -> No
             except BaseException as exc:
                 errors.append(exc)
 
-        threads = [threading.Thread(target=hammer) for _ in range(3)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join(30)
+        run_together(hammer, 3, timeout=30)
         assert not errors
         count = robot.stats.sips
         robot.wait_for_sip(timeout=10)

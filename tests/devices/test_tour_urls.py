@@ -16,15 +16,15 @@ import subprocess
 import sys
 import threading
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
 import robocli
 from robocli.errors import InvalidArgument
 from robocli.sim.pioneer.server import PioneerSim
+from tests.paths import EXAMPLES
 
-SCRIPT = Path(__file__).resolve().parents[2] / "examples" / "tour.py"
+SCRIPT = EXAMPLES / "tour.py"
 DEADLINE_S = 120.0  # bounds a failure only: the suite runs with the CPU oversubscribed
 DROVE = re.compile(r"drove from x=(\S+) y=(\S+) to x=(\S+) y=(\S+) th=\S+$", re.MULTILINE)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -11,6 +12,7 @@ pytest.importorskip("mcap")
 from robocli.hub_server import HubServer
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
+from tests.io.recordings import record_arm_move
 
 
 @pytest.fixture
@@ -31,3 +33,11 @@ def abb() -> Iterator[tuple[int, int]]:
 def hub_server() -> Iterator[HubServer]:
     with HubServer(port=0, sim=True) as srv:
         yield srv
+
+
+@pytest.fixture
+def arm_recording(abb: tuple[int, int], tmp_path: Path) -> Path:
+    """An arm's move recorded into tmp_path/arm.mcap (the tests of export and replay)."""
+    path = tmp_path / "arm.mcap"
+    record_arm_move(path, *abb)
+    return path

@@ -8,27 +8,15 @@ from __future__ import annotations
 import base64
 import binascii
 import json
-import time
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader
 
+from tests.paths import DATA
+
 WAIT = 30.0  #: bounds a failure only: every wait polls for an event
-
-
-def wait_for(pred: Callable[[], Any], timeout: float = WAIT, what: str = "condition") -> Any:
-    """Poll ``pred`` until it is truthy; fail after ``timeout`` s."""
-    end = time.monotonic() + timeout
-    while True:
-        value = pred()
-        if value:
-            return value
-        if time.monotonic() > end:
-            raise AssertionError(f"timed out waiting for {what}")
-        time.sleep(0.01)
 
 
 def messages(path: Path, topics: list[str] | None = None) -> list[tuple[Any, Any, Any]]:
@@ -69,7 +57,7 @@ def stream_messages(path: Path) -> tuple[list[Any], bool]:
 #: 2.1.0, vendored: tests/data/foxglove_schemas/README.md), by schema name.
 FOXGLOVE_SCHEMAS: dict[str, dict[str, Any]] = {
     p.stem: json.loads(p.read_text())
-    for p in (Path(__file__).parents[1] / "data" / "foxglove_schemas").glob("foxglove.*.json")
+    for p in (DATA / "foxglove_schemas").glob("foxglove.*.json")
 }
 #: What the subset Foxglove and Lichtblick read has no use for: a field has one type.
 _UNIONS = ("anyOf", "oneOf", "allOf", "not", "$ref", "if", "patternProperties")

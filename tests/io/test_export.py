@@ -8,19 +8,18 @@ import json
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
-from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.errors import InvalidArgument, RobocliError
 from robocli.hub_server import HubServer
 from robocli.io.export import arm_log, export, read_any_log
 from robocli.io.record import Recorder
 from robocli.kinematics.trajlog import finite_difference, read_log
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
@@ -94,22 +93,9 @@ def test_jsonl_and_npz(hub_recording: Path, tmp_path: Path) -> None:
     assert np.array_equal(ranges, np.array(scans, dtype=float), equal_nan=True)
 
 
-@pytest.fixture
-def arm_recording(abb: tuple[int, int], tmp_path: Path) -> tuple[Path, list[Any]]:
-    path = tmp_path / "arm.mcap"
-    samples: list[Any] = []
-    with Recorder(path) as rec, Arm.connect("127.0.0.1", *abb) as arm:
-        arm.add_listener(samples.append, kind="samples")
-        rec.add(arm)
-        arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
-        arm.wait_until_idle(20)
-        wait_for(lambda: sum(s.source == "joint_feedback" for s in samples) > 20)
-    return path, samples
-
-
-def test_irb120_json_is_the_recorded_feedback(arm_recording: tuple[Path, list[Any]],
+def test_irb120_json_is_the_recorded_feedback(arm_recording: Path,
                                               tmp_path: Path) -> None:  # fmt: skip
-    path, _ = arm_recording
+    path = arm_recording
     [out] = export(path, "irb120-json", tmp_path / "log")
     assert out == tmp_path / "log" / "arm.json"
     log = read_log(out)
@@ -127,9 +113,9 @@ def test_irb120_json_is_the_recorded_feedback(arm_recording: tuple[Path, list[An
     assert json.loads(out.read_text())["time_origin"] == pytest.approx(log.origin)
 
 
-def test_validate_takes_a_recording(arm_recording: tuple[Path, list[Any]],
+def test_validate_takes_a_recording(arm_recording: Path,
                                     tmp_path: Path) -> None:  # fmt: skip
-    path, _ = arm_recording
+    path = arm_recording
     assert read_any_log(path).positions.tolist() == arm_log(path).positions.tolist()
     [log] = export(path, "irb120-json", tmp_path)
     for args in ((str(path), str(log)), (str(log), str(path))):

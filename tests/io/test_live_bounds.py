@@ -19,7 +19,7 @@ from robocli.io import schemas as S
 from robocli.io.record.links import json_text
 from robocli.io.record.live import LiveView
 from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
-from tests.io.readback import wait_for
+from tests.waiting import wait_for
 
 MiB = 1 << 20
 #: one 640x480 rgb8 frame as the hub's camera channel carries it (JSON, base64: ~1.2 MB)

@@ -16,16 +16,16 @@ import pytest
 
 pytest.importorskip("websockets")
 
-from cli.helpers import one_line_error, run, running
-
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
 from robocli.hub_server import HubServer
 from robocli.io.record import Recorder, pull_hub
 from robocli.io.record.live import LiveView
+from tests.commands.helpers import one_line_error, run, running
 from tests.io.foxglove_client import SUBPROTOCOLS, FoxgloveClient
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 def test_a_pioneer_live(pioneer_url: str) -> None:
@@ -126,7 +126,7 @@ def test_record_foxglove_serves_while_recording(tmp_path: Path) -> None:
         assert proc.wait(30) == 130
         err = proc.stderr.read()
     assert "recorded" in err and "Traceback" not in err
-    wait_for(lambda: path.stat().st_size > 0)
+    wait_for(lambda: path.stat().st_size > 0, "a non-empty recording")
     assert by_topic(path)["/pioneer/pose"]
 
 

@@ -9,10 +9,10 @@ import socket
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, run
 
 from robocli.io.record import Recorder
 from robocli.output import OutputError, check_output, create_output, replace_output
+from tests.commands.helpers import one_line_error, run
 
 PRECIOUS = b"a recording nobody can make again\n" * 2000
 

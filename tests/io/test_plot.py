@@ -16,8 +16,6 @@ import pytest
 
 pytest.importorskip("matplotlib")
 
-from cli.helpers import one_line_error, run
-
 from robocli.devices.arm import Arm
 from robocli.devices.hub.client import Hub
 from robocli.devices.pioneer import Pioneer
@@ -27,7 +25,9 @@ from robocli.io import schemas as S
 from robocli.io.record import Recorder
 from robocli.io.record.links import json_text
 from robocli.io.record.plot import plot
-from tests.io.readback import by_topic, wait_for
+from tests.commands.helpers import one_line_error, run
+from tests.io.readback import by_topic
+from tests.waiting import wait_for
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -14,13 +14,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from cli.helpers import ROBOCLI, one_line_error, run, running
 
 from robocli.io.capture import CaptureWriter
 from robocli.io.record import Recorder, info
 from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
-from tests.io.readback import by_topic, decoded, frame_of, messages, stream_messages, wait_for
+from tests.commands.helpers import ROBOCLI, one_line_error, run, running
+from tests.io.readback import by_topic, decoded, frame_of, messages, stream_messages
+from tests.waiting import wait_for
 
 
 def _json_dump(*args: str) -> list[dict[str, Any]]:

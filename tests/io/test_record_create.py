@@ -10,7 +10,6 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
-from cli.helpers import run
 
 from robocli.devices.create import STREAMED, Create, CreateState
 from robocli.errors import InvalidArgument
@@ -19,6 +18,7 @@ from robocli.protocols import create_oi as oi
 from robocli.protocols.create_oi import Op
 from robocli.sim.create import CreateSim
 from robocli.sim.world import World
+from tests.commands.helpers import run
 from tests.io.readback import by_topic, decoded, frame_of
 
 TOPICS = {

@@ -22,7 +22,9 @@ from robocli.io.record import RAW_SCHEMA, Recorder, info
 from robocli.kinematics import load_model
 from robocli.kinematics.fk import fk
 from robocli.protocols import arcos
-from tests.io.readback import by_topic, decoded, messages, wait_for
+from tests.io.readback import by_topic, decoded, messages
+from tests.paths import DATA
+from tests.waiting import wait_for
 
 FOXGLOVE_PIONEER = {
     "/pioneer/pose": "foxglove.PoseInFrame",
@@ -123,7 +125,7 @@ def test_pioneer_raw_channels_are_the_live_dumps_packets(pioneer_url: str,
 
 #: Made by robocli before raw channels had a schema (message encoding ``robocli.raw``, the
 #: frame's bytes as the message): a Pioneer simulator's session, five SIPs.
-OLD_RAW = Path(__file__).parents[1] / "data" / "recordings" / "pioneer-robocli-raw.mcap"
+OLD_RAW = DATA / "recordings" / "pioneer-robocli-raw.mcap"
 
 
 def test_raw_channels_of_older_recordings_still_read() -> None:
@@ -163,8 +165,10 @@ def test_arm_joints_frames_and_controller_time(abb: tuple[int, int], tmp_path: P
         target = np.radians([20, 10, 5, 0, 30, 10])
         arm.move_to(target, duration=0.5)
         arm.wait_until_idle(20)
-        wait_for(lambda: sum(s.source == "joint_feedback" for s in samples[samples_after_add:])
-                 > 20)  # fmt: skip
+        wait_for(
+            lambda: sum(s.source == "joint_feedback" for s in samples[samples_after_add:]) > 20,
+            "more than 20 joint_feedback samples after the add",
+        )
     topics = by_topic(path)
     assert {c: topics[c][0][0].name for c in ("/arm/joint_states", "/arm/joint_feedback",
             "/arm/tcp", "/arm/tf", "/arm/status")} == {

@@ -10,7 +10,6 @@ import sys
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, run
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.records import Channel, Schema
@@ -19,6 +18,7 @@ from robocli.errors import RobocliError
 from robocli.io.export import channel_messages
 from robocli.io.record import BadRecording, Recorder, info, raw_frames, recover
 from robocli.io.record.mcapfile import MAX_CHUNK_BYTES
+from tests.commands.helpers import one_line_error, run
 from tests.io import mcapbuild as b
 
 GIB = 1 << 30

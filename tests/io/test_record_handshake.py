@@ -9,13 +9,13 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
-from cli.helpers import run
 from mcap.reader import make_reader
 
 from robocli.hub_server import HubServer
 from robocli.io.record.reader import raw_frame
 from robocli.protocols import ros4mat
 from robocli.sim.abb.server import AbbSim
+from tests.commands.helpers import run
 
 
 class _Tap:

@@ -11,12 +11,13 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from cli.helpers import run, running
 
 from robocli.devices.laser import Laser, Scan
 from robocli.io.record import RAW_SCHEMA, Recorder, info, raw_frames
 from robocli.sim.hokuyo import HokuyoSim
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.commands.helpers import run, running
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 
 @pytest.fixture

@@ -15,7 +15,8 @@ from robocli.devices.pioneer import Pioneer
 from robocli.errors import InvalidArgument
 from robocli.io.record import Recorder, RecordingError, info
 from robocli.protocols import arcos
-from tests.io.readback import by_topic, frame_of, wait_for
+from tests.io.readback import by_topic, frame_of
+from tests.waiting import wait_for
 
 
 class StalledDisk(io.RawIOBase):

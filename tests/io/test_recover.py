@@ -8,7 +8,6 @@ import os
 from pathlib import Path
 
 import pytest
-from cli.helpers import one_line_error, run, running
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from mcap.exceptions import McapError
@@ -16,7 +15,8 @@ from mcap.reader import make_reader
 
 from robocli.io.record import info, recover
 from robocli.io.record.mcapfile import truncated_hint
-from tests.io.readback import wait_for
+from tests.commands.helpers import one_line_error, run, running
+from tests.waiting import wait_for
 
 
 def _read_whole(path: Path) -> int:

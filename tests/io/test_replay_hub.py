@@ -17,7 +17,8 @@ from robocli.errors import RobocliError
 from robocli.hub_server import HubServer
 from robocli.hub_server.sources.replay import read_hub_recording, replay_sources
 from robocli.io.record import Recorder
-from tests.io.readback import wait_for
+from tests.paths import DATA
+from tests.waiting import wait_for
 
 SENSORS = {"imu": {"rate": 200}, "adc": {"rate": 500, "channels": 0xFF},
            "camera": {"rate": 10, "resolution": "160x120"}, "laser": {"rate": 10},
@@ -276,7 +277,7 @@ def test_a_stalled_replay_skips_what_it_missed_beyond_the_catch_up() -> None:
 
 
 ORIGINAL = {line.split()[0]: bytes.fromhex(line.split(None, 1)[1]) for line in (
-    Path(__file__).resolve().parents[1] / "data" / "ros4mat" / "original_client.hex"
+    DATA / "ros4mat" / "original_client.hex"
 ).read_text().splitlines() if line.strip() and not line.startswith("#")}  # fmt: skip
 """The original ros4mat MATLAB client's requests, as captured."""
 

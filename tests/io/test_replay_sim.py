@@ -10,18 +10,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 
 from robocli.devices.arm import Arm
 from robocli.devices.pioneer import Pioneer
 from robocli.errors import RobocliError
-from robocli.io.record import Recorder
 from robocli.io.record.replay import RecordedPackets
 from robocli.sim.abb.replay import AbbReplay
 from robocli.sim.pioneer.replay import PioneerReplay
 from robocli.sim.replay import FrameSchedule
-from tests.io.readback import by_topic, decoded, frame_of, wait_for
+from tests.io.readback import by_topic, decoded, frame_of
+from tests.io.recordings import record_pioneer_drive
+from tests.waiting import wait_for
 
 Frames = list[tuple[str, bytes]]
 
@@ -30,15 +30,7 @@ Frames = list[tuple[str, bytes]]
 def pioneer_recording(pioneer_url: str, tmp_path: Path) -> Path:
     """A Pioneer driving a curve with its laser on, recorded from the handshake on."""
     path = tmp_path / "pioneer.mcap"
-    with Recorder(path) as rec:
-        listener = rec.listener("pioneer", "arcos", url=pioneer_url)
-        with Pioneer.connect(pioneer_url, listeners=[listener], laser=True) as robot:
-            rec.add(robot, listener.name)
-            robot.enable_motors()
-            robot.set_velocity(0.3, 0.4)
-            for _ in range(15):
-                robot.wait_for_sip()
-            robot.sim.wait_for_laser(10.0)
+    record_pioneer_drive(path, pioneer_url)
     return path
 
 
@@ -147,19 +139,6 @@ def test_schedule_spacing_speed_and_loop() -> None:
 def test_replay_needs_its_link(pioneer_recording: Path) -> None:
     with pytest.raises(RobocliError, match="no raw sm channel"):
         AbbReplay(RecordedPackets(pioneer_recording))
-
-
-@pytest.fixture
-def arm_recording(abb: tuple[int, int], tmp_path: Path) -> Path:
-    path = tmp_path / "arm.mcap"
-    samples: list[Any] = []
-    with Recorder(path) as rec, Arm.connect("127.0.0.1", *abb) as arm:
-        arm.add_listener(samples.append, kind="samples")
-        rec.add(arm)
-        arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
-        arm.wait_until_idle(20)
-        wait_for(lambda: sum(s.source == "joint_feedback" for s in samples) > 20)
-    return path
 
 
 def test_arm_client_gets_the_recorded_joint_states(arm_recording: Path) -> None:

@@ -20,7 +20,8 @@ from robocli.devices.pioneer import Pioneer
 from robocli.io.record import Recorder
 from robocli.kinematics import fk
 from robocli.robots.urdf import urdf
-from tests.io.readback import by_topic, decoded, wait_for
+from tests.io.readback import by_topic, decoded
+from tests.waiting import wait_for
 
 yourdfpy = pytest.importorskip("yourdfpy")
 pytest.importorskip("mcap")

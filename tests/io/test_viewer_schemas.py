@@ -25,14 +25,8 @@ from robocli.io.record.links import json_text
 from robocli.io.record.reader import raw_frame
 from robocli.io.schemas import FOXGLOVE, SCHEMAS
 from robocli.sim.hokuyo.server import HokuyoSim
-from tests.io.readback import (
-    FOXGLOVE_SCHEMAS,
-    by_topic,
-    decoded,
-    foxglove_subset,
-    viewer_checked,
-    wait_for,
-)
+from tests.io.readback import FOXGLOVE_SCHEMAS, by_topic, decoded, foxglove_subset, viewer_checked
+from tests.waiting import wait_for
 
 #: hub sensors and their settings: every kind of channel a hub gives
 HUB = {"imu": {"rate": 100}, "adc": {"rate": 200}, "battery": {"rate": 10},

@@ -15,28 +15,15 @@ import pytest
 
 from robocli.kinematics.trajlog import TrajectoryLog, read_log, write_log
 from robocli.kinematics.validate import shifted
+from tests.commands import helpers
+from tests.commands.helpers import one_line_error
 
 
 def run(
     cwd: Path, *args: str, env: dict[str, str] | None = None
 ) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [sys.executable, "-m", "robocli", *args],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        stdin=subprocess.DEVNULL,
-        cwd=cwd,
-        env={**os.environ, **env} if env else None,
-    )
-
-
-def one_line_error(proc: subprocess.CompletedProcess[str], code: int) -> str:
-    assert proc.returncode == code, proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("robocli: "), proc.stderr
-    assert "Traceback" not in proc.stderr
-    return lines[0]
+    """``robocli ARGS`` in ``cwd``, with ``env`` added to the environment."""
+    return helpers.run(*args, cwd=cwd, env={**os.environ, **env} if env else None)
 
 
 def test_traj_circle_writes_the_log_then_validate_against_itself(tmp_path: Path) -> None:

@@ -20,26 +20,9 @@ from robocli.kinematics import (
     load_model,
 )
 from robocli.kinematics.model import RobotModel
+from tests.kinematics.dh import dh_product
 
 ALL = ["irb120", "ur3e", "lrmate200id"]
-
-
-def _dh_product(model: RobotModel, q: np.ndarray) -> np.ndarray:
-    """Textbook per-pose product of 4x4 standard DH matrices (the slow reference)."""
-    out = np.eye(4)
-    for i in range(model.n_joints):
-        th = q[i] + model.offset[i]
-        ct, st = math.cos(th), math.sin(th)
-        ca, sa = math.cos(model.alpha[i]), math.sin(model.alpha[i])
-        out = out @ np.array(
-            [
-                [ct, -st * ca, st * sa, model.a[i] * ct],
-                [st, ct * ca, -ct * sa, model.a[i] * st],
-                [0.0, sa, ca, model.d[i]],
-                [0.0, 0.0, 0.0, 1.0],
-            ]
-        )
-    return out
 
 
 def _random_q(model: RobotModel, n: int, seed: int) -> np.ndarray:
@@ -50,7 +33,7 @@ def _random_q(model: RobotModel, n: int, seed: int) -> np.ndarray:
 def test_vectorised_fk_equals_the_per_pose_dh_product(name: str) -> None:
     model = load_model(name)
     q = _random_q(model, 300, 1)
-    want = np.stack([_dh_product(model, row) for row in q])
+    want = np.stack([dh_product(model, row) for row in q])
     np.testing.assert_allclose(fk(model, q), want, rtol=0, atol=1e-13)
     np.testing.assert_allclose(fk_positions(model, q), want[:, :3, 3], rtol=0, atol=1e-13)
 

@@ -20,6 +20,7 @@ from robocli.kinematics import (
 )
 from robocli.kinematics import trajectory as tr
 from robocli.kinematics.trajlog import LogFormatError
+from tests.refusals import refused
 
 
 @pytest.fixture(scope="module")
@@ -152,7 +153,5 @@ def test_bad_waypoint_files_give_one_line(
     tmp_path: Path, name: str, text: str, message: str
 ) -> None:
     path = tmp_path / name
-    path.write_text(text)
-    with pytest.raises(LogFormatError, match=message) as info:
-        read_waypoints(path)
-    assert "\n" not in str(info.value) and str(path) in str(info.value)
+    error = refused(path, text, read_waypoints, LogFormatError, message)
+    assert "\n" not in str(error) and str(path) in str(error)

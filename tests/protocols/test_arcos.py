@@ -6,7 +6,6 @@ import re
 from pathlib import Path
 
 import pytest
-import reference
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -16,6 +15,7 @@ from robocli.io.capture import read_capture
 from robocli.protocols import arcos
 from robocli.protocols.common import plain
 from robocli.robots.pioneer import ROBOT_PARAMS
+from tests import reference
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "arcos"

@@ -5,15 +5,15 @@ stream's frames and the command framer, against the golden vectors of
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from robocli.errors import ChecksumError, FramingError, InvalidArgument, ProtocolError
 from robocli.protocols import create_oi as oi
+from tests.paths import SPECS
 
-SPEC = Path(__file__).resolve().parents[2] / "specs" / "create_oi.jsonl"
+SPEC = SPECS / "create_oi.jsonl"
 
 
 def _vectors() -> list[dict[str, Any]]:

@@ -12,7 +12,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import reference
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -21,6 +20,7 @@ from robocli.protocols import arcos, layout
 from robocli.protocols import ros4mat as r4m
 from robocli.protocols import simple_message as sm
 from robocli.protocols.common import enum_or_int
+from tests import reference
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "fuzz"))
 import fuzz_decoders

@@ -10,10 +10,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-import reference
 
 from robocli.errors import FramingError, InvalidArgument, ProtocolError
 from robocli.protocols import ros4mat as r4m
+from tests import reference
 
 ROOT = Path(__file__).resolve().parents[2]
 SPEC = reference.load_spec("ros4mat")
@@ -304,17 +304,9 @@ def test_framer_recovers_after_garbage() -> None:
     core = pytest.importorskip("robocli.core", reason="C core not built")
     frames = _framer_frames()
     rng = random.Random("ros4mat-garbage")
-    pieces, garbage = [], 0
-    for frame in frames:
-        # bytes 0xB0..0xFF: never a message id, never a valid error/compression byte
-        junk = bytes(rng.randrange(0xB0, 0x100) for _ in range(rng.randrange(0, 40)))
-        garbage += len(junk)
-        pieces += [junk, frame]
-    stream = b"".join(pieces)
+    # bytes 0xB0..0xFF: never a message id, never a valid error/compression byte
+    stream, garbage = reference.with_garbage(frames, rng, (0xB0, 0x100), 40)
     framer = core.Framer("ros4mat")
-    out: list[bytes] = []
-    for i in range(0, len(stream), 11):
-        out += framer.feed(stream[i : i + 11])
-    assert out == frames
+    assert reference.fed_in_chunks(framer, stream, 11) == frames
     assert framer.stats.frames == len(frames)
     assert framer.stats.dropped_bytes == garbage

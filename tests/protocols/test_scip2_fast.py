@@ -10,13 +10,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.errors import RobocliError
 from robocli.protocols import scip2
 from robocli.protocols.scip2 import fast
+from tests import reference
 
 SPEC = reference.load_spec("scip2")
 VECTORS = SPEC["vectors"]

@@ -9,12 +9,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import reference
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from robocli.errors import FramingError, ProtocolError
 from robocli.protocols import simple_message as sm
+from tests import reference
 
 ROOT = Path(__file__).resolve().parents[2]
 SPEC = reference.load_spec("simple_message")
@@ -229,11 +229,14 @@ def load_checks(variant: str) -> list[dict[str, Any]]:
 CHECKS = [(variant, c) for variant in VARIANTS for c in load_checks(variant)]
 
 
-@pytest.mark.parametrize(
-    ("variant", "check"),
-    [(v, c) for v, c in CHECKS if c["name"].startswith("rx_")],
-    ids=[f"{v}-{c['name']}" for v, c in CHECKS if c["name"].startswith("rx_")],
-)
+def _checks(prefix: str) -> list[Any]:
+    """The library checks whose name starts with ``prefix``, as parameters named
+    ``variant-name``."""
+    return [pytest.param(v, c, id=f"{v}-{c['name']}") for v, c in CHECKS
+            if c["name"].startswith(prefix)]  # fmt: skip
+
+
+@pytest.mark.parametrize(("variant", "check"), _checks("rx_"))
 def test_library_receive_checks(variant: str, check: dict[str, Any]) -> None:
     byteorder, real, _ = VARIANTS[variant]
     frame = bytes.fromhex(check["hex"])
@@ -268,11 +271,7 @@ def test_library_receive_checks(variant: str, check: dict[str, Any]) -> None:
             assert isinstance(msg.body, bytes)
 
 
-@pytest.mark.parametrize(
-    ("variant", "check"),
-    [(v, c) for v, c in CHECKS if c["name"].startswith("tx_")],
-    ids=[f"{v}-{c['name']}" for v, c in CHECKS if c["name"].startswith("tx_")],
-)
+@pytest.mark.parametrize(("variant", "check"), _checks("tx_"))
 def test_library_send_checks(variant: str, check: dict[str, Any]) -> None:
     byteorder, real, _ = VARIANTS[variant]
     header = (check["msg_type"], check["comm_type"], check["reply_code"])
@@ -497,7 +496,7 @@ def test_framer_exchange_stream(variant: str) -> None:
 
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_framer_recovers_after_garbage(variant: str) -> None:
-    import reference  # type: ignore[import-not-found]  # the framer model in tests/
+    from tests import reference  # type: ignore[import-not-found]  # the framer model in tests/
 
     Framer = _core_framer()
     framer_name = VARIANTS[variant][2]
@@ -507,21 +506,13 @@ def test_framer_recovers_after_garbage(variant: str) -> None:
     rng = random.Random(f"sm-garbage-{variant}")
     tried = 0
     for _ in range(20):
-        pieces, garbage = [], 0
-        for frame in frames:
-            junk = bytes(rng.randrange(1, 256) for _ in range(rng.randrange(0, 12)))
-            garbage += len(junk)
-            pieces += [junk, frame]
-        stream = b"".join(pieces)
+        stream, garbage = reference.with_garbage(frames, rng, (1, 256), 12)
         # Skip the rare draw where garbage happens to form a plausible frame.
         if reference.RefFramer(framer_name, max_frame=sm.MAX_FRAME_SIZE).feed(stream) != frames:
             continue
         tried += 1
         framer = Framer(framer_name, max_frame=sm.MAX_FRAME_SIZE)
-        out: list[bytes] = []
-        for i in range(0, len(stream), 7):
-            out += framer.feed(stream[i : i + 7])
-        assert out == frames
+        assert reference.fed_in_chunks(framer, stream, 7) == frames
         assert framer.stats.frames == len(frames)
         assert framer.stats.dropped_bytes == garbage
         assert framer.stats.bad_lengths == garbage

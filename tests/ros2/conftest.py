@@ -9,18 +9,18 @@ from pathlib import Path
 
 import pytest
 
+from tests.io.recordings import record_pioneer_drive
+
 pytest.importorskip("rosbags")
 
-from cli.helpers import run
-
 from robocli.devices.hub.client import Hub
-from robocli.devices.pioneer import Pioneer
 from robocli.hub_server import HubServer
 from robocli.io.record import Recorder
 from robocli.sim.abb.server import AbbSim
 from robocli.sim.pioneer.server import PioneerSim
-from tests.arm.conftest import port_of
-from tests.io.readback import wait_for
+from tests.commands.helpers import run
+from tests.devices.arm.conftest import port_of
+from tests.waiting import wait_for
 
 HUB_SENSORS = {"imu": {"rate": 100}, "adc": {"rate": 200, "channels": 0xFF},
                "camera": {"rate": 5, "resolution": "160x120"}, "laser": {"rate": 10},
@@ -33,18 +33,8 @@ def pioneer_recording(path: Path, ros2: bool = True) -> None:
     """A Pioneer driving a curve with its laser on, recorded from the handshake on (a ROS 2
     bag, or robocli's JSON without ``ros2``)."""
     with PioneerSim("p3dx", time_scale=5.0) as sim:
-        url = sim.serve_tcp("127.0.0.1", 0)
-        with Recorder(path, ros2=ros2) as rec:
-            listener = rec.listener("pioneer", "arcos", url=url)
-            with Pioneer.connect(url, listeners=[listener], laser=True) as robot:
-                rec.add(robot, listener.name)
-                robot.enable_motors()
-                robot.set_velocity(0.3, 0.4)
-                for _ in range(15):
-                    robot.wait_for_sip()
-                robot.sim.wait_for_laser(10.0)
-                robot.sim.wait_for_laser(10.0)
-        assert rec.stats.dropped == 0 and rec.stats.decode_errors == 0
+        stats = record_pioneer_drive(path, sim.serve_tcp("127.0.0.1", 0), scans=2, ros2=ros2)
+        assert stats.dropped == 0 and stats.decode_errors == 0
 
 
 def _arm_bag(path: Path) -> None:

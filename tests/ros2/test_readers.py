@@ -14,16 +14,15 @@ import pytest
 
 pytest.importorskip("rosbags")
 
-from cli.helpers import one_line_error, run, running
-
 from robocli.devices.pioneer import Pioneer
 from robocli.io.capture import read_capture
 from robocli.io.export import arm_log, export
 from robocli.io.record import info, recover
 from robocli.io.record.replay import RecordedPackets
 from robocli.sim.pioneer.replay import PioneerReplay
-from tests.io.readback import wait_for
+from tests.commands.helpers import one_line_error, run, running
 from tests.ros2.conftest import pioneer_recording
+from tests.waiting import wait_for
 
 
 def _read(path: Path) -> dict[str, list[object]]:

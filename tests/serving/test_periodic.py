@@ -12,11 +12,11 @@ import threading
 from collections.abc import Iterator
 
 import pytest
-from waiting import wait_for
 
 from robocli.devices.tasks import PeriodicTask
 from robocli.serving.periodic import PeriodicLoop
 from robocli.sim.abb.server import AbbSim
+from tests.waiting import wait_for
 
 LOGGER = "robocli.serving.periodic"
 JOIN_S = 10.0

@@ -9,7 +9,7 @@ from robocli.protocols.arcos import Command, PacketType
 from robocli.sim.pioneer.server import PioneerSim
 
 if TYPE_CHECKING:
-    from conftest import RawClient
+    from tests.sim.conftest import RawClient
 
 MakeSim = Callable[..., PioneerSim]
 Connect = Callable[[PioneerSim], "RawClient"]

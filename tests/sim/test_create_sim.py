@@ -17,7 +17,6 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
-from pathlib import Path
 
 import pytest
 
@@ -25,10 +24,11 @@ from robocli.protocols import create_oi as oi
 from robocli.protocols.create_oi import Op
 from robocli.sim.create import CreateSim, CreateSimState
 from robocli.sim.world import World
+from tests.paths import DATA
 
 pytest.importorskip("pycreate2")
 
-DRIVER = Path(__file__).resolve().parents[1] / "data" / "create" / "pycreate2_drive.py"
+DRIVER = DATA / "create" / "pycreate2_drive.py"
 OFF, PASSIVE, SAFE, FULL = range(4)
 WAIT = 10.0
 

@@ -13,11 +13,11 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from sim.test_hokuyo_sim import DEADLINE, Raw
-from waiting import wait_for
 
 from robocli.protocols import scip2
 from robocli.sim.hokuyo import HokuyoSim
+from tests.sim.test_hokuyo_sim import DEADLINE, Raw
+from tests.waiting import wait_for
 
 
 def state(code: str) -> bytes:

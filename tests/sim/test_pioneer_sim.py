@@ -13,7 +13,6 @@ import os
 import socket
 import time
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -25,15 +24,16 @@ from robocli.protocols.arcos import Command, PacketType
 from robocli.protocols.common import find_refusal
 from robocli.sim.pioneer.server import PioneerSim, SimState, serve_many, sonar_batch
 from robocli.sim.world import MapError, World
+from tests.paths import DATA
+from tests.refusals import refused
 
 pytestmark = pytest.mark.timeout(30)
 
 if TYPE_CHECKING:
-    from conftest import RawClient
+    from tests.sim.conftest import RawClient
 
 MakeSim = Callable[..., PioneerSim]
 Connect = Callable[[PioneerSim], "RawClient"]
-DATA = Path(__file__).resolve().parent.parent / "data"
 SPEED = 10.0  # trace replay speed-up (and the simulator's time_scale)
 #: observation 1 of tests/data/arcos/README.md
 HANDSHAKE = {
@@ -42,6 +42,16 @@ HANDSHAKE = {
     "fa fb 03 02 00 02": "fa fb 18 02 41 4d 52 49 53 69 6d 00 50 69 6f 6e 65 65 72 00 "
     "70 33 64 78 00 eb bd",
 }
+
+
+def _driving(
+    make_sim: MakeSim, connect: Connect, time_scale: float
+) -> tuple[PioneerSim, RawClient]:
+    """A simulator in an empty world and a client whose session has the motors enabled."""
+    sim = make_sim(world=World.empty(), time_scale=time_scale)
+    client = connect(sim)
+    client.open_session(enable=True)
+    return sim, client
 
 
 def _wall_at(x: float) -> World:
@@ -384,9 +394,7 @@ def test_motors_disabled_until_enable(make_sim: MakeSim, connect: Connect) -> No
 
 
 def test_vel_rvel_and_stop(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=10.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 10.0)
     client.send(Command.VEL, -200)
     client.send(Command.RVEL, 20)
     s = sim.wait_until(lambda s: s.rot_vel == pytest.approx(math.radians(20)), 30)
@@ -405,9 +413,7 @@ def test_vel_rvel_and_stop(make_sim: MakeSim, connect: Connect) -> None:
 
 
 def test_vel2_drives_each_wheel(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=10.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 10.0)
     client.send_raw(arcos.encode_two_bytes(Command.VEL2, 10, -5))  # left 200, right -100 mm/s
     s = sim.wait_until(lambda s: abs(s.left_mm_s - 200) < 1 and abs(s.right_mm_s + 100) < 1, 30)
     assert s.trans_vel == pytest.approx(0.05) and s.rot_vel < 0
@@ -416,9 +422,7 @@ def test_vel2_drives_each_wheel(make_sim: MakeSim, connect: Connect) -> None:
 
 
 def test_move_goes_the_distance(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=20.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 20.0)
     client.send(Command.SETV, 400)
     client.send(Command.MOVE, 1000)
     sim.wait_until(lambda s: s.trans_vel > 0.3, 30)
@@ -430,9 +434,7 @@ def test_move_goes_the_distance(make_sim: MakeSim, connect: Connect) -> None:
 
 
 def test_head_dhead_turn_in_odometry_frame(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=20.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 20.0)
     client.send(Command.HEAD, 90)
     sim.wait_until(lambda s: abs(s.odom_th - math.pi / 2) < 0.005 and s.rot_vel == 0, 10.0)
     client.send(Command.DHEAD, -135)
@@ -442,9 +444,7 @@ def test_head_dhead_turn_in_odometry_frame(make_sim: MakeSim, connect: Connect) 
 
 
 def test_accel_limits_and_estop(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=10.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 10.0)
     client.send(Command.VEL, 600)
     speeds = [s["lvel"] for s in client.sips(4)]
     steps = {b - a for a, b in zip(speeds, speeds[1:], strict=False)}
@@ -458,9 +458,7 @@ def test_accel_limits_and_estop(make_sim: MakeSim, connect: Connect) -> None:
 
 
 def test_odometry_wraps_15_bits_over_a_long_drive(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=25.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 25.0)
     client.send(Command.SETA, 2000)
     client.send(Command.SETV, 2200)
     client.send(Command.VEL, 2000)
@@ -563,9 +561,7 @@ def test_config_fields(make_sim: MakeSim, connect: Connect) -> None:
 
 
 def test_encoder_io_and_battery_packets(make_sim: MakeSim, connect: Connect) -> None:
-    sim = make_sim(world=World.empty(), time_scale=5.0)
-    client = connect(sim)
-    client.open_session(enable=True)
+    sim, client = _driving(make_sim, connect, 5.0)
     client.send(Command.BATTERYINFO, 1)
     bat = arcos.BATTERY.parse(client.expect(PacketType.BATTERY)[1:])
     assert (bat.count, bat.bytes_per_battery, bat.data[3]) == (1, 5, 100)
@@ -749,10 +745,8 @@ def test_a_file_that_is_not_a_map_is_refused_naming_it(
 ) -> None:
     """Each of these once gave a traceback, or a simulator whose ticks failed on overflow."""
     path = tmp_path / name
-    path.write_text(text)
-    with pytest.raises(MapError, match=message) as info:
-        World.load(path)
-    assert str(path) in str(info.value) and info.value.exit_code == 2
+    error = refused(path, text, World.load, MapError, message)
+    assert str(path) in str(error) and isinstance(error, MapError) and error.exit_code == 2
 
 
 def test_an_endless_map_file_is_read_in_bounded_memory(

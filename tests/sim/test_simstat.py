@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import pytest
@@ -17,11 +16,12 @@ from robocli.protocols.arcos import Command, PacketType
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.pioneer.simext import lat_lon
 from robocli.sim.world import World
+from tests import paths
 
 if TYPE_CHECKING:
-    from conftest import RawClient
+    from tests.sim.conftest import RawClient
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "arcos"
+DATA = paths.DATA / "arcos"
 MakeSim = Callable[..., PioneerSim]
 Connect = Callable[[PioneerSim], "RawClient"]
 BOSTON = (42.3601, -71.0589, 10.0)  #: the OriginLatLongAlt of the traces' map

@@ -9,14 +9,14 @@ import time
 from typing import Any
 
 import pytest
-from peers import closed_by_peer
-from waiting import wait_for
 
 from robocli.devices.laser import Laser
 from robocli.devices.pioneer import Pioneer
 from robocli.protocols.common import find_refusal
 from robocli.sim.hokuyo.server import HokuyoSim
 from robocli.sim.pioneer.server import PioneerSim
+from tests.peers import closed_by_peer
+from tests.waiting import wait_for
 
 HANDSHAKE_S = 0.5
 DEADLINE_S = 30.0
