@@ -173,7 +173,7 @@ def test_the_robot_stops_when_the_bridge_ends(sim, endpoint) -> None:
         wait_for(lambda: _stopped(simulator), "the robot stops")
         assert bridge.wait(DEADLINE) == 130  # interrupted, as Ctrl-C
         # the client sees the bridge leave (liveliness), not a timeout
-        wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+        wait_for(lambda: not driver.alive, "the client sees the bridge leave")
         with pytest.raises(ConnectionLost, match="left"):
             driver.wait_for_state(timeout=DEADLINE)
 
@@ -183,7 +183,7 @@ def test_a_killed_bridge_stops_the_robot_and_its_clients_see_it_leave(sim, endpo
     with _driving(sim, endpoint, "oscar") as (bridge, driver):
         bridge.kill()
         wait_for(lambda: _stopped(simulator), "the robot stops (its link dropped)")
-        wait_for(lambda: not driver.connected, "the client sees the bridge leave")
+        wait_for(lambda: not driver.alive, "the client sees the bridge leave")
         with pytest.raises(ConnectionLost, match="left"):
             driver.wait_for_state(timeout=DEADLINE)
         driver.close()  # stops and releases nothing: the bridge is gone

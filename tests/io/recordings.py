@@ -27,7 +27,7 @@ def record_pioneer_drive(path: Path, url: str, scans: int = 1, **recorder: Any) 
             for _ in range(15):
                 robot.wait_for_sip()
             for _ in range(scans):
-                robot.wait_for_laser(10.0)
+                robot.sim.wait_for_laser(10.0)
     return rec.stats
 
 
@@ -36,7 +36,7 @@ def record_arm_move(path: Path, motion_port: int, state_port: int) -> None:
     ``path`` until it holds more than 20 joint_feedback samples."""
     samples: list[Any] = []
     with Recorder(path) as rec, Arm.connect("127.0.0.1", motion_port, state_port) as arm:
-        arm.add_sample_listener(samples.append)
+        arm.add_listener(samples.append, kind="samples")
         rec.add(arm)
         arm.move_to(np.radians([20, 10, 5, 0, 30, 10]), duration=0.5)
         arm.wait_until_idle(20)

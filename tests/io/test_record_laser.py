@@ -38,7 +38,7 @@ def _record(url: str, path: Path, scans: int = 8) -> tuple[list[tuple[str, bytes
             raw(direction, payload, t)
             seen.append((direction, payload))
 
-        with Laser.connect(url, listener=both) as laser:
+        with Laser.connect(url, listeners=[both]) as laser:
             assert rec.add(laser, raw.name) == "laser"
             got.extend(laser.scans(scans))
         assert rec.stats.dropped == 0

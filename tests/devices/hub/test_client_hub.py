@@ -188,7 +188,7 @@ def test_reconnect_keeps_buffers(server: HubServer) -> None:
     h.subscribe("adc", 200)
     samples_of(lambda: h.read("adc"), 1)
     cid = h.client_id
-    h.close(quit=False)
+    h.close(stop=False)
     time.sleep(0.1)
     with Hub.connect("127.0.0.1", server.port, client_id=cid) as again:
         assert again.client_id == cid
