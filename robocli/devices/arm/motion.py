@@ -202,6 +202,7 @@ class Motion(StateTracking):
             self._send_point(i, p, wait)
             if progress is not None:
                 progress(i + 1, len(points))
+        self._streamed_all()
         return len(points)
 
     def _lost_while_moving(self, s: Session, seq: int, exc: ConnectionLost) -> ConnectionLost:

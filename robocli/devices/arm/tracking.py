@@ -64,6 +64,7 @@ class StateTracking:
         self._moved = False  # a STATUS received since the activation said in motion
         self._start: tuple[float, ...] | None = None  # joints when it was activated
         self._streamed = False  # the activated trajectory was streamed (not downloaded)
+        self._sent_all_at: float | None = None  # when its last point was acknowledged
         self._travel = 0.0  # how far (rad) its points lie from the start at most
         self._displaced = False  # a joint sample since the activation was away from the start
 
@@ -131,6 +132,12 @@ class StateTracking:
         before the activation may be received after it)."""
         if st.in_motion:
             return False
+        if self._streamed:  # idle between two streamed points is not the end: only a STATUS
+            # received once every point was acknowledged, with the arm at the last one
+            done = self._sent_all_at is not None and st.t > self._sent_all_at
+            sample = self.joints
+            return (done and self._target is not None and sample is not None
+                    and _gap(sample.joints, self._target) < 1e-3)  # fmt: skip
         if self._moved or self._target is None:
             return True
         sample = self.joints
@@ -156,6 +163,8 @@ class StateTracking:
         after ``timeout`` s (nothing is stopped), :class:`TimeoutError` when no STATUS came."""
         s = need(self._state, "state")
         since = self._activated_at if self._activated_at is not None else time.monotonic()
+        if self._streamed and self._sent_all_at is not None:  # idle before the last point
+            since = max(since, self._sent_all_at)  # was acknowledged is no end of it
         deadline = time.monotonic() + timeout
         with self._cond:
             count = self._statuses
@@ -195,6 +204,12 @@ class StateTracking:
         holds an hour of 100 Hz state with JOINT_FEEDBACK)."""
         return JointRecorder(self, max_samples)
 
+    def _streamed_all(self) -> None:
+        """Every point of the streamed trajectory is acknowledged: from now on a STATUS
+        saying idle may be its end (before, it may be the gap before a point still coming)."""
+        with self._cond:
+            self._sent_all_at = time.monotonic()
+
     def _activated(self, points: list[Point], streamed: bool = False) -> None:
         now = time.monotonic()
         start = self.joints.joints if self.joints is not None else None
@@ -205,6 +220,7 @@ class StateTracking:
             self._start = start
             self._moved = self._displaced = False
             self._streamed = streamed
+            self._sent_all_at = None if streamed else now  # a download is sent whole here
             self._travel = max((_gap(p.joints, start) for p in points),
                                default=0.0) if start is not None else 0.0  # fmt: skip
 

@@ -13,6 +13,7 @@ from robocli.kinematics import LimitError, load_model
 from robocli.kinematics.trajectory import circle, ptp_joint
 from robocli.kinematics.trajlog import TrajectoryLog
 from robocli.kinematics.validate import validate
+from tests.waiting import wait_for
 
 IRB = load_model("irb120")
 
@@ -194,6 +195,29 @@ def test_streaming_to_a_generic_server(make_sim, make_arm) -> None:
     snap = sim.snapshot()
     assert snap.rejected_points == 0
     assert np.allclose(snap.joints, move.positions[-1], atol=1e-6)
+
+
+def test_idle_between_streamed_points_is_not_the_end(make_sim, make_arm) -> None:
+    """A streaming server idles when the next point comes late (here: held back until the
+    arm stood still at the one before). That idle is no end: once every point is sent, the
+    arm still runs (a close would send STOP) and the wait ends at the last point."""
+    sim, mp, sp = make_sim(profile="generic")
+    arm = make_arm(mp, sp)
+    arm.wait_for_state()
+    move = far_move(duration=1.0, n=5)
+
+    def hold_the_last(done: int, total: int) -> None:
+        if done == total - 1:  # the arm reaches point total-1 and stands there...
+            sim.wait_until(lambda s: not s.in_motion and s.trajectories > 0, 20)
+            seen = arm.wait_for_state().t  # ...and this client has seen it idle
+            wait_for(lambda: arm.status is not None and arm.status.t > seen
+                     and not arm.status.in_motion, what="an idle STATUS")  # fmt: skip
+
+    assert arm.stream(move, first_duration=0.2, progress=hold_the_last) == 5
+    assert arm.running()  # the idle STATUS came before the last point
+    arm.wait_until_idle(20)
+    assert np.allclose(arm.joints.joints, move.positions[-1], atol=1e-6)
+    assert np.allclose(sim.snapshot().joints, move.positions[-1], atol=1e-6)
 
 
 def test_failure_reply_raises_device_error(make_sim, make_arm) -> None:
