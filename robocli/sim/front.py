@@ -9,13 +9,27 @@ framer, limits) and what its tick sends differ.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 from robocli.closing import Closing
 from robocli.errors import TransportError
 from robocli.serving.server import Server
 from robocli.serving.ticker import Ticker
 
-__all__ = ["RobotFront"]
+__all__ = ["PoseTruth", "RobotFront"]
+
+
+@dataclass(frozen=True)
+class PoseTruth:
+    """What every mobile robot's snapshot begins with: ``x, y, th``, the true pose in the
+    world (m, rad), and ``odom_*``, the robot's own odometry (m, rad)."""
+
+    x: float
+    y: float
+    th: float
+    odom_x: float
+    odom_y: float
+    odom_th: float
 
 
 class RobotFront(Closing):

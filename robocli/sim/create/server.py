@@ -24,7 +24,7 @@ from robocli.protocols.create_oi import MAX_COMMAND, CommandFramer
 from robocli.serving.server import Server, poll_until
 from robocli.sim.create.model import DROP_LEFT, DROP_RIGHT, CreateBody
 from robocli.sim.create.session import CreateController
-from robocli.sim.front import RobotFront
+from robocli.sim.front import PoseTruth, RobotFront
 from robocli.sim.pioneer.model import Pose
 from robocli.sim.world import World
 
@@ -36,7 +36,7 @@ BYTE_TIMEOUT_S = 0.2  #: a command cut short for this long (wall s) is abandoned
 
 
 @dataclass(frozen=True)
-class CreateSimState:
+class CreateSimState(PoseTruth):
     """A copy of the simulator's truth at one instant (SI unless the name says otherwise).
 
     ``x, y, th``: true pose in the world (m, rad); ``odom_*``: the odometry (the wheels'
@@ -46,12 +46,6 @@ class CreateSimState:
     ``mode``: 0 off, 1 passive, 2 safe, 3 full. ``bumps_drops``: packet 7.
     """
 
-    x: float
-    y: float
-    th: float
-    odom_x: float
-    odom_y: float
-    odom_th: float
     distance_mm: float
     angle_deg: float
     left: float

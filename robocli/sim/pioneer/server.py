@@ -44,7 +44,7 @@ from typing import Any
 from robocli.errors import InvalidArgument
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.serving.server import SIM_HANDSHAKE_S, Server, poll_until
-from robocli.sim.front import RobotFront
+from robocli.sim.front import PoseTruth, RobotFront
 from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.packets import sonar_batch
@@ -60,7 +60,7 @@ MAX_FRAME = 258  #: largest ARCOS frame (count byte 255)
 
 
 @dataclass(frozen=True)
-class SimState:
+class SimState(PoseTruth):
     """A copy of the simulator's truth at one instant (all SI unless the name says otherwise).
 
     ``x, y, th``: true pose in the world (m, rad). ``odom_*``: the robot's own odometry, the
@@ -72,12 +72,6 @@ class SimState:
     (pre-session 0/1/2 count as SYNC0/1/2). ``sim_time``: simulated seconds.
     """
 
-    x: float
-    y: float
-    th: float
-    odom_x: float
-    odom_y: float
-    odom_th: float
     odom_raw: tuple[int, int, int]
     trans_vel: float
     rot_vel: float
