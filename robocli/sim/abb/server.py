@@ -170,7 +170,6 @@ class AbbSim(Closing):
             if server is not None:
                 server.close()
 
-
     def snapshot(self) -> ArmSimState:
         """A consistent copy of the truth (thread-safe)."""
         c = self.controller

@@ -113,7 +113,6 @@ class CreateSim(RobotFront):
         the robot's serial port."""
         return self._serve("pty", lambda s: s.serve_pty())
 
-
     def set_pose(self, x: float, y: float, th: float) -> None:
         """Teleport the true pose (m, m, rad); odometry is unchanged."""
         with self._ctl.lock:

@@ -227,4 +227,3 @@ class HokuyoSim(Closing):
         self._ticker.close()
         if self._server is not None:
             self._server.close()
-
