@@ -783,6 +783,19 @@ static void test_framer_units(void)
     rc_framer_free(f);
     CHECK(rc_framer_new(99, 0) == NULL, "bad protocol");
     CHECK(rc_framer_new(RC_PROTO_SM_LE, 10) == NULL, "max_frame too small");
+    CHECK(rc_framer_new(0, 0) == NULL && rc_framer_new(RC_PROTO_SCIP2 + 1, 0) == NULL,
+          "protocols just outside the table");
+    {
+        /* each protocol's smallest frame: one byte less is refused */
+        static const int protos[] = {RC_PROTO_ARCOS, RC_PROTO_SM_LE, RC_PROTO_SM_BE,
+                                     RC_PROTO_ROS4MAT, RC_PROTO_SCIP2};
+        static const size_t mins[] = {6, 16, 16, 27, 8};
+        for (i = 0; i < 5; i++) {
+            f = rc_framer_new(protos[i], mins[i]);
+            CHECK(f != NULL && rc_framer_new(protos[i], mins[i] - 1) == NULL, "smallest frame");
+            rc_framer_free(f);
+        }
+    }
 
     /* Simple Message LE and BE, length 12 + 8 body */
     for (i = 0; i < 2; i++) {
