@@ -31,41 +31,22 @@ struct rc_framer {
     rc_framer_stats st;
 };
 
+/* Per protocol (RC_PROTO_ARCOS..RC_PROTO_SCIP2): the smallest frame, the default max_frame. */
+static const size_t MIN_FRAME[] = {0, 6, 16, 16, RC_R4M_HEADER, 8};
+static const size_t DEFAULT_MAX[] = {0, RC_ARCOS_DEFAULT_MAX, RC_SM_DEFAULT_MAX, RC_SM_DEFAULT_MAX,
+                                     RC_R4M_DEFAULT_MAX, RC_SCIP_DEFAULT_MAX};
+
 rc_framer *rc_framer_new(int proto, size_t max_frame)
 {
     rc_framer *f;
-    size_t min_frame;
 
-    switch (proto) {
-    case RC_PROTO_ARCOS:
-        min_frame = 6;
-        if (max_frame == 0) {
-            max_frame = RC_ARCOS_DEFAULT_MAX;
-        }
-        break;
-    case RC_PROTO_SM_LE:
-    case RC_PROTO_SM_BE:
-        min_frame = 16;
-        if (max_frame == 0) {
-            max_frame = RC_SM_DEFAULT_MAX;
-        }
-        break;
-    case RC_PROTO_ROS4MAT:
-        min_frame = RC_R4M_HEADER;
-        if (max_frame == 0) {
-            max_frame = RC_R4M_DEFAULT_MAX;
-        }
-        break;
-    case RC_PROTO_SCIP2:
-        min_frame = 8;
-        if (max_frame == 0) {
-            max_frame = RC_SCIP_DEFAULT_MAX;
-        }
-        break;
-    default:
+    if (proto < RC_PROTO_ARCOS || proto > RC_PROTO_SCIP2) {
         return NULL;
     }
-    if (max_frame < min_frame) {
+    if (max_frame == 0) {
+        max_frame = DEFAULT_MAX[proto];
+    }
+    if (max_frame < MIN_FRAME[proto]) {
         return NULL;
     }
     f = (rc_framer *)malloc(sizeof(*f));
@@ -161,102 +142,113 @@ static unsigned long rd_be32(const unsigned char *p)
            ((unsigned long)p[0] << 24);
 }
 
-static int next_arcos(rc_framer *f, const unsigned char **frame, size_t *len)
+/* The three binary framers share one scan (next_binary); each protocol only says what the
+ * bytes at the scan position are (a check_fn): */
+#define FR_WAIT 0    /* a frame may start here: wait for more bytes */
+#define FR_FRAME 1   /* a whole frame of *n bytes */
+#define FR_DROP 2    /* *n bytes that cannot start a frame */
+#define FR_BAD_LEN 3 /* an implausible length: drop one byte, counted */
+#define FR_BAD_SUM 4 /* a wrong checksum: drop one byte, counted */
+
+typedef int (*check_fn)(const rc_framer *f, const unsigned char *b, size_t avail, size_t *n);
+
+static int next_binary(rc_framer *f, check_fn check, const unsigned char **frame, size_t *len)
 {
-    unsigned char *buf = f->buf;
     size_t p = f->start;
-    size_t end = f->end;
 
     for (;;) {
-        size_t count;
-        size_t total;
-        unsigned int ck;
+        size_t n = 0;
 
-        if (p >= end) {
+        switch (check(f, f->buf + p, f->end - p, &n)) {
+        case FR_WAIT:
             f->start = p;
             return 0;
-        }
-        if (buf[p] != 0xFA) {
-            const unsigned char *q = (const unsigned char *)memchr(buf + p, 0xFA, end - p);
-            size_t np = q == NULL ? end : (size_t)(q - buf);
-            f->st.dropped_bytes += (unsigned long)(np - p);
-            p = np;
-            continue;
-        }
-        if (end - p < 2) {
-            f->start = p;
-            return 0;
-        }
-        if (buf[p + 1] != 0xFB) {
-            f->st.dropped_bytes++;
-            p++;
-            continue;
-        }
-        if (end - p < 3) {
-            f->start = p;
-            return 0;
-        }
-        count = buf[p + 2];
-        total = count + 3;
-        if (count < 3 || total > f->max_frame) {
+        case FR_DROP:
+            f->st.dropped_bytes += (unsigned long)n;
+            p += n;
+            break;
+        case FR_BAD_LEN:
             f->st.bad_lengths++;
             f->st.dropped_bytes++;
             p++;
-            continue;
-        }
-        if (end - p < total) {
-            f->start = p;
-            return 0;
-        }
-        ck = rc_arcos_checksum(buf + p + 3, count - 2);
-        if (ck != (((unsigned int)buf[p + total - 2] << 8) | (unsigned int)buf[p + total - 1])) {
+            break;
+        case FR_BAD_SUM:
             f->st.bad_checksums++;
             f->st.dropped_bytes++;
             p++;
-            continue;
+            break;
+        default:
+            *frame = f->buf + p;
+            *len = n;
+            f->start = p + n;
+            f->st.frames++;
+            return 1;
         }
-        *frame = buf + p;
-        *len = total;
-        f->start = p + total;
-        f->st.frames++;
-        return 1;
     }
 }
 
-static int next_sm(rc_framer *f, const unsigned char **frame, size_t *len)
+static int check_arcos(const rc_framer *f, const unsigned char *b, size_t avail, size_t *n)
 {
-    unsigned char *buf = f->buf;
-    size_t p = f->start;
-    size_t end = f->end;
-    int be = f->proto == RC_PROTO_SM_BE;
+    size_t count;
+    size_t total;
+
+    if (avail == 0) {
+        return FR_WAIT;
+    }
+    if (b[0] != 0xFA) {
+        const unsigned char *q = (const unsigned char *)memchr(b, 0xFA, avail);
+        *n = q == NULL ? avail : (size_t)(q - b);
+        return FR_DROP;
+    }
+    if (avail < 2) {
+        return FR_WAIT;
+    }
+    if (b[1] != 0xFB) {
+        *n = 1;
+        return FR_DROP;
+    }
+    if (avail < 3) {
+        return FR_WAIT;
+    }
+    count = b[2];
+    total = count + 3;
+    if (count < 3 || total > f->max_frame) {
+        return FR_BAD_LEN;
+    }
+    if (avail < total) {
+        return FR_WAIT;
+    }
+    if (rc_arcos_checksum(b + 3, count - 2) !=
+        (((unsigned int)b[total - 2] << 8) | (unsigned int)b[total - 1])) {
+        return FR_BAD_SUM;
+    }
+    *n = total;
+    return FR_FRAME;
+}
+
+/* A length-prefixed frame of `total` bytes (0: an implausible header) with `avail` here. */
+static int check_total(size_t total, size_t avail, size_t *n)
+{
+    if (total == 0) {
+        return FR_BAD_LEN;
+    }
+    if (avail < total) {
+        return FR_WAIT;
+    }
+    *n = total;
+    return FR_FRAME;
+}
+
+static int check_sm(const rc_framer *f, const unsigned char *b, size_t avail, size_t *n)
+{
+    unsigned long length;
     unsigned long maxlen = (unsigned long)(f->max_frame - 4);
 
-    for (;;) {
-        unsigned long length;
-        size_t total;
-
-        if (end - p < 4) {
-            f->start = p;
-            return 0;
-        }
-        length = be ? rd_be32(buf + p) : rd_le32(buf + p);
-        if (length < 12 || length > maxlen) {
-            f->st.bad_lengths++;
-            f->st.dropped_bytes++;
-            p++;
-            continue;
-        }
-        total = (size_t)length + 4;
-        if (end - p < total) {
-            f->start = p;
-            return 0;
-        }
-        *frame = buf + p;
-        *len = total;
-        f->start = p + total;
-        f->st.frames++;
-        return 1;
+    if (avail < 4) {
+        return FR_WAIT;
     }
+    length = f->proto == RC_PROTO_SM_BE ? rd_be32(b) : rd_le32(b);
+    return check_total(length < 12 || length > maxlen ? 0 : (size_t)length + 4, avail, n);
 }
 
 /* A ros4mat message id: 0x0X commands, 0x1X acks, 0x2X sensor data, 0x8X/0x9X reserved
@@ -298,37 +290,17 @@ static int r4m_body(const unsigned char *h, size_t max_frame, size_t *body)
     return 0;
 }
 
-static int next_r4m(rc_framer *f, const unsigned char **frame, size_t *len)
+static int check_r4m(const rc_framer *f, const unsigned char *b, size_t avail, size_t *n)
 {
-    unsigned char *buf = f->buf;
-    size_t p = f->start;
-    size_t end = f->end;
+    size_t body;
 
-    for (;;) {
-        size_t body;
-        size_t total;
-
-        if (end - p < RC_R4M_HEADER) {
-            f->start = p;
-            return 0;
-        }
-        if (r4m_body(buf + p, f->max_frame, &body) != 0) {
-            f->st.bad_lengths++;
-            f->st.dropped_bytes++;
-            p++;
-            continue;
-        }
-        total = RC_R4M_HEADER + body;
-        if (end - p < total) {
-            f->start = p;
-            return 0;
-        }
-        *frame = buf + p;
-        *len = total;
-        f->start = p + total;
-        f->st.frames++;
-        return 1;
+    if (avail < RC_R4M_HEADER) {
+        return FR_WAIT;
     }
+    if (r4m_body(b, f->max_frame, &body) != 0) {
+        return FR_BAD_LEN;
+    }
+    return check_total(RC_R4M_HEADER + body, avail, n);
 }
 
 /* SCIP line at `at` in buf[0..n): SL_OK (*cend = content end, CR dropped; *nxt = after the
@@ -476,12 +448,12 @@ int rc_framer_next(rc_framer *f, const unsigned char **frame, size_t *len)
     case RC_PROTO_SCIP2:
         return next_scip(f, frame, len);
     case RC_PROTO_ARCOS:
-        return next_arcos(f, frame, len);
+        return next_binary(f, check_arcos, frame, len);
     case RC_PROTO_SM_LE:
     case RC_PROTO_SM_BE:
-        return next_sm(f, frame, len);
+        return next_binary(f, check_sm, frame, len);
     default:
-        return next_r4m(f, frame, len);
+        return next_binary(f, check_r4m, frame, len);
     }
 }
 

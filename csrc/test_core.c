@@ -201,6 +201,24 @@ typedef struct vecset {
 
 static vecset sets[6];
 
+/* Feed `data` (n bytes) that completes no frame: then the framer's bad lengths, dropped
+ * bytes and pending bytes are as given. */
+static void check_no_frame(rc_framer *f, const unsigned char *data, size_t n,
+                           unsigned long bad_lengths, unsigned long dropped, size_t pending,
+                           const char *what)
+{
+    const unsigned char *fr;
+    size_t len;
+    rc_framer_stats st;
+
+    rc_framer_feed(f, data, n);
+    CHECK(rc_framer_next(f, &fr, &len) == 0, what);
+    rc_framer_get_stats(f, &st);
+    CHECK(st.bad_lengths == bad_lengths && st.dropped_bytes == dropped &&
+              rc_framer_pending(f) == pending,
+          what);
+}
+
 static void test_one_vector(int proto, const unsigned char *v, size_t vlen, const char *name)
 {
     rc_framer *f = rc_framer_new(proto, 0);
@@ -767,22 +785,28 @@ static void test_framer_units(void)
     buf[0] = 0xFA;
     buf[1] = 0xFB;
     buf[2] = 0x02;
-    rc_framer_feed(f, buf, 3);
-    CHECK(rc_framer_next(f, &fr, &len) == 0, "arcos bad count");
-    rc_framer_get_stats(f, &st);
-    CHECK(st.bad_lengths == 1 && st.dropped_bytes == 3 && rc_framer_pending(f) == 0,
-          "arcos bad count stats");
+    check_no_frame(f, buf, 3, 1, 3, 0, "arcos bad count");
     rc_framer_free(f);
     /* ARCOS max_frame */
     f = rc_framer_new(RC_PROTO_ARCOS, 8);
     n = parse_hex(arcos_vectors[3], strlen(arcos_vectors[3]), buf);
-    rc_framer_feed(f, buf, n);
-    CHECK(rc_framer_next(f, &fr, &len) == 0, "arcos max_frame");
-    rc_framer_get_stats(f, &st);
-    CHECK(st.bad_lengths == 1 && st.dropped_bytes == n, "arcos max_frame stats");
+    check_no_frame(f, buf, n, 1, n, 0, "arcos max_frame");
     rc_framer_free(f);
     CHECK(rc_framer_new(99, 0) == NULL, "bad protocol");
     CHECK(rc_framer_new(RC_PROTO_SM_LE, 10) == NULL, "max_frame too small");
+    CHECK(rc_framer_new(0, 0) == NULL && rc_framer_new(RC_PROTO_SCIP2 + 1, 0) == NULL,
+          "protocols just outside the table");
+    {
+        /* each protocol's smallest frame: one byte less is refused */
+        static const int protos[] = {RC_PROTO_ARCOS, RC_PROTO_SM_LE, RC_PROTO_SM_BE,
+                                     RC_PROTO_ROS4MAT, RC_PROTO_SCIP2};
+        static const size_t mins[] = {6, 16, 16, 27, 8};
+        for (i = 0; i < 5; i++) {
+            f = rc_framer_new(protos[i], mins[i]);
+            CHECK(f != NULL && rc_framer_new(protos[i], mins[i] - 1) == NULL, "smallest frame");
+            rc_framer_free(f);
+        }
+    }
 
     /* Simple Message LE and BE, length 12 + 8 body */
     for (i = 0; i < 2; i++) {
@@ -848,11 +872,7 @@ static void test_framer_units(void)
     rc_framer_feed(f, buf, 27);
     CHECK(rc_framer_next(f, &fr, &len) == 1 && len == 27, "r4m pull");
     buf[18] = 2; /* bad compression type */
-    rc_framer_feed(f, buf, 27);
-    CHECK(rc_framer_next(f, &fr, &len) == 0, "r4m bad header");
-    rc_framer_get_stats(f, &st);
-    CHECK(st.bad_lengths == 1 && st.dropped_bytes == 1 && rc_framer_pending(f) == 26,
-          "r4m stats");
+    check_no_frame(f, buf, 27, 1, 1, 26, "r4m bad header");
     rc_framer_reset(f);
     CHECK(rc_framer_pending(f) == 0, "reset");
     rc_framer_free(f);

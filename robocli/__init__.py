@@ -100,49 +100,54 @@ def _simulated_hub(url: DeviceURL, **fixed: Any) -> Simulator:
 
 _wiring.SIMULATORS["hub"] = _simulated_hub
 
-#: name -> the module that defines it, imported on first access (PEP 562)
-_LAZY = {
+#: module -> the names it defines, each imported on first access (PEP 562)
+_LAZY_BY_MODULE: dict[str, tuple[str, ...]] = {
     # device clients and what they return
-    "Device": "robocli.devices.base", "ListenerHandle": "robocli.devices.base",
-    "Stats": "robocli.devices.base",
-    "Simulator": "robocli.devices.simulators", "LinkStats": "robocli.devices.stats",
-    "Pioneer": "robocli.devices.pioneer", "PioneerState": "robocli.devices.pioneer",
-    "PioneerStats": "robocli.devices.pioneer", "RobotIdentity": "robocli.devices.pioneer",
-    "LaserScan": "robocli.devices.pioneer", "SimStatus": "robocli.devices.pioneer",
-    "GpsFix": "robocli.devices.pioneer", "WatchdogTrip": "robocli.devices.pioneer",
-    "WatchdogTripped": "robocli.devices.pioneer",
-    "PioneerSimulator": "robocli.devices.pioneer.simulated",
-    "Arm": "robocli.devices.arm", "ArmStatus": "robocli.devices.arm",
-    "JointSample": "robocli.devices.arm", "JointRecorder": "robocli.devices.arm",
-    "Point": "robocli.devices.arm",
-    "StillMoving": "robocli.devices.arm", "TooFewSamples": "robocli.devices.arm",
-    "Hub": "robocli.devices.hub.client", "Reading": "robocli.devices.hub.decode",
-    "ZenohHub": "robocli.devices.hub.over_zenoh",
-    "VirtualSerial": "robocli.devices.hub.serial",
-    "Create": "robocli.devices.create", "CreateState": "robocli.devices.create",
-    "CreateOdometry": "robocli.devices.create",
-    "Laser": "robocli.devices.laser", "LaserInfo": "robocli.devices.laser",
-    "Scan": "robocli.devices.laser", "MountedLaser": "robocli.devices.laser",
-    "PlacedScan": "robocli.devices.laser", "SensorClock": "robocli.devices.laser",
-    "RemotePioneer": "robocli.devices.pioneer.over_zenoh",
-    "PioneerBridge": "robocli.bridge.pioneer",
-    "ArmBridge": "robocli.bridge.arm",
+    "robocli.devices.base": ("Device", "ListenerHandle", "Stats"),
+    "robocli.devices.simulators": ("Simulator",),
+    "robocli.devices.stats": ("LinkStats",),
+    "robocli.devices.pioneer": (
+        "Pioneer", "PioneerState", "PioneerStats", "RobotIdentity", "LaserScan", "SimStatus",
+        "GpsFix", "WatchdogTrip", "WatchdogTripped",
+    ),
+    "robocli.devices.pioneer.simulated": ("PioneerSimulator",),
+    "robocli.devices.arm": (
+        "Arm", "ArmStatus", "JointSample", "JointRecorder", "Point", "StillMoving", "TooFewSamples",
+    ),
+    "robocli.devices.hub.client": ("Hub",),
+    "robocli.devices.hub.decode": ("Reading",),
+    "robocli.devices.hub.over_zenoh": ("ZenohHub",),
+    "robocli.devices.hub.serial": ("VirtualSerial",),
+    "robocli.devices.create": ("Create", "CreateState", "CreateOdometry"),
+    "robocli.devices.laser": (
+        "Laser", "LaserInfo", "Scan", "MountedLaser", "PlacedScan", "SensorClock",
+    ),
+    "robocli.devices.pioneer.over_zenoh": ("RemotePioneer",),
+    "robocli.bridge.pioneer": ("PioneerBridge",),
+    "robocli.bridge.arm": ("ArmBridge",),
     # addresses
-    "DeviceURL": "robocli.addresses", "InvalidURL": "robocli.addresses",
-    "parse_device_url": "robocli.addresses", "Transport": "robocli.transports",
+    "robocli.addresses": ("DeviceURL", "InvalidURL", "parse_device_url"),
+    "robocli.transports": ("Transport",),
     # errors
-    **{name: "robocli.errors" for name in (
+    "robocli.errors": (
         "ChecksumError", "ConnectionLost", "DeviceError", "FramingError", "InvalidArgument",
         "ProtocolError", "RobocliError", "StaleWrite", "TimeoutError", "TransportError",
-        "UnknownRobotError")},
+        "UnknownRobotError",
+    ),
     # simulators, the hub, recording, models
-    "PioneerSim": "robocli.sim.pioneer.server", "AbbSim": "robocli.sim.abb.server",
-    "HokuyoSim": "robocli.sim.hokuyo.server", "CreateSim": "robocli.sim.create",
-    "World": "robocli.sim.world",
-    "HubServer": "robocli.hub_server.server", "Recorder": "robocli.io.record.recorder",
-    "LiveView": "robocli.io.record.live", "RobotModel": "robocli.kinematics.model",
-    "RobotParams": "robocli.robots.pioneer",
+    "robocli.sim.pioneer.server": ("PioneerSim",),
+    "robocli.sim.abb.server": ("AbbSim",),
+    "robocli.sim.hokuyo.server": ("HokuyoSim",),
+    "robocli.sim.create": ("CreateSim",),
+    "robocli.sim.world": ("World",),
+    "robocli.hub_server.server": ("HubServer",),
+    "robocli.io.record.recorder": ("Recorder",),
+    "robocli.io.record.live": ("LiveView",),
+    "robocli.kinematics.model": ("RobotModel",),
+    "robocli.robots.pioneer": ("RobotParams",),
 }  # fmt: skip
+#: name -> the module that defines it
+_LAZY = {name: module for module, names in _LAZY_BY_MODULE.items() for name in names}
 
 __all__ = [
     "AbbSim",

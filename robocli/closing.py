@@ -8,10 +8,11 @@ and inherits ``__enter__``/``__exit__`` from here instead of writing them again.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
 from typing import Any, TypeVar
 
-__all__ = ["Closing", "closed_on_error"]
+__all__ = ["Closing", "closed_on_error", "in_background"]
 
 _C = TypeVar("_C", bound="Closing")
 
@@ -38,3 +39,19 @@ def closed_on_error(thing: Any) -> Iterator[None]:
     except BaseException:
         thing.close()
         raise
+
+
+@contextlib.contextmanager
+def in_background(work: Callable[[threading.Event], None], name: str,
+                  join_s: float) -> Iterator[None]:  # fmt: skip
+    """Run ``work(stop)`` in a daemon thread called ``name`` while the block runs; on every
+    way out, set ``stop`` (``work`` returns soon after it is set) and join the thread,
+    waiting at most ``join_s`` seconds."""
+    stop = threading.Event()
+    thread = threading.Thread(target=work, args=(stop,), name=name, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join(join_s)

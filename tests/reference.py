@@ -14,10 +14,10 @@ import random
 import struct
 from bisect import bisect_left, bisect_right
 from collections import deque
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from robocli.core import FramerStats
 from robocli.protocols.scip2.framing import ReplyFramer
 
 SPECS_DIR = Path(__file__).resolve().parent.parent / "specs"
@@ -101,14 +101,6 @@ def arcos_packet(ptype: int, data: bytes = b"") -> bytes:
     return b"\xfa\xfb" + bytes([len(body) + 2]) + body + bytes([ck >> 8, ck & 0xFF])
 
 
-@dataclass
-class Stats:
-    frames: int = 0
-    dropped_bytes: int = 0
-    bad_checksums: int = 0
-    bad_lengths: int = 0
-
-
 class RefFramer:
     """Same contract as robocli.core.Framer: feed bytes, get the complete frames."""
 
@@ -125,8 +117,15 @@ class RefFramer:
         self.protocol = protocol
         self.max_frame = max_frame or defaults[protocol]
         self.buf = bytearray()
-        self.stats = Stats()
+        self._counts = dict.fromkeys(("frames", "dropped_bytes", "bad_checksums", "bad_lengths"), 0)
         self._scip = ReplyFramer(self.max_frame) if protocol == "scip2" else None
+
+    @property
+    def stats(self) -> FramerStats:
+        """The counters, as the C framer reports them."""
+        if self._scip is not None:
+            return FramerStats(*vars(self._scip.stats).values())
+        return FramerStats(**self._counts)
 
     @property
     def pending(self) -> int:
@@ -140,7 +139,6 @@ class RefFramer:
     def feed(self, data: bytes) -> list[bytes]:
         if self._scip is not None:
             frames = self._scip.feed(data)
-            self.stats = Stats(*vars(self._scip.stats).values())
             return frames
         self.buf += data
         out = []
@@ -152,12 +150,12 @@ class RefFramer:
 
     def _drop(self) -> None:
         del self.buf[0]
-        self.stats.dropped_bytes += 1
+        self._counts["dropped_bytes"] += 1
 
     def _emit(self, total: int) -> bytes:
         frame = bytes(self.buf[:total])
         del self.buf[:total]
-        self.stats.frames += 1
+        self._counts["frames"] += 1
         return frame
 
     def _next(self) -> bytes | None:
@@ -185,13 +183,13 @@ class RefFramer:
             count = b[2]
             total = count + 3
             if count < 3 or total > self.max_frame:
-                self.stats.bad_lengths += 1
+                self._counts["bad_lengths"] += 1
                 self._drop()
                 continue
             if len(b) < total:
                 return None
             if arcos_checksum(bytes(b[3 : total - 2])) != (b[total - 2] << 8 | b[total - 1]):
-                self.stats.bad_checksums += 1
+                self._counts["bad_checksums"] += 1
                 self._drop()
                 continue
             return self._emit(total)
@@ -204,7 +202,7 @@ class RefFramer:
                 return None
             (length,) = struct.unpack_from(fmt, b)
             if not 12 <= length <= self.max_frame - 4:
-                self.stats.bad_lengths += 1
+                self._counts["bad_lengths"] += 1
                 self._drop()
                 continue
             if len(b) < 4 + length:
@@ -230,7 +228,7 @@ class RefFramer:
             if ok and R4M_HEADER + body > self.max_frame:
                 ok = False
             if not ok:
-                self.stats.bad_lengths += 1
+                self._counts["bad_lengths"] += 1
                 self._drop()
                 continue
             if len(b) < R4M_HEADER + body:

@@ -143,12 +143,8 @@ def rtt(address: str, run: Run, warmup: int = 20) -> Run:
     return run
 
 
-@dataclass
-class _Tally:
-    pulls: int = 0
-    samples: int = 0
-    nbytes: int = 0
-    lost: int = 0
+#: what a client counts of each sensor, summed over the clients into the results
+_COUNTS = ("pulls", "samples", "bytes", "lost")
 
 
 def _client(
@@ -162,7 +158,7 @@ def _client(
     from robocli.devices.hub.client import Hub
 
     lat: list[float] = []
-    tally = {s: _Tally() for s in sensors}
+    tally = {s: dict.fromkeys(_COUNTS, 0) for s in sensors}
     try:
         hub = Hub.connect(address, timeout=10.0)
         try:
@@ -178,7 +174,7 @@ def _client(
                 deadline = time.monotonic() + FIRST_SAMPLE_S
                 while not len(r := hub.read(name)) and time.monotonic() < deadline:
                     time.sleep(0.002)
-                tally[s].lost += r.lost
+                tally[s]["lost"] += r.lost
             due = time.time() + random.random() * period
             while due < end:
                 time.sleep(max(0.0, due - time.time()))
@@ -188,12 +184,12 @@ def _client(
                     t0 = time.perf_counter()
                     r = hub.read(name)
                     tk = tally[s]
-                    tk.lost += r.lost
+                    tk["lost"] += r.lost
                     if counted:
                         lat.append(time.perf_counter() - t0)
-                        tk.pulls += 1
-                        tk.samples += len(r)
-                        tk.nbytes += r.nbytes
+                        tk["pulls"] += 1
+                        tk["samples"] += len(r)
+                        tk["bytes"] += r.nbytes
                 due += period
         finally:  # our own hub keeps detached clients: it can tell what it dropped for them
             hub.close(stop=quit_at_end)
@@ -203,11 +199,9 @@ def _client(
     with lock:
         out["latency"].extend(lat)
         for s, tk in tally.items():
-            agg = out["sensors"].setdefault(s, {"pulls": 0, "samples": 0, "bytes": 0, "lost": 0})
-            agg["pulls"] += tk.pulls
-            agg["samples"] += tk.samples
-            agg["bytes"] += tk.nbytes
-            agg["lost"] += tk.lost
+            agg = out["sensors"].setdefault(s, dict.fromkeys(_COUNTS, 0))
+            for key, n in tk.items():
+                agg[key] += n
 
 
 def _worker_main() -> None:

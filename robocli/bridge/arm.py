@@ -22,6 +22,7 @@ releases the arm, and when the bridge ends.
 
 from __future__ import annotations
 
+import functools
 import logging
 import queue
 import threading
@@ -31,7 +32,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from robocli.bridge.base import Bridge
-from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate
+from robocli.bridge.control import DEFAULT_TOKEN_WAIT_S, ControlGate, answer
 from robocli.devices.arm import Arm, JointSample
 from robocli.errors import ProtocolError, RobocliError
 from robocli.kinematics import fk
@@ -137,18 +138,11 @@ class ArmBridge(Bridge):
                     log.error("%s: upload failed", self.name, exc_info=True)
                 continue
             try:
-                n = self._download(query)
-            except RobocliError as exc:
-                reply(query, {"error": str(exc)}, error=True)
-            except Exception as exc:
-                log.error("%s: upload failed", self.name, exc_info=True)
-                reply(query, {"error": f"upload failed: {exc}"}, error=True)
-            else:
-                reply(query, {"points": n})
+                answer(query, functools.partial(self._download, query), "upload", self.name)
             finally:
                 query.drop()  # type: ignore[no-untyped-call]
 
-    def _download(self, query: zenoh.Query) -> int:
+    def _download(self, query: zenoh.Query) -> dict[str, Any]:
         what = f"{self.name} trajectory"
         holder = holder_of(query.key_expr, self.name, "trajectory")
         raw = query.payload
@@ -161,8 +155,9 @@ class ArmBridge(Bridge):
         if times.ndim != 1 or joints.ndim != 2 or len(times) != len(joints):
             raise ProtocolError(f"{what}: time (N) and joints (N x joints) must match")
         first = data.get("first_duration")
-        return self.upload(holder, times, joints, split=bool(data.get("split", False)),
-                           first_duration=None if first is None else float(first))  # fmt: skip
+        n = self.upload(holder, times, joints, split=bool(data.get("split", False)),
+                        first_duration=None if first is None else float(first))  # fmt: skip
+        return {"points": n}
 
     def upload(self, holder: str, times: np.ndarray, joints: np.ndarray, *, split: bool = False,
                first_duration: float | None = None) -> int:  # fmt: skip

@@ -72,6 +72,21 @@ DEFAULT_SILENCE_S = 0.5
 DEFAULT_TOKEN_WAIT_S = 5.0
 
 
+def answer(query: zenoh.Query, work: Callable[[], dict[str, Any]], what: str, who: str) -> None:
+    """Reply to ``query`` with what ``work()`` returns: every query gets one reply. A
+    :class:`RobocliError` (a refusal, a bad request) is an error reply with its message;
+    anything else is a bug, logged under ``who`` and answered "``what`` failed: ..."."""
+    try:
+        result = work()
+    except RobocliError as exc:
+        reply(query, {"error": str(exc)}, error=True)
+    except Exception as exc:
+        log.error("%s: %s failed", who, what, exc_info=True)
+        reply(query, {"error": f"{what} failed: {exc}"}, error=True)
+    else:
+        reply(query, result)
+
+
 class ControlGate:
     """Who holds one robot, and when it must stop (see the module docstring).
 
@@ -232,20 +247,16 @@ class ControlGate:
 
     def _on_query(self, query: zenoh.Query) -> None:
         """Answer a control request; every query gets a reply, an error one when refused."""
-        try:
+
+        def work() -> dict[str, Any]:
             key = str(query.key_expr)
             holder = None if key == control_key(self.robot) else holder_of(
                 key, self.robot, "request")  # fmt: skip
             raw = query.payload
             request = decode(raw.to_bytes(), "control request") if raw is not None else {}
-            answer = self._answer(request, holder)
-        except RobocliError as exc:
-            reply(query, {"error": str(exc)}, error=True)
-        except Exception as exc:
-            log.error("%s: control request failed", self.robot, exc_info=True)
-            reply(query, {"error": f"control request failed: {exc}"}, error=True)
-        else:
-            reply(query, answer)
+            return self._answer(request, holder)
+
+        answer(query, work, "control request", self.robot)
 
     def _answer(self, request: dict[str, Any], holder: str | None) -> dict[str, Any]:
         """``holder``: who the request's key names (None: the status key, which only tells)."""
@@ -365,4 +376,4 @@ class ControlGate:
                    reason=reason, epoch=epoch)  # fmt: skip
 
 
-__all__ = ["DEFAULT_SILENCE_S", "DEFAULT_TOKEN_WAIT_S", "ControlGate"]
+__all__ = ["DEFAULT_SILENCE_S", "DEFAULT_TOKEN_WAIT_S", "ControlGate", "answer"]

@@ -25,6 +25,25 @@ DECODE_ERRORS: tuple[type[Exception], ...] = (
 )
 
 
+class PartialFrame:
+    """What every pure-Python framer keeps between two ``feed`` calls: the bytes of the frame
+    not complete yet. Gives them the ``pending`` and ``reset`` of
+    :class:`robocli.core.Framer`'s interface; a framer with more state between frames
+    extends :meth:`reset`."""
+
+    def __init__(self) -> None:
+        self._buf = bytearray()
+
+    @property
+    def pending(self) -> int:
+        """Bytes of a frame not complete yet."""
+        return len(self._buf)
+
+    def reset(self) -> None:
+        """Forget the partial frame (the counters are kept)."""
+        self._buf.clear()
+
+
 def plain(obj: Any) -> Any:
     """A parsed ``construct`` value as plain dicts/lists (private ``_io`` keys dropped)."""
     if isinstance(obj, dict):

@@ -71,12 +71,16 @@ class RawClient:
 
 
 @pytest.fixture
-def client_factory(hub: HubServer) -> Iterator[Callable[[], RawClient]]:
+def client_factory(hub: HubServer) -> Iterator[Callable[..., RawClient]]:
+    """``client_factory()``: a new raw client of ``hub`` (closed after the test);
+    ``client_factory(connected=True)``: one that has sent CONNECT already."""
     made: list[RawClient] = []
 
-    def make() -> RawClient:
+    def make(connected: bool = False) -> RawClient:
         c = RawClient(hub.port)
         made.append(c)
+        if connected:
+            c.connect()
         return c
 
     yield make

@@ -25,8 +25,7 @@ def _frames(msg: r4m.DecodedPacket) -> tuple[list[float], list[bytes]]:
 def test_pipelined_requests_get_their_replies_in_order(
     hub: HubServer, client_factory: Any, wait: Any
 ) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     assert c.subscribe("camera", CAM, buffer=30).error == 0
     ring = hub.hub.channels["camera"].ring
     wait(lambda: ring.pushed >= 2, what="camera frames")

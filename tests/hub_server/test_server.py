@@ -87,8 +87,7 @@ def test_pull_without_subscribing_is_a_size_0_reply(client_factory: Any) -> None
 
 
 def test_empty_pull_is_a_size_0_reply(client_factory: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     assert c.subscribe("gps", {"freq_acquisition": 1, "freq_send": 1}).error == 0
     c.pull("gps")  # the first fix, if already there
     raw = None
@@ -133,8 +132,7 @@ def test_many_clients_have_independent_cursors(
 
 
 def test_overflow_drops_oldest_and_counts(hub: HubServer, client_factory: Any, wait: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     assert (
         c.subscribe(
             "adc", {"freq_acquisition": 1000, "freq_send": 100, "channels": 255}, buffer=10
@@ -163,9 +161,7 @@ def test_compression_per_connection(client_factory: Any, wait: Any, compress: bo
 def test_silent_subscribe_joins_current_settings(
     hub: HubServer, client_factory: Any, wait: Any
 ) -> None:
-    a, b = client_factory(), client_factory()
-    a.connect()
-    b.connect()
+    a, b = client_factory(connected=True), client_factory(connected=True)
     assert b.subscribe("imu", silent=True).error  # nobody to join yet
     assert a.subscribe("imu", {"freq_acquisition": 250, "freq_send": 25}, buffer=77).error == 0
     assert b.subscribe("imu", silent=True).error == 0
@@ -352,9 +348,7 @@ def test_detached_client_is_forgotten_after_its_ttl(raw: Any, wait: Any) -> None
 def test_a_bigger_buffer_or_a_bad_setting_does_not_disturb_others(
     hub: HubServer, client_factory: Any, wait: Any
 ) -> None:
-    a, b = client_factory(), client_factory()
-    a.connect()
-    b.connect()
+    a, b = client_factory(connected=True), client_factory(connected=True)
     params = {"freq_acquisition": 100, "freq_send": 50, "channels": 255}
     assert a.subscribe("adc", params, buffer=500).error == 0
     ring = hub.hub.channels["adc"].ring

@@ -48,8 +48,7 @@ def test_malformed_input_does_not_disturb_a_streaming_client(
     try:
         bad.connect()
         rng = random.Random(9)
-        noise = client_factory()
-        noise.connect()
+        noise = client_factory(connected=True)
         noise.send(bytes(rng.randrange(256) for _ in range(5000)))  # garbage: closed
         assert noise.sock.recv(64) == b""
         replies = []
@@ -219,8 +218,7 @@ def test_client_that_pulls_but_never_reads_is_dropped(raw: Any, wait: Any) -> No
 
 def test_random_request_bodies_get_typed_replies(hub: HubServer, client_factory: Any) -> None:
     """Every command id with random bodies: an error reply or none, never a dropped link."""
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     rng = random.Random(4)
     kinds = [0x03, 0x04, 0x05, 0x06, 0x01, 0x20, 0x24, 0x29]
     for _ in range(300):

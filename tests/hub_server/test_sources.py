@@ -65,8 +65,7 @@ RECORD_SENSORS = [
 def test_record_sensor_shape_and_rate(
     client_factory: Any, wait: Any, sensor: str, params: dict[str, Any], rate: int, size: int
 ) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     assert c.subscribe(sensor, params, buffer=1000).error == 0
     msg = _pull_until(c, sensor, 6, wait)
     assert r4m.STRUCT_SIZES[f"msg{sensor.title()}" if sensor != "ordinateur" else "msgComputer"]
@@ -76,8 +75,7 @@ def test_record_sensor_shape_and_rate(
 
 
 def test_camera_raw_frames(client_factory: Any, wait: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     params = {"fps": 30, "width": 160, "height": 120, "id": 0, "compression": 0, "exposure": 300,
               "use_roi": 0, "roi": [0, 0, 0, 0]}  # fmt: skip
     assert c.subscribe("camera", params, buffer=10).error == 0
@@ -96,8 +94,7 @@ def test_camera_raw_frames(client_factory: Any, wait: Any) -> None:
 def test_camera_jpeg_request_without_an_encoder_is_raw_and_flagged(
     hub: HubServer, client_factory: Any, wait: Any
 ) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     params = {"fps": 10, "width": 160, "height": 120, "id": 0, "compression": 80,
               "exposure": 300, "use_roi": 0, "roi": [0, 0, 0, 0]}  # fmt: skip
     assert c.subscribe("camera", params).error == 0
@@ -110,8 +107,7 @@ def test_camera_jpeg_request_without_an_encoder_is_raw_and_flagged(
 
 
 def test_stereo_pairs_share_a_timestamp(client_factory: Any, wait: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     params = {"fps": 20, "width": 160, "height": 120, "id_left": 0, "id_right": 1,
               "compression": 0, "exposure_left": 300, "exposure_right": 300, "use_roi": 0,
               "roi_left": [0] * 4, "roi_right": [0] * 4}  # fmt: skip
@@ -126,8 +122,7 @@ def test_stereo_pairs_share_a_timestamp(client_factory: Any, wait: Any) -> None:
 
 
 def test_depth_camera_rgb_and_depth(client_factory: Any, wait: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     params = bytes.fromhex("1e00 4001 f000 00 00 00 0000 00 00" + "00" * 8 + "00" + "00" * 8)
     head = {"sensor": 0x29, "silent": 0, "buffer_size": 5, "params_size": 30}
     assert len(params) == 30
@@ -146,8 +141,7 @@ def test_depth_camera_rgb_and_depth(client_factory: Any, wait: Any) -> None:
 
 
 def test_laser_scans_the_pioneer_world(client_factory: Any, wait: Any) -> None:
-    c = client_factory()
-    c.connect()
+    c = client_factory(connected=True)
     assert c.subscribe("hokuyo", {"freq_acquisition": 40}, buffer=40).error == 0
     msg = _pull_until(c, "hokuyo", 3, wait)
     info = msg.body["infos"][-1]

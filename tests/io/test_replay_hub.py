@@ -203,39 +203,36 @@ def test_depth_stereo_and_jpeg_frames_replay_as_recorded(hub_server: HubServer,
         subs["camera"] = {"rate": 5, "resolution": "64x48", "quality": 80}
     except ImportError:
         pass
-    recorded: dict[str, list[Any]] = {}
     with Recorder(path) as rec, Hub.connect(f"127.0.0.1:{hub_server.port}") as hub:
         rec.add(hub)
-        for name, params in subs.items():
-            hub.subscribe(name, **params)
-
-        def enough() -> bool:
-            for name in subs:
-                reading = hub.read(name)
-                if len(reading):
-                    recorded.setdefault(name, []).append(reading)
-            return all(sum(len(r) for r in recorded.get(n, [])) >= 3 for n in subs)
-
-        wait_for(enough, what="frames of every image sensor")
-    got: dict[str, list[Any]] = {}
+        recorded = _three_readings_each(hub, subs, "frames of every image sensor")
     with HubServer(port=0, sim=False, sources=replay_sources(path, speed=4.0, loop=True)) as srv, \
             Hub.connect(f"127.0.0.1:{srv.port}") as hub:  # fmt: skip
-        for name, params in subs.items():
-            hub.subscribe(name, **params)
-
-        def replayed() -> bool:
-            for name in subs:
-                reading = hub.read(name)
-                if len(reading):
-                    got.setdefault(name, []).append(reading)
-            return all(sum(len(r) for r in got.get(n, [])) >= 3 for n in subs)
-
-        wait_for(replayed, what="replayed frames of every sensor")
+        got = _three_readings_each(hub, subs, "replayed frames of every sensor")
     for name in subs:
         frames = {f for r in recorded[name] for f in _frames(r)}
         replayed_frames = [f for r in got[name] for f in _frames(r)]
         # every frame served is one of the recording's, each field byte for byte
         assert replayed_frames and all(f in frames for f in replayed_frames), name
+
+
+def _three_readings_each(hub: Hub, subs: dict[str, dict[str, Any]],
+                         what: str) -> dict[str, list[Any]]:  # fmt: skip
+    """Subscribe ``hub`` to ``subs`` and read until each sensor has given 3 samples: the
+    readings, by sensor."""
+    for name, params in subs.items():
+        hub.subscribe(name, **params)
+    got: dict[str, list[Any]] = {}
+
+    def enough() -> bool:
+        for name in subs:
+            reading = hub.read(name)
+            if len(reading):
+                got.setdefault(name, []).append(reading)
+        return all(sum(len(r) for r in got.get(n, [])) >= 3 for n in subs)
+
+    wait_for(enough, what=what)
+    return got
 
 
 def _frames(reading: Any) -> list[bytes]:

@@ -28,11 +28,8 @@ def state(code: str) -> bytes:
 @pytest.fixture(params=["tcp", "pty"])
 def ust(request: pytest.FixtureRequest) -> Iterator[Raw]:
     with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp() if request.param == "tcp" else sim.serve_pty())
-        try:
+        with Raw(sim.serve_tcp() if request.param == "tcp" else sim.serve_pty()) as raw:
             yield raw
-        finally:
-            raw.close()
 
 
 # ============================================================================ %ST, %SL
@@ -69,12 +66,9 @@ def test_hokuyolx_time_sync_and_the_states_it_reads(ust: Raw) -> None:
 
 def test_the_urg_04lx_has_no_state_commands() -> None:
     with HokuyoSim("urg-04lx", scip11=False) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             assert raw.ask(b"%ST\n") == b"%ST\n0Ee\n\n"
             assert raw.ask(b"%SL\n") == b"%SL\n0Ee\n\n"
-        finally:
-            raw.close()
 
 
 # ============================================================================ time
@@ -96,8 +90,7 @@ def test_the_first_gd_after_bm_was_measured_after_bm(model: str) -> None:
     """TM1 reads t; TM2, BM, GD: the scan was measured with the laser on, so after t (the
     scan GD found complete began while the laser was off, before t)."""
     with HokuyoSim(model, scip11=False) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             for _ in range(3):
                 raw.ask(b"TM0\n")
                 t = scip2.decode_value(raw.ask(b"TM1\n")[8:12])
@@ -108,8 +101,6 @@ def test_the_first_gd_after_bm_was_measured_after_bm(model: str) -> None:
                 again = _stamp(raw.ask(b"GD0100020001\n"))
                 assert stamp <= again  # the latest complete scan: never an older one
                 raw.ask(b"QT\n")
-        finally:
-            raw.close()
 
 
 def _reset(raw: Raw, command: bytes) -> None:
@@ -123,8 +114,7 @@ def test_after_rs_the_stamps_start_from_zero_without_a_wrap(command: bytes) -> N
     """BM, GD, RS (timer 0), BM, GD: the scan began after RS, so its stamp is small, not
     the timer's 24-bit wrap of a scan begun before it (16777167). RT and a reboot too."""
     with HokuyoSim("utm-30lx", timer_start_ms=5_000_000) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"BM\n")
             assert _stamp(raw.ask(b"GD0000108001\n")) >= 5_000_000
             _reset(raw, command)
@@ -136,14 +126,11 @@ def test_after_rs_the_stamps_start_from_zero_without_a_wrap(command: bytes) -> N
             stamps = [_stamp(raw.block()) for _ in range(2)]
             assert 0 <= stamps[0] < stamps[1] < 60_000
             assert stamps[1] - stamps[0] == 25
-        finally:
-            raw.close()
 
 
 def test_rs_resets_the_sensitivity_and_the_timer_only_moves_forward() -> None:
     with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             assert raw.ask(b"HS1\n") == b"HS1\n00P\n\n"
             assert raw.ask(b"RS\n") == b"RS\n00P\n\n"  # normal sensitivity again (hokuyolx)
             assert raw.ask(b"HS1\n") == b"HS1\n00P\n\n"
@@ -153,8 +140,6 @@ def test_rs_resets_the_sensitivity_and_the_timer_only_moves_forward() -> None:
             times = [scip2.decode_value(raw.ask(b"TM1\n")[8:12]) for _ in range(20)]
             raw.ask(b"TM2\n")
             assert times == sorted(times)
-        finally:
-            raw.close()
 
 
 # ============================================================================ whole frames

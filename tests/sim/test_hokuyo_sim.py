@@ -17,6 +17,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from robocli.closing import Closing
 from robocli.protocols import scip2
 from robocli.protocols.scip2.framing import RequestFramer
 from robocli.sim.hokuyo import HokuyoSim
@@ -27,7 +28,7 @@ from robocli.sim.world import World
 DEADLINE = 20.0  #: bounds a failure only
 
 
-class Raw:
+class Raw(Closing):
     """A bare SCIP client over a TCP socket or a pty: sends lines, reads reply blocks."""
 
     def __init__(self, url: str) -> None:
@@ -77,11 +78,8 @@ class Raw:
 def urg(request: pytest.FixtureRequest) -> Iterator[tuple[HokuyoSim, Raw]]:
     with HokuyoSim("urg-04lx", time_scale=4.0) as sim:
         url = sim.serve_tcp() if request.param == "tcp" else sim.serve_pty()
-        raw = Raw(url)
-        try:
+        with Raw(url) as raw:
             yield sim, raw
-        finally:
-            raw.close()
 
 
 def test_urg_boots_in_scip11_and_switches(urg: tuple[HokuyoSim, Raw]) -> None:
@@ -131,11 +129,8 @@ def test_golden_exchanges(urg: tuple[HokuyoSim, Raw]) -> None:
 )  # fmt: skip
 def test_bad_requests_get_the_device_statuses(line: bytes, status: str) -> None:
     with HokuyoSim("urg-04lx", scip11=False) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             reply = raw.ask(line + b"\n")
-        finally:
-            raw.close()
     assert reply == line + b"\n" + scip2.with_sum(status.encode()) + b"\n"
 
 
@@ -161,13 +156,10 @@ def _scan_values(block: bytes) -> tuple[int, list[int]]:
 
 def test_md_frames_count_down_and_switch_the_laser_off() -> None:
     with HokuyoSim("utm-30lx", time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             assert raw.ask(b"MD0000108001003;tag\n") == b"MD0000108001003;tag\n00P\n\n"
             frames = [raw.block() for _ in range(3)]
             assert raw.ask(b"GD0000108001\n") == b"GD0000108001\n10Q\n\n"  # laser off after N
-        finally:
-            raw.close()
     echoes = [f.split(b"\n", 1)[0] for f in frames]
     assert echoes == [b"MD0000108001002;tag", b"MD0000108001001;tag", b"MD0000108001000;tag"]
     stamps = [scip2.decode_scan(f).timestamp for f in frames]
@@ -177,15 +169,12 @@ def test_md_frames_count_down_and_switch_the_laser_off() -> None:
 
 def test_md_interval_skips_scans_and_qt_stops() -> None:
     with HokuyoSim("ust-10lx", time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"MS0000108010200\n")  # cluster 10, every 3rd scan, until QT
             frames = [raw.block() for _ in range(3)]
             raw.send(b"QT\n")
             while (b := raw.block()) != b"QT\n00P\n\n":  # frames already queued come first
                 assert b.startswith(b"MS")
-        finally:
-            raw.close()
     stamps = [scip2.decode_scan(f).timestamp for f in frames]
     assert [b - a for a, b in zip(stamps, stamps[1:], strict=False)] == [75, 75]
     assert all(f.startswith(b"MS0000108010200\n99b\n") for f in frames)
@@ -195,16 +184,13 @@ def test_md_interval_skips_scans_and_qt_stops() -> None:
 def test_timer_wraps_at_24_bits_and_rs_resets_it() -> None:
     start = (1 << 24) - 60
     with HokuyoSim("utm-30lx", time_scale=1.0, timer_start_ms=start) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"MD0540054001000\n")
             stamps = [scip2.decode_scan(raw.block()).timestamp for _ in range(6)]
             raw.ask(b"QT\n")
             raw.ask(b"RS\n")
             raw.ask(b"TM0\n")
             after = scip2.decode_value(raw.ask(b"TM1\n")[8:12])
-        finally:
-            raw.close()
     assert stamps[-1] < stamps[0]  # wrapped
     unwrapped = [s if s >= stamps[0] else s + (1 << 24) for s in stamps]
     assert all(b - a == 25 for a, b in zip(unwrapped, unwrapped[1:], strict=False))
@@ -217,12 +203,9 @@ def test_scans_of_a_known_map_match_the_ray_cast_truth() -> None:
     world = World.from_segments(walls)
     pose = (0.3, -0.2, 0.4)
     with HokuyoSim("utm-30lx", world=world, pose=pose, time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"BM\n")
             _, values = _scan_values(raw.ask(b"GD0000108001\n"))
-        finally:
-            raw.close()
     angles = (np.arange(1081) - 540) * 2 * math.pi / 1440
     truth = cast(world, pose, angles, math.inf) * 1000.0
     got = np.array(values, dtype=np.float64)
@@ -235,13 +218,10 @@ def test_scans_of_a_known_map_match_the_ray_cast_truth() -> None:
 def test_cluster_takes_the_group_minimum_ignoring_codes() -> None:
     world = World.from_segments([(1.0, -5.0, 1.0, 5.0)])  # a wall 1 m ahead, nothing behind
     with HokuyoSim("utm-30lx", world=world, time_scale=4.0) as sim:
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"BM\n")
             _, single = _scan_values(raw.ask(b"GD0000108001\n"))
             _, grouped = _scan_values(raw.ask(b"GD0000108007\n"))
-        finally:
-            raw.close()
     for g, v in enumerate(grouped):
         group = single[g * 7 : g * 7 + 7]
         valid = [x for x in group if x >= 23]
@@ -263,17 +243,13 @@ def test_second_tcp_client_is_refused_and_a_new_one_finds_it_idle() -> None:
         end = time.monotonic() + DEADLINE
         while sim.server.links() and time.monotonic() < end:
             sim.server.reap(0.1)
-        third = Raw(url)
-        try:
+        with Raw(url) as third:
             assert third.ask(b"GD0000108001\n") == b"GD0000108001\n10Q\n\n"  # idle, laser off
-        finally:
-            third.close()
 
 
 def test_rs_ss_cr_hs_rb_as_the_device_answers() -> None:
     with HokuyoSim("urg-04lx", time_scale=4.0) as sim:
-        pty = Raw(sim.serve_pty())
-        try:
+        with Raw(sim.serve_pty()) as pty:
             assert pty.ask(b"SCIP2.0\n") == b"SCIP2.0\n0\n\n"
             assert pty.ask(b"SS115200\n") == b"SS115200\n00P\n\n"  # USB: taken, no effect
             assert pty.ask(b"CR05\n") == b"CR05\n00P\n\n"
@@ -286,16 +262,11 @@ def test_rs_ss_cr_hs_rb_as_the_device_answers() -> None:
             assert pty.ask(b"RB\n") == b"RB\n01Q\n\n"  # armed
             assert pty.ask(b"RB\n") == b"RB\n00P\n\n"  # reboot: back to SCIP 1.1
             assert pty.ask(b"VV\n") == b"VV\nE\n\n"
-        finally:
-            pty.close()
     with HokuyoSim("ust-10lx") as sim:
-        tcp = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as tcp:
             assert tcp.ask(b"SS115200\n") == b"SS115200\n0Ff\n\n"  # no bit rate on Ethernet
             assert tcp.ask(b"CR05\n") == b"CR05\n04T\n\n"  # not supported
             assert tcp.ask(b"RT\n") == b"RT\n00P\n\n"
-        finally:
-            tcp.close()
 
 
 @given(st.lists(st.integers(0, (1 << 18) - 1), max_size=300), st.sampled_from([2, 3, 4]))
@@ -309,13 +280,10 @@ def test_a_late_tick_sends_no_more_frames_than_the_count() -> None:
     """A tick that finds five scans due (the machine stalled) while MD asked for two sends
     the two, counting 01 then 00, and stops: no frame beyond the count."""
     with HokuyoSim("utm-30lx", time_scale=0.1) as sim:  # ticks 250 ms apart: none in the way
-        raw = Raw(sim.serve_tcp())
-        try:
+        with Raw(sim.serve_tcp()) as raw:
             raw.ask(b"MD0000001001002\n")
             (session,) = sim.sessions()
             session.on_scans(sim.latest_scan() + 6)  # the late tick
             frames = [raw.block() for _ in range(2)]
             assert raw.ask(b"QT\n") == b"QT\n00P\n\n"  # nothing queued in between
-        finally:
-            raw.close()
     assert [f.split(b"\n", 1)[0] for f in frames] == [b"MD0000001001001", b"MD0000001001000"]

@@ -40,7 +40,7 @@ def test_an_idle_connection_loses_the_place_and_a_client_gets_it(kind: str) -> N
             idle.close()
         client: Any = Pioneer.connect(url) if kind == "pioneer" else Laser.connect(url)
         with client:
-            server = sim._server if kind == "laser" else sim._tcp
+            server = sim._server if kind == "laser" else sim._servers["tcp"]
             link = server.links()[0]
             wait_for(lambda: time.monotonic() > link.opened + 3 * HANDSHAKE_S,
                      "the client's link past the deadline")  # fmt: skip

@@ -23,6 +23,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
+from robocli.closing import in_background
 from robocli.errors import RobocliError, TimeoutError
 from robocli.robots.geometry import Mount
 
@@ -166,12 +167,12 @@ def on_robot(port: str, robot: Pioneer, model: str = "utm-30lx", world: Any = No
 @contextlib.contextmanager
 def _following(sim: Any, robot: Pioneer) -> Iterator[None]:
     """Move ``sim`` (a HokuyoSim) with ``robot``'s odometry until the block ends."""
-    mount, start, stop = robot.params.laser_mount, sim.world.start, threading.Event()
+    mount, start = robot.params.laser_mount, sim.world.start
 
     def place() -> None:
         sim.set_pose(mount.place(Mount(*robot.pose).place(start)))
 
-    def follow() -> None:
+    def follow(stop: threading.Event) -> None:
         while not stop.is_set():
             try:
                 robot.wait_for_sip(0.5)
@@ -181,10 +182,5 @@ def _following(sim: Any, robot: Pioneer) -> Iterator[None]:
                     return
 
     place()
-    thread = threading.Thread(target=follow, name="hokuyo-sim-follow", daemon=True)
-    thread.start()
-    try:
+    with in_background(follow, "hokuyo-sim-follow", 2.0):
         yield
-    finally:
-        stop.set()
-        thread.join(2.0)

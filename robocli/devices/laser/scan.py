@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
@@ -30,6 +31,24 @@ def _int(pp: dict[str, str], key: str) -> int:
         raise ProtocolError(f"SCIP PP {key}:{text!r} is not a number") from None
 
 
+class _Param:
+    """A whole-number parameter of the PP reply (``DMIN:20``, ``SCAN:600(rpm)``), read as an
+    ``int`` attribute of :class:`LaserInfo`; a value that is not a number is a
+    :class:`ProtocolError`."""
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+
+    @overload
+    def __get__(self, info: None, owner: type) -> _Param: ...
+
+    @overload
+    def __get__(self, info: LaserInfo, owner: type) -> int: ...
+
+    def __get__(self, info: LaserInfo | None, owner: type) -> int | _Param:
+        return self if info is None else _int(info.pp, self.key)
+
+
 @dataclass(frozen=True)
 class LaserInfo:
     """The scanner's identity (VV), parameters (PP) and state (II), as the key/value lines."""
@@ -38,9 +57,25 @@ class LaserInfo:
     pp: dict[str, str]
     ii: dict[str, str] = field(default_factory=dict)
 
+    dmin = _Param("DMIN")
+    """Smallest valid range, mm."""
+    dmax = _Param("DMAX")
+    """Largest valid range, mm."""
+    ares = _Param("ARES")
+    """Steps per full turn."""
+    amin = _Param("AMIN")
+    """First step measured."""
+    amax = _Param("AMAX")
+    """Last step measured."""
+    afrt = _Param("AFRT")
+    """The step straight ahead."""
+    rpm = _Param("SCAN")
+    """Turns per minute."""
+
     def __post_init__(self) -> None:
-        for key in ("DMIN", "DMAX", "ARES", "AMIN", "AMAX", "AFRT", "SCAN"):
-            _int(self.pp, key)
+        for param in vars(LaserInfo).values():  # each one parses, or the reply is refused
+            if isinstance(param, _Param):
+                _int(self.pp, param.key)
         if self.ares <= 0 or self.rpm <= 0 or self.amax < self.amin:
             raise ProtocolError(f"SCIP PP parameters make no sense: {self.pp}")
 
@@ -51,38 +86,6 @@ class LaserInfo:
     @property
     def serial(self) -> str:
         return self.vv.get("SERI", "?")
-
-    @property
-    def dmin(self) -> int:
-        """Smallest valid range, mm."""
-        return _int(self.pp, "DMIN")
-
-    @property
-    def dmax(self) -> int:
-        """Largest valid range, mm."""
-        return _int(self.pp, "DMAX")
-
-    @property
-    def ares(self) -> int:
-        """Steps per full turn."""
-        return _int(self.pp, "ARES")
-
-    @property
-    def amin(self) -> int:
-        return _int(self.pp, "AMIN")
-
-    @property
-    def amax(self) -> int:
-        return _int(self.pp, "AMAX")
-
-    @property
-    def afrt(self) -> int:
-        """The step straight ahead."""
-        return _int(self.pp, "AFRT")
-
-    @property
-    def rpm(self) -> int:
-        return _int(self.pp, "SCAN")
 
     @property
     def period(self) -> float:

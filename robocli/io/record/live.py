@@ -33,6 +33,7 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from typing import TYPE_CHECKING, Any
 
+from robocli.closing import in_background
 from robocli.errors import InvalidArgument, RobocliError, TransportError
 from robocli.io.record.links import RAW_SCHEMA, SinkBase
 from robocli.io.schemas import SCHEMAS, schema_bytes
@@ -264,20 +265,16 @@ def following_hub(view: LiveView, host: str, port: int,
 
     hub = Hub.connect(host, port, token=token)
     view.add(hub)
-    stop = threading.Event()
 
-    def follow() -> None:
+    def follow(stop: threading.Event) -> None:
         try:
             follow_hub(hub, stop.is_set)
         except RobocliError as exc:  # the hub is closing: the view shows nothing more
             if not stop.is_set():
                 log.warning("live view: following the hub stopped: %s", exc)
 
-    thread = threading.Thread(target=follow, name="hub-live", daemon=True)
-    thread.start()
     try:
-        yield
+        with in_background(follow, "hub-live", 10.0):
+            yield
     finally:
-        stop.set()
-        thread.join(10)
         hub.close()

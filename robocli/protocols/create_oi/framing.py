@@ -15,13 +15,14 @@ from __future__ import annotations
 
 from robocli.core import FramerStats
 from robocli.errors import ProtocolError
+from robocli.protocols.common import PartialFrame
 from robocli.protocols.create_oi.commands import command_length
 from robocli.protocols.create_oi.sensors import STREAM_HEADER
 
 __all__ = ["CommandFramer", "StreamFramer"]
 
 
-class _Scanner:
+class _Scanner(PartialFrame):
     """What both framers share: a bounded buffer scanned from its start, a byte that cannot
     start a frame dropped and counted, the counters. :meth:`_length` says, at ``pos``, how
     long the frame there is (None: wait for more bytes; 0: drop this byte)."""
@@ -29,7 +30,7 @@ class _Scanner:
     _BAD_IS_CHECKSUM = False  # whether ``_bad`` counts checksums or length fields
 
     def __init__(self) -> None:
-        self._buf = bytearray()
+        super().__init__()
         self._frames = 0
         self._dropped = 0
         self._bad = 0
@@ -56,15 +57,6 @@ class _Scanner:
         del buf[:pos]
         self._frames += len(out)
         return out
-
-    @property
-    def pending(self) -> int:
-        """Bytes of a frame not complete yet."""
-        return len(self._buf)
-
-    def reset(self) -> None:
-        """Forget the partial frame (the counters are kept)."""
-        self._buf.clear()
 
     @property
     def stats(self) -> FramerStats:

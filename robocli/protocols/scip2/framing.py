@@ -32,6 +32,7 @@ import re
 from dataclasses import dataclass
 
 from robocli.core import FramerStats
+from robocli.protocols.common import PartialFrame
 from robocli.protocols.scip2.wire import MAX_BLOCK, MAX_ECHO, MAX_LINE, checksum
 
 
@@ -52,28 +53,19 @@ class _Wait(Exception):
     """More bytes are needed to judge the candidate."""
 
 
-class ReplyFramer:
+class ReplyFramer(PartialFrame):
     """Pure-Python SCIP 2.0 reply framer (see the module's rules). Not thread-safe."""
 
     def __init__(self, max_block: int = MAX_BLOCK) -> None:
         if max_block < 8:
             raise ValueError("max_block must be at least 8 bytes")
+        super().__init__()
         self.max_block = max_block
-        self._buf = bytearray()
         self._frames = self._dropped = self._bad_sums = self._bad_lengths = 0
 
     @property
     def stats(self) -> ReplyFramerStats:
         return ReplyFramerStats(self._frames, self._dropped, self._bad_sums, self._bad_lengths)
-
-    @property
-    def pending(self) -> int:
-        """Bytes buffered but not yet framed."""
-        return len(self._buf)
-
-    def reset(self) -> None:
-        """Forget the buffered bytes; the counters are kept."""
-        self._buf.clear()
 
     def feed(self, data: bytes | bytearray | memoryview) -> list[bytes]:
         """Append ``data`` and return every block now complete, in order."""
@@ -174,12 +166,12 @@ class ReplyFramer:
 MAX_REQUEST = 64
 
 
-class RequestFramer:
+class RequestFramer(PartialFrame):
     """Splits a byte stream into request lines (without their terminator)."""
 
     def __init__(self, max_line: int = MAX_REQUEST) -> None:
+        super().__init__()
         self.max_line = max_line
-        self._buf = bytearray()
         self._after_cr = False  # the last terminator was a CR: a LF next belongs to it
         self._skipping = False  # inside an over-long line: drop up to its terminator
         self._frames = 0
@@ -215,14 +207,9 @@ class RequestFramer:
                 buf.clear()
         return out
 
-    @property
-    def pending(self) -> int:
-        """Bytes of a request not yet terminated."""
-        return len(self._buf)
-
     def reset(self) -> None:
         """Forget the partial line (the counters are kept)."""
-        self._buf.clear()
+        super().reset()
         self._after_cr = self._skipping = False
 
     @property

@@ -32,12 +32,12 @@ import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 
+from robocli.closing import Closing
 from robocli.errors import TimeoutError, TransportError
 from robocli.kinematics import load_model
 from robocli.kinematics.model import RobotModel
@@ -83,7 +83,7 @@ class ArmSimState:
     states_sent: int
 
 
-class AbbSim:
+class AbbSim(Closing):
     """A simulated arm controller. Use as a context manager; :meth:`serve_tcp` starts it.
 
     ``robot``: model name or file. ``state_ms``: state period in simulated ms.
@@ -169,13 +169,6 @@ class AbbSim:
         for server in (self._motion, self._state):
             if server is not None:
                 server.close()
-
-    def __enter__(self) -> AbbSim:
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 tb: TracebackType | None) -> None:  # fmt: skip
-        self.close()
 
     def snapshot(self) -> ArmSimState:
         """A consistent copy of the truth (thread-safe)."""

@@ -19,14 +19,12 @@ from __future__ import annotations
 import collections
 from collections.abc import Callable
 from dataclasses import dataclass
-from types import TracebackType
 
-from robocli.errors import TransportError
 from robocli.protocols.create_oi import MAX_COMMAND, CommandFramer
 from robocli.serving.server import Server, poll_until
-from robocli.serving.ticker import Ticker
 from robocli.sim.create.model import DROP_LEFT, DROP_RIGHT, CreateBody
 from robocli.sim.create.session import CreateController
+from robocli.sim.front import PoseTruth, RobotFront
 from robocli.sim.pioneer.model import Pose
 from robocli.sim.world import World
 
@@ -38,7 +36,7 @@ BYTE_TIMEOUT_S = 0.2  #: a command cut short for this long (wall s) is abandoned
 
 
 @dataclass(frozen=True)
-class CreateSimState:
+class CreateSimState(PoseTruth):
     """A copy of the simulator's truth at one instant (SI unless the name says otherwise).
 
     ``x, y, th``: true pose in the world (m, rad); ``odom_*``: the odometry (the wheels'
@@ -48,12 +46,6 @@ class CreateSimState:
     ``mode``: 0 off, 1 passive, 2 safe, 3 full. ``bumps_drops``: packet 7.
     """
 
-    x: float
-    y: float
-    th: float
-    odom_x: float
-    odom_y: float
-    odom_th: float
     distance_mm: float
     angle_deg: float
     left: float
@@ -80,7 +72,7 @@ class CreateSimState:
     clients: int
 
 
-class CreateSim:
+class CreateSim(RobotFront):
     """An iRobot Create 2 speaking the Open Interface, in the Pioneer simulator's world.
 
     ``world``: walls (default :meth:`World.default`); ``start_pose``: m, m, rad (default the
@@ -107,21 +99,9 @@ class CreateSim:
         start = start_pose if start_pose is not None else self.world.start
         self._body = CreateBody(self.world, start, odom_noise, seed)
         self._ctl = CreateController(self._body, bump_stops=bump_stops)
-        self._ticker = Ticker(STREAM_PERIOD_S / time_scale, self._tick, "create-sim-ticker")
-        self._servers: dict[str, Server] = {}
-        self._closed = False
+        super().__init__(STREAM_PERIOD_S / time_scale, "create-sim-ticker")
 
     # ---------------------------------------------------------------- public API
-
-    @property
-    def url(self) -> str | None:
-        """``tcp://host:port`` once :meth:`serve_tcp` ran."""
-        return self._servers["tcp"].url if "tcp" in self._servers else None
-
-    @property
-    def pty_path(self) -> str | None:
-        """The pseudo-terminal device once :meth:`serve_pty` ran."""
-        return self._servers["pty"].pty_path if "pty" in self._servers else None
 
     def serve_tcp(self, host: str = "127.0.0.1", port: int = 0) -> str:
         """Listen on ``host:port`` (0: an ephemeral port), one client at a time (a second is
@@ -132,26 +112,6 @@ class CreateSim:
         """Serve on a new pseudo-terminal (raw mode); returns the device a toolkit opens as
         the robot's serial port."""
         return self._serve("pty", lambda s: s.serve_pty())
-
-    def close(self) -> None:
-        """Stop every thread and close every socket/fd (bounded in time). Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self._ticker.close()
-        for server in self._servers.values():
-            server.close()
-
-    def __enter__(self) -> CreateSim:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def set_pose(self, x: float, y: float, th: float) -> None:
         """Teleport the true pose (m, m, rad); odometry is unchanged."""
@@ -170,10 +130,10 @@ class CreateSim:
 
     def snapshot(self) -> CreateSimState:
         """A consistent copy of the truth (thread-safe)."""
-        stats = [s.stats() for s in self._servers.values()]
+        stats = [s.stats() for s in self._serving()]
         # before the controller lock: a link ending holds its server's lock, then the
         # controller's (detach)
-        clients = sum(len(s.links()) for s in self._servers.values())
+        clients = sum(len(s.links()) for s in self._serving())
         with self._ctl.lock:
             b, c, m = self._body, self._ctl, self._body.model
             left, right = m.wheel_speeds()
@@ -203,24 +163,12 @@ class CreateSim:
 
     # ---------------------------------------------------------------- internals
 
-    def _serve(self, kind: str, start: Callable[[Server], str]) -> str:
-        if self._closed:
-            raise TransportError("simulator is closed")
-        if kind in self._servers:
-            raise TransportError(f"already serving on {self.url or self.pty_path}")
-        server = Server(
+    def _new_server(self, kind: str) -> Server:
+        return Server(
             self._ctl.attach, protocol="create-oi", framer=CommandFramer, max_clients=1,
             max_frame=MAX_COMMAND, byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S,
             name=f"create-sim-{kind}",
         )  # fmt: skip
-        try:
-            where = start(server)
-        except BaseException:
-            server.close()
-            raise
-        self._servers[kind] = server
-        self._ticker.start()
-        return where
 
     def _tick(self, now: float) -> None:
         with self._ctl.lock:

@@ -23,11 +23,11 @@ from __future__ import annotations
 import math
 import threading
 import time
-from types import TracebackType
 
 import numpy as np
 import numpy.typing as npt
 
+from robocli.closing import Closing
 from robocli.errors import InvalidArgument
 from robocli.protocols.scip2.framing import RequestFramer
 from robocli.serving.server import SIM_HANDSHAKE_S, Link, Server
@@ -43,7 +43,7 @@ BYTE_TIMEOUT_S = 5.0  #: a request line left unterminated this long is dropped
 SEND_TIMEOUT_S = 2.0  #: a TCP client leaving frames unread this long is dropped
 
 
-class HokuyoSim:
+class HokuyoSim(Closing):
     """A simulated scanner; :meth:`serve_tcp` or :meth:`serve_pty`, then :meth:`close`."""
 
     def __init__(
@@ -227,11 +227,3 @@ class HokuyoSim:
         self._ticker.close()
         if self._server is not None:
             self._server.close()
-
-    def __enter__(self) -> HokuyoSim:
-        return self
-
-    def __exit__(
-        self, t: type[BaseException] | None, e: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()

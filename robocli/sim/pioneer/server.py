@@ -39,13 +39,12 @@ from __future__ import annotations
 import collections
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
-from robocli.errors import InvalidArgument, TransportError
+from robocli.errors import InvalidArgument
 from robocli.robots.pioneer import ROBOT_PARAMS
 from robocli.serving.server import SIM_HANDSHAKE_S, Server, poll_until
-from robocli.serving.ticker import Ticker
+from robocli.sim.front import PoseTruth, RobotFront
 from robocli.sim.laser import LMS200, LaserSpec
 from robocli.sim.pioneer.model import PioneerModel, Pose
 from robocli.sim.pioneer.packets import sonar_batch
@@ -61,7 +60,7 @@ MAX_FRAME = 258  #: largest ARCOS frame (count byte 255)
 
 
 @dataclass(frozen=True)
-class SimState:
+class SimState(PoseTruth):
     """A copy of the simulator's truth at one instant (all SI unless the name says otherwise).
 
     ``x, y, th``: true pose in the world (m, rad). ``odom_*``: the robot's own odometry, the
@@ -73,12 +72,6 @@ class SimState:
     (pre-session 0/1/2 count as SYNC0/1/2). ``sim_time``: simulated seconds.
     """
 
-    x: float
-    y: float
-    th: float
-    odom_x: float
-    odom_y: float
-    odom_th: float
     odom_raw: tuple[int, int, int]
     trans_vel: float
     rot_vel: float
@@ -118,7 +111,7 @@ class SimState:
     clients: int = 0
 
 
-class PioneerSim:
+class PioneerSim(RobotFront):
     """An ARCOS robot: the protocol server, a physics model and a world.
 
     ``sip_ms``: SIP cycle (ms of simulated time). ``time_scale``: simulated seconds per wall
@@ -176,74 +169,18 @@ class PioneerSim:
             watchdog_s=watchdog_s, laser=laser, georef=georef, seed=seed, reflectors=reflectors,
             state_of_charge=state_of_charge,
         )  # fmt: skip
-        self._ticker = Ticker(period, self._tick, "pioneer-sim-ticker")
-        self._tcp: Server | None = None
-        self._pty: Server | None = None
-        self._closed = False
+        super().__init__(period, "pioneer-sim-ticker")
 
     # ---------------------------------------------------------------- public API
-
-    @property
-    def url(self) -> str | None:
-        """``tcp://host:port`` once :meth:`serve_tcp` ran."""
-        return self._tcp.url if self._tcp is not None else None
-
-    @property
-    def pty_path(self) -> str | None:
-        """The pseudo-terminal device once :meth:`serve_pty` ran."""
-        return self._pty.pty_path if self._pty is not None else None
 
     def serve_tcp(self, host: str = "127.0.0.1", port: int = 8101) -> str:
         """Listen on ``host:port`` (0 = an ephemeral port) and serve one client at a time (a
         second one is refused with a reason). Returns ``tcp://host:port`` with the real port."""
-        self._check_open()
-        if self._tcp is not None:
-            raise TransportError(f"already serving on {self._tcp.url}")
-        server = self._server("pioneer-sim-tcp")
-        try:
-            url = server.serve_tcp(host, port)
-        except BaseException:
-            server.close()
-            raise
-        self._tcp = server
-        self._ticker.start()
-        return url
+        return self._serve("tcp", lambda s: s.serve_tcp(host, port))
 
     def serve_pty(self) -> str:
         """Serve on a new pseudo-terminal (raw mode); returns the device a client opens."""
-        self._check_open()
-        if self._pty is not None:
-            raise TransportError(f"already serving on {self._pty.pty_path}")
-        server = self._server("pioneer-sim-pty")
-        try:
-            path = server.serve_pty()
-        except BaseException:
-            server.close()
-            raise
-        self._pty = server
-        self._ticker.start()
-        return path
-
-    def close(self) -> None:
-        """Stop every thread and close every socket/fd (bounded in time). Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self._ticker.close()
-        for server in (self._tcp, self._pty):
-            if server is not None:
-                server.close()
-
-    def __enter__(self) -> PioneerSim:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
+        return self._serve("pty", lambda s: s.serve_pty())
 
     def set_pose(self, x: float, y: float, th: float) -> None:
         """Teleport the true pose (m, m, rad); odometry is unchanged (like SIM_SET_POSE)."""
@@ -252,12 +189,12 @@ class PioneerSim:
 
     def snapshot(self) -> SimState:
         """A consistent copy of the truth (thread-safe)."""
-        stats = [s.stats() for s in (self._tcp, self._pty) if s is not None]
+        stats = [s.stats() for s in self._serving()]
         bad = sum(s.bad_checksums for s in stats)
         dropped = sum(s.dropped_bytes for s in stats)
         # before the controller lock: a link ending holds its server's lock, then takes the
         # controller's (detach), so the other order would deadlock
-        clients = sum(len(srv.links()) for srv in (self._tcp, self._pty) if srv is not None)
+        clients = sum(len(srv.links()) for srv in self._serving())
         with self._ctl.lock:
             return self._snapshot(bad, dropped, clients)
 
@@ -268,14 +205,10 @@ class PioneerSim:
 
     # ---------------------------------------------------------------- internals
 
-    def _check_open(self) -> None:
-        if self._closed:
-            raise TransportError("simulator is closed")
-
-    def _server(self, name: str) -> Server:
+    def _new_server(self, kind: str) -> Server:
         return Server(
             self._ctl.attach, protocol="arcos", max_clients=1, max_frame=MAX_FRAME,
-            byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S, name=name,
+            byte_timeout=BYTE_TIMEOUT_S, send_timeout=SEND_TIMEOUT_S, name=f"pioneer-sim-{kind}",
             handshake_timeout=self.handshake_s,
         )  # fmt: skip
 

@@ -195,6 +195,8 @@ def test_pyserial_url_handler(device: Device, hub: HubServer, tmp_path: Any) -> 
     token_file.write_bytes(TOKEN + b"\n")
     url = f"robocli://{_address(hub)}{device.path}?baudrate=115200&token_file={token_file}"
     with serial.serial_for_url(url, timeout=TIMEOUT) as port:
+        # no modem line crosses the hub: what a program waits for reads asserted, no ring
+        assert (port.cts, port.dsr, port.cd, port.ri) == (True, True, True, False)
         port.write(b"ping")
         assert device.wait_bytes(4) == b"ping"
         device.write(b"pong")

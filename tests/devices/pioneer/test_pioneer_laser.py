@@ -16,7 +16,6 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from robocli import Pioneer
-from robocli.core import Framer
 from robocli.devices.pioneer import LaserScan
 from robocli.devices.pioneer.laser import (
     MAX_READINGS,
@@ -30,6 +29,7 @@ from robocli.protocols import arcos
 from robocli.sim.pioneer.server import PioneerSim
 from robocli.sim.world import World
 from tests import paths
+from tests.devices.pioneer.test_pioneer_replay import frames_from
 from tests.waiting import wait_for
 
 DATA = paths.DATA / "arcos"
@@ -356,15 +356,16 @@ def test_client_against_amrisims_recorded_stream() -> None:
 
     def serve() -> None:
         conn, _ = srv.accept()
-        framer, pending = Framer("arcos"), list(replies)
+        pending = list(replies)
         with conn:
-            while pending:
-                data = conn.recv(4096)
-                if not data:
-                    return
-                for frame in framer.feed(data):
-                    if frame[3] in (0, 1, 2, arcos.Command.CONFIG) and pending:
-                        conn.sendall(pending.pop(0))
+            incoming = frames_from(conn)
+            for frame in incoming:
+                if frame[3] in (0, 1, 2, arcos.Command.CONFIG):
+                    conn.sendall(pending.pop(0))
+                if not pending:
+                    break
+            else:
+                return  # the client left during the handshake
             for frame in stream:
                 if frame[3] == arcos.PacketType.SIP:
                     time.sleep(0.002)
@@ -372,7 +373,7 @@ def test_client_against_amrisims_recorded_stream() -> None:
                     listening.wait(10.0)
                 conn.sendall(frame)
             conn.settimeout(30.0)
-            while conn.recv(4096):  # the client's keep-alives, until it closes
+            for _ in incoming:  # the client's keep-alives, until it closes
                 pass
 
     thread = threading.Thread(target=serve, daemon=True)

@@ -8,6 +8,7 @@ import re
 import socket
 import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -20,6 +21,13 @@ from tests import paths
 from tests.waiting import wait_for
 
 DATA = paths.DATA / "arcos"
+
+
+def frames_from(conn: socket.socket) -> Iterator[bytes]:
+    """The ARCOS frames ``conn`` brings, in order, until its peer closes it."""
+    framer = Framer("arcos")
+    while data := conn.recv(4096):
+        yield from framer.feed(data)
 
 
 class ReplayServer:
@@ -38,23 +46,18 @@ class ReplayServer:
 
     def _serve(self) -> None:
         conn, _ = self.srv.accept()
-        framer = Framer("arcos")
         replies = list(self.replies)
         streaming = False
         with conn:
-            while True:
-                data = conn.recv(4096)
-                if not data:
-                    return
-                for frame in framer.feed(data):
-                    cmd = frame[3]
-                    self.received.append(cmd)
-                    if cmd in (0, 1, 2, arcos.Command.CONFIG) and not streaming and replies:
-                        if cmd == arcos.Command.CONFIG or replies[0][3] == cmd:
-                            conn.sendall(replies.pop(0))
-                    if cmd == arcos.Command.CONFIG and not streaming:
-                        streaming = True
-                        threading.Thread(target=self._stream, args=(conn,), daemon=True).start()
+            for frame in frames_from(conn):
+                cmd = frame[3]
+                self.received.append(cmd)
+                if cmd in (0, 1, 2, arcos.Command.CONFIG) and not streaming and replies:
+                    if cmd == arcos.Command.CONFIG or replies[0][3] == cmd:
+                        conn.sendall(replies.pop(0))
+                if cmd == arcos.Command.CONFIG and not streaming:
+                    streaming = True
+                    threading.Thread(target=self._stream, args=(conn,), daemon=True).start()
 
     def _stream(self, conn: socket.socket) -> None:
         for sip in self.sips:

@@ -151,18 +151,7 @@ class Serial(SerialBase):  # type: ignore[misc]
     def _update_break_state(self) -> None:
         raise SerialException("a break does not cross the hub")
 
-    @property
-    def cts(self) -> bool:
-        return True
-
-    @property
-    def dsr(self) -> bool:
-        return True
-
-    @property
-    def ri(self) -> bool:
-        return False
-
-    @property
-    def cd(self) -> bool:
-        return True
+    #: no modem line crosses the hub: the port reads as a cable with the lines a program
+    #: waits for (CTS, DSR, CD) asserted, and no ring
+    cts = dsr = cd = property(lambda self: True)
+    ri = property(lambda self: False)
