@@ -10,7 +10,7 @@ import json
 import math
 import re
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, NoReturn
 
 import typer
@@ -192,6 +192,12 @@ def print_json(data: Any) -> None:
     """``data`` as one line of JSON on stdout (``--json`` is JSON Lines everywhere, ``--once``
     included; round floats first with :func:`rounded`)."""
     typer.echo(json.dumps(data, default=json_default, allow_nan=True))
+
+
+def echo_lines(lines: Iterable[str]) -> None:
+    """Each of ``lines`` on stdout (a view's text: :mod:`robocli.views`)."""
+    for line in lines:
+        typer.echo(line)
 
 
 def print_json_line(data: Any) -> None:

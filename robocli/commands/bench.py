@@ -158,15 +158,14 @@ def _render(report: Any, json_out: bool) -> None:
 
 def _hub_table(report: Any, json_out: bool) -> None:
     """``bench rtt --target hub``: its one row, in microseconds."""
+    from robocli.bench.text import hub_rtt_lines
+    from robocli.commands._common import echo_lines
+
     for result in report.results:
         if json_out:
             print_json([result])
             continue
-        keys = ("mean", "median", "p90", "p99", "max")
-        typer.echo(f"{'measurement (us)':<22}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
-        typer.echo(f"{result['name']:<22}{result['n']:>7}" +
-                   "".join(f"{result[k]:>9.1f}" for k in keys))  # fmt: skip
-        typer.echo(f"  {result['where']}")
+        echo_lines(hub_rtt_lines(result))
     if report.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
@@ -212,61 +211,16 @@ def sip(
         _render(reports.sip(url, n, stage=_Progress().stage), json_out)
 
 
-def _unit(median_us: float) -> tuple[float, str]:
-    """The display unit of a measurement: (its size in seconds, label); ms from 10 ms up,
-    so that a 100 ms period reads ``100.0 ms``, not ``100013.6`` us."""
-    return (1e-3, "ms") if median_us >= 10_000 else (1e-6, "us")
-
-
-def _show(
-    results: list[dict[str, Any]],
-    hist: dict[str, Any],
-    json_out: bool,
-    floor_note: str = "",
-) -> None:
+def _show(results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool,
+          floor_note: str = "") -> None:  # fmt: skip
     """A table (each row in its own unit, named in the unit column) and histograms of
     ``hist`` in the unit of their samples; or JSON (microseconds, to the nanosecond).
     A reader that leaves early (``| head -1``) ends the output quietly, exit 0."""
-    from robocli.commands._common import reader_may_leave
+    from robocli.bench.text import results_lines
+    from robocli.commands._common import echo_lines, reader_may_leave, rounded
 
     with reader_may_leave():
-        _print_results(results, hist, json_out, floor_note)
-
-
-def _print_results(
-    results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool, floor_note: str
-) -> None:
-    import numpy as np
-
-    from robocli.bench import stats as bs
-    from robocli.commands._common import rounded
-
-    if json_out:
-        print_json(rounded(results, 3, {}))
-        return
-    keys = ("mean", "median", "std", "min", "max", "p90", "p99")
-    width = max([28, *(len(r["name"]) + 1 for r in results)])
-    typer.echo(f"{'measurement':<{width}}{'unit':>5}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
-    for r in results:
-        unit, label = _unit(r["median"])
-        values = "".join(f"{r[k] * 1e-6 / unit:>9.1f}" for k in keys)
-        typer.echo(f"{r['name']:<{width}}{label:>5}{r['n']:>7}" + values)
-        notes = [r["where"]] if "where" in r else []
-        if "x_floor_median" in r:
-            notes.append(
-                f"= {r['x_floor_median']:.1f} x floor (median), {r['x_floor_p99']:.1f} x (p99)"
-            )
-        if "target_met" in r:
-            notes.append(
-                f"target <= {r['target_median_x']:g} x / {r['target_p99_x']:g} x: "
-                + ("met" if r["target_met"] else "NOT met")
-            )
-        if notes:
-            typer.echo("  " + "; ".join(notes))
-    if floor_note:
-        typer.echo(floor_note)
-    for name, samples in hist.items():
-        unit, label = _unit(float(np.median(samples)) * 1e6)
-        typer.echo(f"histogram: {name} ({label})")
-        for line in bs.histogram(samples, unit=unit, label=label):
-            typer.echo(line)
+        if json_out:
+            print_json(rounded(results, 3, {}))
+            return
+        echo_lines(results_lines(results, hist, floor_note))

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import typer
 
-from robocli.commands._common import print_json, rounded
+from robocli.commands._common import echo_lines, print_json, rounded
 from robocli.commands._options import json_option
 from robocli.defaults import (
     ARM_ENV,
@@ -51,40 +49,11 @@ def doctor(
     may open them, optional extras, and whether the default addresses answer (each probe
     bounded by --timeout; nothing is moved)."""
     from robocli.diagnostics import diagnose
+    from robocli.views.doctor import doctor_lines
 
     report = diagnose(pioneer=pioneer, arm=arm, hub=hub, motion_port=motion_port,
                       state_port=state_port, timeout=timeout)  # fmt: skip
     if json_out:
         print_json(rounded(report, 3, {"t": 6}))
         return
-    _print(report)
-
-
-def _print(r: dict[str, Any]) -> None:
-    v = r["versions"]
-    typer.echo(f"robocli {v['robocli']}, {v['implementation']} {v['python']} on {v['platform']}")
-    typer.echo("packages   " + ", ".join(f"{k} {x or 'MISSING'}" for k, x in v["packages"].items()))
-    core = r["c_core"]
-    typer.echo(f"C core     {'loaded from ' + core['path'] if core['loaded'] else core['error']}")
-    extras = [f"{name} {'yes' if e['installed'] else 'no'}" for name, e in r["extras"].items()]
-    typer.echo("extras     " + (", ".join(extras) or "unknown (robocli-robots is not installed)"))
-    serial = r["serial"]
-    if serial["error"]:
-        typer.echo(f"serial     cannot list ports: {serial['error']}")
-    elif not serial["ports"]:
-        typer.echo("serial     no ports found (is the USB-serial adapter plugged in?)")
-    for p in serial["ports"]:
-        access = "you may open it" if p["may_open"] else "you may NOT open it"
-        typer.echo(f"serial     {p['device']}  {p['description']}  ({access})")
-    group = serial.get("group")
-    if group and group["exists"]:
-        state = "member" if group["active"] else "member after a new login" if group[
-            "member"] else "not a member"  # fmt: skip
-        typer.echo(f"group      {group['name']}: {state}"
-                   + (f"; {group['advice']}" if group["advice"] else ""))  # fmt: skip
-    for name, a in r["addresses"].items():
-        source = {"env": f"${a['env']}", "given": "given"}.get(a["source"], "default")
-        answer = {True: "answers", False: "no answer", None: "not probed"}[a["answers"]]
-        typer.echo(f"{name:<11}{a['address']} ({source}): {answer}: {a['detail']}")
-    for problem in r["problems"]:
-        typer.echo(f"PROBLEM    {problem}")
+    echo_lines(doctor_lines(report))

@@ -10,7 +10,6 @@ it relays other programs' sessions as a recording proxy, as ``dump hub`` always 
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 import time
@@ -21,6 +20,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.analysis import text
 from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
 from robocli.commands._common import (
     OverwriteOpt,
@@ -28,7 +28,6 @@ from robocli.commands._common import (
     listening,
     print_json_line,
     reader_may_leave,
-    rounded,
     sigterm_as_interrupt,
 )
 from robocli.commands._options import DEVICE_FORMS, count_option, device_argument, json_option
@@ -44,13 +43,6 @@ if TYPE_CHECKING:
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-#: Longest text line of a packet unless ``-v`` (the rest is cut with an ellipsis).
-LINE_MAX = 160
-_ARROWS = {"tx": "->", "rx": "<-"}
-#: Short names of Simple Message fields in text lines (JSON keeps the protocol's names).
-_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
-          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
-          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
 _HexOpt = typer.Option(False, "--hex", help="Also print the raw frame bytes.")
 
 
@@ -345,95 +337,28 @@ def _out(line: str, payload: bytes | None = None, indent: int = 13) -> None:
     sys.stdout.flush()
 
 
+def _mark() -> str:
+    return text.ellipsis(getattr(sys.stdout, "encoding", None))
+
+
 def _pioneer_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool, full: bool) -> None:
     if json_out:
-        return print_json_line(rounded({**log.stamp(p.t), "dir": p.wire_dir, "type": p.type,
-                                        "name": p.name, "fields": p.fields}))  # fmt: skip
-    stamp = f"{p.t:9.3f} " if p.t is not None else ""
-    text = " ".join(f"{k}={_short(v, full)}" for k, v in p.fields.items())
-    line = f"{stamp}{_ARROWS.get(p.direction, '  ')} {p.name:<12} {text}".rstrip()
-    _out(line if full else _cut(line), p.frame if hex_out else None)
+        return print_json_line(text.pioneer_record(log, p))
+    _out(text.pioneer_line(p, full, _mark()), p.frame if hex_out else None)
 
 
 def _arm_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        hexed = {"hex": p.frame.hex()} if hex_out else {}
-        return print_json_line(rounded({**log.stamp(p.t), "port": p.port, "dir": p.wire_dir,
-                                        "name": p.name, "fields": p.fields, **hexed}))  # fmt: skip
-    text = " ".join(f"{_SHORT.get(k, k)}={_short_sm(v)}" for k, v in p.fields.items())
-    stamp = f"{p.t:9.3f} " if p.t is not None else ""
-    line = f"{stamp}{p.port or '-':<6} {_ARROWS.get(p.direction, '  ')} {p.name:<22} {text}"
-    _out(_cut(line.rstrip()), p.frame if hex_out else None)
+        return print_json_line(text.arm_record(log, p, hex_out))
+    _out(text.arm_line(p, _mark()), p.frame if hex_out else None)
 
 
 def _hub_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        record = {**log.stamp(p.t), "dir": p.wire_dir, "name": p.name, **p.fields}
-        record.update(rounded(log.stamp(p.t)))  # a field of the message never hides it
-        return _out(json.dumps({**record, **({"hex": p.frame.hex()} if hex_out else {})},
-                               default=str))  # fmt: skip
-    stamp = f"{p.t:10.6f}" if p.t is not None else f"{'-':>10}"
-    text = " ".join(f"{k}={v}" for k, v in p.fields.items())
-    _out(f"{stamp} {_ARROWS[p.direction]} {p.name:<14} {text}",
-         p.frame[:256] if hex_out else None, 14)  # fmt: skip
+        return _out(text.hub_record(log, p, hex_out))
+    _out(text.hub_line(p), p.frame[:256] if hex_out else None, 14)
 
 
 def _laser_lines(log: PacketLog, p: Packet, t0: list[float], json_out: bool) -> None:
-    """Each line of a SCIP block: ``t`` Unix time (None when unknown), ``t_rel`` seconds
-    since the first line."""
-    t = p.t or 0.0
-    if not t0:
-        t0.append(t)
-    rel = t - t0[0]
-    for line in p.lines:
-        if json_out:
-            unix = None if log.epoch is None else round(t + log.epoch, 6)
-            print_json_line({"t": unix, "t_rel": round(rel, 6), "dir": p.wire_dir,
-                             "line": line.text, "what": line.what})  # fmt: skip
-        else:
-            typer.echo(f"{rel:10.6f} {_ARROWS[p.direction]} {line.text[:70]:<70} {line.what}")
-
-
-def _cut(line: str) -> str:
-    if len(line) <= LINE_MAX:
-        return line
-    mark = ellipsis()
-    return line[: LINE_MAX - len(mark)] + mark
-
-
-def ellipsis() -> str:
-    """``…`` where standard output can encode it, else ``...`` (a latin-1 or ASCII
-    terminal, ``PYTHONIOENCODING=ascii``)."""
-    try:
-        "\u2026".encode(getattr(sys.stdout, "encoding", None) or "ascii")
-    except (UnicodeEncodeError, LookupError):
-        return "..."
-    return "\u2026"
-
-
-def _short(value: Any, full: bool) -> str:
-    """A field's value in a text line: unless ``full``, long lists (sonar pairs, laser
-    readings) as how many and the nearest."""
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list) and value and isinstance(value[0], (tuple, dict)):
-        if full:
-            return "[" + ",".join(_short(v, full) for v in value) + "]"
-        ranges = [v["range"] if isinstance(v, dict) else v[-1] for v in value]
-        return f"{len(value)}(min {min(ranges)})"  # how many, the nearest
-    if isinstance(value, tuple):
-        return ":".join(map(str, value))
-    if isinstance(value, list) and len(value) > 8 and not full:
-        return f"{len(value)}(min {min(value)})"  # laser ranges: how many, the nearest
-    if isinstance(value, dict):
-        return "{" + ",".join(f"{k}={_short(v, full)}" for k, v in value.items()
-                              if v is not None) + "}"  # fmt: skip
-    return str(value)
-
-
-def _short_sm(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list):
-        return "[" + ",".join(_short_sm(v) for v in value) + "]"
-    return str(value)
+    for line in text.laser_lines(log, p, t0, json_out):
+        print_json_line(line) if json_out else typer.echo(line)

@@ -4,7 +4,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 from __future__ import annotations
 
 import io
-import os
 import sys
 import time
 from collections import deque
@@ -15,6 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import (
+    echo_lines,
     print_json,
     print_json_line,
     reader_may_leave,
@@ -256,6 +256,7 @@ def connect(
     object per line; --foxglove: the running sensors' data to Foxglove, each window)."""
     from robocli.commands._live import live_view
     from robocli.devices.hub.tools import survey
+    from robocli.views.hub import survey_lines
 
     with sigterm_as_interrupt(), reader_may_leave():
         try:
@@ -268,29 +269,11 @@ def connect(
                     if json_out:  # one compact object per survey (JSON Lines)
                         print_json_line(info)
                     else:
-                        _print_survey(info)
+                        echo_lines(survey_lines(info))
                     if once:
                         return
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
-
-
-def _ms(value: float | None) -> str:
-    """``0.123 ms``, or ``-`` before any data reply (nothing running to pull)."""
-    return "-" if value is None else f"{value} ms"
-
-
-def _print_survey(info: dict[str, Any]) -> None:
-    typer.echo(
-        f"hub {info['hub']}  ros4mat v{info['protocol_version']}  client id "
-        f"{info['client_id']} (clients seen)  rtt {_ms(info['rtt_ms'])}  "
-        f"clock offset {_ms(info['clock_offset_ms'])}"
-    )
-    for name, s in info["sensors"].items():
-        if s["active"]:
-            typer.echo(f"  {name:<14} running  {s['rate_hz']:>8} Hz")
-        else:
-            typer.echo(f"  {name:<14} idle     ({s['reason']})")
 
 
 def throughput(
@@ -326,44 +309,6 @@ def throughput(
     if json_out:
         print_json(report)
         return
-    _print_throughput(report)
+    from robocli.bench.text import throughput_lines
 
-
-def _print_throughput(r: dict[str, Any]) -> None:
-    typer.echo(
-        f"{r['clients']} clients in {r['workers']} processes x {', '.join(r['sensors'])}, "
-        f"pulling each at "
-        f"{r['pull_hz']:g} Hz for {r['seconds']:g} s"
-    )
-    if r["not_served"]:
-        typer.echo(f"  not served by this hub: {', '.join(r['not_served'])}")
-    typer.echo(
-        f"  pulls/s {r['pulls_per_s']:.0f}   samples/s {r['samples_per_s']:.0f}   "
-        f"MB/s {r['bytes_per_s'] / 1e6:.1f}   gaps in sample times {r['lost_samples']}"
-    )
-    if "pull_p99_ms" in r:
-        typer.echo(
-            f"  pull latency ms: median {r['pull_p50_ms']:.2f}  p99 {r['pull_p99_ms']:.2f}  "
-            f"max {r['pull_max_ms']:.2f}"
-        )
-    if "hub_pull_p99_ms" in r:
-        typer.echo(f"  of which in the hub (request framed to reply built): median "
-                   f"{r['hub_pull_p50_ms']:.2f}  p99 {r['hub_pull_p99_ms']:.2f}")  # fmt: skip
-    if "hub_cpu_cores" in r:
-        typer.echo(
-            f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB;"
-            f" clients: {r['client_cpu_cores']:.2f} cores (whole run, {os.cpu_count()} CPUs here)"
-        )
-        typer.echo(f"  samples the hub dropped for full buffers: {r.get('hub_dropped', '?')} "
-                   "(before samples the clients pulled: their gaps)")  # fmt: skip
-    for s, p in r["per_sensor"].items():
-        typer.echo(
-            f"  {s:<8} pulls {p['pulls']:>7}  samples {p['samples']:>8}  "
-            f"MB {p['bytes'] / 1e6:>8.1f}  lost {p['lost']}"
-        )
-    for e in sorted(set(r["errors"]))[:5]:
-        typer.echo(f"  error: {e}")
-    typer.echo(
-        "  target (p99 <= 5 ms, no loss, hub <= 1 core): "
-        + ("met" if r["targets_met"] else "NOT met")
-    )
+    echo_lines(throughput_lines(report))

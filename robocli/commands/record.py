@@ -33,7 +33,7 @@ from robocli.commands._options import count_option, duration_option, json_option
 Compression = Literal["zstd", "lz4", "none"]
 
 if TYPE_CHECKING:
-    from robocli.io.record import Recorder, RecordingInfo
+    from robocli.io.record import Recorder
     from robocli.io.record.session import RecordingSession
 
 #: The hub's sensors ``--sensors`` names (robocli.io.record.session.HUB_DEFAULTS).
@@ -167,13 +167,15 @@ def close_recording(rec: Recorder, seconds: float) -> None:
 def progress_line(run: RecordingSession, every: float = 0.5) -> Callable[[], None]:
     """A function that rewrites one status line on stderr (a terminal's): messages, bytes
     written and the message rate, at most every ``every`` seconds."""
+    from robocli.views.recording import size_text
+
     last = [0.0]
 
     def show() -> None:
         if time.monotonic() - last[0] >= every:
             last[0] = time.monotonic()
             p = run.progress()
-            sys.stderr.write(f"\r\x1b[K{p.messages} messages, {_size(p.size)}, "
+            sys.stderr.write(f"\r\x1b[K{p.messages} messages, {size_text(p.size)}, "
                              f"{p.rate:.0f} msg/s, {p.seconds:.0f} s")  # fmt: skip
             sys.stderr.flush()
 
@@ -234,56 +236,11 @@ def info(
     with its schema, count, mean rate and largest gap (from the summary section; a file
     cut short is scanned)."""
     from robocli.io.record import info as read_info
+    from robocli.views.recording import info_lines
 
     result = read_info(file)
     if json_out:
         print_json(result.as_dict())
         return
-    _print_info(result)
-
-
-def _when(ns: int) -> str:
-    try:  # a file's times may be anything: a year past 9999 is shown as its number
-        stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(ns // 1_000_000_000))
-    except (OverflowError, OSError, ValueError):
-        return f"{ns / 1e9:.6f}"
-    return f"{stamp}.{ns % 1_000_000_000 // 1000:06d} ({ns / 1e9:.6f})"
-
-
-def _size(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if n < 1024 or unit == "GiB":
-            return f"{n:.1f} {unit}" if unit != "B" else f"{int(n)} B"
-        n /= 1024
-    return f"{n:.1f} GiB"  # pragma: no cover
-
-
-def _print_info(r: RecordingInfo) -> None:
-    out = sys.stdout.write
-    out(f"File:        {r.path}\n")
-    out(f"Size:        {_size(r.size)}\n")
-    if r.library:
-        out(f"Written by:  {r.library}\n")
-    if not r.summary:
-        cut = " (cut short: everything up to the last complete record was read)" \
-            if r.truncated else ""  # fmt: skip
-        out(f"Summary:     none, the file was scanned{cut}\n")
-        if r.truncated and r.readable_bytes > 8:  # its header at least is whole
-            out(f"Recover:     robocli recover {r.path}\n")
-    out(f"Duration:    {r.duration_s:.3f} s\n")
-    if r.messages:
-        out(f"Start:       {_when(r.start_ns)}\n")
-        out(f"End:         {_when(r.end_ns)}\n")
-    out(f"Messages:    {r.messages}\n")
-    out(f"Chunks:      {r.chunks}" + (f" ({', '.join(r.compression)})" if r.compression else "")
-        + "\n")  # fmt: skip
-    out(f"Channels:    {len(r.channels)}\n")
-    width = max((len(c.topic) for c in r.channels), default=5)
-    swidth = max((len(c.schema or c.encoding) for c in r.channels), default=6)
-    out(f"  {'topic':<{width}}  {'schema':<{swidth}}  {'count':>8}  {'rate Hz':>9}  "
-        f"{'largest gap s':>13}\n")  # fmt: skip
-    for c in r.channels:
-        rate = f"{c.rate_hz:9.2f}" if c.rate_hz is not None else f"{'-':>9}"
-        out(f"  {c.topic:<{width}}  {c.schema or c.encoding:<{swidth}}  {c.count:>8}  {rate}  "
-            f"{c.largest_gap_s:13.3f}\n")  # fmt: skip
+    sys.stdout.write("".join(line + "\n" for line in info_lines(result)))
     sys.stdout.flush()
