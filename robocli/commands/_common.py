@@ -16,6 +16,7 @@ from typing import Any, NoReturn
 import typer
 from typer.core import TyperCommand
 
+from robocli.commands._options import OverwriteOpt as OverwriteOpt
 from robocli.devices.pioneer.link import explain_refusal as explain_refusal
 from robocli.io.jsonlines import RESOLUTION as RESOLUTION
 from robocli.io.jsonlines import json_default
@@ -123,8 +124,6 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
                 raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
 
 
-#: Every command that writes a user's file takes it (see :mod:`robocli.output`).
-OverwriteOpt = typer.Option(False, "--overwrite", help="Replace an existing output file.")
 
 
 def bundled(

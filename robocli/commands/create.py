@@ -7,40 +7,38 @@ command's options can change without touching the others'.
 from __future__ import annotations
 
 import contextlib
-import sys
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import typer
 
-from robocli.commands._common import SIM, bind_address, listening, sigterm_as_interrupt
+from robocli.commands._common import (
+    SIM,
+    bind_address,
+    listening,
+    sigterm_as_interrupt,
+    wait_forever,
+)
+from robocli.commands._options import (
+    MapOpt,
+    TimeScaleOpt,
+    bind_option,
+    flag,
+    port_option,
+    pose_option,
+)
 
 
 def simulate(
-    pty: bool = typer.Option(
-        False, "--pty", help="Serve on a pseudo-terminal, as a serial port (the default)."
-    ),
-    port: int | None = typer.Option(
-        None, "--port", "-p", min=0, max=65535, help="Serve on this TCP port instead (0: any)."
-    ),
-    map_file: Path | None = typer.Option(
-        None, "--map", exists=True, dir_okay=False, help="Map: JSON or text walls (x1 y1 x2 y2)."
-    ),
-    pose: str | None = typer.Option(
-        None, "--pose", metavar="X,Y,TH", help="Start pose in the map: m, m, rad."
-    ),
-    bind: str = typer.Option("127.0.0.1", "--bind", help="Address to listen on (TCP)."),
-    time_scale: float = typer.Option(
-        1.0, "--time-scale", min=0.1, max=100.0, help="Simulated seconds per wall second."
-    ),
-    bump_stops: bool = typer.Option(
-        True,
-        "--bump-stops/--no-bump-stops",
-        help="A bump in safe mode stops the wheels (the specification: wheel drops and "
-        "cliffs only).",
-    ),
+    pty: bool = flag("--pty", "Serve on a pseudo-terminal, as a serial port (the default)."),
+    port: int | None = port_option(None, "Serve on this TCP port instead (0: any)."),
+    map_file: Path | None = MapOpt,
+    pose: str | None = pose_option("Start pose in the map: m, m, rad."),
+    bind: str = bind_option("Address to listen on (TCP)."),
+    time_scale: float = TimeScaleOpt,
+    bump_stops: bool = flag("--bump-stops/--no-bump-stops", "A bump in safe mode stops the wheels "
+                            "(the specification: wheel drops and cliffs only).", True),
 ) -> None:
     """Run a simulated iRobot Create 2 speaking the Open Interface until Ctrl-C."""
     from robocli.commands.laser import _pose
@@ -60,9 +58,7 @@ def simulate(
             with listening(bind):
                 where = sim.serve_tcp(bind_address(bind), port)
         typer.echo(f"create: iRobot Create 2 (Open Interface) on {where}")
-        sys.stdout.flush()
-        while True:
-            time.sleep(3600)
+        wait_forever()
 
 
 @contextlib.contextmanager

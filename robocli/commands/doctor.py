@@ -2,48 +2,31 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import typer
 
+from robocli import defaults as d
 from robocli.commands._common import echo_lines, print_json, rounded
-from robocli.commands._options import json_option
-from robocli.defaults import (
-    ARM_ENV,
-    ARM_HOST,
-    ARM_MOTION_PORT,
-    ARM_STATE_PORT,
-    HUB_ADDRESS,
-    HUB_ENV,
-    PIONEER_ENV,
-    PIONEER_URL,
-)
+from robocli.commands._options import device_option, json_option, timeout_option
+
+
+def _probe(name: str, what: str, env: str, default: str) -> Any:
+    return device_option(name, f"{what} to probe (default ${env}, else {default}).")
+
+
+def _port(name: str, default: int) -> Any:
+    return typer.Option(default, name, min=1, max=65535, help=f"The arm's {name[2:-5]} port.")
 
 
 def doctor(
     json_out: bool = json_option(),
-    timeout: float = typer.Option(
-        1.0, "--timeout", min=0.05, max=10.0, help="Seconds each probe may wait."
-    ),
-    pioneer: str | None = typer.Option(
-        None,
-        "--pioneer",
-        metavar="URL",
-        help=f"Pioneer to probe (default ${PIONEER_ENV}, else {PIONEER_URL}).",
-    ),
-    arm: str | None = typer.Option(
-        None, "--arm", metavar="URL", help=f"Arm to probe (default ${ARM_ENV}, else {ARM_HOST})."
-    ),
-    hub: str | None = typer.Option(
-        None,
-        "--hub",
-        metavar="URL",
-        help=f"Hub to probe (default ${HUB_ENV}, else {HUB_ADDRESS}).",
-    ),
-    motion_port: int = typer.Option(
-        ARM_MOTION_PORT, "--motion-port", min=1, max=65535, help="The arm's motion port."
-    ),
-    state_port: int = typer.Option(
-        ARM_STATE_PORT, "--state-port", min=1, max=65535, help="The arm's state port."
-    ),
+    timeout: float = timeout_option(1.0, "Seconds each probe may wait.", 0.05, 10.0),
+    pioneer: str | None = _probe("--pioneer", "Pioneer", d.PIONEER_ENV, d.PIONEER_URL),
+    arm: str | None = _probe("--arm", "Arm", d.ARM_ENV, d.ARM_HOST),
+    hub: str | None = _probe("--hub", "Hub", d.HUB_ENV, d.HUB_ADDRESS),
+    motion_port: int = _port("--motion-port", d.ARM_MOTION_PORT),
+    state_port: int = _port("--state-port", d.ARM_STATE_PORT),
 ) -> None:
     """Check this machine for robocli: versions, the C core, serial ports and whether you
     may open them, optional extras, and whether the default addresses answer (each probe

@@ -26,8 +26,11 @@ from robocli.commands._options import (
     SensorName,
     count_option,
     device_argument,
+    device_option,
     duration_option,
+    flag,
     json_option,
+    rate_option,
 )
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
@@ -39,15 +42,7 @@ if TYPE_CHECKING:
 
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
-HubOpt = typer.Option(
-    None,
-    "--hub",
-    metavar="URL",
-    help=HUB_HELP,
-    show_default=False,
-    envvar=HUB_ENV,
-    show_envvar=True,
-)
+HubOpt = device_option("--hub", HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True)
 HubArg = device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
 SENSOR_HELP = ", ".join(SENSOR_NAMES)
@@ -113,30 +108,22 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: SensorName = typer.Argument(
-        ..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.", show_default=False
-    ),
-    rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
+    sensor: SensorName = typer.Argument(..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.",
+                                        show_default=False),  # fmt: skip
+    rate: int = rate_option(..., "Sample rate, Hz.", min=1, max=65535),
     hub: str | None = HubOpt,
-    buffer: int | None = typer.Option(
-        None, "--buffer", min=1, help="Samples the hub keeps for us (default: 1 s)."
-    ),
-    poll: int | None = typer.Option(
-        None,
-        "--poll",
-        min=1,
-        max=65535,
-        help="Pulls per second, Hz: also the hub's batch rate of adc, imu, gps, battery "
-        "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
-    ),
+    buffer: int | None = typer.Option(None, "--buffer", min=1,
+                                      help="Samples the hub keeps for us (default: 1 s)."),
+    poll: int | None = typer.Option(None, "--poll", min=1, max=65535, help="Pulls per second, Hz: "
+                                    "also the hub's batch rate of adc, imu, gps, battery (ros4mat "
+                                    "freqSend, at most --rate; default rate/4 + 10)."),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
     duration: float | None = duration_option(min=0),
     count: int | None = count_option(None, "Stop after N samples.", min=1),
-    fmt: Literal["table", "csv"] | None = typer.Option(
-        None, "--format", "-f", help="Text output (default: table on a terminal, else csv)."
-    ),
+    fmt: Literal["table", "csv"] | None = typer.Option(None, "--format", "-f", help="Text output "
+                                                       "(default: table on a terminal, else csv)."),
     json_out: bool = json_option(),
-    compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
+    compress: bool = flag("--compress", "zlib-compressed replies."),
     token_file: Path | None = TokenOpt,
     zenoh: str | None = zenoh_option("client"),
 ) -> None:
@@ -244,7 +231,7 @@ class _Output:
 
 def connect(
     host: str = HubArg,
-    once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
+    once: bool = flag("--once", "Print one survey and exit."),
     json_out: bool = json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,
@@ -278,21 +265,16 @@ def connect(
 
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
-    url: str | None = typer.Argument(
-        None,
-        metavar="URL",
-        show_default=False,
-        help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
-    ),
+    url: str | None = typer.Argument(None, metavar="URL", show_default=False, help="A running "
+                                     "hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated "
+                                     "hub process)."),  # fmt: skip
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
-    sensors: str = typer.Option(
-        "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
-    ),
+    sensors: str = typer.Option("imu,adc,laser,camera", "--sensors",
+                                help="Sensors, comma-separated."),
     seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
-    workers: int | None = typer.Option(
-        None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
-    ),
+    workers: int | None = typer.Option(None, "--workers", min=1, max=64,
+                                       help="Client processes (default: one per 5 clients)."),
     json_out: bool = json_option(),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,

@@ -28,7 +28,15 @@ from robocli.commands._common import (
     sigterm_as_interrupt,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
-from robocli.commands._options import count_option, duration_option, json_option
+from robocli.commands._options import (
+    RecordingArg,
+    count_option,
+    device_option,
+    duration_option,
+    flag,
+    json_option,
+    output_option,
+)
 
 Compression = Literal["zstd", "lz4", "none"]
 
@@ -52,51 +60,30 @@ def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
 
 @arm_link(motion=False)
 def record(
-    output: Path = typer.Option(
-        ..., "--output", "-o", dir_okay=False, metavar="FILE.mcap", help="The recording (MCAP)."
-    ),
-    pioneer: list[str] = typer.Option(
-        [], "--pioneer", metavar="URL", help="A Pioneer (port, URL or 'sim'); repeatable."
-    ),
-    arm: list[str] = typer.Option(
-        [],
-        "--arm",
-        metavar="URL",
-        help="An arm controller (HOST, tcp://HOST or 'sim'; its state "
-        "port: --state-port); repeatable.",
-    ),
-    hub: str | None = typer.Option(
-        None, "--hub", metavar="URL", help="A sensor hub: HOST[:PORT], tcp://HOST:PORT or 'sim'."
-    ),
-    sensors: str = typer.Option(
-        "imu,adc",
-        "--sensors",
-        metavar="NAME[:HZ],...",
-        help="Hub sensors: " + ", ".join(HUB_SENSORS) + " (rate in Hz after a colon).",
-    ),
+    output: Path = output_option(..., "The recording (MCAP).", dir_okay=False, metavar="FILE.mcap"),
+    pioneer: list[str] = device_option("--pioneer", "A Pioneer (port, URL or 'sim'); "
+                                       "repeatable.", []),  # fmt: skip
+    arm: list[str] = device_option("--arm", "An arm controller (HOST, tcp://HOST or 'sim'; its "
+                                   "state port: --state-port); repeatable.", []),  # fmt: skip
+    hub: str | None = device_option("--hub", "A sensor hub: HOST[:PORT], tcp://HOST:PORT or "
+                                    "'sim'."),  # fmt: skip
+    sensors: str = typer.Option("imu,adc", "--sensors", metavar="NAME[:HZ],...", help="Hub "
+                                f"sensors: {', '.join(HUB_SENSORS)} (rate in Hz after a colon)."),
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
     duration: float | None = duration_option(min=0.0, max=1e6),
     count: int | None = count_option(help="Stop after N messages recorded.", min=1),
     compression: Compression = typer.Option("zstd", "--compression", help="Chunk compression."),
-    laser: str | None = typer.Option(
-        None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
-    ),
-    create: list[str] = typer.Option(
-        [], "--create", metavar="URL", help="An iRobot Create 2 (port, URL or 'sim'); repeatable."
-    ),
-    no_laser: bool = typer.Option(
-        False, "--no-laser", help="Do not start a Pioneer simulator's own (ARCOS) laser."
-    ),
+    laser: str | None = device_option("--laser", "A Hokuyo laser (device, tcp://host:10940 or "
+                                      "'sim')."),  # fmt: skip
+    create: list[str] = device_option("--create", "An iRobot Create 2 (port, URL or 'sim'); "
+                                      "repeatable.", []),  # fmt: skip
+    no_laser: bool = flag("--no-laser", "Do not start a Pioneer simulator's own (ARCOS) laser."),
     overwrite: bool = OverwriteOpt,
     link: ArmLink = LINK,
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    ros2: bool = typer.Option(
-        False,
-        "--ros2",
-        help="Write a ROS 2 bag: standard messages "
-        "in CDR that ros2 bag play reads (see docs/ros2-bags.md).",
-    ),
+    ros2: bool = flag("--ros2", "Write a ROS 2 bag: standard messages in CDR that ros2 bag play "
+                      "reads (see docs/ros2-bags.md)."),  # fmt: skip
 ) -> None:
     """Record Pioneers, arms (their state port), a hub, a Hokuyo laser and iRobot Creates
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
@@ -227,9 +214,7 @@ def _hub_address(hub: str) -> Iterator[str]:
 
 
 def info(
-    file: Path = typer.Argument(
-        ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
-    ),
+    file: Path = RecordingArg,
     json_out: bool = json_option(),
 ) -> None:
     """Summarise a recording like ros2 bag info: duration, start and end, each channel

@@ -18,6 +18,7 @@ import typer
 
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
+from robocli.commands._options import bind_option, device_option, flag, port_option
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import (
     Ros2DomainOpt,
@@ -63,36 +64,20 @@ def token_from_file(path: Path | None) -> bytes | None:
 
 
 def serve(
-    sim: bool = typer.Option(False, "--sim", help="Serve every simulated sensor."),
-    port: int = typer.Option(1500, "--port", "-p", min=0, max=65535, help="TCP port (0: any)."),
-    bind: str = typer.Option(
-        "127.0.0.1", "--bind", help="Address to listen on (0.0.0.0 exposes the hub: warned)."
-    ),
-    pioneer: str | None = typer.Option(
-        None,
-        "--pioneer",
-        metavar="URL",
-        help="A Pioneer (or 'robocli sim pioneer') for the battery and ADC.",
-    ),
-    laser: str | None = typer.Option(
-        None,
-        "--laser",
-        metavar="URL",
-        help="A Hokuyo laser (or 'robocli sim laser') for the laser sensor (HOKUYO).",
-    ),
-    gpsd: str | None = typer.Option(
-        None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
-    ),
-    serial: list[str] = typer.Option(
-        [], "--serial", metavar="PORT", help="A serial port clients may use (repeatable)."
-    ),
-    token_file: Path | None = typer.Option(
-        None,
-        "--token-file",
-        dir_okay=False,
-        metavar="FILE",
-        help="Require this file's token to change settings or write to a serial port.",
-    ),
+    sim: bool = flag("--sim", "Serve every simulated sensor."),
+    port: int = port_option(1500, "TCP port (0: any)."),
+    bind: str = bind_option("Address to listen on (0.0.0.0 exposes the hub: warned)."),
+    pioneer: str | None = device_option("--pioneer", "A Pioneer (or 'robocli sim pioneer') for "
+                                        "the battery and ADC."),  # fmt: skip
+    laser: str | None = device_option("--laser", "A Hokuyo laser (or 'robocli sim laser') for "
+                                      "the laser sensor (HOKUYO)."),  # fmt: skip
+    gpsd: str | None = typer.Option(None, "--gpsd", metavar="HOST[:PORT]",
+                                    help="Take the GPS from this gpsd daemon."),  # fmt: skip
+    serial: list[str] = typer.Option([], "--serial", metavar="PORT",
+                                     help="A serial port clients may use (repeatable)."),
+    token_file: Path | None = typer.Option(None, "--token-file", dir_okay=False, metavar="FILE",
+                                           help="Require this file's token to change settings "
+                                           "or write to a serial port."),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
@@ -100,19 +85,12 @@ def serve(
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
     zenoh: str | None = zenoh_option("server"),
-    name: str | None = typer.Option(
-        None,
-        "--name",
-        help="The hub's name on Zenoh (default: the --zenoh configuration's user, else this "
-        "host's name).",
-    ),
-    publish: str = typer.Option(
-        ZENOH_PUBLISH,
-        "--publish",
-        metavar="SENSOR[=RATE],...",
-        help="Sensors published on Zenoh from the start (others once a client asks).",
-    ),
-    tcp: bool = typer.Option(True, "--tcp/--no-tcp", help="Serve ros4mat on TCP (--port)."),
+    name: str | None = typer.Option(None, "--name", help="The hub's name on Zenoh (default: the "
+                                    "--zenoh configuration's user, else this host's name)."),
+    publish: str = typer.Option(ZENOH_PUBLISH, "--publish", metavar="SENSOR[=RATE],...",
+                                help="Sensors published on Zenoh from the start (others once a "
+                                "client asks)."),  # fmt: skip
+    tcp: bool = flag("--tcp/--no-tcp", "Serve ros4mat on TCP (--port).", True),
     ros2: bool = Ros2Opt,
     ros2_domain: int = Ros2DomainOpt,
     ros2_namespace: str = Ros2NamespaceOpt,
