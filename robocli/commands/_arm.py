@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import bundled, sigterm_as_interrupt
-from robocli.commands._options import device_argument
+from robocli.commands._options import RobotOpt, device_argument
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -31,7 +31,6 @@ Profile = Literal["abb", "generic"]
 Shape = Literal["circle", "rectangle"]
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
 RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
-RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
 
 

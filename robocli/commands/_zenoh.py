@@ -63,14 +63,10 @@ def zenoh_option(role: Role, *, default: str | None = None) -> Any:
     ``cls=ZenohCommand``, its value may be left out: :data:`DEFAULT_ENDPOINT`).
     ``default``: the value when ``--zenoh`` is not given at all (None: the command does not
     use Zenoh then)."""
-    return typer.Option(
-        default,
-        "--zenoh",
-        metavar=ZENOH_METAVAR,
-        show_default=False,
-        help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: {DEFAULT_ENDPOINT}; multicast "
-        "scouting off), or take CONFIG, a Zenoh JSON5 file. Needs robocli-robots[zenoh].",
-    )
+    return typer.Option(default, "--zenoh", metavar=ZENOH_METAVAR, show_default=False,
+                        help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: "
+                        f"{DEFAULT_ENDPOINT}; multicast scouting off), or take CONFIG, a Zenoh "
+                        "JSON5 file. Needs robocli-robots[zenoh].")  # fmt: skip
 
 
 def zenoh_target(value: str | None) -> ZenohTarget:
@@ -125,19 +121,14 @@ def zenoh_hub(
     return ZenohHub.connect(name, zenoh=target, token=token)
 
 
-Ros2Opt = typer.Option(
-    False, "--ros2",
-    help="Also appear as a ROS 2 node on the same Zenoh session, as rmw_zenoh_cpp lays ROS 2 "
-    "topics (needs robocli-robots[ros2]; see docs/ros2.md).",
-)  # fmt: skip
-Ros2DomainOpt = typer.Option(
-    0, "--ros2-domain", min=0, max=232, metavar="ID", envvar="ROS_DOMAIN_ID",
-    help="The ROS domain id of --ros2 (default: $ROS_DOMAIN_ID, else 0).",
-)  # fmt: skip
-Ros2NamespaceOpt = typer.Option(
-    "", "--ros2-namespace", metavar="NS",
-    help="The ROS 2 namespace of --ros2's node and topics (default: the root).",
-)  # fmt: skip
+Ros2Opt = typer.Option(False, "--ros2", help="Also appear as a ROS 2 node on the same Zenoh "
+                       "session, as rmw_zenoh_cpp lays ROS 2 topics (needs robocli-robots[ros2]; "
+                       "see docs/ros2.md).")  # fmt: skip
+Ros2DomainOpt = typer.Option(0, "--ros2-domain", min=0, max=232, metavar="ID",
+                             envvar="ROS_DOMAIN_ID", help="The ROS domain id of --ros2 (default: "
+                             "$ROS_DOMAIN_ID, else 0).")  # fmt: skip
+Ros2NamespaceOpt = typer.Option("", "--ros2-namespace", metavar="NS", help="The ROS 2 namespace "
+                                "of --ros2's node and topics (default: the root).")  # fmt: skip
 
 
 def ros2_check(ros2: bool, zenoh: str | None) -> None:

@@ -27,7 +27,6 @@ from robocli.commands._arm import (
     Profile,
     RealOpt,
     RealSize,
-    RobotOpt,
     Shape,
     arm_link,
     check_wire,
@@ -48,9 +47,12 @@ from robocli.commands._common import (
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._options import (
     BindOpt,
+    RobotOpt,
+    StreamOpt,
     TimeScaleOpt,
     count_option,
     duration_option,
+    flag,
     json_option,
     output_option,
 )
@@ -76,33 +78,23 @@ def _port_option(default: int, flag: str, server: str) -> Any:
 def simulate(
     motion_port: int = _port_option(11000, "--motion-port", "Motion server's"),
     state_port: int = _port_option(11002, "--state-port", "State server's"),
-    state_ms: float | None = typer.Option(
-        None,
-        "--state-ms",
-        min=0.5,
-        max=10_000.0,
-        help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
-    ),  # fmt: skip
+    state_ms: float | None = typer.Option(None, "--state-ms", min=0.5, max=10_000.0, help="State "
+                                          "period, ms (default: 100 as ABB's stock code; 20 with "
+                                          "--paper)."),  # fmt: skip
     byte_order: ByteOrder = OrderOpt,
     real_size: RealSize = RealOpt,
-    profile: Profile = typer.Option(
-        "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
-    ),
+    profile: Profile = typer.Option("abb", "--profile", help="abb (RAPID servers) or generic "
+                                    "(streaming server)."),  # fmt: skip
     robot: str = RobotOpt,
     latency_ms: float = _model_option("--latency-ms", "Motion reply delay, ms."),
-    jitter_ms: float = _model_option(
-        "--jitter-ms", "Motion reply jitter: std of a skewed extra delay, ms."
-    ),
+    jitter_ms: float = _model_option("--jitter-ms", "Motion reply jitter: std of a skewed extra "
+                                     "delay, ms."),  # fmt: skip
     noise_rad: float = _model_option("--noise-rad", "Gaussian noise on reported joints, rad.", 1.0),
-    period_jitter_ms: float = _model_option(
-        "--period-jitter-ms",
-        "State period std, ms (each period drawn afresh, skewed as the paper's).",
-    ),
+    period_jitter_ms: float = _model_option("--period-jitter-ms", "State period std, ms (each "
+                                            "period drawn afresh, skewed as the paper's)."),
     lag_ms: float = _model_option("--lag-ms", "Execution delay after activation, ms."),
-    paper: bool = typer.Option(False, "--paper", help="The paper-like controller model."),
-    feedback: bool = typer.Option(
-        False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
-    ),
+    paper: bool = flag("--paper", "The paper-like controller model."),
+    feedback: bool = flag("--feedback", "Also send JOINT_FEEDBACK with the controller time."),
     time_scale: float = TimeScaleOpt,
     bind: str = BindOpt,
     replay: Path | None = ReplayOpt,
@@ -180,20 +172,15 @@ def upload(
     duration: float | None = duration_option(None, "Shape duration, s."),
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
     center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),
-    monitor: Path | None = output_option(
-        None, "Log the run's states to this file (.json/.csv/.npz)."
-    ),
-    record_to: Path | None = typer.Option(
-        None,
-        "--record",
-        metavar="FILE.mcap",
-        dir_okay=False,
-        help="Record this upload's connection (both ports, every frame) to an MCAP file.",
-    ),
-    ros2: bool = typer.Option(False, "--ros2", help="--record a ROS 2 bag (docs/ros2-bags.md)."),
+    monitor: Path | None = output_option(None, "Log the run's states to this file "
+                                         "(.json/.csv/.npz)."),  # fmt: skip
+    record_to: Path | None = typer.Option(None, "--record", metavar="FILE.mcap", dir_okay=False,
+                                          help="Record this upload's connection (both ports, "
+                                          "every frame) to an MCAP file."),  # fmt: skip
+    ros2: bool = flag("--ros2", "--record a ROS 2 bag (docs/ros2-bags.md)."),
     overwrite: bool = OverwriteOpt,
-    split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
-    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
+    split: bool = flag("--split", "Upload > 100 points in several parts."),
+    stream: bool = StreamOpt,
     link: ArmLink = LINK,
     wait: float = typer.Option(600.0, "--wait", min=0.0, max=86_400.0, help=WAIT_HELP),
 ) -> None:
@@ -276,12 +263,10 @@ def monitor(
     host: str = HostArg,
     out: Path = output_option(Path("real.json"), "Log to write (.json/.csv/.npz)."),
     overwrite: bool = OverwriteOpt,
-    samples: int | None = count_option(
-        None, "States to record (default: until Ctrl-C).", min=2, max=1_000_000
-    ),
-    duration: float | None = duration_option(
-        None, "Seconds to record (a few states).", min=0.5, max=86_400.0
-    ),
+    samples: int | None = count_option(None, "States to record (default: until Ctrl-C).", min=2,
+                                       max=1_000_000),  # fmt: skip
+    duration: float | None = duration_option(None, "Seconds to record (a few states).", min=0.5,
+                                             max=86_400.0),  # fmt: skip
     link: ArmLink = LINK,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log, for
@@ -302,7 +287,7 @@ def monitor(
 @arm_link(motion=False)
 def connect(
     host: str = HostArg,
-    once: bool = typer.Option(False, "--once", help="Print one state and exit."),
+    once: bool = flag("--once", "Print one state and exit."),
     json_out: bool = json_option(),
     count: int | None = count_option(None, "Stop after N states.", min=1),
     foxglove: int | None = FoxgloveOpt,

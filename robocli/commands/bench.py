@@ -12,44 +12,29 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    print_json,
-    sigterm_as_interrupt,
-)
+from robocli.commands._arm import ByteOrder, RealSize
+from robocli.commands._common import print_json, sigterm_as_interrupt
 from robocli.commands._options import count_option, json_option
+from robocli.errors import EXIT_INTERRUPTED
 
-if TYPE_CHECKING:
-    pass
 
-TARGETS = ("pioneer",)
-TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
-JitterTargetOpt = typer.Option(
-    "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
-)
-SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
+def _target(what: str) -> Any:
+    return typer.Option("pioneer", "--target", "-t", help=f"What to measure: {what}.")
+
+
 UrlOpt = typer.Argument(None, metavar="URL", show_default=False,
                         help="A real device's URL (default: a built-in simulator).")  # fmt: skip
 JsonOpt = json_option()
-OrderOpt = typer.Option(
-    None, "--byte-order", help="arm: little (ABB, the default) or big (Fanuc, FS100)."
-)
+OrderOpt = typer.Option(None, "--byte-order", help="arm: little (ABB, the default) or big "
+                        "(Fanuc, FS100).")  # fmt: skip
+PaperOpt = typer.Option(False, "--paper-model", help="arm: paper-like simulator model.")
 RealOpt = typer.Option(None, "--real-size", help="arm: bytes per real, 4 (default) or 8 (FLOAT64).")
-ByteOrder = Literal["little", "big"]
-RealSize = Literal[4, 8]
-EXIT_INTERRUPTED = 130
 #: A run shows progress once it has lasted this long (seconds), on a terminal only.
 PROGRESS_AFTER = 2.0
-
-
-def _check_target(target: str, also: tuple[str, ...] = ()) -> None:
-    """``also``: the other targets this command measures (handled before this check)."""
-    if target not in TARGETS:
-        known = ", ".join((*TARGETS, *also))
-        raise typer.BadParameter(f"unknown target {target!r}; choose from {known}")
 
 
 def _check_paper_model(target: str, paper: bool) -> None:
@@ -60,15 +45,11 @@ def _check_paper_model(target: str, paper: bool) -> None:
 def _arm_wire(target: str, byte_order: str | None, real_size: int | None) -> tuple[str, int]:
     """``--byte-order`` and ``--real-size``: the Simple Message variant of an arm target
     (and of the simulator the bench starts); refused for the other targets."""
-    from robocli.commands._arm import check_wire
-
     given = [name for name, value in (("--byte-order", byte_order), ("--real-size", real_size))
              if value is not None]  # fmt: skip
     if given and target != "arm":
         raise typer.BadParameter(f"{given[0]} is for --target arm, not {target!r}")
-    wire = (byte_order or "little", real_size or 4)
-    check_wire(*wire)
-    return wire
+    return byte_order or "little", real_size or 4
 
 
 class _Progress:
@@ -107,17 +88,15 @@ class _Progress:
 
 
 def rtt(
-    target: Literal["pioneer", "arm", "hub"] = TargetOpt,
+    target: Literal["pioneer", "arm", "hub"] = _target("pioneer, arm or hub"),
     url: str | None = UrlOpt,
     n: int = count_option(1000, "Round trips.", min=10, max=1_000_000),
-    floor_n: int | None = typer.Option(
-        None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
-    ),
-    cpu: int | None = typer.Option(
-        None, "--cpu", min=0, help="CPU for the same-CPU floor and the client (default: first)."
-    ),
+    floor_n: int | None = typer.Option(None, "--floor-n", min=10, max=1_000_000, help="Round "
+                                       "trips of each C floor (default: n)."),  # fmt: skip
+    cpu: int | None = typer.Option(None, "--cpu", min=0, help="CPU for the same-CPU floor and the "
+                                   "client (default: first)."),  # fmt: skip
     json_out: bool = JsonOpt,
-    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    paper: bool = PaperOpt,
     byte_order: ByteOrder | None = OrderOpt,
     real_size: RealSize | None = RealOpt,
 ) -> None:
@@ -178,11 +157,11 @@ def _finish(interrupted: bool, samples: int | None = None) -> None:
 
 
 def jitter(
-    target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
+    target: Literal["pioneer", "arm", "laser"] = _target("pioneer, arm or laser"),
     url: str | None = UrlOpt,
     n: int = count_option(300, "SIP periods.", min=10),
     json_out: bool = JsonOpt,
-    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    paper: bool = PaperOpt,
     byte_order: ByteOrder | None = OrderOpt,
     real_size: RealSize | None = RealOpt,
 ) -> None:
@@ -198,7 +177,7 @@ def jitter(
 
 
 def sip(
-    target: Literal["pioneer"] = SipTargetOpt,
+    target: Literal["pioneer"] = _target("pioneer"),
     url: str | None = UrlOpt,
     n: int = count_option(300, "SIPs to collect.", min=10),
     json_out: bool = JsonOpt,
@@ -206,7 +185,6 @@ def sip(
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
     from robocli.bench import reports
 
-    _check_target(target)
     with sigterm_as_interrupt():
         _render(reports.sip(url, n, stage=_Progress().stage), json_out)
 

@@ -30,7 +30,14 @@ from robocli.commands._common import (
     reader_may_leave,
     sigterm_as_interrupt,
 )
-from robocli.commands._options import DEVICE_FORMS, count_option, device_argument, json_option
+from robocli.commands._options import (
+    DEVICE_FORMS,
+    count_option,
+    device_argument,
+    flag,
+    json_option,
+    output_option,
+)
 from robocli.commands.laser import BaudOpt as LaserBaudOpt
 from robocli.commands.laser import Model, ModelOpt, laser_url
 from robocli.commands.laser import TimeoutOpt as LaserTimeoutOpt
@@ -43,26 +50,32 @@ if TYPE_CHECKING:
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-_HexOpt = typer.Option(False, "--hex", help="Also print the raw frame bytes.")
+_HexOpt = flag("--hex", "Also print the raw frame bytes.")
+_MessagesOpt = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none).")
+
+
+def _device(kind: str, envvar: str) -> Any:
+    return typer.Argument(None, help=f"The {kind}: {DEVICE_FORMS[kind]}; omit with --file.",
+                          show_default=False, metavar="URL", envvar=envvar, show_envvar=True)
+
+
+def _capture(help: str, metavar: str | None = "CAPTURE") -> Any:
+    return typer.Option(None, "--file", "-f", metavar=metavar, exists=True, dir_okay=False,
+                        help=help)  # fmt: skip
 
 
 def pioneer(
     ctx: typer.Context,
-    port: str | None = typer.Argument(None, help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit "
-                                      "with --file.", show_default=False, metavar="URL",
-                                      envvar=PIONEER_ENV, show_envvar=True),  # fmt: skip
+    port: str | None = _device("pioneer", PIONEER_ENV),
     count: int = count_option(0, "Stop after N packets (0: none).", min=0),
     hex_out: bool = _HexOpt,
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(None, "--output", "-o", metavar="FILE.jsonl", dir_okay=False,
-                                       help="Also record the packets to a .jsonl capture (what "
-                                       "--file reads)."),  # fmt: skip
+    output: Path | None = output_option(None, "Also record the packets to a .jsonl capture (what "
+                                        "--file reads).", metavar="FILE.jsonl", dir_okay=False),
     overwrite: bool = OverwriteOpt,
-    laser: bool = typer.Option(False, "--laser", help="Start a simulator's laser, to see its "
-                               "packets (0x60/0x61)."),  # fmt: skip
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (.jsonl trace or "
-                                     "raw bytes) instead of a robot."),  # fmt: skip
+    laser: bool = flag("--laser", "Start a simulator's laser, to see its packets (0x60/0x61)."),
+    file: Path | None = _capture("Decode a capture (.jsonl trace or raw bytes) instead of a "
+                                 "robot."),  # fmt: skip
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -95,22 +108,15 @@ def pioneer(
 @arm_link()
 def arm(
     ctx: typer.Context,
-    host: str | None = typer.Argument(None, help=f"The arm: {DEVICE_FORMS['arm']}; omit with "
-                                      "--file.", show_default=False, metavar="URL",
-                                      envvar=ARM_ENV, show_envvar=True),  # fmt: skip
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
+    host: str | None = _device("arm", ARM_ENV),
+    count: int = _MessagesOpt,
     hex_out: bool = _HexOpt,
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
-    ),
+    output: Path | None = output_option(None, "Also record to a .jsonl capture.", dir_okay=False),
     overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(
-        None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
-    ),
-    ports: Literal["both", "motion", "state"] = typer.Option(
-        "both", "--ports", help="both (two clients), motion or state."
-    ),
+    file: Path | None = _capture("Decode a capture instead.", None),
+    ports: Literal["both", "motion", "state"] = typer.Option("both", "--ports", help="both (two "
+                                                             "clients), motion or state."),
     listen: str | None = typer.Option(None, "--listen", metavar="[ADDR:]PORT", help="Be a "
                                       "recording proxy: other programs connect to the motion "
                                       "port PORT and the state port PORT+2 (0: ephemeral) "
@@ -165,22 +171,15 @@ def arm(
 
 def hub(
     ctx: typer.Context,
-    host: str | None = typer.Argument(None, help=f"The hub: {DEVICE_FORMS['hub']}; omit with "
-                                      "--file.", show_default=False, metavar="URL",
-                                      envvar=HUB_ENV, show_envvar=True),  # fmt: skip
-    listen: str = typer.Option(
-        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
-    ),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
+    host: str | None = _device("hub", HUB_ENV),
+    listen: str = typer.Option("127.0.0.1:1501", "--listen",
+                               help="Where clients connect instead of the hub."),
+    count: int = _MessagesOpt,
+    hex_out: bool = flag("--hex", "Also print the raw bytes."),
     json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None, "--output", "-o", help="Also record the session (.jsonl capture)."
-    ),
+    output: Path | None = output_option(None, "Also record the session (.jsonl capture)."),
     overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (dump hub -o, or a "
-                                     "record .mcap) instead."),  # fmt: skip
+    file: Path | None = _capture("Decode a capture (dump hub -o, or a record .mcap) instead."),
 ) -> None:
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
     printed, named and decoded, and passed on unchanged. --file decodes a capture."""
@@ -222,9 +221,8 @@ def laser(
     port: str | None = device_argument("laser", default=None),
     count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
     json_out: bool = json_option(),
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (.jsonl chunks, a "
-                                     ".mcap recording or raw sensor bytes)."),  # fmt: skip
+    file: Path | None = _capture("Decode a capture (.jsonl chunks, a .mcap recording or raw "
+                                 "sensor bytes)."),  # fmt: skip
     model: Model = ModelOpt,
     baud: int = LaserBaudOpt,
     timeout: float = LaserTimeoutOpt,

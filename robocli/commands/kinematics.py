@@ -17,21 +17,25 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import OverwriteOpt, print_json
-from robocli.commands._options import count_option, duration_option, json_option, output_option
+from robocli.commands._options import (
+    RobotOpt,
+    count_option,
+    duration_option,
+    json_option,
+    output_option,
+)
 
 if TYPE_CHECKING:
     from robocli.kinematics.model import RobotModel
     from robocli.kinematics.trajlog import TrajectoryLog
 
-RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 PointsOpt = count_option(100, "Number of points.", min=2, max=100_000)
 OutOpt = output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
 PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli-robots[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
 DurationOpt = duration_option(None, "Total duration, s (instead of --speed).")
-StartOpt = typer.Option(
-    None, "--start", help="Start pose, comma-separated joint angles in deg (default: work pose)."
-)
+StartOpt = typer.Option(None, "--start", help="Start pose, comma-separated joint angles in deg "
+                        "(default: work pose).")  # fmt: skip
 CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
 PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
 JsonOpt = json_option("One line: a JSON summary instead of text.")
@@ -226,9 +230,8 @@ def file(
 def validate(
     sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz, .mcap)."),
     real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz, .mcap)."),
-    robot: str = typer.Option(
-        "irb120", "--robot", help="Model for the TCP error when a log has no TCP column."
-    ),
+    robot: str = typer.Option("irb120", "--robot", help="Model for the TCP error when a log has "
+                              "no TCP column."),  # fmt: skip
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),
     overwrite: bool = OverwriteOpt,
     json_out: bool = json_option(),

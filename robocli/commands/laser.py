@@ -31,9 +31,14 @@ from robocli.commands._options import (
     BindOpt,
     MapOpt,
     TimeScaleOpt,
+    baud_option,
     count_option,
     device_argument,
+    flag,
     json_option,
+    port_option,
+    pose_option,
+    timeout_option,
 )
 from robocli.views.laser import identity_lines, scan_json, scan_line
 
@@ -46,11 +51,9 @@ Model = Literal["urg-04lx", "utm-30lx", "ust-10lx"]
 
 ModelOpt = typer.Option("utm-30lx", "--model", help="The simulated model.")
 LaserArg = device_argument("laser")
-TimeoutOpt = typer.Option(
-    2.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
-    help="Seconds to wait for each reply (scans: at least 16 scan periods).",
-)  # fmt: skip
-BaudOpt = typer.Option(115200, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+TimeoutOpt = timeout_option(2.0, "Seconds to wait for each reply (scans: at least 16 scan "
+                            "periods).", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
+BaudOpt = baud_option(115200)
 
 
 @contextlib.contextmanager
@@ -79,12 +82,12 @@ def connected(port: str, model: str, **options: Any) -> Iterator[Laser]:
 
 def connect(
     port: str = LaserArg,
-    once: bool = typer.Option(False, "--once", help="Print the identity and one scan, exit."),
+    once: bool = flag("--once", "Print the identity and one scan, exit."),
     json_out: bool = json_option(),
     start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),
     end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),
     cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
-    intensity: bool = typer.Option(False, "--intensity", help="Ranges and intensities (ME)."),
+    intensity: bool = flag("--intensity", "Ranges and intensities (ME)."),
     count: int = count_option(0, "Stop after N scans (0: none).", min=0),
     model: Model = ModelOpt,
     baud: int = BaudOpt,
@@ -131,14 +134,10 @@ def _print_identity(laser: Laser) -> None:
 
 def simulate(
     model: Model = ModelOpt,
-    port: int | None = typer.Option(
-        None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
-    ),
-    pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
+    port: int | None = port_option(None, "TCP port (default 10940)."),
+    pty: bool = flag("--pty", "Serve on a pseudo-terminal (USB) instead."),
     map_file: Path | None = MapOpt,
-    pose: str | None = typer.Option(
-        None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
-    ),
+    pose: str | None = pose_option("Scanner pose in the map: m, m, rad."),
     bind: str = BindOpt,
     time_scale: float = TimeScaleOpt,
 ) -> None:

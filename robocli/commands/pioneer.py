@@ -27,7 +27,18 @@ from robocli.commands._common import (
     wait_forever,
 )
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import BindOpt, MapOpt, TimeScaleOpt, device_argument
+from robocli.commands._options import (
+    BindOpt,
+    MapOpt,
+    TimeScaleOpt,
+    baud_option,
+    device_argument,
+    device_option,
+    flag,
+    json_option,
+    port_option,
+    timeout_option,
+)
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
@@ -55,21 +66,13 @@ HOKUYO_HELP = (
     "URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot."
 )
 GEOREF_HELP = "Map origin in degrees (and metres), for SIMSTAT's GPS fix."
-SubtypeOpt = typer.Option(
-    None, "--subtype", metavar="NAME", callback=_check_subtype,
-    help="Override the robot's subtype (p3dx, p3at, ...).",
-)  # fmt: skip
-BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+SubtypeOpt = typer.Option(None, "--subtype", metavar="NAME", callback=_check_subtype,
+                          help="Override the robot's subtype (p3dx, p3at, ...).")  # fmt: skip
+BaudOpt = baud_option(9600)
 #: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
 ZenohClientOpt = zenoh_option("client")
-TimeoutOpt = typer.Option(
-    5.0,
-    "--timeout",
-    min=0.1,
-    max=3600.0,
-    metavar="SECONDS",
-    help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
-)
+TimeoutOpt = timeout_option(5.0, "Seconds to wait for the robot: to connect, and for its next "
+                            "SIP once connected.", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
 
 
 @contextlib.contextmanager
@@ -89,16 +92,11 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
 
 def connect(
     port: str = PortArg,
-    once: bool = typer.Option(False, "--once", help="Print one state snapshot and exit."),
-    json_out: bool = typer.Option(
-        False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
-    ),
-    laser: str | None = typer.Option(
-        None, "--laser", metavar="URL", show_default=False, help=HOKUYO_HELP
-    ),
-    no_laser: bool = typer.Option(
-        False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
-    ),
+    once: bool = flag("--once", "Print one state snapshot and exit."),
+    json_out: bool = json_option("JSON: one object with --once, else one line per SIP (JSON "
+                                 "Lines)."),  # fmt: skip
+    laser: str | None = device_option("--laser", HOKUYO_HELP, show_default=False),
+    no_laser: bool = flag("--no-laser", "Do not start a simulator's own (ARCOS) laser."),
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -168,17 +166,16 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
 
 
 def simulate(
-    port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
+    port: int = port_option(8101, "First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
-    pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
+    pty: bool = flag("--pty", "Serve on a pseudo-terminal instead of TCP."),
     map_file: Path | None = MapOpt,
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
     subtype: str = typer.Option("p3dx", "--subtype", help="Reported robot subtype."),
     bind: str = BindOpt,
     time_scale: float = TimeScaleOpt,
-    laser: bool = typer.Option(
-        True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
-    ),
+    laser: bool = flag("--laser/--no-laser", "Simulate a SICK LMS200 (commands 35-38, 230-233).",
+                       True),
     georef: str | None = typer.Option(None, "--georef", metavar="LAT,LON[,ALT]", help=GEOREF_HELP),
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,

@@ -15,9 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._arm import LINK, ArmLink, arm_link
+from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
-from robocli.commands._options import device_argument
+from robocli.commands._options import StreamOpt
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
@@ -26,12 +26,10 @@ from robocli.commands.pioneer import (
     ZenohClientOpt,
     connected,
 )
-from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
     from robocli.views.keys import KeyReader
 
-HostArg = device_argument("arm", ARM_ENV)
 RELEASE_HELP = "Stop this long after the last key, s."
 
 
@@ -44,9 +42,8 @@ def _limit(default: float, flag: str, most: float, help: str, least: float = 0.0
 def pioneer(
     port: str = PortArg,
     max_v: float = _limit(0.4, "--max-v", 2.0, "Top speed, m/s.", metavar="M/S"),
-    max_w: float = _limit(
-        1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).", metavar="RAD/S"
-    ),
+    max_w: float = _limit(1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).",
+                          metavar="RAD/S"),  # fmt: skip
     release: float = _limit(0.45, "--release", 0.5, RELEASE_HELP, 0.05, metavar="SECONDS"),
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
@@ -79,10 +76,9 @@ def pioneer(
 @arm_link()
 def arm(
     host: str = HostArg,
-    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    joint_speed: float = _limit(
-        0.1, "--joint-speed", 1.0, "Fraction of the joint speed limits.", 0.01
-    ),
+    stream: bool = StreamOpt,
+    joint_speed: float = _limit(0.1, "--joint-speed", 1.0, "Fraction of the joint speed limits.",
+                                0.01),  # fmt: skip
     cart_speed: float = _limit(0.05, "--cart-speed", 1.0, "TCP speed, m/s.", 0.001),
     release: float = _limit(0.45, "--release", 1.0, RELEASE_HELP, 0.05),
     stale: float = _limit(1.0, "--stale", 60.0, "Stop when no joint state came this long, s.", 0.1),
