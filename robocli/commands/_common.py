@@ -16,7 +16,6 @@ from typing import Any, NoReturn
 import typer
 from typer.core import TyperCommand
 
-from robocli.commands._options import OverwriteOpt as OverwriteOpt
 from robocli.devices.pioneer.link import explain_refusal as explain_refusal
 from robocli.io.jsonlines import RESOLUTION as RESOLUTION
 from robocli.io.jsonlines import json_default

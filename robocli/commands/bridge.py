@@ -8,19 +8,10 @@ import sys
 
 import typer
 
+from robocli.commands import _zenoh
 from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
 from robocli.commands._common import sigterm_as_interrupt
-from robocli.commands._zenoh import (
-    Ros2DomainOpt,
-    Ros2NamespaceOpt,
-    Ros2Opt,
-    ros2_check,
-    server_name,
-    zenoh_option,
-    zenoh_session,
-    zenoh_target,
-)
 from robocli.commands.pioneer import (
     BaudOpt,
     PortArg,
@@ -41,15 +32,15 @@ SilenceOpt = typer.Option(
 
 def pioneer(
     port: str = PortArg,
-    zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
+    zenoh: str = _zenoh.zenoh_option("server", default="tcp/127.0.0.1:7447"),
     name: str | None = NameOpt,
     silence: float = SilenceOpt,
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
-    ros2: bool = Ros2Opt,
-    ros2_domain: int = Ros2DomainOpt,
-    ros2_namespace: str = Ros2NamespaceOpt,
+    ros2: bool = _zenoh.Ros2Opt,
+    ros2_domain: int = _zenoh.Ros2DomainOpt,
+    ros2_namespace: str = _zenoh.Ros2NamespaceOpt,
 ) -> None:
     """Put a Pioneer on Zenoh: its state for any number of watchers, velocity from one
     controller at a time, until Ctrl-C. The robot stops when its controller's commands stop
@@ -58,12 +49,12 @@ def pioneer(
     from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
-    robot_name = server_name(name, zenoh, "pioneer")
-    target = zenoh_target(zenoh)
-    ros2_check(ros2, zenoh)
+    robot_name = _zenoh.server_name(name, zenoh, "pioneer")
+    target = _zenoh.zenoh_target(zenoh)
+    _zenoh.ros2_check(ros2, zenoh)
     with connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
         start_laser(robot, wait=False)
-        session = zenoh_session(zenoh, "server")
+        session = _zenoh.zenoh_session(zenoh, "server")
         try:
             with sigterm_as_interrupt(), PioneerBridge(robot, session, robot_name,
                                                        silence=silence) as bridge:  # fmt: skip
@@ -84,12 +75,12 @@ def pioneer(
 @arm_link()
 def arm(
     host: str = HostArg,
-    zenoh: str = zenoh_option("server", default="tcp/127.0.0.1:7447"),
+    zenoh: str = _zenoh.zenoh_option("server", default="tcp/127.0.0.1:7447"),
     name: str | None = NameOpt,
     link: ArmLink = LINK,
-    ros2: bool = Ros2Opt,
-    ros2_domain: int = Ros2DomainOpt,
-    ros2_namespace: str = Ros2NamespaceOpt,
+    ros2: bool = _zenoh.Ros2Opt,
+    ros2_domain: int = _zenoh.Ros2DomainOpt,
+    ros2_namespace: str = _zenoh.Ros2NamespaceOpt,
 ) -> None:
     """Put an arm on Zenoh: joints, TCP pose and status for any number of watchers,
     trajectory uploads from one controller at a time, until Ctrl-C. A running trajectory is
@@ -98,12 +89,12 @@ def arm(
     from robocli.bridge.ros2 import ros2_node
     from robocli.zenoh.session import close_session
 
-    robot_name = server_name(name, zenoh, "arm")
-    target = zenoh_target(zenoh)
-    ros2_check(ros2, zenoh)
+    robot_name = _zenoh.server_name(name, zenoh, "arm")
+    target = _zenoh.zenoh_target(zenoh)
+    _zenoh.ros2_check(ros2, zenoh)
     with connected_arm(host, link) as robot:
         robot.wait_for_state()
-        session = zenoh_session(zenoh, "server")
+        session = _zenoh.zenoh_session(zenoh, "server")
         try:
             with sigterm_as_interrupt(), ArmBridge(robot, session, robot_name) as bridge:
                 with ros2_node(bridge, session, ros2, domain=ros2_domain,

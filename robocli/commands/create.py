@@ -13,32 +13,19 @@ from typing import Any
 
 import typer
 
-from robocli.commands._common import (
-    SIM,
-    bind_address,
-    listening,
-    sigterm_as_interrupt,
-    wait_forever,
-)
-from robocli.commands._options import (
-    MapOpt,
-    TimeScaleOpt,
-    bind_option,
-    flag,
-    port_option,
-    pose_option,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 
 
 def simulate(
-    pty: bool = flag("--pty", "Serve on a pseudo-terminal, as a serial port (the default)."),
-    port: int | None = port_option(None, "Serve on this TCP port instead (0: any)."),
-    map_file: Path | None = MapOpt,
-    pose: str | None = pose_option("Start pose in the map: m, m, rad."),
-    bind: str = bind_option("Address to listen on (TCP)."),
-    time_scale: float = TimeScaleOpt,
-    bump_stops: bool = flag("--bump-stops/--no-bump-stops", "A bump in safe mode stops the wheels "
-                            "(the specification: wheel drops and cliffs only).", True),
+    pty: bool = opt.flag("--pty", "Serve on a pseudo-terminal, as a serial port (the default)."),
+    port: int | None = opt.port_option(None, "Serve on this TCP port instead (0: any)."),
+    map_file: Path | None = opt.MapOpt,
+    pose: str | None = opt.pose_option("Start pose in the map: m, m, rad."),
+    bind: str = opt.bind_option("Address to listen on (TCP)."),
+    time_scale: float = opt.TimeScaleOpt,
+    bump_stops: bool = opt.flag("--bump-stops/--no-bump-stops", "A bump in safe mode stops the "
+                                "wheels (the specification: wheel drops and cliffs only).", True),
 ) -> None:
     """Run a simulated iRobot Create 2 speaking the Open Interface until Ctrl-C."""
     from robocli.commands.laser import _pose
@@ -50,22 +37,23 @@ def simulate(
         raise typer.BadParameter("give --pty or --port, not both", param_hint="'--port'")
     world = _load_map(World, map_file) if map_file else None
     start = _pose(pose) if pose else None
-    with sigterm_as_interrupt(), CreateSim(world=world, start_pose=start, time_scale=time_scale,
-                                           bump_stops=bump_stops) as sim:  # fmt: skip
+    with common.sigterm_as_interrupt(), CreateSim(world=world, start_pose=start,
+                                                  time_scale=time_scale,
+                                                  bump_stops=bump_stops) as sim:  # fmt: skip
         if port is None:
             where = sim.serve_pty()
         else:
-            with listening(bind):
-                where = sim.serve_tcp(bind_address(bind), port)
+            with common.listening(bind):
+                where = sim.serve_tcp(common.bind_address(bind), port)
         typer.echo(f"create: iRobot Create 2 (Open Interface) on {where}")
-        wait_forever()
+        common.wait_forever()
 
 
 @contextlib.contextmanager
 def create_url(port: str) -> Iterator[str]:
     """``port`` itself, or for ``sim`` an embedded Create simulator on an ephemeral TCP
     port (closed when the block ends)."""
-    if port != SIM:
+    if port != common.SIM:
         yield port
         return
     from robocli.sim.create import CreateSim

@@ -21,23 +21,9 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.analysis import text
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
-from robocli.commands._common import (
-    OverwriteOpt,
-    from_env,
-    listening,
-    print_json_line,
-    reader_may_leave,
-    sigterm_as_interrupt,
-)
-from robocli.commands._options import (
-    DEVICE_FORMS,
-    count_option,
-    device_argument,
-    flag,
-    json_option,
-    output_option,
-)
 from robocli.commands.laser import BaudOpt as LaserBaudOpt
 from robocli.commands.laser import Model, ModelOpt, laser_url
 from robocli.commands.laser import TimeoutOpt as LaserTimeoutOpt
@@ -50,12 +36,12 @@ if TYPE_CHECKING:
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-_HexOpt = flag("--hex", "Also print the raw frame bytes.")
+_HexOpt = opt.flag("--hex", "Also print the raw frame bytes.")
 _MessagesOpt = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none).")
 
 
 def _device(kind: str, envvar: str) -> Any:
-    return typer.Argument(None, help=f"The {kind}: {DEVICE_FORMS[kind]}; omit with --file.",
+    return typer.Argument(None, help=f"The {kind}: {opt.DEVICE_FORMS[kind]}; omit with --file.",
                           show_default=False, metavar="URL", envvar=envvar, show_envvar=True)
 
 
@@ -67,13 +53,14 @@ def _capture(help: str, metavar: str | None = "CAPTURE") -> Any:
 def pioneer(
     ctx: typer.Context,
     port: str | None = _device("pioneer", PIONEER_ENV),
-    count: int = count_option(0, "Stop after N packets (0: none).", min=0),
+    count: int = opt.count_option(0, "Stop after N packets (0: none).", min=0),
     hex_out: bool = _HexOpt,
-    json_out: bool = json_option(),
-    output: Path | None = output_option(None, "Also record the packets to a .jsonl capture (what "
-                                        "--file reads).", metavar="FILE.jsonl", dir_okay=False),
-    overwrite: bool = OverwriteOpt,
-    laser: bool = flag("--laser", "Start a simulator's laser, to see its packets (0x60/0x61)."),
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record the packets to a .jsonl capture "
+                                            "(what --file reads).", metavar="FILE.jsonl",
+                                            dir_okay=False),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
+    laser: bool = opt.flag("--laser", "Start a simulator's laser, to see its packets (0x60/0x61)."),
     file: Path | None = _capture("Decode a capture (.jsonl trace or raw bytes) instead of a "
                                  "robot."),  # fmt: skip
     subtype: str | None = SubtypeOpt,
@@ -100,7 +87,7 @@ def pioneer(
 
             log.follow(pioneer_check(robot))
     finally:
-        with reader_may_leave():
+        with common.reader_may_leave():
             log.drain()  # what was still queued, and the close sequence
         log.close()
 
@@ -111,9 +98,10 @@ def arm(
     host: str | None = _device("arm", ARM_ENV),
     count: int = _MessagesOpt,
     hex_out: bool = _HexOpt,
-    json_out: bool = json_option(),
-    output: Path | None = output_option(None, "Also record to a .jsonl capture.", dir_okay=False),
-    overwrite: bool = OverwriteOpt,
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record to a .jsonl capture.",
+                                            dir_okay=False),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
     file: Path | None = _capture("Decode a capture instead.", None),
     ports: Literal["both", "motion", "state"] = typer.Option("both", "--ports", help="both (two "
                                                              "clients), motion or state."),
@@ -136,7 +124,7 @@ def arm(
     log = _log(protocol, partial(_arm_line, json_out=json_out, hex_out=hex_out), count, output,
                overwrite, n_joints=load_model(link.robot).n_joints, real=link.real_size,
                bound=MAX_QUEUED)  # fmt: skip
-    with reader_may_leave(), sigterm_as_interrupt():
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
         if host is None:
             _replay(log, file, protocol)
             return
@@ -148,7 +136,7 @@ def arm(
             arms, relays = [], []
             try:
                 if bind_to is not None:
-                    with listening(bind_to[0]):  # in use: exit 1; not this machine's: 2
+                    with common.listening(bind_to[0]):  # in use: exit 1; not this machine's: 2
                         relays = sessions.arm_relays(stack, log, address, ports, bind_to,
                                                      link.byte_order)  # fmt: skip
                     names = [n for n in ("motion", "state") if ports in ("both", n)]
@@ -175,10 +163,10 @@ def hub(
     listen: str = typer.Option("127.0.0.1:1501", "--listen",
                                help="Where clients connect instead of the hub."),
     count: int = _MessagesOpt,
-    hex_out: bool = flag("--hex", "Also print the raw bytes."),
-    json_out: bool = json_option(),
-    output: Path | None = output_option(None, "Also record the session (.jsonl capture)."),
-    overwrite: bool = OverwriteOpt,
+    hex_out: bool = opt.flag("--hex", "Also print the raw bytes."),
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record the session (.jsonl capture)."),
+    overwrite: bool = opt.OverwriteOpt,
     file: Path | None = _capture("Decode a capture (dump hub -o, or a record .mcap) instead."),
 ) -> None:
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
@@ -199,10 +187,10 @@ def hub(
     bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
                                port_range=(0, 65535))  # fmt: skip
     check_upstream(*upstream)
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
             check_upstream(*upstream)
-            with listening(bind):
+            with common.listening(bind):
                 proxy = hub_proxy(log, upstream, bind, port)
             with proxy.start():
                 log.open()  # listening: now the capture is made
@@ -218,9 +206,9 @@ def hub(
 
 
 def laser(
-    port: str | None = device_argument("laser", default=None),
-    count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
-    json_out: bool = json_option(),
+    port: str | None = opt.device_argument("laser", default=None),
+    count: int = opt.count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
+    json_out: bool = opt.json_option(),
     file: Path | None = _capture("Decode a capture (.jsonl chunks, a .mcap recording or raw "
                                  "sensor bytes)."),  # fmt: skip
     model: Model = ModelOpt,
@@ -233,7 +221,7 @@ def laser(
     if (port is None) == (file is None):
         raise typer.BadParameter("give a URL or --file CAPTURE (one of them)")
     log = _log("scip2", partial(_laser_lines, t0=[], json_out=json_out), 0, None, False)
-    with reader_may_leave(), sigterm_as_interrupt():
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
         if file is not None:
             stats = _replay(log, file, "scip2")
             if stats is not None and stats.dropped_bytes:
@@ -256,7 +244,7 @@ def _one(ctx: typer.Context, name: str, device: str | None, file: Path | None,
          output: Path | None) -> str | None:  # fmt: skip
     """The device, or None for ``--file`` (whose choice overrides the device's environment
     variable); a usage error unless exactly one is given, or for ``--output`` on the file."""
-    if file is not None and from_env(ctx, name):
+    if file is not None and common.from_env(ctx, name):
         device = None
     if name == "port" and (device is None) == (file is None):  # dump pioneer's own words
         raise typer.BadParameter("give PORT or --file" + (", not both" if file else ""))
@@ -303,7 +291,7 @@ def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | 
     assert file is not None
     log.open()
     try:
-        with reader_may_leave(), sigterm_as_interrupt():
+        with common.reader_may_leave(), common.sigterm_as_interrupt():
             stats = replay_capture(log, file, protocol)
     finally:
         log.close()
@@ -341,13 +329,13 @@ def _mark() -> str:
 
 def _pioneer_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool, full: bool) -> None:
     if json_out:
-        return print_json_line(text.pioneer_record(log, p))
+        return common.print_json_line(text.pioneer_record(log, p))
     _out(text.pioneer_line(p, full, _mark()), p.frame if hex_out else None)
 
 
 def _arm_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        return print_json_line(text.arm_record(log, p, hex_out))
+        return common.print_json_line(text.arm_record(log, p, hex_out))
     _out(text.arm_line(p, _mark()), p.frame if hex_out else None)
 
 
@@ -359,4 +347,4 @@ def _hub_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
 
 def _laser_lines(log: PacketLog, p: Packet, t0: list[float], json_out: bool) -> None:
     for line in text.laser_lines(log, p, t0, json_out):
-        print_json_line(line) if json_out else typer.echo(line)
+        common.print_json_line(line) if json_out else typer.echo(line)

@@ -13,25 +13,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    echo_lines,
-    print_json,
-    print_json_line,
-    reader_may_leave,
-    sigterm_as_interrupt,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import (
-    SENSOR_NAMES,
-    SensorName,
-    count_option,
-    device_argument,
-    device_option,
-    duration_option,
-    flag,
-    json_option,
-    rate_option,
-)
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
 
@@ -42,10 +26,10 @@ if TYPE_CHECKING:
 
 EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
-HubOpt = device_option("--hub", HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True)
-HubArg = device_argument("hub", HUB_ENV)
+HubOpt = opt.device_option("--hub", HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True)
+HubArg = opt.device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
-SENSOR_HELP = ", ".join(SENSOR_NAMES)
+SENSOR_HELP = ", ".join(opt.SENSOR_NAMES)
 TokenOpt = typer.Option(
     None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
     show_envvar=False, show_default=False,
@@ -108,9 +92,9 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: SensorName = typer.Argument(..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.",
-                                        show_default=False),  # fmt: skip
-    rate: int = rate_option(..., "Sample rate, Hz.", min=1, max=65535),
+    sensor: opt.SensorName = typer.Argument(..., metavar="SENSOR", show_default=False,
+                                            help=f"The sensor: {SENSOR_HELP}."),  # fmt: skip
+    rate: int = opt.rate_option(..., "Sample rate, Hz.", min=1, max=65535),
     hub: str | None = HubOpt,
     buffer: int | None = typer.Option(None, "--buffer", min=1,
                                       help="Samples the hub keeps for us (default: 1 s)."),
@@ -118,12 +102,12 @@ def subscribe(
                                     "also the hub's batch rate of adc, imu, gps, battery (ros4mat "
                                     "freqSend, at most --rate; default rate/4 + 10)."),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
-    duration: float | None = duration_option(min=0),
-    count: int | None = count_option(None, "Stop after N samples.", min=1),
+    duration: float | None = opt.duration_option(min=0),
+    count: int | None = opt.count_option(None, "Stop after N samples.", min=1),
     fmt: Literal["table", "csv"] | None = typer.Option(None, "--format", "-f", help="Text output "
                                                        "(default: table on a terminal, else csv)."),
-    json_out: bool = json_option(),
-    compress: bool = flag("--compress", "zlib-compressed replies."),
+    json_out: bool = opt.json_option(),
+    compress: bool = opt.flag("--compress", "zlib-compressed replies."),
     token_file: Path | None = TokenOpt,
     zenoh: str | None = zenoh_option("client"),
 ) -> None:
@@ -146,7 +130,7 @@ def subscribe(
     if kind == MsgType.KINECT_DEPTH:
         raise typer.BadParameter(f"{sensor!r} (0x28) has no data pull in ros4mat; use depth")
     mask, out = _mask(channels), None
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
             with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
                 for batch in sample_rows(client, sensor, rate, buffer=buffer, poll=poll,
@@ -231,8 +215,8 @@ class _Output:
 
 def connect(
     host: str = HubArg,
-    once: bool = flag("--once", "Print one survey and exit."),
-    json_out: bool = json_option(),
+    once: bool = opt.flag("--once", "Print one survey and exit."),
+    json_out: bool = opt.json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,
     foxglove: int | None = FoxgloveOpt,
@@ -245,18 +229,18 @@ def connect(
     from robocli.devices.hub.tools import survey
     from robocli.views.hub import survey_lines
 
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
             with live_view(foxglove, foxglove_host) as view, \
                     open_hub(host, token_file=token_file, hub_option=False) as client:  # fmt: skip
                 if view is not None:
                     view.add(client)
                 while True:
-                    info = survey(client, window, SENSOR_NAMES)
+                    info = survey(client, window, opt.SENSOR_NAMES)
                     if json_out:  # one compact object per survey (JSON Lines)
-                        print_json_line(info)
+                        common.print_json_line(info)
                     else:
-                        echo_lines(survey_lines(info))
+                        common.echo_lines(survey_lines(info))
                     if once:
                         return
         except KeyboardInterrupt:
@@ -271,11 +255,11 @@ def throughput(
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
     sensors: str = typer.Option("imu,adc,laser,camera", "--sensors",
                                 help="Sensors, comma-separated."),
-    seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
+    seconds: float = opt.duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
     workers: int | None = typer.Option(None, "--workers", min=1, max=64,
                                        help="Client processes (default: one per 5 clients)."),
-    json_out: bool = json_option(),
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
     lost samples, and the hub's CPU and peak memory (when it runs here)."""
@@ -283,14 +267,14 @@ def throughput(
 
     if target != "hub":
         raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")
-    with sigterm_as_interrupt():
+    with common.sigterm_as_interrupt():
         try:
             report = runs.hub_throughput(url, clients, sensors, seconds, pull_hz, workers)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
     if json_out:
-        print_json(report)
+        common.print_json(report)
         return
     from robocli.bench.text import throughput_lines
 
-    echo_lines(throughput_lines(report))
+    common.echo_lines(throughput_lines(report))

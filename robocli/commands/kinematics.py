@@ -16,8 +16,9 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import OverwriteOpt, print_json
+from robocli.commands._common import print_json
 from robocli.commands._options import (
+    OverwriteOpt,
     RobotOpt,
     count_option,
     duration_option,

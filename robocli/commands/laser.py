@@ -17,29 +17,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    SIM,
-    bind_address,
-    listening,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    sigterm_as_interrupt,
-    wait_forever,
-)
-from robocli.commands._options import (
-    BindOpt,
-    MapOpt,
-    TimeScaleOpt,
-    baud_option,
-    count_option,
-    device_argument,
-    flag,
-    json_option,
-    port_option,
-    pose_option,
-    timeout_option,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.views.laser import identity_lines, scan_json, scan_line
 
 if TYPE_CHECKING:
@@ -50,17 +29,17 @@ Model = Literal["urg-04lx", "utm-30lx", "ust-10lx"]
 
 
 ModelOpt = typer.Option("utm-30lx", "--model", help="The simulated model.")
-LaserArg = device_argument("laser")
-TimeoutOpt = timeout_option(2.0, "Seconds to wait for each reply (scans: at least 16 scan "
-                            "periods).", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
-BaudOpt = baud_option(115200)
+LaserArg = opt.device_argument("laser")
+TimeoutOpt = opt.timeout_option(2.0, "Seconds to wait for each reply (scans: at least 16 scan "
+                                "periods).", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
+BaudOpt = opt.baud_option(115200)
 
 
 @contextlib.contextmanager
 def laser_url(port: str, model: str = "utm-30lx") -> Iterator[str]:
     """Yield a URL for ``port``; for ``sim`` an in-process simulator of ``model`` on an
     ephemeral loopback port, stopped afterwards."""
-    if port != SIM:
+    if port != common.SIM:
         yield port
         return
     from robocli.sim.hokuyo import HokuyoSim
@@ -75,20 +54,20 @@ def connected(port: str, model: str, **options: Any) -> Iterator[Laser]:
     close it (QT sent)."""
     from robocli.devices.laser import Laser
 
-    with reader_may_leave(), sigterm_as_interrupt(), laser_url(port, model) as url:
+    with common.reader_may_leave(), common.sigterm_as_interrupt(), laser_url(port, model) as url:
         with Laser.connect(url, **options) as laser:
             yield laser
 
 
 def connect(
     port: str = LaserArg,
-    once: bool = flag("--once", "Print the identity and one scan, exit."),
-    json_out: bool = json_option(),
+    once: bool = opt.flag("--once", "Print the identity and one scan, exit."),
+    json_out: bool = opt.json_option(),
     start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),
     end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),
     cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
-    intensity: bool = flag("--intensity", "Ranges and intensities (ME)."),
-    count: int = count_option(0, "Stop after N scans (0: none).", min=0),
+    intensity: bool = opt.flag("--intensity", "Ranges and intensities (ME)."),
+    count: int = opt.count_option(0, "Stop after N scans (0: none).", min=0),
     model: Model = ModelOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -105,7 +84,8 @@ def connect(
         if once:
             scan = laser.scan(intensity=intensity, **area)
             if json_out:
-                print_json_line({"identity": rounded(info.as_dict()), **scan_json(laser, scan)})
+                identity = {"identity": common.rounded(info.as_dict())}
+                common.print_json_line({**identity, **scan_json(laser, scan)})
             else:
                 _print_identity(laser)
                 typer.echo(scan_line(scan))
@@ -118,7 +98,7 @@ def connect(
         with contextlib.closing(laser.scans(None, intensity=intensity, **area)) as scans:
             for scan in scans:
                 if jsonl:
-                    print_json_line(scan_json(laser, scan))
+                    common.print_json_line(scan_json(laser, scan))
                 else:
                     typer.echo(scan_line(scan))
                     sys.stdout.flush()
@@ -134,12 +114,12 @@ def _print_identity(laser: Laser) -> None:
 
 def simulate(
     model: Model = ModelOpt,
-    port: int | None = port_option(None, "TCP port (default 10940)."),
-    pty: bool = flag("--pty", "Serve on a pseudo-terminal (USB) instead."),
-    map_file: Path | None = MapOpt,
-    pose: str | None = pose_option("Scanner pose in the map: m, m, rad."),
-    bind: str = BindOpt,
-    time_scale: float = TimeScaleOpt,
+    port: int | None = opt.port_option(None, "TCP port (default 10940)."),
+    pty: bool = opt.flag("--pty", "Serve on a pseudo-terminal (USB) instead."),
+    map_file: Path | None = opt.MapOpt,
+    pose: str | None = opt.pose_option("Scanner pose in the map: m, m, rad."),
+    bind: str = opt.BindOpt,
+    time_scale: float = opt.TimeScaleOpt,
 ) -> None:
     """Run a simulated Hokuyo laser speaking SCIP 2.0 until Ctrl-C."""
     from robocli.commands.pioneer import _load_map
@@ -149,16 +129,16 @@ def simulate(
 
     world = _load_map(World, map_file) if map_file else None
     where = _pose(pose) if pose else None
-    with sigterm_as_interrupt(), HokuyoSim(model, world=world, pose=where,
-                                           time_scale=time_scale) as sim:  # fmt: skip
+    with common.sigterm_as_interrupt(), HokuyoSim(model, world=world, pose=where,
+                                                  time_scale=time_scale) as sim:  # fmt: skip
         if pty:
             url = sim.serve_pty()
         else:
-            with listening(bind):
+            with common.listening(bind):
                 tcp_port = SIM_MODELS[model].tcp_port if port is None else port
-                url = sim.serve_tcp(bind_address(bind), tcp_port)
+                url = sim.serve_tcp(common.bind_address(bind), tcp_port)
         typer.echo(f"laser: {model} on {url}")
-        wait_forever()
+        common.wait_forever()
 
 
 def _pose(text: str) -> tuple[float, float, float]:

@@ -15,30 +15,9 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import (
-    bind_address,
-    explain_refusal,
-    listening,
-    print_json,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    sigterm_as_interrupt,
-    wait_forever,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import (
-    BindOpt,
-    MapOpt,
-    TimeScaleOpt,
-    baud_option,
-    device_argument,
-    device_option,
-    flag,
-    json_option,
-    port_option,
-    timeout_option,
-)
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
@@ -60,7 +39,7 @@ def _check_subtype(value: str | None) -> str | None:
     return value
 
 
-PortArg = device_argument("pioneer", PIONEER_ENV)
+PortArg = opt.device_argument("pioneer", PIONEER_ENV)
 HOKUYO_HELP = (
     "A Hokuyo laser on the robot (placed as the robot model says): serial device, pyserial "
     "URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot."
@@ -68,11 +47,11 @@ HOKUYO_HELP = (
 GEOREF_HELP = "Map origin in degrees (and metres), for SIMSTAT's GPS fix."
 SubtypeOpt = typer.Option(None, "--subtype", metavar="NAME", callback=_check_subtype,
                           help="Override the robot's subtype (p3dx, p3at, ...).")  # fmt: skip
-BaudOpt = baud_option(9600)
+BaudOpt = opt.baud_option(9600)
 #: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
 ZenohClientOpt = zenoh_option("client")
-TimeoutOpt = timeout_option(5.0, "Seconds to wait for the robot: to connect, and for its next "
-                            "SIP once connected.", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
+TimeoutOpt = opt.timeout_option(5.0, "Seconds to wait for the robot: to connect, and for its next "
+                                "SIP once connected.", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
 
 
 @contextlib.contextmanager
@@ -83,8 +62,8 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
     from robocli.devices.pioneer import Pioneer
 
     options.setdefault("sip_timeout", options.get("timeout", 5.0))
-    with reader_may_leave(), sigterm_as_interrupt():
-        with explain_refusal(port):
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
+        with common.explain_refusal(port):
             robot = Pioneer.connect(port, **options)
         with robot:
             yield robot
@@ -92,11 +71,11 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
 
 def connect(
     port: str = PortArg,
-    once: bool = flag("--once", "Print one state snapshot and exit."),
-    json_out: bool = json_option("JSON: one object with --once, else one line per SIP (JSON "
-                                 "Lines)."),  # fmt: skip
-    laser: str | None = device_option("--laser", HOKUYO_HELP, show_default=False),
-    no_laser: bool = flag("--no-laser", "Do not start a simulator's own (ARCOS) laser."),
+    once: bool = opt.flag("--once", "Print one state snapshot and exit."),
+    json_out: bool = opt.json_option("JSON: one object with --once, else one line per SIP (JSON "
+                                     "Lines)."),  # fmt: skip
+    laser: str | None = opt.device_option("--laser", HOKUYO_HELP, show_default=False),
+    no_laser: bool = opt.flag("--no-laser", "Do not start a simulator's own (ARCOS) laser."),
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -126,13 +105,13 @@ def connect(
         if once:
             placed = hokuyo.place(hokuyo.laser.scan()) if hokuyo is not None else None
             if json_out:
-                print_json(rounded(_snapshot(robot, placed)))
+                common.print_json(common.rounded(_snapshot(robot, placed)))
             else:
                 _print_snapshot(robot, placed)
         elif json_out:
             while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
                 latest = hokuyo.latest if hokuyo is not None else None
-                print_json_line(rounded(_snapshot(robot, latest)))
+                common.print_json_line(common.rounded(_snapshot(robot, latest)))
                 robot.wait_for_sip()
         else:
             live_view(robot, hokuyo)
@@ -166,16 +145,16 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
 
 
 def simulate(
-    port: int = port_option(8101, "First TCP port."),
+    port: int = opt.port_option(8101, "First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
-    pty: bool = flag("--pty", "Serve on a pseudo-terminal instead of TCP."),
-    map_file: Path | None = MapOpt,
+    pty: bool = opt.flag("--pty", "Serve on a pseudo-terminal instead of TCP."),
+    map_file: Path | None = opt.MapOpt,
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
     subtype: str = typer.Option("p3dx", "--subtype", help="Reported robot subtype."),
-    bind: str = BindOpt,
-    time_scale: float = TimeScaleOpt,
-    laser: bool = flag("--laser/--no-laser", "Simulate a SICK LMS200 (commands 35-38, 230-233).",
-                       True),
+    bind: str = opt.BindOpt,
+    time_scale: float = opt.TimeScaleOpt,
+    laser: bool = opt.flag("--laser/--no-laser", "Simulate a SICK LMS200 (commands 35-38, "
+                           "230-233).", True),  # fmt: skip
     georef: str | None = typer.Option(None, "--georef", metavar="LAT,LON[,ALT]", help=GEOREF_HELP),
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
@@ -192,17 +171,18 @@ def simulate(
     rate = check_replay(replay, speed, loop)
     world = _load_map(World, map_file) if map_file else None
     sims: list[PioneerSim] = []
-    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
+    with common.sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
-            with listening(bind):
-                sims = pioneers(robots, host=bind_address(bind), port=port, pty=pty, world=world,
-                                laser=laser, georef=_georef(georef) if georef else None,
+            with common.listening(bind):
+                sims = pioneers(robots, host=common.bind_address(bind), port=port, pty=pty,
+                                world=world, laser=laser,
+                                georef=_georef(georef) if georef else None,
                                 replay=_recorded(replay), speed=rate, loop=loop, subtype=subtype,
                                 sip_ms=sip_ms, time_scale=time_scale)  # fmt: skip
             what = f"replaying {replay}" if replay is not None else subtype
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {what} on {simulator.pty_path or simulator.url}")
-            wait_forever()
+            common.wait_forever()
         finally:
             for simulator in sims:
                 simulator.close()

@@ -19,24 +19,10 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._arm import LINK, ArmLink, arm_link
-from robocli.commands._common import (
-    SIM,
-    OverwriteOpt,
-    print_json,
-    shielded,
-    sigterm_as_interrupt,
-)
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
-from robocli.commands._options import (
-    RecordingArg,
-    count_option,
-    device_option,
-    duration_option,
-    flag,
-    json_option,
-    output_option,
-)
 
 Compression = Literal["zstd", "lz4", "none"]
 
@@ -60,30 +46,32 @@ def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
 
 @arm_link(motion=False)
 def record(
-    output: Path = output_option(..., "The recording (MCAP).", dir_okay=False, metavar="FILE.mcap"),
-    pioneer: list[str] = device_option("--pioneer", "A Pioneer (port, URL or 'sim'); "
-                                       "repeatable.", []),  # fmt: skip
-    arm: list[str] = device_option("--arm", "An arm controller (HOST, tcp://HOST or 'sim'; its "
-                                   "state port: --state-port); repeatable.", []),  # fmt: skip
-    hub: str | None = device_option("--hub", "A sensor hub: HOST[:PORT], tcp://HOST:PORT or "
-                                    "'sim'."),  # fmt: skip
+    output: Path = opt.output_option(..., "The recording (MCAP).", dir_okay=False,
+                                     metavar="FILE.mcap"),  # fmt: skip
+    pioneer: list[str] = opt.device_option("--pioneer", "A Pioneer (port, URL or 'sim'); "
+                                           "repeatable.", []),  # fmt: skip
+    arm: list[str] = opt.device_option("--arm", "An arm controller (HOST, tcp://HOST or 'sim'; its "
+                                       "state port: --state-port); repeatable.", []),  # fmt: skip
+    hub: str | None = opt.device_option("--hub", "A sensor hub: HOST[:PORT], tcp://HOST:PORT or "
+                                        "'sim'."),  # fmt: skip
     sensors: str = typer.Option("imu,adc", "--sensors", metavar="NAME[:HZ],...", help="Hub "
                                 f"sensors: {', '.join(HUB_SENSORS)} (rate in Hz after a colon)."),
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
-    duration: float | None = duration_option(min=0.0, max=1e6),
-    count: int | None = count_option(help="Stop after N messages recorded.", min=1),
+    duration: float | None = opt.duration_option(min=0.0, max=1e6),
+    count: int | None = opt.count_option(help="Stop after N messages recorded.", min=1),
     compression: Compression = typer.Option("zstd", "--compression", help="Chunk compression."),
-    laser: str | None = device_option("--laser", "A Hokuyo laser (device, tcp://host:10940 or "
-                                      "'sim')."),  # fmt: skip
-    create: list[str] = device_option("--create", "An iRobot Create 2 (port, URL or 'sim'); "
-                                      "repeatable.", []),  # fmt: skip
-    no_laser: bool = flag("--no-laser", "Do not start a Pioneer simulator's own (ARCOS) laser."),
-    overwrite: bool = OverwriteOpt,
+    laser: str | None = opt.device_option("--laser", "A Hokuyo laser (device, tcp://host:10940 or "
+                                          "'sim')."),  # fmt: skip
+    create: list[str] = opt.device_option("--create", "An iRobot Create 2 (port, URL or 'sim'); "
+                                          "repeatable.", []),  # fmt: skip
+    no_laser: bool = opt.flag("--no-laser", "Do not start a Pioneer simulator's own (ARCOS) "
+                              "laser."),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
     link: ArmLink = LINK,
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    ros2: bool = flag("--ros2", "Write a ROS 2 bag: standard messages in CDR that ros2 bag play "
-                      "reads (see docs/ros2-bags.md)."),  # fmt: skip
+    ros2: bool = opt.flag("--ros2", "Write a ROS 2 bag: standard messages in CDR that ros2 bag "
+                          "play reads (see docs/ros2-bags.md)."),  # fmt: skip
 ) -> None:
     """Record Pioneers, arms (their state port), a hub, a Hokuyo laser and iRobot Creates
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
@@ -106,7 +94,7 @@ def record(
     hub_sensors = _sensors(sensors) if hub else []
     check_output(output, overwrite)  # refused now, before anything connects
     interrupted = False
-    with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
+    with common.sigterm_as_interrupt(), contextlib.ExitStack() as stack:
         view = stack.enter_context(live_view(foxglove, foxglove_host))
         rec = Recorder(output, compression=compression, overwrite=overwrite, deferred=True,
                        ros2=ros2)  # fmt: skip
@@ -125,10 +113,10 @@ def record(
             except KeyboardInterrupt:
                 interrupted = True
             finally:
-                with shielded():
+                with common.shielded():
                     stack.close()  # devices stop first: their stop sequences are recorded
         finally:
-            with shielded():
+            with common.shielded():
                 close_recording(rec, time.monotonic() - run.start)
     if interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
@@ -198,7 +186,7 @@ def _connect(run: RecordingSession, pioneers: list[str], arms: list[str], hub: s
 @contextlib.contextmanager
 def _hub_address(hub: str) -> Iterator[str]:
     """``hub`` itself, or for ``sim`` an embedded simulated hub on an ephemeral port."""
-    if hub != SIM:
+    if hub != common.SIM:
         yield hub
         return
     from robocli.hub_server import HubServer
@@ -214,8 +202,8 @@ def _hub_address(hub: str) -> Iterator[str]:
 
 
 def info(
-    file: Path = RecordingArg,
-    json_out: bool = json_option(),
+    file: Path = opt.RecordingArg,
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Summarise a recording like ros2 bag info: duration, start and end, each channel
     with its schema, count, mean rate and largest gap (from the summary section; a file
@@ -225,7 +213,7 @@ def info(
 
     result = read_info(file)
     if json_out:
-        print_json(result.as_dict())
+        common.print_json(result.as_dict())
         return
     sys.stdout.write("".join(line + "\n" for line in info_lines(result)))
     sys.stdout.flush()
