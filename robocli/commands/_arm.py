@@ -41,18 +41,6 @@ def arm_host(*address: Any, **options: Any) -> Any:
     return arm_address(*address, **options)
 
 
-def sim_profile(stream: bool) -> str:
-    """The embedded simulator's profile for a command's ``--stream``."""
-    return "generic" if stream else "abb"
-
-
-def check_wire(byte_order: str, real_size: int) -> None:
-    if byte_order not in ("little", "big"):
-        raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
-    if real_size not in (4, 8):
-        raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
-
-
 @dataclass(frozen=True)
 class ArmLink:
     """How a command reaches the arm, as its link options gave it: the motion port (opened
@@ -94,7 +82,6 @@ def arm_link(motion: bool = True) -> Callable[[Callable[..., None]], Callable[..
 def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
     """The options as an :class:`ArmLink` (``motion`` false: the motion port is not opened).
     The two ports must differ: one port cannot carry both links."""
-    check_wire(wire["byte_order"], wire["real_size"])
     if motion_port == wire["state_port"]:
         from robocli.errors import InvalidArgument
 
@@ -112,7 +99,7 @@ def connected(host: str, link: ArmLink, stream: bool = False, **options: Any) ->
     :meth:`Arm.connect`'s (``listeners``: a recorder's, from each port's first byte)."""
     with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
                                           link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream)) as address:  # fmt: skip
+                                          "generic" if stream else "abb") as address:  # fmt: skip
         with connect_at(address, link, **options) as arm:
             yield arm
 

@@ -26,10 +26,6 @@ from robocli.running import shielded as shielded
 from robocli.running import sigterm_as_interrupt as sigterm_as_interrupt
 
 SIM = "sim"
-PORT_HELP = (
-    "Robot port or URL: /dev/ttyUSB0, COM1, tcp://HOST:8101, HOST:PORT, a pyserial URL, "
-    "or 'sim' for an embedded simulator."
-)
 
 
 def from_env(ctx: typer.Context, name: str) -> bool:
@@ -196,9 +192,3 @@ def echo_lines(lines: Iterable[str]) -> None:
     """Each of ``lines`` on stdout (a view's text: :mod:`robocli.views`)."""
     for line in lines:
         typer.echo(line)
-
-
-def print_json_line(data: Any) -> None:
-    """One compact JSON object on one line (JSON Lines), flushed: for pipes and scripts."""
-    sys.stdout.write(json.dumps(data, default=json_default) + "\n")
-    sys.stdout.flush()

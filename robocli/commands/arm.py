@@ -71,7 +71,6 @@ def simulate(
     from robocli.sim.launch import abb_controller
 
     rate = check_replay(replay, speed, loop)
-    _arm.check_wire(byte_order, real_size)
     if motion_port == state_port != 0:
         raise typer.BadParameter(
             f"--motion-port and --state-port are both {motion_port}: the motion and the state "
@@ -277,7 +276,7 @@ def connect(
                 common.print_json(common.rounded(d)) if json_out else typer.echo(state_text(d))
                 return
             if json_out:
-                common.print_json_line(common.rounded(d))
+                common.print_json(common.rounded(d))
                 shown += 1
             elif d["t"] - last >= 0.1:
                 typer.echo(state_text(d))

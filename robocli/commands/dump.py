@@ -329,13 +329,13 @@ def _mark() -> str:
 
 def _pioneer_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool, full: bool) -> None:
     if json_out:
-        return common.print_json_line(text.pioneer_record(log, p))
+        return common.print_json(text.pioneer_record(log, p))
     _out(text.pioneer_line(p, full, _mark()), p.frame if hex_out else None)
 
 
 def _arm_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        return common.print_json_line(text.arm_record(log, p, hex_out))
+        return common.print_json(text.arm_record(log, p, hex_out))
     _out(text.arm_line(p, _mark()), p.frame if hex_out else None)
 
 
@@ -347,4 +347,4 @@ def _hub_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
 
 def _laser_lines(log: PacketLog, p: Packet, t0: list[float], json_out: bool) -> None:
     for line in text.laser_lines(log, p, t0, json_out):
-        common.print_json_line(line) if json_out else typer.echo(line)
+        common.print_json(line) if json_out else typer.echo(line)

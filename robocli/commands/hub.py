@@ -16,20 +16,21 @@ import typer
 from robocli.commands import _common as common
 from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
+from robocli.commands._options import SENSOR_NAMES
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
+from robocli.errors import EXIT_INTERRUPTED
 
 if TYPE_CHECKING:
     import numpy as np
 
     from robocli.devices.hub.client import Hub
 
-EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
 HubOpt = opt.device_option("--hub", HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True)
 HubArg = opt.device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
-SENSOR_HELP = ", ".join(opt.SENSOR_NAMES)
+SENSOR_HELP = ", ".join(SENSOR_NAMES)
 TokenOpt = typer.Option(
     None, "--token-file", envvar=TOKEN_ENV, dir_okay=False, metavar="FILE",
     show_envvar=False, show_default=False,
@@ -115,7 +116,6 @@ def subscribe(
     --count. Times are on this machine's clock (the hub's offset is estimated). With
     --zenoh, from a hub's Zenoh front-end (--hub NAME: which hub; default the one up)."""
     from robocli.devices.hub.streams import sample_rows
-    from robocli.errors import InvalidArgument
     from robocli.protocols.ros4mat import MsgType, sensor_type
 
     if duration is not None and count is not None:
@@ -123,11 +123,7 @@ def subscribe(
     if json_out and fmt is not None:
         raise typer.BadParameter("give --format or --json, not both")
     shape: str = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
-    try:
-        kind = sensor_type(sensor)
-    except InvalidArgument:
-        raise typer.BadParameter(f"unknown sensor {sensor!r}; choose from {SENSOR_HELP}") from None
-    if kind == MsgType.KINECT_DEPTH:
+    if sensor_type(sensor) == MsgType.KINECT_DEPTH:  # every name of SENSOR_NAMES is one
         raise typer.BadParameter(f"{sensor!r} (0x28) has no data pull in ros4mat; use depth")
     mask, out = _mask(channels), None
     with common.sigterm_as_interrupt(), common.reader_may_leave():
@@ -236,9 +232,9 @@ def connect(
                 if view is not None:
                     view.add(client)
                 while True:
-                    info = survey(client, window, opt.SENSOR_NAMES)
+                    info = survey(client, window, SENSOR_NAMES)
                     if json_out:  # one compact object per survey (JSON Lines)
-                        common.print_json_line(info)
+                        common.print_json(info)
                     else:
                         common.echo_lines(survey_lines(info))
                     if once:

@@ -76,7 +76,6 @@ def connect(
     (--once: one scan; --json: JSON Lines, SI units)."""
     if start is not None and end is not None and end < start:
         raise typer.BadParameter(f"--end {end} is before --start {start}")
-    jsonl = json_out
     area: dict[str, Any] = {"start": start, "end": end, "cluster": cluster}
     with connected(port, model, baudrate=baud, timeout=timeout) as laser:
         info = laser.info
@@ -85,20 +84,20 @@ def connect(
             scan = laser.scan(intensity=intensity, **area)
             if json_out:
                 identity = {"identity": common.rounded(info.as_dict())}
-                common.print_json_line({**identity, **scan_json(laser, scan)})
+                common.print_json({**identity, **scan_json(laser, scan)})
             else:
                 _print_identity(laser)
                 typer.echo(scan_line(scan))
             return
-        if not jsonl:
+        if not json_out:
             _print_identity(laser)
         n = 0
         # closed here, not when the generator is collected: its QT (and the error of a
         # sensor that does not answer it) belongs to this command, not to the garbage collector
         with contextlib.closing(laser.scans(None, intensity=intensity, **area)) as scans:
             for scan in scans:
-                if jsonl:
-                    common.print_json_line(scan_json(laser, scan))
+                if json_out:
+                    common.print_json(scan_json(laser, scan))
                 else:
                     typer.echo(scan_line(scan))
                     sys.stdout.flush()

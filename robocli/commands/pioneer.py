@@ -111,7 +111,7 @@ def connect(
         elif json_out:
             while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
                 latest = hokuyo.latest if hokuyo is not None else None
-                common.print_json_line(common.rounded(_snapshot(robot, latest)))
+                common.print_json(common.rounded(_snapshot(robot, latest)))
                 robot.wait_for_sip()
         else:
             live_view(robot, hokuyo)

@@ -79,7 +79,7 @@ def record(
     unless --overwrite. To record an arm while uploading to it: upload --record."""
     from robocli.commands.create import connect_create
     from robocli.errors import EXIT_INTERRUPTED
-    from robocli.io.record import COMPRESSIONS, Recorder
+    from robocli.io.record import Recorder
     from robocli.io.record.session import RecordingSession
     from robocli.output import check_output
 
@@ -88,9 +88,6 @@ def record(
                                  "--create")  # fmt: skip
     if output.suffix != ".mcap":
         raise typer.BadParameter(f"--output {output}: a recording needs a .mcap name")
-    if compression not in COMPRESSIONS:
-        raise typer.BadParameter(f"--compression is one of {', '.join(COMPRESSIONS)}, "
-                                 f"not {compression!r}")  # fmt: skip
     hub_sensors = _sensors(sensors) if hub else []
     check_output(output, overwrite)  # refused now, before anything connects
     interrupted = False

@@ -40,7 +40,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
                    timeout: float) -> None:  # fmt: skip
     """``connect pioneer zenoh/<robot>``: the state the bridge puts, one snapshot (--once)
     or one line (JSON Lines with --json) per state until Ctrl-C."""
-    from robocli.commands._common import print_json, print_json_line, reader_may_leave, rounded
+    from robocli.commands._common import print_json, reader_may_leave, rounded
     from robocli.commands._screens import state_line
 
     with reader_may_leave(), sigterm_as_interrupt(), remote(port, zenoh, timeout) as robot:
@@ -55,7 +55,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
         while True:
             state = robot.wait_for_state()
             if json_out:
-                print_json_line(rounded(_snapshot(robot)))
+                print_json(rounded(_snapshot(robot)))
             else:
                 print(state_line(state), flush=True)
 

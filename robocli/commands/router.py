@@ -12,8 +12,7 @@ import typer
 from robocli.commands._common import print_json, sigterm_as_interrupt
 from robocli.commands._options import flag, json_option, timeout_option
 from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
-
-EXIT_INTERRUPTED = 130
+from robocli.errors import EXIT_INTERRUPTED
 
 
 def router(
