@@ -6,10 +6,7 @@ command's options can change without touching the others'.
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 import typer
 
@@ -47,27 +44,3 @@ def simulate(
                 where = sim.serve_tcp(common.bind_address(bind), port)
         typer.echo(f"create: iRobot Create 2 (Open Interface) on {where}")
         common.wait_forever()
-
-
-@contextlib.contextmanager
-def create_url(port: str) -> Iterator[str]:
-    """``port`` itself, or for ``sim`` an embedded Create simulator on an ephemeral TCP
-    port (closed when the block ends)."""
-    if port != common.SIM:
-        yield port
-        return
-    from robocli.sim.create import CreateSim
-
-    with CreateSim() as sim:
-        yield sim.serve_tcp("127.0.0.1", 0)
-
-
-def connect_create(stack: contextlib.ExitStack, rec: Any, port: str, timeout: float) -> Any:
-    """``record --create``: a Create recorded from its first byte; returns the device."""
-    from robocli.devices.create import Create
-
-    url = stack.enter_context(create_url(port))
-    listener = rec.listener("create", "create-oi", url=url)
-    robot = stack.enter_context(Create.connect(url, timeout=timeout, listeners=[listener]))
-    rec.add(robot, listener.name)
-    return robot

@@ -3,7 +3,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 
 from __future__ import annotations
 
-import io
 import sys
 import time
 from collections import deque
@@ -20,6 +19,7 @@ from robocli.commands._options import SENSOR_NAMES
 from robocli.commands._zenoh import zenoh_hub, zenoh_option
 from robocli.defaults import HUB_ENV
 from robocli.errors import EXIT_INTERRUPTED
+from robocli.views.hub import header_text, rows_text
 
 if TYPE_CHECKING:
     import numpy as np
@@ -153,38 +153,25 @@ class _Output:
         self.start = time.monotonic()
         self.live: Any = None
         self.recent: deque[Any] = deque(maxlen=20)
-        if fmt == "csv":
-            self._emit(",".join(cols) + "\n")
-        elif fmt == "table" and sys.stdout.isatty():
+        if fmt == "table" and sys.stdout.isatty():
             from rich.live import Live
 
             self.live = Live(auto_refresh=False)
             self.live.start()
-        elif fmt == "table":
-            self._emit("".join(f"{c:>18}" for c in cols) + "\n")
+        else:
+            self._emit(header_text(fmt, cols))
 
     def _emit(self, text: str) -> None:
         sys.stdout.write(text)
         sys.stdout.flush()
 
     def write(self, rows: np.ndarray[Any, Any]) -> None:
-        import numpy as np
-
         self.rows += len(rows)
-        buf = io.StringIO()
-        if self.fmt == "csv":
-            np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
-        elif self.fmt == "jsonl":
-            from robocli.devices.hub.streams import json_rows
-
-            buf.write(json_rows(self.cols, rows))
-        elif self.live is None:
-            np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
-        else:
-            self.recent.extend(rows.tolist())
-            self._refresh()
+        if self.live is None:
+            self._emit(rows_text(self.fmt, self.cols, rows))
             return
-        self._emit(buf.getvalue())
+        self.recent.extend(rows.tolist())
+        self._refresh()
 
     def _refresh(self) -> None:
         from rich.table import Table

@@ -16,15 +16,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.commands import _options as opt
 from robocli.commands._common import bundled, print_json
-from robocli.commands._options import (
-    OverwriteOpt,
-    RobotOpt,
-    count_option,
-    duration_option,
-    json_option,
-    output_option,
-)
 
 if TYPE_CHECKING:
     from robocli.kinematics.model import RobotModel
@@ -32,16 +25,16 @@ if TYPE_CHECKING:
 else:  # what the builders return, for the signature trajectory_command reads (NumPy stays unloaded)
     TrajectoryLog = Any
 
-PointsOpt = count_option(100, "Number of points.", min=2, max=100_000)
-OutOpt = output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
+PointsOpt = opt.count_option(100, "Number of points.", min=2, max=100_000)
+OutOpt = opt.output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
 PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli-robots[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
-DurationOpt = duration_option(None, "Total duration, s (instead of --speed).")
+DurationOpt = opt.duration_option(None, "Total duration, s (instead of --speed).")
 StartOpt = typer.Option(None, "--start", help="Start pose, comma-separated joint angles in deg "
                         "(default: work pose).")  # fmt: skip
 CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
 PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
-JsonOpt = json_option("One line: a JSON summary instead of text.")
+JsonOpt = opt.json_option("One line: a JSON summary instead of text.")
 
 
 def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:
@@ -120,14 +113,14 @@ TIMING: Any = None
 _SHARED = [
     inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
     for name, kind, option in (
-        ("robot", str, RobotOpt),
+        ("robot", str, opt.RobotOpt),
         ("points", int, PointsOpt),
         ("speed", float | None, SpeedOpt),
         ("duration", float | None, DurationOpt),
         ("start", str | None, StartOpt),
         ("out", Path, OutOpt),
         ("plot", Path | None, PlotOpt),
-        ("overwrite", bool, OverwriteOpt),
+        ("overwrite", bool, opt.OverwriteOpt),
         ("json_out", bool, JsonOpt),
     )
 ]
@@ -229,8 +222,8 @@ def validate(
     robot: str = typer.Option("irb120", "--robot", help="Model for the TCP error when a log has "
                               "no TCP column."),  # fmt: skip
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),
-    overwrite: bool = OverwriteOpt,
-    json_out: bool = json_option(),
+    overwrite: bool = opt.OverwriteOpt,
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.compare import compare_files
@@ -249,38 +242,14 @@ def _table(result: Any, plot: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    shift = result.delay_s * 1e3
-    table = Table(title=f"sim vs real: {result.samples} samples, time shift {shift:.1f} ms")
-    table.add_column("joint", justify="right")
-    for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
+    from robocli.views.compare import COLUMNS, joint_rows, notes, title
+
+    table = Table(title=title(result))
+    for name in COLUMNS:
         table.add_column(name, justify="right")
-    for j in range(result.rmse.shape[0]):
-        table.add_row(str(j + 1), *(_rad(v[j]) for v in (result.rmse, result.mae, result.max_abs)))
+    for row in joint_rows(result):
+        table.add_row(*row)
     console = Console()
     console.print(table)
-    # not "delay": against the exact simulator it is mostly the upload's time, not a lag
-    console.print(
-        f"time shift: the measured motion starts {abs(shift):.1f} ms "
-        f"{'later' if shift >= 0 else 'earlier'} in its log than in the simulated one (the "
-        "recording ran before the arm moved, e.g. during the upload, plus any controller "
-        "lag); the errors are after this alignment"
-    )
-    if result.tcp_rmse_mm is not None:
-        console.print(
-            f"TCP position error: RMSE {_mm(result.tcp_rmse_mm)} mm, mean "
-            f"{_mm(result.tcp_mean_mm)} mm, max {_mm(result.tcp_max_mm)} mm"
-        )
-    if plot is not None:
-        console.print(f"plot written to {plot}")
-
-
-def _rad(value: float) -> str:
-    """An error in rad: fixed point from 1e-4 up, else scientific (1e-7 must not read as 0)."""
-    return f"{value:.6f}" if value >= 1e-4 or value == 0 else f"{value:.2e}"
-
-
-def _mm(value: float | None) -> str:
-    """An error in mm, readable at the micrometre level and below."""
-    if value is None:
-        return "-"
-    return f"{value:.3f}" if value >= 0.01 or value == 0 else f"{value:.2e}"
+    for line in notes(result, plot):
+        console.print(line)

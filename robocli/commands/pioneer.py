@@ -21,7 +21,7 @@ from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
-from robocli.views.pioneer import snapshot
+from robocli.views.pioneer import snapshot, snapshot_lines
 from robocli.views.pioneer import start_laser as start_laser
 
 if TYPE_CHECKING:
@@ -107,7 +107,7 @@ def connect(
             if json_out:
                 common.print_json(common.rounded(_snapshot(robot, placed)))
             else:
-                _print_snapshot(robot, placed)
+                common.echo_lines(snapshot_lines(robot, placed))
         elif json_out:
             while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
                 latest = hokuyo.latest if hokuyo is not None else None
@@ -228,24 +228,3 @@ def _load_map(world_type: Any, path: Path) -> Any:
         ) from None
     except OSError as exc:
         raise typer.BadParameter(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-# ---------------------------------------------------------------------- rendering
-
-
-def _print_snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> None:
-    from robocli.views.pioneer import hokuyo_text, laser_text, pose_text, sonar_text, velocity_text
-
-    st = robot.state
-    ident = robot.identity
-    typer.echo(f"{ident.name} {ident.type} {ident.subtype} on {robot.transport.url}")
-    typer.echo(f"pose      {pose_text(st.x, st.y, st.th)}")
-    typer.echo(f"velocity  {velocity_text(st.v, st.w)}")
-    typer.echo(f"battery   {st.battery:.1f} V   motors {'on' if st.motors_enabled else 'off'}")
-    for i, line in enumerate(sonar_text(robot.sonar)):
-        typer.echo(f"{'sonar (m)' if i == 0 else '':10}{line}")
-    laser = laser_text(robot)
-    if laser is not None:
-        typer.echo(f"laser     {laser}")
-    if hokuyo is not None:
-        typer.echo(f"hokuyo    {hokuyo_text(hokuyo)}")

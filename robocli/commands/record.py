@@ -77,7 +77,6 @@ def record(
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
     --count or Ctrl-C. The file is made once every source is connected; an existing one is refused
     unless --overwrite. To record an arm while uploading to it: upload --record."""
-    from robocli.commands.create import connect_create
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.io.record import Recorder
     from robocli.io.record.session import RecordingSession
@@ -101,9 +100,8 @@ def record(
         try:
             try:
                 _connect(run, pioneer, arm, hub, hub_sensors, not no_laser, link, laser)
-                for i, port in enumerate(create):
-                    run.devices[f"create{i or ''}"] = connect_create(stack, rec, port,
-                                                                     link.timeout)  # fmt: skip
+                for port in create:
+                    run.add_create(port, link.timeout)
                 rec.begin()  # every source connected: now the file is made
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
                 run.run(duration, count, poll, progress_line(run) if sys.stderr.isatty() else None)

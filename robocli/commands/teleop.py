@@ -15,17 +15,10 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from robocli.commands import pioneer as pioneer_cli
 from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
 from robocli.commands._options import StreamOpt
-from robocli.commands.pioneer import (
-    BaudOpt,
-    PortArg,
-    SubtypeOpt,
-    TimeoutOpt,
-    ZenohClientOpt,
-    connected,
-)
 
 if TYPE_CHECKING:
     from robocli.views.keys import KeyReader
@@ -40,15 +33,15 @@ def _limit(default: float, flag: str, most: float, help: str, least: float = 0.0
 
 
 def pioneer(
-    port: str = PortArg,
+    port: str = pioneer_cli.PortArg,
     max_v: float = _limit(0.4, "--max-v", 2.0, "Top speed, m/s.", metavar="M/S"),
     max_w: float = _limit(1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).",
                           metavar="RAD/S"),  # fmt: skip
     release: float = _limit(0.45, "--release", 0.5, RELEASE_HELP, 0.05, metavar="SECONDS"),
-    subtype: str | None = SubtypeOpt,
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-    zenoh: str | None = ZenohClientOpt,
+    subtype: str | None = pioneer_cli.SubtypeOpt,
+    baud: int = pioneer_cli.BaudOpt,
+    timeout: float = pioneer_cli.TimeoutOpt,
+    zenoh: str | None = pioneer_cli.ZenohClientOpt,
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot.
     PORT zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), with --zenoh."""
@@ -62,7 +55,7 @@ def pioneer(
     if remote:
         teleop_remote(port, zenoh, controller, timeout)
         return
-    with connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
+    with pioneer_cli.connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
         robot.enable_motors()
         typer.echo(
             f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "

@@ -3,14 +3,42 @@
 
 from __future__ import annotations
 
-from typing import Any
+import io
+from typing import TYPE_CHECKING, Any
 
-__all__ = ["survey_lines"]
+if TYPE_CHECKING:
+    import numpy as np
+
+__all__ = ["header_text", "rows_text", "survey_lines"]
 
 
 def _ms(value: float | None) -> str:
     """``0.123 ms``, or ``-`` before any data reply (nothing running to pull)."""
     return "-" if value is None else f"{value} ms"
+
+
+def header_text(fmt: str, cols: tuple[str, ...]) -> str:
+    """The line before ``subscribe``'s samples as ``fmt`` (csv, table, jsonl: none) shows them."""
+    if fmt == "csv":
+        return ",".join(cols) + "\n"
+    return "".join(f"{c:>18}" for c in cols) + "\n" if fmt == "table" else ""
+
+
+def rows_text(fmt: str, cols: tuple[str, ...], rows: np.ndarray[Any, Any]) -> str:
+    """Samples (a row each: time, then ``cols[1:]``) as CSV, JSON Lines (``jsonl``, SI) or
+    aligned text (``table``), a line each."""
+    import numpy as np
+
+    buf = io.StringIO()
+    if fmt == "csv":
+        np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
+    elif fmt == "jsonl":
+        from robocli.devices.hub.streams import json_rows
+
+        buf.write(json_rows(cols, rows))
+    else:
+        np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
+    return buf.getvalue()
 
 
 def survey_lines(info: dict[str, Any]) -> list[str]:

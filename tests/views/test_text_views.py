@@ -52,7 +52,8 @@ def test_pioneer_packets_as_lines_cut_unless_full_and_as_records() -> None:
 def test_arm_hub_and_laser_packets_as_lines() -> None:
     arm = Packet(1.5, "rx", "JOINT_FEEDBACK", {"sequence": 3, "joints": [0.1] * 6}, b"\x00",
                  port="state")  # fmt: skip
-    assert arm_line(arm).startswith("    1.500 state  <- JOINT_FEEDBACK") and "seq=3" in arm_line(arm)
+    line = arm_line(arm)
+    assert line.startswith("    1.500 state  <- JOINT_FEEDBACK") and "seq=3" in line
     hub = Packet(None, "tx", "GET_DATA", {"type": 2}, b"\x01\x02")
     assert hub_line(hub) == "         - -> GET_DATA       type=2"
     log = PacketLog(lambda d, f, t: hub, lambda p: None)
@@ -102,3 +103,42 @@ def test_bench_tables_in_their_units() -> None:
               "bytes": 1e6, "lost": 0}}, "errors": [], "targets_met": True}  # fmt: skip
     text = throughput_lines(report)
     assert text[0].startswith("2 clients in 1 processes") and text[-1].endswith("met")
+
+
+def test_snapshot_lines_of_a_simulated_pioneer() -> None:
+    from robocli import Pioneer
+    from robocli.views.pioneer import snapshot_lines
+
+    with Pioneer.connect("sim://") as robot:
+        robot.wait_for_sip()
+        lines = snapshot_lines(robot)
+    assert lines[0].endswith(robot.transport.url) and lines[1].startswith("pose      x ")
+    assert lines[3].startswith("battery") and lines[4].startswith("sonar (m)")
+
+
+def test_sample_rows_as_csv_table_and_json_lines() -> None:
+    from robocli.views.hub import header_text, rows_text
+
+    cols, rows = ("t", "x"), np.array([[1700000000.5, 0.25]])
+    assert header_text("csv", cols) == "t,x\n" and header_text("jsonl", cols) == ""
+    assert rows_text("csv", cols, rows) == "1700000000.500000,0.25\n"
+    assert rows_text("table", cols, rows).split() == ["1700000000.500000", "0.25"]
+    assert json.loads(rows_text("jsonl", cols, rows))["x"] == 0.25
+
+
+def test_comparison_text_of_a_run_with_itself(tmp_path: Path) -> None:
+    from robocli.io.compare import compare_files
+    from robocli.kinematics import load_model
+    from robocli.kinematics.files import write_trajectory
+    from robocli.kinematics.trajectory import circle
+    from robocli.views.compare import COLUMNS, joint_rows, mm_text, notes, rad_text, title
+
+    model = load_model("irb120")
+    log = tmp_path / "sim.json"
+    write_trajectory(model, circle(model, 50, 0.05, None, "xy", None, None, 2.0), "circle", log,
+                     None)  # fmt: skip
+    result = compare_files(log, log, "irb120")
+    rows = joint_rows(result)
+    assert len(rows) == 6 and len(rows[0]) == len(COLUMNS) and rows[0][0] == "1"
+    assert title(result).startswith("sim vs real: ") and notes(result)[0].startswith("time shift")
+    assert rad_text(1e-7) == "1.00e-07" and mm_text(None) == "-" and mm_text(0.5) == "0.500"
