@@ -23,13 +23,11 @@ from robocli.zenoh.session import DEFAULT_ENDPOINT, Role, ZenohTarget, parse_tar
 if TYPE_CHECKING:
     import zenoh
 
-    from robocli.devices.hub.over_zenoh import ZenohHub
 
 __all__ = [
     "ZENOH_METAVAR",
     "ZenohCommand",
     "with_default_zenoh",
-    "zenoh_hub",
     "zenoh_option",
     "server_name",
     "zenoh_session",
@@ -106,19 +104,6 @@ def zenoh_session(value: str | None, role: Role) -> zenoh.Session:
     from robocli.zenoh.session import open_session
 
     return open_session(zenoh_target(value), role)
-
-
-def zenoh_hub(
-    name: str | None, value: str | None, *, compress: bool, token: bytes | None
-) -> ZenohHub:
-    """The hub ``name`` (``--hub``; None: the one hub that is up) on Zenoh at ``--zenoh
-    value``, with the hub's ``token`` (``subscribe --zenoh``)."""
-    from robocli.devices.hub.over_zenoh import ZenohHub
-
-    if compress:
-        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
-    target = zenoh_target(value)
-    return ZenohHub.connect(name, zenoh=target, token=token)
 
 
 Ros2Opt = typer.Option(False, "--ros2", help="Also appear as a ROS 2 node on the same Zenoh "

@@ -9,7 +9,6 @@ it relays other programs' sessions as a recording proxy, as ``dump hub`` always 
 
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
 import time
@@ -131,27 +130,12 @@ def arm(
         log.start_now()
         wire: dict[str, Any] = {"byte_order": link.byte_order, "real_size": link.real_size,
                                 "robot": link.robot}  # fmt: skip
-        with arm_host(host, link.motion_port, link.state_port, **wire) as address, \
-                contextlib.ExitStack() as stack:  # fmt: skip
-            arms, relays = [], []
+        with arm_host(host, link.motion_port, link.state_port, **wire) as address:
             try:
-                if bind_to is not None:
-                    with common.listening(bind_to[0]):  # in use: exit 1; not this machine's: 2
-                        relays = sessions.arm_relays(stack, log, address, ports, bind_to,
-                                                     link.byte_order)  # fmt: skip
-                    names = [n for n in ("motion", "state") if ports in ("both", n)]
-                    typer.echo("dump: clients connect to " + ", ".join(
-                        f"{n} {bind_to[0]}:{r.port} -> {r.upstream[0]}:{r.upstream[1]}"
-                        for n, r in zip(names, relays, strict=True)), err=True)  # fmt: skip
-                else:
-                    arms = sessions.arm_clients(stack, log, address, ports, timeout=link.timeout,
-                                                **wire)  # fmt: skip
-                log.open()  # connected (or listening): now the capture is made
-                log.follow(sessions.arm_check(arms, relays, ports, link.timeout))
+                sessions.arm_session(log, address, ports, listen=bind_to, timeout=link.timeout,
+                                     on_relays=lambda text: typer.echo(f"dump: {text}", err=True),
+                                     **wire)  # fmt: skip
             finally:
-                stack.close()  # nothing is queued after
-                log.drain()
-                log.close()
                 if log.dropped:
                     typer.echo(f"robocli: {log.dropped} messages not shown: the output was too "
                                "slow", err=True)  # fmt: skip
@@ -172,7 +156,7 @@ def hub(
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
     printed, named and decoded, and passed on unchanged. --file decodes a capture."""
     from robocli.analysis.ros4mat import check_upstream
-    from robocli.analysis.sessions import hub_proxy
+    from robocli.analysis.sessions import hub_session
     from robocli.devices.hub.client import parse_hub
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.transports import parse_address
@@ -189,16 +173,9 @@ def hub(
     check_upstream(*upstream)
     with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
-            check_upstream(*upstream)
-            with common.listening(bind):
-                proxy = hub_proxy(log, upstream, bind, port)
-            with proxy.start():
-                log.open()  # listening: now the capture is made
-                typer.echo(f"dump: clients connect to {bind}:{proxy.port}, relayed to "
-                           f"{upstream[0]}:{upstream[1]}", err=True)  # fmt: skip
-                while not log.stopped.wait(0.25):
-                    pass
-            log.check()  # `dump hub ... | head`: what the proxy's thread met, said here
+            hub_session(log, upstream, bind, port, lambda at: typer.echo(
+                f"dump: clients connect to {bind}:{at}, relayed to {upstream[0]}:{upstream[1]}",
+                err=True))  # fmt: skip
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:

@@ -16,7 +16,7 @@ from robocli.commands import _common as common
 from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
 from robocli.commands._options import SENSOR_NAMES
-from robocli.commands._zenoh import zenoh_hub, zenoh_option
+from robocli.commands._zenoh import zenoh_option, zenoh_target
 from robocli.defaults import HUB_ENV
 from robocli.errors import EXIT_INTERRUPTED
 from robocli.views.hub import header_text, rows_text
@@ -78,8 +78,11 @@ def _open(hub: str | None, zenoh: str | None, *, compress: bool, token_file: Pat
     if zenoh is None:
         return open_hub(_address(hub), compress=compress, token_file=token_file)
     from robocli.commands.serve import token_from_file
+    from robocli.devices.hub.over_zenoh import ZenohHub
 
-    return zenoh_hub(hub, zenoh, compress=compress, token=token_from_file(token_file))
+    if compress:
+        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
+    return ZenohHub.connect(hub, zenoh=zenoh_target(zenoh), token=token_from_file(token_file))
 
 
 def _mask(text: str) -> int:

@@ -120,7 +120,7 @@ def connect(
 def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
     """The robot's snapshot (:func:`robocli.views.pioneer.snapshot`), with the ``--laser``
     Hokuyo's placed scan."""
-    from robocli.commands._mounted import placed_json
+    from robocli.views.laser import placed_json
 
     return snapshot(robot, **({"hokuyo": placed_json(hokuyo)} if hokuyo is not None else {}))
 
@@ -131,8 +131,8 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
     if url is None:
         yield None
         return
-    from robocli.commands._mounted import on_robot
     from robocli.devices.laser import MountedLaser
+    from robocli.devices.laser.mounted import on_robot
 
     with on_robot(url, robot) as laser:
         mounted = MountedLaser(laser, robot)

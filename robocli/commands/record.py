@@ -23,6 +23,7 @@ from robocli.commands import _common as common
 from robocli.commands import _options as opt
 from robocli.commands._arm import LINK, ArmLink, arm_link
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
+from robocli.views.recording import progress_text, recorded_text
 
 Compression = Literal["zstd", "lz4", "none"]
 
@@ -126,27 +127,18 @@ def close_recording(rec: Recorder, seconds: float) -> None:
         if rec.begun:
             if sys.stderr.isatty():
                 sys.stderr.write("\r\x1b[K")  # the progress line goes
-            st = rec.stats
-            lost = f", {st.lost} not written (writing failed)" if st.lost else ""
-            why = "not written" if rec.error is not None else "the disk was too slow"
-            dropped = f", {st.dropped} dropped ({why})" if st.dropped else ""
-            typer.echo(f"recorded {st.messages} messages in {seconds:.1f} s to "
-                       f"{rec.path}{lost}{dropped}", err=True)  # fmt: skip
+            typer.echo(recorded_text(rec, seconds), err=True)
 
 
 def progress_line(run: RecordingSession, every: float = 0.5) -> Callable[[], None]:
     """A function that rewrites one status line on stderr (a terminal's): messages, bytes
     written and the message rate, at most every ``every`` seconds."""
-    from robocli.views.recording import size_text
-
     last = [0.0]
 
     def show() -> None:
         if time.monotonic() - last[0] >= every:
             last[0] = time.monotonic()
-            p = run.progress()
-            sys.stderr.write(f"\r\x1b[K{p.messages} messages, {size_text(p.size)}, "
-                             f"{p.rate:.0f} msg/s, {p.seconds:.0f} s")  # fmt: skip
+            sys.stderr.write(f"\r\x1b[K{progress_text(run.progress())}")
             sys.stderr.flush()
 
     return show

@@ -1,5 +1,6 @@
 """A recording as ``robocli info`` shows it, like ``ros2 bag info``: its file, size, times
-and a table of its channels, as lines of text (:func:`info_lines`)."""
+and a table of its channels, as lines of text (:func:`info_lines`); and as ``record`` says
+how far it got (:func:`progress_text`) and what it wrote (:func:`recorded_text`)."""
 
 from __future__ import annotations
 
@@ -7,9 +8,10 @@ import time
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from robocli.io.record import RecordingInfo
+    from robocli.io.record import Recorder, RecordingInfo
+    from robocli.io.record.session import Progress
 
-__all__ = ["info_lines", "size_text", "when_text"]
+__all__ = ["info_lines", "progress_text", "recorded_text", "size_text", "when_text"]
 
 
 def when_text(ns: int) -> str:
@@ -57,3 +59,18 @@ def info_lines(r: RecordingInfo) -> list[str]:
         out.append(f"  {c.topic:<{width}}  {c.schema or c.encoding:<{swidth}}  {c.count:>8}  "
                    f"{rate}  {c.largest_gap_s:13.3f}")  # fmt: skip
     return out
+
+
+def progress_text(p: Progress) -> str:
+    """A recording under way: messages, bytes written, the message rate, seconds."""
+    return f"{p.messages} messages, {size_text(p.size)}, {p.rate:.0f} msg/s, {p.seconds:.0f} s"
+
+
+def recorded_text(rec: Recorder, seconds: float) -> str:
+    """What a closed recording holds: messages, seconds, its file, and what it lost or
+    dropped, and why."""
+    st = rec.stats
+    lost = f", {st.lost} not written (writing failed)" if st.lost else ""
+    why = "not written" if rec.error is not None else "the disk was too slow"
+    dropped = f", {st.dropped} dropped ({why})" if st.dropped else ""
+    return f"recorded {st.messages} messages in {seconds:.1f} s to {rec.path}{lost}{dropped}"

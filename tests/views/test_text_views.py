@@ -142,3 +142,22 @@ def test_comparison_text_of_a_run_with_itself(tmp_path: Path) -> None:
     assert len(rows) == 6 and len(rows[0]) == len(COLUMNS) and rows[0][0] == "1"
     assert title(result).startswith("sim vs real: ") and notes(result)[0].startswith("time shift")
     assert rad_text(1e-7) == "1.00e-07" and mm_text(None) == "-" and mm_text(0.5) == "0.500"
+
+
+def test_recording_progress_and_what_it_wrote(tmp_path: Path) -> None:
+    from robocli.io.record import Recorder
+    from robocli.io.record.session import Progress
+    from robocli.views.recording import progress_text, recorded_text
+
+    assert progress_text(Progress(10, 2048, 2.0)) == "10 messages, 2.0 KiB, 5 msg/s, 2 s"
+    with Recorder(tmp_path / "empty.mcap") as rec:
+        pass
+    assert recorded_text(rec, 1.25).startswith("recorded 0 messages in 1.2 s to ")
+
+
+def test_placed_scans_and_serial_ports_for_a_notebook() -> None:
+    from robocli.transports import list_serial_ports
+    from robocli.views.laser import LASER_RESOLUTION
+
+    assert all(set(p) == {"device", "description", "hwid"} for p in list_serial_ports())
+    assert LASER_RESOLUTION["points_robot"] == 4
