@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import inspect
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
@@ -59,15 +58,12 @@ class ArmLink:
 LINK: Any = None
 #: The link options, in the order -h lists them.
 _LINK_OPTIONS = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-    for name, kind, option in (
-        ("motion_port", int, MotionPortOpt),
-        ("state_port", int, StatePortOpt),
-        ("byte_order", ByteOrder, OrderOpt),
-        ("real_size", RealSize, RealOpt),
-        ("robot", str, RobotOpt),
-        ("timeout", float, TimeoutOpt),
-    )
+    ("motion_port", int, MotionPortOpt),
+    ("state_port", int, StatePortOpt),
+    ("byte_order", ByteOrder, OrderOpt),
+    ("real_size", RealSize, RealOpt),
+    ("robot", str, RobotOpt),
+    ("timeout", float, TimeoutOpt),
 ]
 
 

@@ -122,13 +122,14 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
 
 
 def bundled(
-    name: str, options: Sequence[inspect.Parameter], bundle: Callable[..., Any]
+    name: str, options: Sequence[tuple[str, Any, Any]], bundle: Callable[..., Any]
 ) -> Callable[[Callable[..., None]], Callable[..., None]]:
     """Make a command of a function that takes one value, its parameter ``name``, for a
-    group of options several commands share: in the command's signature (what Typer reads),
-    that parameter becomes ``options``, in its place (so that -h lists them there), and the
-    function is called with ``bundle(**their values)`` for it."""
-    names = [p.name for p in options]
+    group of options several commands share, given as ``(name, type, typer.Option)``: in the
+    command's signature (what Typer reads), that parameter becomes those options, in its
+    place (so that -h lists them there), and the function is called with
+    ``bundle(**their values)`` for it."""
+    names = [n for n, _, _ in options]
 
     def decorate(function: Callable[..., None]) -> Callable[..., None]:
         signature = inspect.signature(function, eval_str=True)
@@ -136,7 +137,8 @@ def bundled(
             raise TypeError(f"{function.__qualname__} has no parameter {name!r} to replace")
         params: list[inspect.Parameter] = []
         for param in signature.parameters.values():
-            shared = [p.replace(kind=param.kind) for p in options]
+            shared = [inspect.Parameter(n, param.kind, default=option, annotation=kind)
+                      for n, kind, option in options]  # fmt: skip
             params += shared if param.name == name else [param]
 
         def command(**values: Any) -> None:

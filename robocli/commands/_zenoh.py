@@ -123,12 +123,6 @@ def ros2_check(ros2: bool, zenoh: str | None) -> None:
         return
     if zenoh is None:
         raise typer.BadParameter("--ros2 puts ROS 2 topics on Zenoh: give --zenoh too")
-    from robocli.ros2.types import typestore
+    from robocli.ros2.types import node_types
 
-    typestore()
-    try:
-        import xxhash  # noqa: F401 - rmw_zenoh's GIDs
-    except ImportError:
-        from robocli.ros2.types import Ros2Unavailable
-
-        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli-robots[ros2]'") from None
+    node_types()

@@ -9,7 +9,6 @@ it relays other programs' sessions as a recording proxy, as ``dump hub`` always 
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from collections.abc import Callable
@@ -28,10 +27,10 @@ from robocli.commands.laser import Model, ModelOpt, laser_url
 from robocli.commands.laser import TimeoutOpt as LaserTimeoutOpt
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
+from robocli.output import same_file
 
 if TYPE_CHECKING:
     from robocli.analysis.packets import Packet, PacketLog
-    from robocli.io.capture import CaptureStats
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
@@ -200,10 +199,7 @@ def laser(
     log = _log("scip2", partial(_laser_lines, t0=[], json_out=json_out), 0, None, False)
     with common.reader_may_leave(), common.sigterm_as_interrupt():
         if file is not None:
-            stats = _replay(log, file, "scip2")
-            if stats is not None and stats.dropped_bytes:
-                typer.echo(f"robocli: {file}: {stats.frames} blocks decoded, "
-                           f"{stats.dropped_bytes} bytes dropped", err=True)  # fmt: skip
+            _replay(log, file, "scip2")
             return
         from robocli.devices.laser import Laser
 
@@ -227,16 +223,9 @@ def _one(ctx: typer.Context, name: str, device: str | None, file: Path | None,
         raise typer.BadParameter("give PORT or --file" + (", not both" if file else ""))
     if (device is None) == (file is None):
         raise typer.BadParameter("give HOST or --file (one of them)")
-    if output is not None and file is not None and _same_file(output, file):
+    if output is not None and file is not None and same_file(output, file):
         raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
     return device
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet)
-        return False
 
 
 def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
@@ -261,9 +250,10 @@ def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
     return log
 
 
-def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | None:
-    """Show a capture's packets (exit 1 when it holds none); a note of dropped bytes."""
-    from robocli.analysis.sessions import replay_capture
+def _replay(log: PacketLog, file: Path | None, protocol: str) -> None:
+    """Show a capture's packets (exit 1 when it holds none); a note of dropped bytes (of a
+    Pioneer's or a laser's capture)."""
+    from robocli.analysis.sessions import NOUNS, replay_capture
 
     assert file is not None
     log.open()
@@ -272,10 +262,9 @@ def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | 
             stats = replay_capture(log, file, protocol)
     finally:
         log.close()
-    if stats is not None and stats.dropped_bytes and protocol == "arcos":
-        typer.echo(f"robocli: {file}: {stats.frames} packets decoded, {stats.dropped_bytes} "
-                   "bytes dropped", err=True)  # fmt: skip
-    return stats
+    if stats is not None and stats.dropped_bytes and protocol in NOUNS:
+        typer.echo(f"robocli: {file}: {stats.frames} {NOUNS[protocol]} decoded, "
+                   f"{stats.dropped_bytes} bytes dropped", err=True)  # fmt: skip
 
 
 def _listen_address(text: str) -> tuple[str, int]:

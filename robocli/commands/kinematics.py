@@ -7,7 +7,6 @@ NumPy and the kinematics package are imported inside the commands, so that
 from __future__ import annotations
 
 import functools
-import inspect
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -111,18 +110,15 @@ def _finish(t: Timing, log: TrajectoryLog, shape: str) -> None:
 TIMING: Any = None
 #: The options of every ``traj`` command, after the shape's own ones.
 _SHARED = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-    for name, kind, option in (
-        ("robot", str, opt.RobotOpt),
-        ("points", int, PointsOpt),
-        ("speed", float | None, SpeedOpt),
-        ("duration", float | None, DurationOpt),
-        ("start", str | None, StartOpt),
-        ("out", Path, OutOpt),
-        ("plot", Path | None, PlotOpt),
-        ("overwrite", bool, opt.OverwriteOpt),
-        ("json_out", bool, JsonOpt),
-    )
+    ("robot", str, opt.RobotOpt),
+    ("points", int, PointsOpt),
+    ("speed", float | None, SpeedOpt),
+    ("duration", float | None, DurationOpt),
+    ("start", str | None, StartOpt),
+    ("out", Path, OutOpt),
+    ("plot", Path | None, PlotOpt),
+    ("overwrite", bool, opt.OverwriteOpt),
+    ("json_out", bool, JsonOpt),
 ]
 
 
@@ -133,7 +129,7 @@ def trajectory_command(shape: str, points: bool = True) -> Callable[[Any], Calla
     ``points`` is false, ``--speed``, ``--duration``, ``--start``, ``--out``, ``--plot``,
     ``--json``: :func:`~robocli.commands._common.bundled` as a :class:`Timing`), then
     writes the log and prints its summary."""
-    shared = [p for p in _SHARED if points or p.name != "points"]
+    shared = [p for p in _SHARED if points or p[0] != "points"]
 
     def decorate(build: Any) -> Callable[..., None]:
         @functools.wraps(build)

@@ -63,7 +63,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
 def teleop_remote(port: str, zenoh: str | None, controller: Any, timeout: float) -> None:
     """``teleop pioneer zenoh/<robot>``: drive through the bridge (refused, exit 4, while
     another controller holds the robot)."""
-    from robocli.commands._screens import StatusLine, end_line, raw_terminal
+    from robocli.commands._screens import StatusLine, keys
     from robocli.devices.pioneer.teleop import run_teleop
 
     with sigterm_as_interrupt(), remote(port, zenoh, timeout) as robot:
@@ -72,11 +72,8 @@ def teleop_remote(port: str, zenoh: str | None, controller: Any, timeout: float)
         typer.echo(f"{robot.robot} through Zenoh as {robot.holder}: arrows/WASD drive, "
                    "space stops, q or Ctrl-C quits")  # fmt: skip
         status = StatusLine(robot)  # reads pose and battery only
-        try:
-            with raw_terminal() as read_key:
-                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
-        finally:
-            end_line()
+        with keys() as read_key:
+            run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
 def _snapshot(robot: Any) -> dict[str, Any]:

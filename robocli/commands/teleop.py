@@ -7,10 +7,8 @@ Both read keys in cbreak mode (Ctrl-C still interrupts), redraw a status line in
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import time
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import typer
@@ -21,7 +19,7 @@ from robocli.commands._arm import connected as connected_arm
 from robocli.commands._options import StreamOpt
 
 if TYPE_CHECKING:
-    from robocli.views.keys import KeyReader
+    pass
 
 RELEASE_HELP = "Stop this long after the last key, s."
 
@@ -45,7 +43,7 @@ def pioneer(
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot.
     PORT zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), with --zenoh."""
-    from robocli.commands._screens import StatusLine
+    from robocli.commands._screens import StatusLine, keys
     from robocli.commands.remote import is_remote, teleop_remote
     from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
@@ -62,7 +60,7 @@ def pioneer(
             "space stops, q or Ctrl-C quits"
         )
         status = StatusLine(robot)
-        with _keys() as read_key:
+        with keys() as read_key:
             run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
@@ -79,6 +77,7 @@ def arm(
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
+    from robocli.commands._screens import keys
     from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
     _need_terminal()
@@ -89,7 +88,7 @@ def arm(
         typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
         jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
                         release_timeout=release, stale=stale)  # fmt: skip
-        with _keys() as read_key:
+        with keys() as read_key:
             run_arm_teleop(jog, read_key, on_update=_status_line())
 
 
@@ -97,20 +96,6 @@ def _need_terminal() -> None:
     """A usage error unless keys can come from a terminal (checked before connecting)."""
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-
-
-@contextlib.contextmanager
-def _keys() -> Iterator[KeyReader]:
-    """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
-    left on a fresh line after the status line however the loop ends."""
-    from robocli.commands._screens import end_line
-    from robocli.views.keys import raw_terminal
-
-    try:
-        with raw_terminal() as read_key:
-            yield read_key
-    finally:
-        end_line()
 
 
 def _status_line() -> Any:
