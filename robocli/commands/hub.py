@@ -43,15 +43,9 @@ def _address(hub: str | None) -> str:
     return hub or "127.0.0.1"  # --hub, else $ROBOCLI_HUB (Typer reads it), else this machine
 
 
-def open_hub(
-    address: str,
-    *,
-    compress: bool = False,
-    timeout: float = 5.0,
-    token_file: Path | None = None,
-    hub_option: bool = True,
-    listeners: Iterable[Any] = (),
-) -> Hub:
+def open_hub(address: str, *, compress: bool = False, timeout: float = 5.0,
+             token_file: Path | None = None, hub_option: bool = True,
+             listeners: Iterable[Any] = ()) -> Hub:  # fmt: skip
     """Connect (with the token in ``token_file``, if any); "nobody listens" is one line with
     a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB.
     ``listeners``: see every frame from CONNECT on (a recorder's raw link)."""
