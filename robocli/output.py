@@ -34,7 +34,7 @@ from typing import IO, Any
 
 from robocli.errors import EXIT_USAGE, RobocliError
 
-__all__ = ["OutputError", "check_output", "create_output", "replace_output"]
+__all__ = ["OutputError", "check_output", "create_output", "replace_output", "same_file"]
 
 _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 _NEW = os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW | getattr(os, "O_BINARY", 0)
@@ -47,6 +47,15 @@ class OutputError(RobocliError, ValueError):
     user named is unusable: exit 2, one line (as a log or capture that cannot be read)."""
 
     exit_code = EXIT_USAGE
+
+
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether ``a`` and ``b`` are one file (an output that would empty the input it is
+    written from); False when either does not exist (yet)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
 
 
 def check_output(path: str | Path, overwrite: bool = False) -> Path:

@@ -60,6 +60,7 @@ __all__ = [
     "check_url",
     "format_address",
     "is_tcp",
+    "list_serial_ports",
     "open_transport",
     "pair",
     "parse_address",
@@ -303,6 +304,15 @@ def open_transport(url: str, *, baudrate: int = 9600, timeout: float = 5.0) -> T
         host, port = parse_address(url)
         return SocketTransport.connect(host, port, timeout=timeout)
     return SerialTransport.open(url, baudrate=baudrate)
+
+
+def list_serial_ports() -> list[dict[str, Any]]:
+    """Serial ports as pyserial's ``list_ports`` sees them: device, description, hardware id
+    (USB vendor:product and serial number), sorted by device name."""
+    from serial.tools import list_ports
+
+    return [{"device": p.device, "description": p.description, "hwid": p.hwid}
+            for p in sorted(list_ports.comports(), key=lambda p: p.device)]  # fmt: skip
 
 
 def pair() -> tuple[SocketTransport, SocketTransport]:

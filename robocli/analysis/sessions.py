@@ -5,7 +5,8 @@
 when a file holds none. For live sessions, the links' listeners are a log's
 (:meth:`~robocli.analysis.packets.PacketLog.listener`), :func:`arm_clients` and
 :func:`arm_relays` open an arm's ports as clients or as recording proxies, :func:`hub_proxy`
-relays ros4mat clients to a hub, and the ``*_check`` functions raise when a link ended.
+relays ros4mat clients to a hub, and the ``*_check`` functions raise when a link ended;
+:func:`arm_session` and :func:`hub_session` follow a whole live session into a log.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from robocli.analysis.packets import Decode, Packet, PacketLog
 from robocli.errors import RobocliError
+from robocli.running import listening
 
 if TYPE_CHECKING:
     from robocli.analysis.proxy import Message, RecordingProxy
@@ -28,8 +30,8 @@ if TYPE_CHECKING:
     from robocli.io.capture import CaptureStats
 
 __all__ = [
-    "arm_check", "arm_clients", "arm_relays", "decoder", "hub_proxy", "laser_check",
-    "pioneer_check", "read_packets", "replay_capture",
+    "arm_check", "arm_clients", "arm_relays", "arm_session", "decoder", "hub_proxy",
+    "hub_session", "laser_check", "pioneer_check", "read_packets", "replay_capture",
 ]  # fmt: skip
 
 #: What a capture's frames are called in messages, by protocol.
@@ -213,3 +215,52 @@ def hub_proxy(log: PacketLog, upstream: tuple[str, int], bind: str, port: int) -
         log.direct("tx" if msg.direction == "c2s" else "rx", msg.frame, msg.t)
 
     return DumpProxy(upstream, show, bind=bind, port=port)
+
+
+def arm_session(log: PacketLog, address: tuple[str, int, int], ports: str, *,
+                listen: tuple[str, int] | None = None, timeout: float = 5.0,
+                on_relays: Callable[[str], None] = lambda text: None,
+                **wire: Any) -> None:  # fmt: skip
+    """Follow the arm at ``(host, motion port, state port)`` into ``log`` until a link ends
+    or ``log`` has its count: as a client of each port of ``ports`` (``wire``: byte_order,
+    real_size, robot), or with ``listen`` (address, motion port) as recording proxies other
+    programs connect to (``on_relays`` is told where, in one line). ``log`` is opened once
+    connected or listening (a capture being written is made then), drained and closed
+    however the session ends."""
+    with contextlib.ExitStack() as stack:
+        arms: list[Arm] = []
+        relays: list[RecordingProxy] = []
+        try:
+            if listen is not None:
+                with listening(listen[0]):  # in use: exit 1; not this machine's: 2
+                    relays = arm_relays(stack, log, address, ports, listen, wire["byte_order"])
+                names = [n for n in ("motion", "state") if ports in ("both", n)]
+                on_relays("clients connect to " + ", ".join(
+                    f"{n} {listen[0]}:{r.port} -> {r.upstream[0]}:{r.upstream[1]}"
+                    for n, r in zip(names, relays, strict=True)))  # fmt: skip
+            else:
+                arms = arm_clients(stack, log, address, ports, timeout=timeout, **wire)
+            log.open()
+            log.follow(arm_check(arms, relays, ports, timeout))
+        finally:
+            stack.close()  # nothing is queued after
+            log.drain()
+            log.close()
+
+
+def hub_session(log: PacketLog, upstream: tuple[str, int], bind: str, port: int,
+                on_listening: Callable[[int], None] = lambda port: None) -> None:  # fmt: skip
+    """Relay ros4mat clients from ``bind:port`` to the hub at ``upstream``
+    (:func:`hub_proxy`), ``log`` opened once listening (``on_listening`` told the port),
+    until ``log`` stopped; then raise what the proxy's threads met."""
+    from robocli.analysis.ros4mat import check_upstream
+
+    check_upstream(*upstream)
+    with listening(bind):
+        proxy = hub_proxy(log, upstream, bind, port)
+    with proxy.start():
+        log.open()
+        on_listening(proxy.port)
+        while not log.stopped.wait(0.25):
+            pass
+    log.check()  # `dump hub ... | head`: what the proxy's thread met, said here

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import inspect
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Literal
@@ -15,7 +14,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import typer
 
 from robocli.commands._common import bundled, sigterm_as_interrupt
-from robocli.commands._options import device_argument
+from robocli.commands._options import RobotOpt, device_argument
 from robocli.defaults import ARM_ENV
 
 if TYPE_CHECKING:
@@ -31,7 +30,6 @@ Profile = Literal["abb", "generic"]
 Shape = Literal["circle", "rectangle"]
 OrderOpt = typer.Option("little", "--byte-order", help="little (ABB) or big (Fanuc, FS100).")
 RealOpt = typer.Option(4, "--real-size", help="Bytes per real: 4, or 8 (FLOAT64 builds).")
-RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
 TimeoutOpt = typer.Option(5.0, "--timeout", min=0.1, max=600.0, help="Seconds per wait.")
 
 
@@ -40,18 +38,6 @@ def arm_host(*address: Any, **options: Any) -> Any:
     from robocli.devices.arm.jobs import arm_address
 
     return arm_address(*address, **options)
-
-
-def sim_profile(stream: bool) -> str:
-    """The embedded simulator's profile for a command's ``--stream``."""
-    return "generic" if stream else "abb"
-
-
-def check_wire(byte_order: str, real_size: int) -> None:
-    if byte_order not in ("little", "big"):
-        raise typer.BadParameter(f"--byte-order is little or big, not {byte_order!r}")
-    if real_size not in (4, 8):
-        raise typer.BadParameter(f"--real-size is 4 or 8, not {real_size}")
 
 
 @dataclass(frozen=True)
@@ -72,15 +58,12 @@ class ArmLink:
 LINK: Any = None
 #: The link options, in the order -h lists them.
 _LINK_OPTIONS = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-    for name, kind, option in (
-        ("motion_port", int, MotionPortOpt),
-        ("state_port", int, StatePortOpt),
-        ("byte_order", ByteOrder, OrderOpt),
-        ("real_size", RealSize, RealOpt),
-        ("robot", str, RobotOpt),
-        ("timeout", float, TimeoutOpt),
-    )
+    ("motion_port", int, MotionPortOpt),
+    ("state_port", int, StatePortOpt),
+    ("byte_order", ByteOrder, OrderOpt),
+    ("real_size", RealSize, RealOpt),
+    ("robot", str, RobotOpt),
+    ("timeout", float, TimeoutOpt),
 ]
 
 
@@ -95,7 +78,6 @@ def arm_link(motion: bool = True) -> Callable[[Callable[..., None]], Callable[..
 def _link(motion: bool, motion_port: int = 11000, **wire: Any) -> ArmLink:
     """The options as an :class:`ArmLink` (``motion`` false: the motion port is not opened).
     The two ports must differ: one port cannot carry both links."""
-    check_wire(wire["byte_order"], wire["real_size"])
     if motion_port == wire["state_port"]:
         from robocli.errors import InvalidArgument
 
@@ -113,7 +95,7 @@ def connected(host: str, link: ArmLink, stream: bool = False, **options: Any) ->
     :meth:`Arm.connect`'s (``listeners``: a recorder's, from each port's first byte)."""
     with sigterm_as_interrupt(), arm_host(host, link.motion_port, link.state_port,
                                           link.byte_order, link.real_size, link.robot,
-                                          sim_profile(stream)) as address:  # fmt: skip
+                                          "generic" if stream else "abb") as address:  # fmt: skip
         with connect_at(address, link, **options) as arm:
             yield arm
 

@@ -10,7 +10,7 @@ import json
 import math
 import re
 import sys
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from typing import Any, NoReturn
 
 import typer
@@ -26,10 +26,6 @@ from robocli.running import shielded as shielded
 from robocli.running import sigterm_as_interrupt as sigterm_as_interrupt
 
 SIM = "sim"
-PORT_HELP = (
-    "Robot port or URL: /dev/ttyUSB0, COM1, tcp://HOST:8101, HOST:PORT, a pyserial URL, "
-    "or 'sim' for an embedded simulator."
-)
 
 
 def from_env(ctx: typer.Context, name: str) -> bool:
@@ -123,18 +119,17 @@ def _check_finite(command: Any, ctx: Any, args: list[str]) -> None:
                 raise typer.BadParameter(f"{value!r} is not a finite number", ctx=ctx, param=param)
 
 
-#: Every command that writes a user's file takes it (see :mod:`robocli.output`).
-OverwriteOpt = typer.Option(False, "--overwrite", help="Replace an existing output file.")
 
 
 def bundled(
-    name: str, options: Sequence[inspect.Parameter], bundle: Callable[..., Any]
+    name: str, options: Sequence[tuple[str, Any, Any]], bundle: Callable[..., Any]
 ) -> Callable[[Callable[..., None]], Callable[..., None]]:
     """Make a command of a function that takes one value, its parameter ``name``, for a
-    group of options several commands share: in the command's signature (what Typer reads),
-    that parameter becomes ``options``, in its place (so that -h lists them there), and the
-    function is called with ``bundle(**their values)`` for it."""
-    names = [p.name for p in options]
+    group of options several commands share, given as ``(name, type, typer.Option)``: in the
+    command's signature (what Typer reads), that parameter becomes those options, in its
+    place (so that -h lists them there), and the function is called with
+    ``bundle(**their values)`` for it."""
+    names = [n for n, _, _ in options]
 
     def decorate(function: Callable[..., None]) -> Callable[..., None]:
         signature = inspect.signature(function, eval_str=True)
@@ -142,7 +137,8 @@ def bundled(
             raise TypeError(f"{function.__qualname__} has no parameter {name!r} to replace")
         params: list[inspect.Parameter] = []
         for param in signature.parameters.values():
-            shared = [p.replace(kind=param.kind) for p in options]
+            shared = [inspect.Parameter(n, param.kind, default=option, annotation=kind)
+                      for n, kind, option in options]  # fmt: skip
             params += shared if param.name == name else [param]
 
         def command(**values: Any) -> None:
@@ -194,7 +190,7 @@ def print_json(data: Any) -> None:
     typer.echo(json.dumps(data, default=json_default, allow_nan=True))
 
 
-def print_json_line(data: Any) -> None:
-    """One compact JSON object on one line (JSON Lines), flushed: for pipes and scripts."""
-    sys.stdout.write(json.dumps(data, default=json_default) + "\n")
-    sys.stdout.flush()
+def echo_lines(lines: Iterable[str]) -> None:
+    """Each of ``lines`` on stdout (a view's text: :mod:`robocli.views`)."""
+    for line in lines:
+        typer.echo(line)

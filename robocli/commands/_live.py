@@ -13,15 +13,11 @@ if TYPE_CHECKING:
     from robocli.hub_server import HubServer
     from robocli.io.record.live import LiveView
 
-FoxgloveOpt = typer.Option(
-    None, "--foxglove", min=0, max=65535, metavar="PORT",
-    help="Serve the channels live to Foxglove on this WebSocket port (8765 is Foxglove's; "
-         "0: any). Needs pip install 'robocli-robots[foxglove]'.",
-)  # fmt: skip
-FoxgloveHostOpt = typer.Option(
-    "127.0.0.1", "--foxglove-host", metavar="HOST",
-    help="Address the live view listens on (0.0.0.0 exposes it).",
-)  # fmt: skip
+FoxgloveOpt = typer.Option(None, "--foxglove", min=0, max=65535, metavar="PORT", help="Serve "
+                           "the channels live to Foxglove on this WebSocket port (8765 is "
+                           "Foxglove's; 0: any). Needs pip install 'robocli-robots[foxglove]'.")
+FoxgloveHostOpt = typer.Option("127.0.0.1", "--foxglove-host", metavar="HOST", help="Address the "
+                               "live view listens on (0.0.0.0 exposes it).")  # fmt: skip
 
 
 @contextlib.contextmanager

@@ -50,8 +50,8 @@ def device_argument(kind: str, envvar: str | None = None, default: Any = ...) ->
     )
 
 
-def output_option(default: Any = None, help: str = "File to write.") -> Any:
-    return typer.Option(default, "--output", "-o", help=help)
+def output_option(default: Any = None, help: str = "File to write.", **more: Any) -> Any:
+    return typer.Option(default, "--output", "-o", help=help, **more)
 
 
 def count_option(default: Any = None, help: str = "Stop after N.", **limits: Any) -> Any:
@@ -66,16 +66,59 @@ def rate_option(default: Any = None, help: str = "Rate, Hz.", **limits: Any) -> 
     return typer.Option(default, "--rate", "-r", help=help, **limits)
 
 
-#: What every simulator (``sim abb|pioneer|laser``) takes alike.
-BindOpt = typer.Option("127.0.0.1", "--bind", help="Address to listen on.")
+def json_option(help: str = "JSON Lines: one object per line, t in Unix seconds, SI units.") -> Any:
+    return typer.Option(False, "--json", help=help)
+
+
+def flag(name: str, help: str, default: bool = False) -> Any:
+    """A flag (``--name``, or ``--name/--no-name``), off unless ``default``."""
+    return typer.Option(default, name, help=help)
+
+
+def device_option(name: str, help: str, default: Any = None, **more: Any) -> Any:
+    """A device of a command with several (``--pioneer URL``...), or a device to use."""
+    return typer.Option(default, name, metavar="URL", help=help, **more)
+
+
+def timeout_option(default: float, help: str, least: float, most: float, **more: Any) -> Any:
+    return typer.Option(default, "--timeout", min=least, max=most, help=help, **more)
+
+
+def port_option(default: int | None, help: str) -> Any:
+    """A server's TCP port, ``-p/--port``."""
+    return typer.Option(default, "--port", "-p", min=0, max=65535, help=help)
+
+
+def bind_option(help: str = "Address to listen on.") -> Any:
+    return typer.Option("127.0.0.1", "--bind", help=help)
+
+
+def pose_option(help: str) -> Any:
+    return typer.Option(None, "--pose", metavar="X,Y,TH", help=help)
+
+
+def baud_option(default: int, help: str = "Serial baud rate.", least: int = 300,
+                metavar: str | None = "RATE") -> Any:  # fmt: skip
+    return typer.Option(default, "--baud", min=least, metavar=metavar, help=help)
+
+
+def overwrite_option(help: str = "Replace an existing output file.") -> Any:
+    return typer.Option(False, "--overwrite", help=help)
+
+
+#: Every command that writes a user's file takes it (see :mod:`robocli.output`).
+OverwriteOpt = overwrite_option()
+#: What every simulator (``sim abb|pioneer|laser|create``) takes alike.
+BindOpt = bind_option()
 TimeScaleOpt = typer.Option(1.0, "--time-scale", min=0.1, max=100.0,
                             help="Simulated seconds per wall second.")  # fmt: skip
 MapOpt = typer.Option(None, "--map", exists=True, dir_okay=False,
                       help="Map: JSON or text walls (x1 y1 x2 y2).")  # fmt: skip
-
-
-def json_option(help: str = "JSON Lines: one object per line, t in Unix seconds, SI units.") -> Any:
-    return typer.Option(False, "--json", help=help)
+RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
+#: The recording ``info`` and ``plot`` read.
+RecordingArg = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
+                              help="A recording (.mcap).")  # fmt: skip
+StreamOpt = flag("--stream", "Stream (generic servers, not ABB).")
 
 
 #: The hub's sensors, by the one set of names every command, help and message uses (the

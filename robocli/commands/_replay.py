@@ -2,20 +2,16 @@
 
 from __future__ import annotations
 
-import sys
-import time
 from pathlib import Path
 
 import typer
 
-from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
+from robocli.commands._common import bind_address, listening, sigterm_as_interrupt, wait_forever
 
 __all__ = ["LoopOpt", "ReplayOpt", "SpeedOpt", "abb_replay", "check_replay"]
 
-ReplayOpt = typer.Option(
-    None, "--replay", metavar="FILE.mcap", exists=True, dir_okay=False,
-    help="Play this recording back instead of simulating.",
-)  # fmt: skip
+ReplayOpt = typer.Option(None, "--replay", metavar="FILE.mcap", exists=True, dir_okay=False,
+                         help="Play this recording back instead of simulating.")  # fmt: skip
 SpeedOpt = typer.Option(None, "--speed", help="Replay speed (default 1).")
 LoopOpt = typer.Option(False, "--loop", help="Replay again from the start at the end.")
 
@@ -43,6 +39,4 @@ def abb_replay(replay: Path, speed: float, loop: bool, robot: str, profile: str,
         with listening(bind):
             motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
         typer.echo(f"replaying {replay}: motion {motion}, state {state}")
-        sys.stdout.flush()
-        while True:  # Ctrl-C, SIGTERM: the simulator closes, exit 130
-            time.sleep(3600)
+        wait_forever()  # Ctrl-C, SIGTERM: the simulator closes, exit 130

@@ -6,13 +6,14 @@ Units on screen: metres, m/s, degrees and deg/s (JSON output stays in SI: rad, r
 
 from __future__ import annotations
 
+import contextlib
 import math
 import sys
 import time
+from collections.abc import Iterator
 from typing import TYPE_CHECKING
 
-from robocli.views.keys import QUIT_KEYS, KeyReader, keyboard
-from robocli.views.keys import raw_terminal as raw_terminal
+from robocli.views.keys import QUIT_KEYS, KeyReader, keyboard, raw_terminal
 from robocli.views.pioneer import hokuyo_text, laser_text, pose_text, sonar_text, velocity_text
 from robocli.views.pioneer import state_line as state_line
 
@@ -99,6 +100,17 @@ def end_line() -> None:
     if sys.stdout.isatty():
         sys.stdout.write("\n")
         sys.stdout.flush()
+
+
+@contextlib.contextmanager
+def keys() -> Iterator[KeyReader]:
+    """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
+    left on a fresh line after the status line however the loop ends."""
+    try:
+        with raw_terminal() as read_key:
+            yield read_key
+    finally:
+        end_line()
 
 
 class StatusLine:

@@ -23,13 +23,11 @@ from robocli.zenoh.session import DEFAULT_ENDPOINT, Role, ZenohTarget, parse_tar
 if TYPE_CHECKING:
     import zenoh
 
-    from robocli.devices.hub.over_zenoh import ZenohHub
 
 __all__ = [
     "ZENOH_METAVAR",
     "ZenohCommand",
     "with_default_zenoh",
-    "zenoh_hub",
     "zenoh_option",
     "server_name",
     "zenoh_session",
@@ -63,14 +61,10 @@ def zenoh_option(role: Role, *, default: str | None = None) -> Any:
     ``cls=ZenohCommand``, its value may be left out: :data:`DEFAULT_ENDPOINT`).
     ``default``: the value when ``--zenoh`` is not given at all (None: the command does not
     use Zenoh then)."""
-    return typer.Option(
-        default,
-        "--zenoh",
-        metavar=ZENOH_METAVAR,
-        show_default=False,
-        help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: {DEFAULT_ENDPOINT}; multicast "
-        "scouting off), or take CONFIG, a Zenoh JSON5 file. Needs robocli-robots[zenoh].",
-    )
+    return typer.Option(default, "--zenoh", metavar=ZENOH_METAVAR, show_default=False,
+                        help=f"Use Eclipse Zenoh: {_VERB[role]} ENDPOINT (alone: "
+                        f"{DEFAULT_ENDPOINT}; multicast scouting off), or take CONFIG, a Zenoh "
+                        "JSON5 file. Needs robocli-robots[zenoh].")  # fmt: skip
 
 
 def zenoh_target(value: str | None) -> ZenohTarget:
@@ -112,32 +106,14 @@ def zenoh_session(value: str | None, role: Role) -> zenoh.Session:
     return open_session(zenoh_target(value), role)
 
 
-def zenoh_hub(
-    name: str | None, value: str | None, *, compress: bool, token: bytes | None
-) -> ZenohHub:
-    """The hub ``name`` (``--hub``; None: the one hub that is up) on Zenoh at ``--zenoh
-    value``, with the hub's ``token`` (``subscribe --zenoh``)."""
-    from robocli.devices.hub.over_zenoh import ZenohHub
-
-    if compress:
-        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
-    target = zenoh_target(value)
-    return ZenohHub.connect(name, zenoh=target, token=token)
-
-
-Ros2Opt = typer.Option(
-    False, "--ros2",
-    help="Also appear as a ROS 2 node on the same Zenoh session, as rmw_zenoh_cpp lays ROS 2 "
-    "topics (needs robocli-robots[ros2]; see docs/ros2.md).",
-)  # fmt: skip
-Ros2DomainOpt = typer.Option(
-    0, "--ros2-domain", min=0, max=232, metavar="ID", envvar="ROS_DOMAIN_ID",
-    help="The ROS domain id of --ros2 (default: $ROS_DOMAIN_ID, else 0).",
-)  # fmt: skip
-Ros2NamespaceOpt = typer.Option(
-    "", "--ros2-namespace", metavar="NS",
-    help="The ROS 2 namespace of --ros2's node and topics (default: the root).",
-)  # fmt: skip
+Ros2Opt = typer.Option(False, "--ros2", help="Also appear as a ROS 2 node on the same Zenoh "
+                       "session, as rmw_zenoh_cpp lays ROS 2 topics (needs robocli-robots[ros2]; "
+                       "see docs/ros2.md).")  # fmt: skip
+Ros2DomainOpt = typer.Option(0, "--ros2-domain", min=0, max=232, metavar="ID",
+                             envvar="ROS_DOMAIN_ID", help="The ROS domain id of --ros2 (default: "
+                             "$ROS_DOMAIN_ID, else 0).")  # fmt: skip
+Ros2NamespaceOpt = typer.Option("", "--ros2-namespace", metavar="NS", help="The ROS 2 namespace "
+                                "of --ros2's node and topics (default: the root).")  # fmt: skip
 
 
 def ros2_check(ros2: bool, zenoh: str | None) -> None:
@@ -147,12 +123,6 @@ def ros2_check(ros2: bool, zenoh: str | None) -> None:
         return
     if zenoh is None:
         raise typer.BadParameter("--ros2 puts ROS 2 topics on Zenoh: give --zenoh too")
-    from robocli.ros2.types import typestore
+    from robocli.ros2.types import node_types
 
-    typestore()
-    try:
-        import xxhash  # noqa: F401 - rmw_zenoh's GIDs
-    except ImportError:
-        from robocli.ros2.types import Ros2Unavailable
-
-        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli-robots[ros2]'") from None
+    node_types()

@@ -18,42 +18,10 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._arm import (
-    LINK,
-    ArmLink,
-    ByteOrder,
-    HostArg,
-    OrderOpt,
-    Profile,
-    RealOpt,
-    RealSize,
-    RobotOpt,
-    Shape,
-    arm_link,
-    check_wire,
-    connected,
-)
-from robocli.commands._common import (
-    OverwriteOpt,
-    bind_address,
-    listening,
-    print_json,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    shielded,
-    sigterm_as_interrupt,
-    wait_forever,
-)
+from robocli.commands import _arm
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import (
-    BindOpt,
-    TimeScaleOpt,
-    count_option,
-    duration_option,
-    json_option,
-    output_option,
-)
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, abb_replay, check_replay
 from robocli.commands.kinematics import _floats
 
@@ -64,47 +32,37 @@ if TYPE_CHECKING:
 # ------------------------------------------------------------------------------ sim abb
 
 
-def _model_option(flag: str, help: str, max: float = 10_000.0) -> Any:
+def _model_option(name: str, help: str, max: float = 10_000.0) -> Any:
     """An option of ``sim abb``'s controller model: 0 (exact) by default."""
-    return typer.Option(0.0, flag, min=0.0, max=max, help=help)
+    return typer.Option(0.0, name, min=0.0, max=max, help=help)
 
 
-def _port_option(default: int, flag: str, server: str) -> Any:
-    return typer.Option(default, flag, min=0, max=65535, help=f"{server} TCP port (0: any).")
+def _port_option(default: int, name: str, server: str) -> Any:
+    return typer.Option(default, name, min=0, max=65535, help=f"{server} TCP port (0: any).")
 
 
 def simulate(
     motion_port: int = _port_option(11000, "--motion-port", "Motion server's"),
     state_port: int = _port_option(11002, "--state-port", "State server's"),
-    state_ms: float | None = typer.Option(
-        None,
-        "--state-ms",
-        min=0.5,
-        max=10_000.0,
-        help="State period, ms (default: 100 as ABB's stock code; 20 with --paper).",
-    ),  # fmt: skip
-    byte_order: ByteOrder = OrderOpt,
-    real_size: RealSize = RealOpt,
-    profile: Profile = typer.Option(
-        "abb", "--profile", help="abb (RAPID servers) or generic (streaming server)."
-    ),
-    robot: str = RobotOpt,
+    state_ms: float | None = typer.Option(None, "--state-ms", min=0.5, max=10_000.0, help="State "
+                                          "period, ms (default: 100 as ABB's stock code; 20 with "
+                                          "--paper)."),  # fmt: skip
+    byte_order: _arm.ByteOrder = _arm.OrderOpt,
+    real_size: _arm.RealSize = _arm.RealOpt,
+    profile: _arm.Profile = typer.Option("abb", "--profile", help="abb (RAPID servers) or generic "
+                                         "(streaming server)."),  # fmt: skip
+    robot: str = opt.RobotOpt,
     latency_ms: float = _model_option("--latency-ms", "Motion reply delay, ms."),
-    jitter_ms: float = _model_option(
-        "--jitter-ms", "Motion reply jitter: std of a skewed extra delay, ms."
-    ),
+    jitter_ms: float = _model_option("--jitter-ms", "Motion reply jitter: std of a skewed extra "
+                                     "delay, ms."),  # fmt: skip
     noise_rad: float = _model_option("--noise-rad", "Gaussian noise on reported joints, rad.", 1.0),
-    period_jitter_ms: float = _model_option(
-        "--period-jitter-ms",
-        "State period std, ms (each period drawn afresh, skewed as the paper's).",
-    ),
+    period_jitter_ms: float = _model_option("--period-jitter-ms", "State period std, ms (each "
+                                            "period drawn afresh, skewed as the paper's)."),
     lag_ms: float = _model_option("--lag-ms", "Execution delay after activation, ms."),
-    paper: bool = typer.Option(False, "--paper", help="The paper-like controller model."),
-    feedback: bool = typer.Option(
-        False, "--feedback", help="Also send JOINT_FEEDBACK with the controller time."
-    ),
-    time_scale: float = TimeScaleOpt,
-    bind: str = BindOpt,
+    paper: bool = opt.flag("--paper", "The paper-like controller model."),
+    feedback: bool = opt.flag("--feedback", "Also send JOINT_FEEDBACK with the controller time."),
+    time_scale: float = opt.TimeScaleOpt,
+    bind: str = opt.BindOpt,
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
@@ -113,7 +71,6 @@ def simulate(
     from robocli.sim.launch import abb_controller
 
     rate = check_replay(replay, speed, loop)
-    check_wire(byte_order, real_size)
     if motion_port == state_port != 0:
         raise typer.BadParameter(
             f"--motion-port and --state-port are both {motion_port}: the motion and the state "
@@ -124,16 +81,16 @@ def simulate(
         return
     options = {"latency_ms": latency_ms, "jitter_ms": jitter_ms, "noise_rad": noise_rad,
                "period_jitter_ms": period_jitter_ms, "lag_ms": lag_ms}  # fmt: skip
-    with sigterm_as_interrupt(), abb_controller(
+    with common.sigterm_as_interrupt(), abb_controller(
         robot, profile=profile, state_ms=state_ms, byte_order=byte_order, real_size=real_size,
         time_scale=time_scale, paper=paper, feedback=feedback, **options) as simulator:  # fmt: skip
-        with listening(bind):
-            motion, state = simulator.serve_tcp(bind_address(bind), motion_port, state_port)
+        with common.listening(bind):
+            motion, state = simulator.serve_tcp(common.bind_address(bind), motion_port, state_port)
         typer.echo(
             f"{simulator.robot.name} ({profile}): motion {motion}, state {state}, state every "
             f"{simulator.state_ms:g} ms" + ("" if simulator.ctl_model.exact else ", model on")
         )
-        wait_forever()  # Ctrl-C, SIGTERM: the simulator closes, exit 130
+        common.wait_forever()  # Ctrl-C, SIGTERM: the simulator closes, exit 130
 
 
 # ------------------------------------------------------------------------------ upload arm
@@ -171,30 +128,25 @@ class _Progress:
             self._bar.stop()
 
 
-@arm_link()
+@_arm.arm_link()
 def upload(
-    host: str = HostArg,
-    shape: Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),
-    points: int = count_option(100, "Points of the --shape.", min=1, max=100_000),
+    host: str = _arm.HostArg,
+    shape: _arm.Shape | None = typer.Option(None, "--shape", help="circle or rectangle."),
+    points: int = opt.count_option(100, "Points of the --shape.", min=1, max=100_000),
     file: Path | None = typer.Option(None, "--file", help="Trajectory log (.json/.csv/.npz)."),
-    duration: float | None = duration_option(None, "Shape duration, s."),
+    duration: float | None = opt.duration_option(None, "Shape duration, s."),
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Shape size, m."),
     center: str | None = typer.Option(None, "--center", help="Shape centre x,y,z, m."),
-    monitor: Path | None = output_option(
-        None, "Log the run's states to this file (.json/.csv/.npz)."
-    ),
-    record_to: Path | None = typer.Option(
-        None,
-        "--record",
-        metavar="FILE.mcap",
-        dir_okay=False,
-        help="Record this upload's connection (both ports, every frame) to an MCAP file.",
-    ),
-    ros2: bool = typer.Option(False, "--ros2", help="--record a ROS 2 bag (docs/ros2-bags.md)."),
-    overwrite: bool = OverwriteOpt,
-    split: bool = typer.Option(False, "--split", help="Upload > 100 points in several parts."),
-    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    link: ArmLink = LINK,
+    monitor: Path | None = opt.output_option(None, "Log the run's states to this file "
+                                             "(.json/.csv/.npz)."),  # fmt: skip
+    record_to: Path | None = typer.Option(None, "--record", metavar="FILE.mcap", dir_okay=False,
+                                          help="Record this upload's connection (both ports, "
+                                          "every frame) to an MCAP file."),  # fmt: skip
+    ros2: bool = opt.flag("--ros2", "--record a ROS 2 bag (docs/ros2-bags.md)."),
+    overwrite: bool = opt.OverwriteOpt,
+    split: bool = opt.flag("--split", "Upload > 100 points in several parts."),
+    stream: bool = opt.StreamOpt,
+    link: _arm.ArmLink = _arm.LINK,
     wait: float = typer.Option(600.0, "--wait", min=0.0, max=86_400.0, help=WAIT_HELP),
 ) -> None:
     """Upload a trajectory (download -1..-3, each point acknowledged) and wait for its end."""
@@ -211,7 +163,7 @@ def upload(
     traj = read_log(file) if file is not None else \
         shape_trajectory(link.robot, str(shape), points, radius, c, duration)  # fmt: skip
     with _recorded(record_to, link, overwrite, ros2) as (rec, listeners), \
-            connected(host, link, stream, listeners=listeners) as arm:  # fmt: skip
+            _arm.connected(host, link, stream, listeners=listeners) as arm:  # fmt: skip
         if rec is not None:
             rec.add(arm, "arm")
             rec.begin()  # connected: now the file is made
@@ -224,7 +176,7 @@ def upload(
 
 
 @contextlib.contextmanager
-def _recorded(path: Path | None, link: ArmLink, overwrite: bool,
+def _recorded(path: Path | None, link: _arm.ArmLink, overwrite: bool,
               ros2: bool = False) -> Iterator[tuple[Any, dict[str, Any]]]:  # fmt: skip
     """``upload --record``: a recorder (not begun: the file is made once connected) and the
     listeners to connect the arm with (:func:`robocli.io.record.upload.upload_recorder`); the
@@ -244,7 +196,7 @@ def _recorded(path: Path | None, link: ArmLink, overwrite: bool,
     try:
         yield rec, listeners
     finally:
-        with shielded():
+        with common.shielded():
             close_recording(rec, time.monotonic() - start)
 
 
@@ -271,18 +223,16 @@ def recording(arm: Arm, out: Path, max_samples: int | None = None, *,
                        f"-> {out}", err=True)  # fmt: skip
 
 
-@arm_link(motion=False)
+@_arm.arm_link(motion=False)
 def monitor(
-    host: str = HostArg,
-    out: Path = output_option(Path("real.json"), "Log to write (.json/.csv/.npz)."),
-    overwrite: bool = OverwriteOpt,
-    samples: int | None = count_option(
-        None, "States to record (default: until Ctrl-C).", min=2, max=1_000_000
-    ),
-    duration: float | None = duration_option(
-        None, "Seconds to record (a few states).", min=0.5, max=86_400.0
-    ),
-    link: ArmLink = LINK,
+    host: str = _arm.HostArg,
+    out: Path = opt.output_option(Path("real.json"), "Log to write (.json/.csv/.npz)."),
+    overwrite: bool = opt.OverwriteOpt,
+    samples: int | None = opt.count_option(None, "States to record (default: until Ctrl-C).", min=2,
+                                           max=1_000_000),  # fmt: skip
+    duration: float | None = opt.duration_option(None, "Seconds to record (a few states).", min=0.5,
+                                                 max=86_400.0),  # fmt: skip
+    link: _arm.ArmLink = _arm.LINK,
 ) -> None:
     """Record the state stream (independently of any upload) to a JSON/CSV/NPZ log, for
     --count, --duration or until Ctrl-C; the log is written however it ends."""
@@ -292,22 +242,22 @@ def monitor(
     if samples is not None and duration is not None:
         raise typer.BadParameter("give --count or --duration, not both")
     check_writable(out, overwrite)  # before recording: not after the whole --duration
-    with connected(host, link) as arm, \
+    with _arm.connected(host, link) as arm, \
             recording(arm, out, samples and 2 * samples, overwrite=overwrite) as rec:  # fmt: skip
         if samples is None and duration is None:
             typer.echo(f"recording to {out} until Ctrl-C", err=True)
         record_states(arm, rec, samples, duration, link.timeout)
 
 
-@arm_link(motion=False)
+@_arm.arm_link(motion=False)
 def connect(
-    host: str = HostArg,
-    once: bool = typer.Option(False, "--once", help="Print one state and exit."),
-    json_out: bool = json_option(),
-    count: int | None = count_option(None, "Stop after N states.", min=1),
+    host: str = _arm.HostArg,
+    once: bool = opt.flag("--once", "Print one state and exit."),
+    json_out: bool = opt.json_option(),
+    count: int | None = opt.count_option(None, "Stop after N states.", min=1),
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    link: ArmLink = LINK,
+    link: _arm.ArmLink = _arm.LINK,
 ) -> None:
     """Show the arm's live joints (deg), TCP position and status until q (on a terminal)
     or Ctrl-C (--json: every field, rad too; --foxglove: also to Foxglove, with every
@@ -316,17 +266,17 @@ def connect(
     from robocli.views.arm import state_text, states
     from robocli.views.keys import QUIT_KEYS, keyboard
 
-    with reader_may_leave(), live_view(foxglove, foxglove_host) as view, \
-            connected(host, link) as arm, keyboard() as read_key:  # fmt: skip
+    with common.reader_may_leave(), live_view(foxglove, foxglove_host) as view, \
+            _arm.connected(host, link) as arm, keyboard() as read_key:  # fmt: skip
         if view is not None:
             view.add(arm)
         shown, last = 0, 0.0
         for d in states(arm, link.timeout):  # Ctrl-C: exit 130 (the link closed on the way out)
             if once:
-                print_json(rounded(d)) if json_out else typer.echo(state_text(d))
+                common.print_json(common.rounded(d)) if json_out else typer.echo(state_text(d))
                 return
             if json_out:
-                print_json_line(rounded(d))
+                common.print_json(common.rounded(d))
                 shown += 1
             elif d["t"] - last >= 0.1:
                 typer.echo(state_text(d))

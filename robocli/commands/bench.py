@@ -12,44 +12,29 @@ import sys
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    print_json,
-    sigterm_as_interrupt,
-)
+from robocli.commands._arm import ByteOrder, RealSize
+from robocli.commands._common import print_json, sigterm_as_interrupt
 from robocli.commands._options import count_option, json_option
+from robocli.errors import EXIT_INTERRUPTED
 
-if TYPE_CHECKING:
-    pass
 
-TARGETS = ("pioneer",)
-TargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer, arm or hub.")
-JitterTargetOpt = typer.Option(
-    "pioneer", "--target", "-t", help="What to measure: pioneer, arm or laser."
-)
-SipTargetOpt = typer.Option("pioneer", "--target", "-t", help="What to measure: pioneer.")
+def _target(what: str) -> Any:
+    return typer.Option("pioneer", "--target", "-t", help=f"What to measure: {what}.")
+
+
 UrlOpt = typer.Argument(None, metavar="URL", show_default=False,
                         help="A real device's URL (default: a built-in simulator).")  # fmt: skip
 JsonOpt = json_option()
-OrderOpt = typer.Option(
-    None, "--byte-order", help="arm: little (ABB, the default) or big (Fanuc, FS100)."
-)
+OrderOpt = typer.Option(None, "--byte-order", help="arm: little (ABB, the default) or big "
+                        "(Fanuc, FS100).")  # fmt: skip
+PaperOpt = typer.Option(False, "--paper-model", help="arm: paper-like simulator model.")
 RealOpt = typer.Option(None, "--real-size", help="arm: bytes per real, 4 (default) or 8 (FLOAT64).")
-ByteOrder = Literal["little", "big"]
-RealSize = Literal[4, 8]
-EXIT_INTERRUPTED = 130
 #: A run shows progress once it has lasted this long (seconds), on a terminal only.
 PROGRESS_AFTER = 2.0
-
-
-def _check_target(target: str, also: tuple[str, ...] = ()) -> None:
-    """``also``: the other targets this command measures (handled before this check)."""
-    if target not in TARGETS:
-        known = ", ".join((*TARGETS, *also))
-        raise typer.BadParameter(f"unknown target {target!r}; choose from {known}")
 
 
 def _check_paper_model(target: str, paper: bool) -> None:
@@ -60,15 +45,11 @@ def _check_paper_model(target: str, paper: bool) -> None:
 def _arm_wire(target: str, byte_order: str | None, real_size: int | None) -> tuple[str, int]:
     """``--byte-order`` and ``--real-size``: the Simple Message variant of an arm target
     (and of the simulator the bench starts); refused for the other targets."""
-    from robocli.commands._arm import check_wire
-
     given = [name for name, value in (("--byte-order", byte_order), ("--real-size", real_size))
              if value is not None]  # fmt: skip
     if given and target != "arm":
         raise typer.BadParameter(f"{given[0]} is for --target arm, not {target!r}")
-    wire = (byte_order or "little", real_size or 4)
-    check_wire(*wire)
-    return wire
+    return byte_order or "little", real_size or 4
 
 
 class _Progress:
@@ -107,17 +88,15 @@ class _Progress:
 
 
 def rtt(
-    target: Literal["pioneer", "arm", "hub"] = TargetOpt,
+    target: Literal["pioneer", "arm", "hub"] = _target("pioneer, arm or hub"),
     url: str | None = UrlOpt,
     n: int = count_option(1000, "Round trips.", min=10, max=1_000_000),
-    floor_n: int | None = typer.Option(
-        None, "--floor-n", min=10, max=1_000_000, help="Round trips of each C floor (default: n)."
-    ),
-    cpu: int | None = typer.Option(
-        None, "--cpu", min=0, help="CPU for the same-CPU floor and the client (default: first)."
-    ),
+    floor_n: int | None = typer.Option(None, "--floor-n", min=10, max=1_000_000, help="Round "
+                                       "trips of each C floor (default: n)."),  # fmt: skip
+    cpu: int | None = typer.Option(None, "--cpu", min=0, help="CPU for the same-CPU floor and the "
+                                   "client (default: first)."),  # fmt: skip
     json_out: bool = JsonOpt,
-    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    paper: bool = PaperOpt,
     byte_order: ByteOrder | None = OrderOpt,
     real_size: RealSize | None = RealOpt,
 ) -> None:
@@ -158,15 +137,14 @@ def _render(report: Any, json_out: bool) -> None:
 
 def _hub_table(report: Any, json_out: bool) -> None:
     """``bench rtt --target hub``: its one row, in microseconds."""
+    from robocli.bench.text import hub_rtt_lines
+    from robocli.commands._common import echo_lines
+
     for result in report.results:
         if json_out:
             print_json([result])
             continue
-        keys = ("mean", "median", "p90", "p99", "max")
-        typer.echo(f"{'measurement (us)':<22}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
-        typer.echo(f"{result['name']:<22}{result['n']:>7}" +
-                   "".join(f"{result[k]:>9.1f}" for k in keys))  # fmt: skip
-        typer.echo(f"  {result['where']}")
+        echo_lines(hub_rtt_lines(result))
     if report.interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
 
@@ -179,11 +157,11 @@ def _finish(interrupted: bool, samples: int | None = None) -> None:
 
 
 def jitter(
-    target: Literal["pioneer", "arm", "laser"] = JitterTargetOpt,
+    target: Literal["pioneer", "arm", "laser"] = _target("pioneer, arm or laser"),
     url: str | None = UrlOpt,
     n: int = count_option(300, "SIP periods.", min=10),
     json_out: bool = JsonOpt,
-    paper: bool = typer.Option(False, "--paper-model", help="arm: paper-like simulator model."),
+    paper: bool = PaperOpt,
     byte_order: ByteOrder | None = OrderOpt,
     real_size: RealSize | None = RealOpt,
 ) -> None:
@@ -199,7 +177,7 @@ def jitter(
 
 
 def sip(
-    target: Literal["pioneer"] = SipTargetOpt,
+    target: Literal["pioneer"] = _target("pioneer"),
     url: str | None = UrlOpt,
     n: int = count_option(300, "SIPs to collect.", min=10),
     json_out: bool = JsonOpt,
@@ -207,66 +185,20 @@ def sip(
     """Client work per SIP and the keep-alive period (the MATLAB interface's histograms)."""
     from robocli.bench import reports
 
-    _check_target(target)
     with sigterm_as_interrupt():
         _render(reports.sip(url, n, stage=_Progress().stage), json_out)
 
 
-def _unit(median_us: float) -> tuple[float, str]:
-    """The display unit of a measurement: (its size in seconds, label); ms from 10 ms up,
-    so that a 100 ms period reads ``100.0 ms``, not ``100013.6`` us."""
-    return (1e-3, "ms") if median_us >= 10_000 else (1e-6, "us")
-
-
-def _show(
-    results: list[dict[str, Any]],
-    hist: dict[str, Any],
-    json_out: bool,
-    floor_note: str = "",
-) -> None:
+def _show(results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool,
+          floor_note: str = "") -> None:  # fmt: skip
     """A table (each row in its own unit, named in the unit column) and histograms of
     ``hist`` in the unit of their samples; or JSON (microseconds, to the nanosecond).
     A reader that leaves early (``| head -1``) ends the output quietly, exit 0."""
-    from robocli.commands._common import reader_may_leave
+    from robocli.bench.text import results_lines
+    from robocli.commands._common import echo_lines, reader_may_leave, rounded
 
     with reader_may_leave():
-        _print_results(results, hist, json_out, floor_note)
-
-
-def _print_results(
-    results: list[dict[str, Any]], hist: dict[str, Any], json_out: bool, floor_note: str
-) -> None:
-    import numpy as np
-
-    from robocli.bench import stats as bs
-    from robocli.commands._common import rounded
-
-    if json_out:
-        print_json(rounded(results, 3, {}))
-        return
-    keys = ("mean", "median", "std", "min", "max", "p90", "p99")
-    width = max([28, *(len(r["name"]) + 1 for r in results)])
-    typer.echo(f"{'measurement':<{width}}{'unit':>5}{'n':>7}" + "".join(f"{k:>9}" for k in keys))
-    for r in results:
-        unit, label = _unit(r["median"])
-        values = "".join(f"{r[k] * 1e-6 / unit:>9.1f}" for k in keys)
-        typer.echo(f"{r['name']:<{width}}{label:>5}{r['n']:>7}" + values)
-        notes = [r["where"]] if "where" in r else []
-        if "x_floor_median" in r:
-            notes.append(
-                f"= {r['x_floor_median']:.1f} x floor (median), {r['x_floor_p99']:.1f} x (p99)"
-            )
-        if "target_met" in r:
-            notes.append(
-                f"target <= {r['target_median_x']:g} x / {r['target_p99_x']:g} x: "
-                + ("met" if r["target_met"] else "NOT met")
-            )
-        if notes:
-            typer.echo("  " + "; ".join(notes))
-    if floor_note:
-        typer.echo(floor_note)
-    for name, samples in hist.items():
-        unit, label = _unit(float(np.median(samples)) * 1e6)
-        typer.echo(f"histogram: {name} ({label})")
-        for line in bs.histogram(samples, unit=unit, label=label):
-            typer.echo(line)
+        if json_out:
+            print_json(rounded(results, 3, {}))
+            return
+        echo_lines(results_lines(results, hist, floor_note))

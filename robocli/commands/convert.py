@@ -7,20 +7,16 @@ from pathlib import Path
 
 import typer
 
+from robocli.commands._options import flag, overwrite_option
+
 
 def convert(
-    file: Path = typer.Argument(
-        ...,
-        exists=True,
-        dir_okay=False,
-        metavar="IN.mcap",
-        help="The robocli recording; never written to.",
-    ),
-    out: Path = typer.Argument(
-        ..., metavar="OUT", help="OUT.mcap: one file; another name: a bag folder."
-    ),
-    ros2: bool = typer.Option(False, "--ros2", help="Write a ROS 2 bag (the only target)."),
-    overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT.mcap if it exists."),
+    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="IN.mcap",
+                                help="The robocli recording; never written to."),
+    out: Path = typer.Argument(..., metavar="OUT", help="OUT.mcap: one file; another name: a bag "
+                               "folder."),  # fmt: skip
+    ros2: bool = flag("--ros2", "Write a ROS 2 bag (the only target)."),
+    overwrite: bool = overwrite_option("Replace OUT.mcap if it exists."),
 ) -> None:
     """Rewrite a recording as a ROS 2 bag (standard messages in CDR, REP 103/105) that
     ros2 bag play, rosbags and Foxglove read; OUT.mcap is one file, another name a bag

@@ -9,9 +9,6 @@ it relays other programs' sessions as a recording proxy, as ``dump hub`` always 
 
 from __future__ import annotations
 
-import contextlib
-import json
-import os
 import sys
 import time
 from collections.abc import Callable
@@ -21,56 +18,49 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.analysis import text
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._arm import LINK, ArmLink, arm_host, arm_link
-from robocli.commands._common import (
-    OverwriteOpt,
-    from_env,
-    listening,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    sigterm_as_interrupt,
-)
-from robocli.commands._options import DEVICE_FORMS, count_option, device_argument, json_option
 from robocli.commands.laser import BaudOpt as LaserBaudOpt
 from robocli.commands.laser import Model, ModelOpt, laser_url
 from robocli.commands.laser import TimeoutOpt as LaserTimeoutOpt
 from robocli.commands.pioneer import BaudOpt, SubtypeOpt, TimeoutOpt, connected, start_laser
 from robocli.defaults import ARM_ENV, HUB_ENV, PIONEER_ENV
+from robocli.output import same_file
 
 if TYPE_CHECKING:
     from robocli.analysis.packets import Packet, PacketLog
-    from robocli.io.capture import CaptureStats
 
 #: Messages dump arm queues for the output at most (bounded memory when stdout stalls).
 MAX_QUEUED = 20_000
-#: Longest text line of a packet unless ``-v`` (the rest is cut with an ellipsis).
-LINE_MAX = 160
-_ARROWS = {"tx": "->", "rx": "<-"}
-#: Short names of Simple Message fields in text lines (JSON keeps the protocol's names).
-_SHORT = {"drives_powered": "powered", "e_stopped": "estop", "error_code": "code",
-          "in_error": "error", "in_motion": "moving", "motion_possible": "possible",
-          "valid_fields": "valid", "sequence": "seq", "robot_id": "robot"}  # fmt: skip
-_HexOpt = typer.Option(False, "--hex", help="Also print the raw frame bytes.")
+_HexOpt = opt.flag("--hex", "Also print the raw frame bytes.")
+_MessagesOpt = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none).")
+
+
+def _device(kind: str, envvar: str) -> Any:
+    return typer.Argument(None, help=f"The {kind}: {opt.DEVICE_FORMS[kind]}; omit with --file.",
+                          show_default=False, metavar="URL", envvar=envvar, show_envvar=True)
+
+
+def _capture(help: str, metavar: str | None = "CAPTURE") -> Any:
+    return typer.Option(None, "--file", "-f", metavar=metavar, exists=True, dir_okay=False,
+                        help=help)  # fmt: skip
 
 
 def pioneer(
     ctx: typer.Context,
-    port: str | None = typer.Argument(None, help=f"The pioneer: {DEVICE_FORMS['pioneer']}; omit "
-                                      "with --file.", show_default=False, metavar="URL",
-                                      envvar=PIONEER_ENV, show_envvar=True),  # fmt: skip
-    count: int = count_option(0, "Stop after N packets (0: none).", min=0),
+    port: str | None = _device("pioneer", PIONEER_ENV),
+    count: int = opt.count_option(0, "Stop after N packets (0: none).", min=0),
     hex_out: bool = _HexOpt,
-    json_out: bool = json_option(),
-    output: Path | None = typer.Option(None, "--output", "-o", metavar="FILE.jsonl", dir_okay=False,
-                                       help="Also record the packets to a .jsonl capture (what "
-                                       "--file reads)."),  # fmt: skip
-    overwrite: bool = OverwriteOpt,
-    laser: bool = typer.Option(False, "--laser", help="Start a simulator's laser, to see its "
-                               "packets (0x60/0x61)."),  # fmt: skip
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (.jsonl trace or "
-                                     "raw bytes) instead of a robot."),  # fmt: skip
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record the packets to a .jsonl capture "
+                                            "(what --file reads).", metavar="FILE.jsonl",
+                                            dir_okay=False),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
+    laser: bool = opt.flag("--laser", "Start a simulator's laser, to see its packets (0x60/0x61)."),
+    file: Path | None = _capture("Decode a capture (.jsonl trace or raw bytes) instead of a "
+                                 "robot."),  # fmt: skip
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -95,7 +85,7 @@ def pioneer(
 
             log.follow(pioneer_check(robot))
     finally:
-        with reader_may_leave():
+        with common.reader_may_leave():
             log.drain()  # what was still queued, and the close sequence
         log.close()
 
@@ -103,22 +93,16 @@ def pioneer(
 @arm_link()
 def arm(
     ctx: typer.Context,
-    host: str | None = typer.Argument(None, help=f"The arm: {DEVICE_FORMS['arm']}; omit with "
-                                      "--file.", show_default=False, metavar="URL",
-                                      envvar=ARM_ENV, show_envvar=True),  # fmt: skip
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
+    host: str | None = _device("arm", ARM_ENV),
+    count: int = _MessagesOpt,
     hex_out: bool = _HexOpt,
-    json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None, "--output", "-o", dir_okay=False, help="Also record to a .jsonl capture."
-    ),
-    overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(
-        None, "--file", "-f", exists=True, dir_okay=False, help="Decode a capture instead."
-    ),
-    ports: Literal["both", "motion", "state"] = typer.Option(
-        "both", "--ports", help="both (two clients), motion or state."
-    ),
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record to a .jsonl capture.",
+                                            dir_okay=False),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
+    file: Path | None = _capture("Decode a capture instead.", None),
+    ports: Literal["both", "motion", "state"] = typer.Option("both", "--ports", help="both (two "
+                                                             "clients), motion or state."),
     listen: str | None = typer.Option(None, "--listen", metavar="[ADDR:]PORT", help="Be a "
                                       "recording proxy: other programs connect to the motion "
                                       "port PORT and the state port PORT+2 (0: ephemeral) "
@@ -138,34 +122,19 @@ def arm(
     log = _log(protocol, partial(_arm_line, json_out=json_out, hex_out=hex_out), count, output,
                overwrite, n_joints=load_model(link.robot).n_joints, real=link.real_size,
                bound=MAX_QUEUED)  # fmt: skip
-    with reader_may_leave(), sigterm_as_interrupt():
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
         if host is None:
             _replay(log, file, protocol)
             return
         log.start_now()
         wire: dict[str, Any] = {"byte_order": link.byte_order, "real_size": link.real_size,
                                 "robot": link.robot}  # fmt: skip
-        with arm_host(host, link.motion_port, link.state_port, **wire) as address, \
-                contextlib.ExitStack() as stack:  # fmt: skip
-            arms, relays = [], []
+        with arm_host(host, link.motion_port, link.state_port, **wire) as address:
             try:
-                if bind_to is not None:
-                    with listening(bind_to[0]):  # in use: exit 1; not this machine's: 2
-                        relays = sessions.arm_relays(stack, log, address, ports, bind_to,
-                                                     link.byte_order)  # fmt: skip
-                    names = [n for n in ("motion", "state") if ports in ("both", n)]
-                    typer.echo("dump: clients connect to " + ", ".join(
-                        f"{n} {bind_to[0]}:{r.port} -> {r.upstream[0]}:{r.upstream[1]}"
-                        for n, r in zip(names, relays, strict=True)), err=True)  # fmt: skip
-                else:
-                    arms = sessions.arm_clients(stack, log, address, ports, timeout=link.timeout,
-                                                **wire)  # fmt: skip
-                log.open()  # connected (or listening): now the capture is made
-                log.follow(sessions.arm_check(arms, relays, ports, link.timeout))
+                sessions.arm_session(log, address, ports, listen=bind_to, timeout=link.timeout,
+                                     on_relays=lambda text: typer.echo(f"dump: {text}", err=True),
+                                     **wire)  # fmt: skip
             finally:
-                stack.close()  # nothing is queued after
-                log.drain()
-                log.close()
                 if log.dropped:
                     typer.echo(f"robocli: {log.dropped} messages not shown: the output was too "
                                "slow", err=True)  # fmt: skip
@@ -173,27 +142,20 @@ def arm(
 
 def hub(
     ctx: typer.Context,
-    host: str | None = typer.Argument(None, help=f"The hub: {DEVICE_FORMS['hub']}; omit with "
-                                      "--file.", show_default=False, metavar="URL",
-                                      envvar=HUB_ENV, show_envvar=True),  # fmt: skip
-    listen: str = typer.Option(
-        "127.0.0.1:1501", "--listen", help="Where clients connect instead of the hub."
-    ),
-    count: int = typer.Option(0, "--count", "-n", min=0, help="Stop after N messages (0: none)."),
-    hex_out: bool = typer.Option(False, "--hex", help="Also print the raw bytes."),
-    json_out: bool = json_option(),
-    output: Path | None = typer.Option(
-        None, "--output", "-o", help="Also record the session (.jsonl capture)."
-    ),
-    overwrite: bool = OverwriteOpt,
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (dump hub -o, or a "
-                                     "record .mcap) instead."),  # fmt: skip
+    host: str | None = _device("hub", HUB_ENV),
+    listen: str = typer.Option("127.0.0.1:1501", "--listen",
+                               help="Where clients connect instead of the hub."),
+    count: int = _MessagesOpt,
+    hex_out: bool = opt.flag("--hex", "Also print the raw bytes."),
+    json_out: bool = opt.json_option(),
+    output: Path | None = opt.output_option(None, "Also record the session (.jsonl capture)."),
+    overwrite: bool = opt.OverwriteOpt,
+    file: Path | None = _capture("Decode a capture (dump hub -o, or a record .mcap) instead."),
 ) -> None:
     """A recording proxy: point ros4mat clients at --listen; every message both ways is
     printed, named and decoded, and passed on unchanged. --file decodes a capture."""
     from robocli.analysis.ros4mat import check_upstream
-    from robocli.analysis.sessions import hub_proxy
+    from robocli.analysis.sessions import hub_session
     from robocli.devices.hub.client import parse_hub
     from robocli.errors import EXIT_INTERRUPTED
     from robocli.transports import parse_address
@@ -208,18 +170,11 @@ def hub(
     bind, port = parse_address(listen, 1501, default_host="127.0.0.1", what="--listen",
                                port_range=(0, 65535))  # fmt: skip
     check_upstream(*upstream)
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
-            check_upstream(*upstream)
-            with listening(bind):
-                proxy = hub_proxy(log, upstream, bind, port)
-            with proxy.start():
-                log.open()  # listening: now the capture is made
-                typer.echo(f"dump: clients connect to {bind}:{proxy.port}, relayed to "
-                           f"{upstream[0]}:{upstream[1]}", err=True)  # fmt: skip
-                while not log.stopped.wait(0.25):
-                    pass
-            log.check()  # `dump hub ... | head`: what the proxy's thread met, said here
+            hub_session(log, upstream, bind, port, lambda at: typer.echo(
+                f"dump: clients connect to {bind}:{at}, relayed to {upstream[0]}:{upstream[1]}",
+                err=True))  # fmt: skip
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
         finally:
@@ -227,12 +182,11 @@ def hub(
 
 
 def laser(
-    port: str | None = device_argument("laser", default=None),
-    count: int = count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
-    json_out: bool = json_option(),
-    file: Path | None = typer.Option(None, "--file", "-f", metavar="CAPTURE", exists=True,
-                                     dir_okay=False, help="Decode a capture (.jsonl chunks, a "
-                                     ".mcap recording or raw sensor bytes)."),  # fmt: skip
+    port: str | None = opt.device_argument("laser", default=None),
+    count: int = opt.count_option(3, "Scans to stream live (0: until Ctrl-C).", min=0),
+    json_out: bool = opt.json_option(),
+    file: Path | None = _capture("Decode a capture (.jsonl chunks, a .mcap recording or raw "
+                                 "sensor bytes)."),  # fmt: skip
     model: Model = ModelOpt,
     baud: int = LaserBaudOpt,
     timeout: float = LaserTimeoutOpt,
@@ -243,12 +197,9 @@ def laser(
     if (port is None) == (file is None):
         raise typer.BadParameter("give a URL or --file CAPTURE (one of them)")
     log = _log("scip2", partial(_laser_lines, t0=[], json_out=json_out), 0, None, False)
-    with reader_may_leave(), sigterm_as_interrupt():
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
         if file is not None:
-            stats = _replay(log, file, "scip2")
-            if stats is not None and stats.dropped_bytes:
-                typer.echo(f"robocli: {file}: {stats.frames} blocks decoded, "
-                           f"{stats.dropped_bytes} bytes dropped", err=True)  # fmt: skip
+            _replay(log, file, "scip2")
             return
         from robocli.devices.laser import Laser
 
@@ -266,22 +217,15 @@ def _one(ctx: typer.Context, name: str, device: str | None, file: Path | None,
          output: Path | None) -> str | None:  # fmt: skip
     """The device, or None for ``--file`` (whose choice overrides the device's environment
     variable); a usage error unless exactly one is given, or for ``--output`` on the file."""
-    if file is not None and from_env(ctx, name):
+    if file is not None and common.from_env(ctx, name):
         device = None
     if name == "port" and (device is None) == (file is None):  # dump pioneer's own words
         raise typer.BadParameter("give PORT or --file" + (", not both" if file else ""))
     if (device is None) == (file is None):
         raise typer.BadParameter("give HOST or --file (one of them)")
-    if output is not None and file is not None and _same_file(output, file):
+    if output is not None and file is not None and same_file(output, file):
         raise typer.BadParameter(f"--output {output} is the --file being read: it would be emptied")
     return device
-
-
-def _same_file(a: Path, b: Path) -> bool:
-    try:
-        return os.path.samefile(a, b)
-    except OSError:  # one of them does not exist (yet)
-        return False
 
 
 def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
@@ -306,21 +250,21 @@ def _log(protocol: str, render: Callable[[PacketLog, Packet], None], count: int,
     return log
 
 
-def _replay(log: PacketLog, file: Path | None, protocol: str) -> CaptureStats | None:
-    """Show a capture's packets (exit 1 when it holds none); a note of dropped bytes."""
-    from robocli.analysis.sessions import replay_capture
+def _replay(log: PacketLog, file: Path | None, protocol: str) -> None:
+    """Show a capture's packets (exit 1 when it holds none); a note of dropped bytes (of a
+    Pioneer's or a laser's capture)."""
+    from robocli.analysis.sessions import NOUNS, replay_capture
 
     assert file is not None
     log.open()
     try:
-        with reader_may_leave(), sigterm_as_interrupt():
+        with common.reader_may_leave(), common.sigterm_as_interrupt():
             stats = replay_capture(log, file, protocol)
     finally:
         log.close()
-    if stats is not None and stats.dropped_bytes and protocol == "arcos":
-        typer.echo(f"robocli: {file}: {stats.frames} packets decoded, {stats.dropped_bytes} "
-                   "bytes dropped", err=True)  # fmt: skip
-    return stats
+    if stats is not None and stats.dropped_bytes and protocol in NOUNS:
+        typer.echo(f"robocli: {file}: {stats.frames} {NOUNS[protocol]} decoded, "
+                   f"{stats.dropped_bytes} bytes dropped", err=True)  # fmt: skip
 
 
 def _listen_address(text: str) -> tuple[str, int]:
@@ -345,95 +289,28 @@ def _out(line: str, payload: bytes | None = None, indent: int = 13) -> None:
     sys.stdout.flush()
 
 
+def _mark() -> str:
+    return text.ellipsis(getattr(sys.stdout, "encoding", None))
+
+
 def _pioneer_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool, full: bool) -> None:
     if json_out:
-        return print_json_line(rounded({**log.stamp(p.t), "dir": p.wire_dir, "type": p.type,
-                                        "name": p.name, "fields": p.fields}))  # fmt: skip
-    stamp = f"{p.t:9.3f} " if p.t is not None else ""
-    text = " ".join(f"{k}={_short(v, full)}" for k, v in p.fields.items())
-    line = f"{stamp}{_ARROWS.get(p.direction, '  ')} {p.name:<12} {text}".rstrip()
-    _out(line if full else _cut(line), p.frame if hex_out else None)
+        return common.print_json(text.pioneer_record(log, p))
+    _out(text.pioneer_line(p, full, _mark()), p.frame if hex_out else None)
 
 
 def _arm_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        hexed = {"hex": p.frame.hex()} if hex_out else {}
-        return print_json_line(rounded({**log.stamp(p.t), "port": p.port, "dir": p.wire_dir,
-                                        "name": p.name, "fields": p.fields, **hexed}))  # fmt: skip
-    text = " ".join(f"{_SHORT.get(k, k)}={_short_sm(v)}" for k, v in p.fields.items())
-    stamp = f"{p.t:9.3f} " if p.t is not None else ""
-    line = f"{stamp}{p.port or '-':<6} {_ARROWS.get(p.direction, '  ')} {p.name:<22} {text}"
-    _out(_cut(line.rstrip()), p.frame if hex_out else None)
+        return common.print_json(text.arm_record(log, p, hex_out))
+    _out(text.arm_line(p, _mark()), p.frame if hex_out else None)
 
 
 def _hub_line(log: PacketLog, p: Packet, json_out: bool, hex_out: bool) -> None:
     if json_out:
-        record = {**log.stamp(p.t), "dir": p.wire_dir, "name": p.name, **p.fields}
-        record.update(rounded(log.stamp(p.t)))  # a field of the message never hides it
-        return _out(json.dumps({**record, **({"hex": p.frame.hex()} if hex_out else {})},
-                               default=str))  # fmt: skip
-    stamp = f"{p.t:10.6f}" if p.t is not None else f"{'-':>10}"
-    text = " ".join(f"{k}={v}" for k, v in p.fields.items())
-    _out(f"{stamp} {_ARROWS[p.direction]} {p.name:<14} {text}",
-         p.frame[:256] if hex_out else None, 14)  # fmt: skip
+        return _out(text.hub_record(log, p, hex_out))
+    _out(text.hub_line(p), p.frame[:256] if hex_out else None, 14)
 
 
 def _laser_lines(log: PacketLog, p: Packet, t0: list[float], json_out: bool) -> None:
-    """Each line of a SCIP block: ``t`` Unix time (None when unknown), ``t_rel`` seconds
-    since the first line."""
-    t = p.t or 0.0
-    if not t0:
-        t0.append(t)
-    rel = t - t0[0]
-    for line in p.lines:
-        if json_out:
-            unix = None if log.epoch is None else round(t + log.epoch, 6)
-            print_json_line({"t": unix, "t_rel": round(rel, 6), "dir": p.wire_dir,
-                             "line": line.text, "what": line.what})  # fmt: skip
-        else:
-            typer.echo(f"{rel:10.6f} {_ARROWS[p.direction]} {line.text[:70]:<70} {line.what}")
-
-
-def _cut(line: str) -> str:
-    if len(line) <= LINE_MAX:
-        return line
-    mark = ellipsis()
-    return line[: LINE_MAX - len(mark)] + mark
-
-
-def ellipsis() -> str:
-    """``…`` where standard output can encode it, else ``...`` (a latin-1 or ASCII
-    terminal, ``PYTHONIOENCODING=ascii``)."""
-    try:
-        "\u2026".encode(getattr(sys.stdout, "encoding", None) or "ascii")
-    except (UnicodeEncodeError, LookupError):
-        return "..."
-    return "\u2026"
-
-
-def _short(value: Any, full: bool) -> str:
-    """A field's value in a text line: unless ``full``, long lists (sonar pairs, laser
-    readings) as how many and the nearest."""
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list) and value and isinstance(value[0], (tuple, dict)):
-        if full:
-            return "[" + ",".join(_short(v, full) for v in value) + "]"
-        ranges = [v["range"] if isinstance(v, dict) else v[-1] for v in value]
-        return f"{len(value)}(min {min(ranges)})"  # how many, the nearest
-    if isinstance(value, tuple):
-        return ":".join(map(str, value))
-    if isinstance(value, list) and len(value) > 8 and not full:
-        return f"{len(value)}(min {min(value)})"  # laser ranges: how many, the nearest
-    if isinstance(value, dict):
-        return "{" + ",".join(f"{k}={_short(v, full)}" for k, v in value.items()
-                              if v is not None) + "}"  # fmt: skip
-    return str(value)
-
-
-def _short_sm(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    if isinstance(value, list):
-        return "[" + ",".join(_short_sm(v) for v in value) + "]"
-    return str(value)
+    for line in text.laser_lines(log, p, t0, json_out):
+        common.print_json(line) if json_out else typer.echo(line)

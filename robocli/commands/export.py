@@ -9,25 +9,18 @@ from typing import Literal
 
 import typer
 
-from robocli.commands._common import OverwriteOpt
+from robocli.commands._options import OverwriteOpt, output_option
 
 #: What ``export`` writes (robocli.io.export.FORMATS; a test checks that they agree).
 Format = Literal["csv", "jsonl", "npz", "irb120-json"]
 
 
 def export(
-    recording: Path = typer.Argument(
-        ..., exists=True, dir_okay=False, metavar="FILE", help="An MCAP recording."
-    ),
+    recording: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
+                                     help="An MCAP recording."),
     fmt: Format = typer.Option(..., "--format", "-f", help="What to write."),
-    out: Path | None = typer.Option(
-        None,
-        "--output",
-        "-o",
-        file_okay=False,
-        metavar="DIR",
-        help="Folder to write into (default: the recording's).",
-    ),
+    out: Path | None = output_option(None, "Folder to write into (default: the recording's).",
+                                     file_okay=False, metavar="DIR"),  # fmt: skip
     overwrite: bool = OverwriteOpt,
 ) -> None:
     """Export a recording: one file per channel, or an arm's IRB120 JSON log."""

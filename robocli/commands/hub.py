@@ -3,8 +3,6 @@ thin layers over :mod:`robocli.devices.hub.client` and :mod:`robocli.bench.hub`.
 
 from __future__ import annotations
 
-import io
-import os
 import sys
 import time
 from collections import deque
@@ -14,41 +12,23 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    print_json,
-    print_json_line,
-    reader_may_leave,
-    sigterm_as_interrupt,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import (
-    SENSOR_NAMES,
-    SensorName,
-    count_option,
-    device_argument,
-    duration_option,
-    json_option,
-)
-from robocli.commands._zenoh import zenoh_hub, zenoh_option
+from robocli.commands._options import SENSOR_NAMES
+from robocli.commands._zenoh import zenoh_option, zenoh_target
 from robocli.defaults import HUB_ENV
+from robocli.errors import EXIT_INTERRUPTED
+from robocli.views.hub import header_text, rows_text
 
 if TYPE_CHECKING:
     import numpy as np
 
     from robocli.devices.hub.client import Hub
 
-EXIT_INTERRUPTED = 130
 HUB_HELP = "Hub address HOST[:PORT] (default 127.0.0.1; port 1500)."
-HubOpt = typer.Option(
-    None,
-    "--hub",
-    metavar="URL",
-    help=HUB_HELP,
-    show_default=False,
-    envvar=HUB_ENV,
-    show_envvar=True,
-)
-HubArg = device_argument("hub", HUB_ENV)
+HubOpt = opt.device_option("--hub", HUB_HELP, show_default=False, envvar=HUB_ENV, show_envvar=True)
+HubArg = opt.device_argument("hub", HUB_ENV)
 TOKEN_ENV = "ROBOCLI_HUB_TOKEN_FILE"
 SENSOR_HELP = ", ".join(SENSOR_NAMES)
 TokenOpt = typer.Option(
@@ -63,15 +43,9 @@ def _address(hub: str | None) -> str:
     return hub or "127.0.0.1"  # --hub, else $ROBOCLI_HUB (Typer reads it), else this machine
 
 
-def open_hub(
-    address: str,
-    *,
-    compress: bool = False,
-    timeout: float = 5.0,
-    token_file: Path | None = None,
-    hub_option: bool = True,
-    listeners: Iterable[Any] = (),
-) -> Hub:
+def open_hub(address: str, *, compress: bool = False, timeout: float = 5.0,
+             token_file: Path | None = None, hub_option: bool = True,
+             listeners: Iterable[Any] = ()) -> Hub:  # fmt: skip
     """Connect (with the token in ``token_file``, if any); "nobody listens" is one line with
     a hint (exit 3). ``hub_option``: the address came from --hub / $ROBOCLI_HUB.
     ``listeners``: see every frame from CONNECT on (a recorder's raw link)."""
@@ -98,8 +72,11 @@ def _open(hub: str | None, zenoh: str | None, *, compress: bool, token_file: Pat
     if zenoh is None:
         return open_hub(_address(hub), compress=compress, token_file=token_file)
     from robocli.commands.serve import token_from_file
+    from robocli.devices.hub.over_zenoh import ZenohHub
 
-    return zenoh_hub(hub, zenoh, compress=compress, token=token_from_file(token_file))
+    if compress:
+        raise typer.BadParameter("--compress is for ros4mat TCP; Zenoh sends batches as is")
+    return ZenohHub.connect(hub, zenoh=zenoh_target(zenoh), token=token_from_file(token_file))
 
 
 def _mask(text: str) -> int:
@@ -113,30 +90,22 @@ def _mask(text: str) -> int:
 
 
 def subscribe(
-    sensor: SensorName = typer.Argument(
-        ..., metavar="SENSOR", help=f"The sensor: {SENSOR_HELP}.", show_default=False
-    ),
-    rate: int = typer.Option(..., "--rate", "-r", min=1, max=65535, help="Sample rate, Hz."),
+    sensor: opt.SensorName = typer.Argument(..., metavar="SENSOR", show_default=False,
+                                            help=f"The sensor: {SENSOR_HELP}."),  # fmt: skip
+    rate: int = opt.rate_option(..., "Sample rate, Hz.", min=1, max=65535),
     hub: str | None = HubOpt,
-    buffer: int | None = typer.Option(
-        None, "--buffer", min=1, help="Samples the hub keeps for us (default: 1 s)."
-    ),
-    poll: int | None = typer.Option(
-        None,
-        "--poll",
-        min=1,
-        max=65535,
-        help="Pulls per second, Hz: also the hub's batch rate of adc, imu, gps, battery "
-        "(ros4mat freqSend, at most --rate; default rate/4 + 10).",
-    ),
+    buffer: int | None = typer.Option(None, "--buffer", min=1,
+                                      help="Samples the hub keeps for us (default: 1 s)."),
+    poll: int | None = typer.Option(None, "--poll", min=1, max=65535, help="Pulls per second, Hz: "
+                                    "also the hub's batch rate of adc, imu, gps, battery (ros4mat "
+                                    "freqSend, at most --rate; default rate/4 + 10)."),  # fmt: skip
     channels: str = typer.Option("0xff", "--channels", help="ADC channel mask."),
-    duration: float | None = duration_option(min=0),
-    count: int | None = count_option(None, "Stop after N samples.", min=1),
-    fmt: Literal["table", "csv"] | None = typer.Option(
-        None, "--format", "-f", help="Text output (default: table on a terminal, else csv)."
-    ),
-    json_out: bool = json_option(),
-    compress: bool = typer.Option(False, "--compress", help="zlib-compressed replies."),
+    duration: float | None = opt.duration_option(min=0),
+    count: int | None = opt.count_option(None, "Stop after N samples.", min=1),
+    fmt: Literal["table", "csv"] | None = typer.Option(None, "--format", "-f", help="Text output "
+                                                       "(default: table on a terminal, else csv)."),
+    json_out: bool = opt.json_option(),
+    compress: bool = opt.flag("--compress", "zlib-compressed replies."),
     token_file: Path | None = TokenOpt,
     zenoh: str | None = zenoh_option("client"),
 ) -> None:
@@ -144,7 +113,6 @@ def subscribe(
     --count. Times are on this machine's clock (the hub's offset is estimated). With
     --zenoh, from a hub's Zenoh front-end (--hub NAME: which hub; default the one up)."""
     from robocli.devices.hub.streams import sample_rows
-    from robocli.errors import InvalidArgument
     from robocli.protocols.ros4mat import MsgType, sensor_type
 
     if duration is not None and count is not None:
@@ -152,14 +120,10 @@ def subscribe(
     if json_out and fmt is not None:
         raise typer.BadParameter("give --format or --json, not both")
     shape: str = "jsonl" if json_out else fmt or ("table" if sys.stdout.isatty() else "csv")
-    try:
-        kind = sensor_type(sensor)
-    except InvalidArgument:
-        raise typer.BadParameter(f"unknown sensor {sensor!r}; choose from {SENSOR_HELP}") from None
-    if kind == MsgType.KINECT_DEPTH:
+    if sensor_type(sensor) == MsgType.KINECT_DEPTH:  # every name of SENSOR_NAMES is one
         raise typer.BadParameter(f"{sensor!r} (0x28) has no data pull in ros4mat; use depth")
     mask, out = _mask(channels), None
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
             with _open(hub, zenoh, compress=compress, token_file=token_file) as client:
                 for batch in sample_rows(client, sensor, rate, buffer=buffer, poll=poll,
@@ -186,38 +150,25 @@ class _Output:
         self.start = time.monotonic()
         self.live: Any = None
         self.recent: deque[Any] = deque(maxlen=20)
-        if fmt == "csv":
-            self._emit(",".join(cols) + "\n")
-        elif fmt == "table" and sys.stdout.isatty():
+        if fmt == "table" and sys.stdout.isatty():
             from rich.live import Live
 
             self.live = Live(auto_refresh=False)
             self.live.start()
-        elif fmt == "table":
-            self._emit("".join(f"{c:>18}" for c in cols) + "\n")
+        else:
+            self._emit(header_text(fmt, cols))
 
     def _emit(self, text: str) -> None:
         sys.stdout.write(text)
         sys.stdout.flush()
 
     def write(self, rows: np.ndarray[Any, Any]) -> None:
-        import numpy as np
-
         self.rows += len(rows)
-        buf = io.StringIO()
-        if self.fmt == "csv":
-            np.savetxt(buf, rows, fmt=["%.6f"] + ["%.7g"] * (rows.shape[1] - 1), delimiter=",")
-        elif self.fmt == "jsonl":
-            from robocli.devices.hub.streams import json_rows
-
-            buf.write(json_rows(self.cols, rows))
-        elif self.live is None:
-            np.savetxt(buf, rows, fmt=["%18.6f"] + ["%18.7g"] * (rows.shape[1] - 1), delimiter="")
-        else:
-            self.recent.extend(rows.tolist())
-            self._refresh()
+        if self.live is None:
+            self._emit(rows_text(self.fmt, self.cols, rows))
             return
-        self._emit(buf.getvalue())
+        self.recent.extend(rows.tolist())
+        self._refresh()
 
     def _refresh(self) -> None:
         from rich.table import Table
@@ -244,8 +195,8 @@ class _Output:
 
 def connect(
     host: str = HubArg,
-    once: bool = typer.Option(False, "--once", help="Print one survey and exit."),
-    json_out: bool = json_option(),
+    once: bool = opt.flag("--once", "Print one survey and exit."),
+    json_out: bool = opt.json_option(),
     window: float = typer.Option(0.5, "--window", min=0.05, max=10, help="Rate window, s."),
     token_file: Path | None = TokenOpt,
     foxglove: int | None = FoxgloveOpt,
@@ -256,8 +207,9 @@ def connect(
     object per line; --foxglove: the running sensors' data to Foxglove, each window)."""
     from robocli.commands._live import live_view
     from robocli.devices.hub.tools import survey
+    from robocli.views.hub import survey_lines
 
-    with sigterm_as_interrupt(), reader_may_leave():
+    with common.sigterm_as_interrupt(), common.reader_may_leave():
         try:
             with live_view(foxglove, foxglove_host) as view, \
                     open_hub(host, token_file=token_file, hub_option=False) as client:  # fmt: skip
@@ -266,51 +218,28 @@ def connect(
                 while True:
                     info = survey(client, window, SENSOR_NAMES)
                     if json_out:  # one compact object per survey (JSON Lines)
-                        print_json_line(info)
+                        common.print_json(info)
                     else:
-                        _print_survey(info)
+                        common.echo_lines(survey_lines(info))
                     if once:
                         return
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
 
 
-def _ms(value: float | None) -> str:
-    """``0.123 ms``, or ``-`` before any data reply (nothing running to pull)."""
-    return "-" if value is None else f"{value} ms"
-
-
-def _print_survey(info: dict[str, Any]) -> None:
-    typer.echo(
-        f"hub {info['hub']}  ros4mat v{info['protocol_version']}  client id "
-        f"{info['client_id']} (clients seen)  rtt {_ms(info['rtt_ms'])}  "
-        f"clock offset {_ms(info['clock_offset_ms'])}"
-    )
-    for name, s in info["sensors"].items():
-        if s["active"]:
-            typer.echo(f"  {name:<14} running  {s['rate_hz']:>8} Hz")
-        else:
-            typer.echo(f"  {name:<14} idle     ({s['reason']})")
-
-
 def throughput(
     target: Literal["hub"] = typer.Option("hub", "--target", "-t", help="What to measure: hub."),
-    url: str | None = typer.Argument(
-        None,
-        metavar="URL",
-        show_default=False,
-        help="A running hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated hub process).",
-    ),
+    url: str | None = typer.Argument(None, metavar="URL", show_default=False, help="A running "
+                                     "hub: HOST[:PORT] or tcp://HOST:PORT (default: a simulated "
+                                     "hub process)."),  # fmt: skip
     clients: int = typer.Option(40, "--clients", min=1, max=512, help="Clients at once."),
-    sensors: str = typer.Option(
-        "imu,adc,laser,camera", "--sensors", help="Sensors, comma-separated."
-    ),
-    seconds: float = duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
+    sensors: str = typer.Option("imu,adc,laser,camera", "--sensors",
+                                help="Sensors, comma-separated."),
+    seconds: float = opt.duration_option(10.0, "Measured time, s.", min=0.5, max=3600),
     pull_hz: float = typer.Option(20.0, "--pull-hz", min=0.5, max=1000, help="Pulls/s per sensor."),
-    workers: int | None = typer.Option(
-        None, "--workers", min=1, max=64, help="Client processes (default: one per 5 clients)."
-    ),
-    json_out: bool = json_option(),
+    workers: int | None = typer.Option(None, "--workers", min=1, max=64,
+                                       help="Client processes (default: one per 5 clients)."),
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Many clients pulling many sensors: pulls/s, samples/s, bytes/s, p99 pull latency,
     lost samples, and the hub's CPU and peak memory (when it runs here)."""
@@ -318,52 +247,14 @@ def throughput(
 
     if target != "hub":
         raise typer.BadParameter(f"--target: only 'hub' has a throughput bench, not {target!r}")
-    with sigterm_as_interrupt():
+    with common.sigterm_as_interrupt():
         try:
             report = runs.hub_throughput(url, clients, sensors, seconds, pull_hz, workers)
         except KeyboardInterrupt:
             raise typer.Exit(EXIT_INTERRUPTED) from None
     if json_out:
-        print_json(report)
+        common.print_json(report)
         return
-    _print_throughput(report)
+    from robocli.bench.text import throughput_lines
 
-
-def _print_throughput(r: dict[str, Any]) -> None:
-    typer.echo(
-        f"{r['clients']} clients in {r['workers']} processes x {', '.join(r['sensors'])}, "
-        f"pulling each at "
-        f"{r['pull_hz']:g} Hz for {r['seconds']:g} s"
-    )
-    if r["not_served"]:
-        typer.echo(f"  not served by this hub: {', '.join(r['not_served'])}")
-    typer.echo(
-        f"  pulls/s {r['pulls_per_s']:.0f}   samples/s {r['samples_per_s']:.0f}   "
-        f"MB/s {r['bytes_per_s'] / 1e6:.1f}   gaps in sample times {r['lost_samples']}"
-    )
-    if "pull_p99_ms" in r:
-        typer.echo(
-            f"  pull latency ms: median {r['pull_p50_ms']:.2f}  p99 {r['pull_p99_ms']:.2f}  "
-            f"max {r['pull_max_ms']:.2f}"
-        )
-    if "hub_pull_p99_ms" in r:
-        typer.echo(f"  of which in the hub (request framed to reply built): median "
-                   f"{r['hub_pull_p50_ms']:.2f}  p99 {r['hub_pull_p99_ms']:.2f}")  # fmt: skip
-    if "hub_cpu_cores" in r:
-        typer.echo(
-            f"  hub: {r['hub_cpu_cores']:.2f} cores, peak memory {r['hub_peak_rss_mb']:.0f} MB;"
-            f" clients: {r['client_cpu_cores']:.2f} cores (whole run, {os.cpu_count()} CPUs here)"
-        )
-        typer.echo(f"  samples the hub dropped for full buffers: {r.get('hub_dropped', '?')} "
-                   "(before samples the clients pulled: their gaps)")  # fmt: skip
-    for s, p in r["per_sensor"].items():
-        typer.echo(
-            f"  {s:<8} pulls {p['pulls']:>7}  samples {p['samples']:>8}  "
-            f"MB {p['bytes'] / 1e6:>8.1f}  lost {p['lost']}"
-        )
-    for e in sorted(set(r["errors"]))[:5]:
-        typer.echo(f"  error: {e}")
-    typer.echo(
-        "  target (p99 <= 5 ms, no loss, hub <= 1 core): "
-        + ("met" if r["targets_met"] else "NOT met")
-    )
+    common.echo_lines(throughput_lines(report))

@@ -6,9 +6,8 @@ NumPy and the kinematics package are imported inside the commands, so that
 
 from __future__ import annotations
 
-import inspect
+import functools
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,25 +15,25 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import OverwriteOpt, print_json
-from robocli.commands._options import count_option, duration_option, json_option, output_option
+from robocli.commands import _options as opt
+from robocli.commands._common import bundled, print_json
 
 if TYPE_CHECKING:
     from robocli.kinematics.model import RobotModel
     from robocli.kinematics.trajlog import TrajectoryLog
+else:  # what the builders return, for the signature trajectory_command reads (NumPy stays unloaded)
+    TrajectoryLog = Any
 
-RobotOpt = typer.Option("irb120", "--robot", help="Robot model name or model file.")
-PointsOpt = count_option(100, "Number of points.", min=2, max=100_000)
-OutOpt = output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
+PointsOpt = opt.count_option(100, "Number of points.", min=2, max=100_000)
+OutOpt = opt.output_option(Path("sim.json"), "Log to write (.json, .csv or .npz).")
 PlotOpt = typer.Option(None, "--plot", help="Also write a PNG plot (needs robocli-robots[plot]).")
 SpeedOpt = typer.Option(None, "--speed", help="TCP speed, m/s (default 0.05).")
-DurationOpt = duration_option(None, "Total duration, s (instead of --speed).")
-StartOpt = typer.Option(
-    None, "--start", help="Start pose, comma-separated joint angles in deg (default: work pose)."
-)
+DurationOpt = opt.duration_option(None, "Total duration, s (instead of --speed).")
+StartOpt = typer.Option(None, "--start", help="Start pose, comma-separated joint angles in deg "
+                        "(default: work pose).")  # fmt: skip
 CenterOpt = typer.Option(None, "--center", help="Centre x,y,z in m (default: start pose TCP).")
 PlaneOpt = typer.Option("xy", "--plane", help="Plane of the shape: xy, yz or xz.")
-JsonOpt = json_option("One line: a JSON summary instead of text.")
+JsonOpt = opt.json_option("One line: a JSON summary instead of text.")
 
 
 def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:
@@ -51,113 +50,103 @@ def _floats(text: str | None, n: int | None, name: str) -> list[float] | None:
     return values
 
 
-def _model(robot: str) -> RobotModel:
-    from robocli.kinematics import load_model
-
-    return load_model(robot)
-
-
 def _start(model: RobotModel, start: str | None) -> Any:
     values = _floats(start, model.n_joints, "--start")
     return None if values is None else [math.radians(v) for v in values]
-
-
-def _outputs(out: Path, plot: Path | None, overwrite: bool) -> None:
-    """Refuse the log and the plot before computing anything (see :mod:`robocli.output`)."""
-    from robocli.kinematics.trajlog import check_writable
-    from robocli.output import check_output
-
-    check_writable(out, overwrite)
-    if plot is not None:
-        check_output(plot, overwrite)
-
-
-def _finish(model: RobotModel, log: TrajectoryLog, shape: str, out: Path, plot: Path | None,
-            json_out: bool, overwrite: bool = False) -> None:  # fmt: skip
-    from robocli.kinematics.files import write_trajectory
-
-    summary = write_trajectory(model, log, shape, out, plot, overwrite)
-    if json_out:
-        print_json(summary)
-        return
-    fastest, fraction = summary["max_speed_joint"], summary["max_speed_fraction"]
-    typer.echo(
-        f"{model.name} {shape}: {len(log)} points over {summary['duration_s']:.3f} s, "
-        f"fastest joint {fastest} at {math.degrees(fraction * model.max_speed[fastest - 1]):.1f}"
-        f" deg/s ({100 * fraction:.0f}% of its limit) -> {out}" + (f", plot {plot}" if plot else "")
-    )
 
 
 @dataclass(frozen=True)
 class Timing:
     """What every trajectory shares, as the options gave it: the model, the start pose (rad,
     ``None``: the model's work pose), the number of points, and the TCP speed (m/s) or the
-    total duration (s)."""
+    total duration (s); where its log (and plot) go, and whether as JSON."""
 
     model: RobotModel
     q_start: list[float] | None
     points: int
     speed: float | None
     duration: float | None
+    out: Path
+    plot: Path | None
+    overwrite: bool
+    json_out: bool
 
 
+def _timing(robot: str, speed: float | None, duration: float | None, start: str | None,
+            out: Path, plot: Path | None, overwrite: bool, json_out: bool,
+            points: int = 0) -> Timing:  # fmt: skip
+    """The options as a :class:`Timing`: the model loaded, the log and the plot refused
+    before anything is computed (see :mod:`robocli.output`), the start pose parsed."""
+    from robocli.kinematics import load_model
+    from robocli.kinematics.trajlog import check_writable
+    from robocli.output import check_output
+
+    model = load_model(robot)
+    check_writable(out, overwrite)
+    if plot is not None:
+        check_output(plot, overwrite)
+    return Timing(model, _start(model, start), points, speed, duration, out, plot, overwrite,
+                  json_out)  # fmt: skip
+
+
+def _finish(t: Timing, log: TrajectoryLog, shape: str) -> None:
+    from robocli.kinematics.files import write_trajectory
+
+    summary = write_trajectory(t.model, log, shape, t.out, t.plot, t.overwrite)
+    if t.json_out:
+        print_json(summary)
+        return
+    fastest, fraction = summary["max_speed_joint"], summary["max_speed_fraction"]
+    typer.echo(
+        f"{t.model.name} {shape}: {len(log)} points over {summary['duration_s']:.3f} s, "
+        f"fastest joint {fastest} at {math.degrees(fraction * t.model.max_speed[fastest - 1]):.1f}"
+        f" deg/s ({100 * fraction:.0f}% of its limit) -> {t.out}"
+        + (f", plot {t.plot}" if t.plot else "")
+    )
+
+
+#: Where a ``traj`` builder takes the options every trajectory shares: ``timing: Timing =
+#: TIMING``, its last parameter (see :func:`trajectory_command`).
+TIMING: Any = None
 #: The options of every ``traj`` command, after the shape's own ones.
 _SHARED = [
-    inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=option, annotation=kind)
-    for name, kind, option in (
-        ("robot", str, RobotOpt),
-        ("points", int, PointsOpt),
-        ("speed", float | None, SpeedOpt),
-        ("duration", float | None, DurationOpt),
-        ("start", str | None, StartOpt),
-        ("out", Path, OutOpt),
-        ("plot", Path | None, PlotOpt),
-        ("overwrite", bool, OverwriteOpt),
-        ("json_out", bool, JsonOpt),
-    )
+    ("robot", str, opt.RobotOpt),
+    ("points", int, PointsOpt),
+    ("speed", float | None, SpeedOpt),
+    ("duration", float | None, DurationOpt),
+    ("start", str | None, StartOpt),
+    ("out", Path, OutOpt),
+    ("plot", Path | None, PlotOpt),
+    ("overwrite", bool, opt.OverwriteOpt),
+    ("json_out", bool, JsonOpt),
 ]
 
 
 def trajectory_command(shape: str, points: bool = True) -> Callable[[Any], Callable[..., None]]:
-    """Make a ``traj`` command of a shape's builder.
-
-    The builder takes a :class:`Timing` and the shape's own options, and returns the log. The
-    command has the shape's options followed by those every trajectory shares (``--robot``,
-    ``--points`` unless ``points`` is false, ``--speed``, ``--duration``, ``--start``,
-    ``--out``, ``--plot``, ``--json``), and does the steps around the builder: load the model,
-    parse the start pose, then write the log and print its summary."""
+    """Make a ``traj`` command of a shape's builder, which takes the shape's own options and
+    last ``timing: Timing = TIMING``, and returns the log. The command has the shape's
+    options followed by those every trajectory shares (``--robot``, ``--points`` unless
+    ``points`` is false, ``--speed``, ``--duration``, ``--start``, ``--out``, ``--plot``,
+    ``--json``: :func:`~robocli.commands._common.bundled` as a :class:`Timing`), then
+    writes the log and prints its summary."""
+    shared = [p for p in _SHARED if points or p[0] != "points"]
 
     def decorate(build: Any) -> Callable[..., None]:
-        scope = vars(sys.modules[build.__module__])
-        own = [
-            p.replace(kind=inspect.Parameter.KEYWORD_ONLY, annotation=eval(p.annotation, scope))
-            for p in list(inspect.signature(build).parameters.values())[1:]
-        ]
-        shared = [p for p in _SHARED if points or p.name != "points"]
-
+        @functools.wraps(build)
         def command(**options: Any) -> None:
-            model = _model(options.pop("robot"))
-            out, plot, json_out = options.pop("out"), options.pop("plot"), options.pop("json_out")
-            overwrite = options.pop("overwrite")
-            _outputs(out, plot, overwrite)
-            timing = Timing(model, _start(model, options.pop("start")),
-                            options.pop("points", 0), options.pop("speed"),
-                            options.pop("duration"))  # fmt: skip
-            _finish(model, build(timing, **options), shape, out, plot, json_out, overwrite)
+            _finish(options["timing"], build(**options), shape)
 
-        command.__name__, command.__doc__ = build.__name__, build.__doc__
-        command.__signature__ = inspect.Signature(own + shared)  # type: ignore[attr-defined]
-        return command
+        return bundled("timing", shared, _timing)(command)
 
     return decorate
 
 
 @trajectory_command("circle")
 def circle(
-    timing: Timing,
     radius: float = typer.Option(0.05, "--radius", min=1e-4, max=5.0, help="Radius, m."),
     center: str | None = CenterOpt,
     plane: Literal["xy", "yz", "xz"] = PlaneOpt,
+    timing: Timing = TIMING,
 ) -> TrajectoryLog:
     """A circle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import circle as make
@@ -169,11 +158,11 @@ def circle(
 
 @trajectory_command("rectangle")
 def rectangle(
-    timing: Timing,
     width: float = typer.Option(0.10, "--width", min=1e-4, max=5.0, help="Width, m."),
     height: float = typer.Option(0.06, "--height", min=1e-4, max=5.0, help="Height, m."),
     center: str | None = CenterOpt,
     plane: Literal["xy", "yz", "xz"] = PlaneOpt,
+    timing: Timing = TIMING,
 ) -> TrajectoryLog:
     """A rectangle in a plane through IK, sampled ideally and written as a log."""
     from robocli.kinematics.trajectory import rectangle as make
@@ -185,8 +174,8 @@ def rectangle(
 
 @trajectory_command("ptp-joint")
 def ptp_joint(
-    timing: Timing,
     to: str = typer.Option(..., "--to", help="Goal joint angles, comma-separated, deg."),
+    timing: Timing = TIMING,
 ) -> TrajectoryLog:
     """Joint-space point-to-point move with a quintic profile."""
     from robocli.kinematics.trajectory import ptp_joint as make
@@ -198,8 +187,8 @@ def ptp_joint(
 
 @trajectory_command("ptp-cartesian")
 def ptp_cartesian(
-    timing: Timing,
     to: str = typer.Option(..., "--to", help="Goal TCP position x,y,z, m."),
+    timing: Timing = TIMING,
 ) -> TrajectoryLog:
     """Straight TCP line to a point, keeping the start orientation, through IK."""
     from robocli.kinematics.trajectory import ptp_cartesian as make
@@ -210,8 +199,8 @@ def ptp_cartesian(
 
 @trajectory_command("file", points=False)
 def file(
-    timing: Timing,
     waypoints: Path = typer.Argument(..., help="Waypoints: .json or .csv (joints or x,y,z)."),
+    timing: Timing = TIMING,
 ) -> TrajectoryLog:
     """User waypoints from a file; times from the file, else from --speed or --duration."""
     from robocli.io.waypoints import read_waypoints
@@ -226,12 +215,11 @@ def file(
 def validate(
     sim: Path = typer.Argument(..., help="Simulated log (.json, .csv, .npz, .mcap)."),
     real: Path = typer.Argument(..., help="Measured log (.json, .csv, .npz, .mcap)."),
-    robot: str = typer.Option(
-        "irb120", "--robot", help="Model for the TCP error when a log has no TCP column."
-    ),
+    robot: str = typer.Option("irb120", "--robot", help="Model for the TCP error when a log has "
+                              "no TCP column."),  # fmt: skip
     plot: Path | None = typer.Option(None, "--plot", help="Write a PNG comparison."),
-    overwrite: bool = OverwriteOpt,
-    json_out: bool = json_option(),
+    overwrite: bool = opt.OverwriteOpt,
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Align a measured run with its simulation in time, then per-joint RMSE/MAE and TCP error."""
     from robocli.io.compare import compare_files
@@ -250,38 +238,14 @@ def _table(result: Any, plot: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    shift = result.delay_s * 1e3
-    table = Table(title=f"sim vs real: {result.samples} samples, time shift {shift:.1f} ms")
-    table.add_column("joint", justify="right")
-    for name in ("RMSE (rad)", "MAE (rad)", "max |err| (rad)"):
+    from robocli.views.compare import COLUMNS, joint_rows, notes, title
+
+    table = Table(title=title(result))
+    for name in COLUMNS:
         table.add_column(name, justify="right")
-    for j in range(result.rmse.shape[0]):
-        table.add_row(str(j + 1), *(_rad(v[j]) for v in (result.rmse, result.mae, result.max_abs)))
+    for row in joint_rows(result):
+        table.add_row(*row)
     console = Console()
     console.print(table)
-    # not "delay": against the exact simulator it is mostly the upload's time, not a lag
-    console.print(
-        f"time shift: the measured motion starts {abs(shift):.1f} ms "
-        f"{'later' if shift >= 0 else 'earlier'} in its log than in the simulated one (the "
-        "recording ran before the arm moved, e.g. during the upload, plus any controller "
-        "lag); the errors are after this alignment"
-    )
-    if result.tcp_rmse_mm is not None:
-        console.print(
-            f"TCP position error: RMSE {_mm(result.tcp_rmse_mm)} mm, mean "
-            f"{_mm(result.tcp_mean_mm)} mm, max {_mm(result.tcp_max_mm)} mm"
-        )
-    if plot is not None:
-        console.print(f"plot written to {plot}")
-
-
-def _rad(value: float) -> str:
-    """An error in rad: fixed point from 1e-4 up, else scientific (1e-7 must not read as 0)."""
-    return f"{value:.6f}" if value >= 1e-4 or value == 0 else f"{value:.2e}"
-
-
-def _mm(value: float | None) -> str:
-    """An error in mm, readable at the micrometre level and below."""
-    if value is None:
-        return "-"
-    return f"{value:.3f}" if value >= 0.01 or value == 0 else f"{value:.2e}"
+    for line in notes(result, plot):
+        console.print(line)

@@ -17,24 +17,8 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
-from robocli.commands._common import (
-    SIM,
-    bind_address,
-    listening,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    sigterm_as_interrupt,
-    wait_forever,
-)
-from robocli.commands._options import (
-    BindOpt,
-    MapOpt,
-    TimeScaleOpt,
-    count_option,
-    device_argument,
-    json_option,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.views.laser import identity_lines, scan_json, scan_line
 
 if TYPE_CHECKING:
@@ -45,19 +29,17 @@ Model = Literal["urg-04lx", "utm-30lx", "ust-10lx"]
 
 
 ModelOpt = typer.Option("utm-30lx", "--model", help="The simulated model.")
-LaserArg = device_argument("laser")
-TimeoutOpt = typer.Option(
-    2.0, "--timeout", min=0.1, max=3600.0, metavar="SECONDS",
-    help="Seconds to wait for each reply (scans: at least 16 scan periods).",
-)  # fmt: skip
-BaudOpt = typer.Option(115200, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+LaserArg = opt.device_argument("laser")
+TimeoutOpt = opt.timeout_option(2.0, "Seconds to wait for each reply (scans: at least 16 scan "
+                                "periods).", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
+BaudOpt = opt.baud_option(115200)
 
 
 @contextlib.contextmanager
 def laser_url(port: str, model: str = "utm-30lx") -> Iterator[str]:
     """Yield a URL for ``port``; for ``sim`` an in-process simulator of ``model`` on an
     ephemeral loopback port, stopped afterwards."""
-    if port != SIM:
+    if port != common.SIM:
         yield port
         return
     from robocli.sim.hokuyo import HokuyoSim
@@ -72,20 +54,20 @@ def connected(port: str, model: str, **options: Any) -> Iterator[Laser]:
     close it (QT sent)."""
     from robocli.devices.laser import Laser
 
-    with reader_may_leave(), sigterm_as_interrupt(), laser_url(port, model) as url:
+    with common.reader_may_leave(), common.sigterm_as_interrupt(), laser_url(port, model) as url:
         with Laser.connect(url, **options) as laser:
             yield laser
 
 
 def connect(
     port: str = LaserArg,
-    once: bool = typer.Option(False, "--once", help="Print the identity and one scan, exit."),
-    json_out: bool = json_option(),
+    once: bool = opt.flag("--once", "Print the identity and one scan, exit."),
+    json_out: bool = opt.json_option(),
     start: int | None = typer.Option(None, "--start", min=0, max=9999, help="First step."),
     end: int | None = typer.Option(None, "--end", min=0, max=9999, help="Last step."),
     cluster: int = typer.Option(1, "--cluster", min=1, max=99, help="Steps per value."),
-    intensity: bool = typer.Option(False, "--intensity", help="Ranges and intensities (ME)."),
-    count: int = count_option(0, "Stop after N scans (0: none).", min=0),
+    intensity: bool = opt.flag("--intensity", "Ranges and intensities (ME)."),
+    count: int = opt.count_option(0, "Stop after N scans (0: none).", min=0),
     model: Model = ModelOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -94,7 +76,6 @@ def connect(
     (--once: one scan; --json: JSON Lines, SI units)."""
     if start is not None and end is not None and end < start:
         raise typer.BadParameter(f"--end {end} is before --start {start}")
-    jsonl = json_out
     area: dict[str, Any] = {"start": start, "end": end, "cluster": cluster}
     with connected(port, model, baudrate=baud, timeout=timeout) as laser:
         info = laser.info
@@ -102,20 +83,21 @@ def connect(
         if once:
             scan = laser.scan(intensity=intensity, **area)
             if json_out:
-                print_json_line({"identity": rounded(info.as_dict()), **scan_json(laser, scan)})
+                identity = {"identity": common.rounded(info.as_dict())}
+                common.print_json({**identity, **scan_json(laser, scan)})
             else:
                 _print_identity(laser)
                 typer.echo(scan_line(scan))
             return
-        if not jsonl:
+        if not json_out:
             _print_identity(laser)
         n = 0
         # closed here, not when the generator is collected: its QT (and the error of a
         # sensor that does not answer it) belongs to this command, not to the garbage collector
         with contextlib.closing(laser.scans(None, intensity=intensity, **area)) as scans:
             for scan in scans:
-                if jsonl:
-                    print_json_line(scan_json(laser, scan))
+                if json_out:
+                    common.print_json(scan_json(laser, scan))
                 else:
                     typer.echo(scan_line(scan))
                     sys.stdout.flush()
@@ -131,16 +113,12 @@ def _print_identity(laser: Laser) -> None:
 
 def simulate(
     model: Model = ModelOpt,
-    port: int | None = typer.Option(
-        None, "--port", "-p", min=0, max=65535, help="TCP port (default 10940)."
-    ),
-    pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal (USB) instead."),
-    map_file: Path | None = MapOpt,
-    pose: str | None = typer.Option(
-        None, "--pose", metavar="X,Y,TH", help="Scanner pose in the map: m, m, rad."
-    ),
-    bind: str = BindOpt,
-    time_scale: float = TimeScaleOpt,
+    port: int | None = opt.port_option(None, "TCP port (default 10940)."),
+    pty: bool = opt.flag("--pty", "Serve on a pseudo-terminal (USB) instead."),
+    map_file: Path | None = opt.MapOpt,
+    pose: str | None = opt.pose_option("Scanner pose in the map: m, m, rad."),
+    bind: str = opt.BindOpt,
+    time_scale: float = opt.TimeScaleOpt,
 ) -> None:
     """Run a simulated Hokuyo laser speaking SCIP 2.0 until Ctrl-C."""
     from robocli.commands.pioneer import _load_map
@@ -150,16 +128,16 @@ def simulate(
 
     world = _load_map(World, map_file) if map_file else None
     where = _pose(pose) if pose else None
-    with sigterm_as_interrupt(), HokuyoSim(model, world=world, pose=where,
-                                           time_scale=time_scale) as sim:  # fmt: skip
+    with common.sigterm_as_interrupt(), HokuyoSim(model, world=world, pose=where,
+                                                  time_scale=time_scale) as sim:  # fmt: skip
         if pty:
             url = sim.serve_pty()
         else:
-            with listening(bind):
+            with common.listening(bind):
                 tcp_port = SIM_MODELS[model].tcp_port if port is None else port
-                url = sim.serve_tcp(bind_address(bind), tcp_port)
+                url = sim.serve_tcp(common.bind_address(bind), tcp_port)
         typer.echo(f"laser: {model} on {url}")
-        wait_forever()
+        common.wait_forever()
 
 
 def _pose(text: str) -> tuple[float, float, float]:

@@ -7,8 +7,7 @@ from pathlib import Path
 
 import typer
 
-from robocli.commands._common import OverwriteOpt
-from robocli.commands._options import output_option
+from robocli.commands._options import OverwriteOpt, output_option
 
 
 def urdf(

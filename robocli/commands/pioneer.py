@@ -15,23 +15,13 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._common import (
-    bind_address,
-    explain_refusal,
-    listening,
-    print_json,
-    print_json_line,
-    reader_may_leave,
-    rounded,
-    sigterm_as_interrupt,
-    wait_forever,
-)
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt
-from robocli.commands._options import BindOpt, MapOpt, TimeScaleOpt, device_argument
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
 from robocli.commands._zenoh import zenoh_option
 from robocli.defaults import PIONEER_ENV
-from robocli.views.pioneer import snapshot
+from robocli.views.pioneer import snapshot, snapshot_lines
 from robocli.views.pioneer import start_laser as start_laser
 
 if TYPE_CHECKING:
@@ -49,27 +39,19 @@ def _check_subtype(value: str | None) -> str | None:
     return value
 
 
-PortArg = device_argument("pioneer", PIONEER_ENV)
+PortArg = opt.device_argument("pioneer", PIONEER_ENV)
 HOKUYO_HELP = (
     "A Hokuyo laser on the robot (placed as the robot model says): serial device, pyserial "
     "URL, tcp://host:10940, or 'sim' for a simulated one that moves with the robot."
 )
 GEOREF_HELP = "Map origin in degrees (and metres), for SIMSTAT's GPS fix."
-SubtypeOpt = typer.Option(
-    None, "--subtype", metavar="NAME", callback=_check_subtype,
-    help="Override the robot's subtype (p3dx, p3at, ...).",
-)  # fmt: skip
-BaudOpt = typer.Option(9600, "--baud", min=300, metavar="RATE", help="Serial baud rate.")
+SubtypeOpt = typer.Option(None, "--subtype", metavar="NAME", callback=_check_subtype,
+                          help="Override the robot's subtype (p3dx, p3at, ...).")  # fmt: skip
+BaudOpt = opt.baud_option(9600)
 #: ``--zenoh`` of ``connect|teleop pioneer``: where to reach a bridge (PORT zenoh/<robot>)
 ZenohClientOpt = zenoh_option("client")
-TimeoutOpt = typer.Option(
-    5.0,
-    "--timeout",
-    min=0.1,
-    max=3600.0,
-    metavar="SECONDS",
-    help="Seconds to wait for the robot: to connect, and for its next SIP once connected.",
-)
+TimeoutOpt = opt.timeout_option(5.0, "Seconds to wait for the robot: to connect, and for its next "
+                                "SIP once connected.", 0.1, 3600.0, metavar="SECONDS")  # fmt: skip
 
 
 @contextlib.contextmanager
@@ -80,8 +62,8 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
     from robocli.devices.pioneer import Pioneer
 
     options.setdefault("sip_timeout", options.get("timeout", 5.0))
-    with reader_may_leave(), sigterm_as_interrupt():
-        with explain_refusal(port):
+    with common.reader_may_leave(), common.sigterm_as_interrupt():
+        with common.explain_refusal(port):
             robot = Pioneer.connect(port, **options)
         with robot:
             yield robot
@@ -89,16 +71,11 @@ def connected(port: str, **options: Any) -> Iterator[Pioneer]:
 
 def connect(
     port: str = PortArg,
-    once: bool = typer.Option(False, "--once", help="Print one state snapshot and exit."),
-    json_out: bool = typer.Option(
-        False, "--json", help="JSON: one object with --once, else one line per SIP (JSON Lines)."
-    ),
-    laser: str | None = typer.Option(
-        None, "--laser", metavar="URL", show_default=False, help=HOKUYO_HELP
-    ),
-    no_laser: bool = typer.Option(
-        False, "--no-laser", help="Do not start a simulator's own (ARCOS) laser."
-    ),
+    once: bool = opt.flag("--once", "Print one state snapshot and exit."),
+    json_out: bool = opt.json_option("JSON: one object with --once, else one line per SIP (JSON "
+                                     "Lines)."),  # fmt: skip
+    laser: str | None = opt.device_option("--laser", HOKUYO_HELP, show_default=False),
+    no_laser: bool = opt.flag("--no-laser", "Do not start a simulator's own (ARCOS) laser."),
     subtype: str | None = SubtypeOpt,
     baud: int = BaudOpt,
     timeout: float = TimeoutOpt,
@@ -128,13 +105,13 @@ def connect(
         if once:
             placed = hokuyo.place(hokuyo.laser.scan()) if hokuyo is not None else None
             if json_out:
-                print_json(rounded(_snapshot(robot, placed)))
+                common.print_json(common.rounded(_snapshot(robot, placed)))
             else:
-                _print_snapshot(robot, placed)
+                common.echo_lines(snapshot_lines(robot, placed))
         elif json_out:
             while True:  # like `ros2 topic echo`: one object per SIP until Ctrl-C
                 latest = hokuyo.latest if hokuyo is not None else None
-                print_json_line(rounded(_snapshot(robot, latest)))
+                common.print_json(common.rounded(_snapshot(robot, latest)))
                 robot.wait_for_sip()
         else:
             live_view(robot, hokuyo)
@@ -143,7 +120,7 @@ def connect(
 def _snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> dict[str, Any]:
     """The robot's snapshot (:func:`robocli.views.pioneer.snapshot`), with the ``--laser``
     Hokuyo's placed scan."""
-    from robocli.commands._mounted import placed_json
+    from robocli.views.laser import placed_json
 
     return snapshot(robot, **({"hokuyo": placed_json(hokuyo)} if hokuyo is not None else {}))
 
@@ -154,8 +131,8 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
     if url is None:
         yield None
         return
-    from robocli.commands._mounted import on_robot
     from robocli.devices.laser import MountedLaser
+    from robocli.devices.laser.mounted import on_robot
 
     with on_robot(url, robot) as laser:
         mounted = MountedLaser(laser, robot)
@@ -168,17 +145,16 @@ def _hokuyo(url: str | None, robot: Pioneer, once: bool) -> Iterator[MountedLase
 
 
 def simulate(
-    port: int = typer.Option(8101, "--port", "-p", min=0, max=65535, help="First TCP port."),
+    port: int = opt.port_option(8101, "First TCP port."),
     robots: int = typer.Option(1, "--robots", min=1, max=64, help="Robots on port, port+1..."),
-    pty: bool = typer.Option(False, "--pty", help="Serve on a pseudo-terminal instead of TCP."),
-    map_file: Path | None = MapOpt,
+    pty: bool = opt.flag("--pty", "Serve on a pseudo-terminal instead of TCP."),
+    map_file: Path | None = opt.MapOpt,
     sip_ms: float = typer.Option(100.0, "--sip-ms", min=5.0, max=1000.0, help="SIP period, ms."),
     subtype: str = typer.Option("p3dx", "--subtype", help="Reported robot subtype."),
-    bind: str = BindOpt,
-    time_scale: float = TimeScaleOpt,
-    laser: bool = typer.Option(
-        True, "--laser/--no-laser", help="Simulate a SICK LMS200 (commands 35-38, 230-233)."
-    ),
+    bind: str = opt.BindOpt,
+    time_scale: float = opt.TimeScaleOpt,
+    laser: bool = opt.flag("--laser/--no-laser", "Simulate a SICK LMS200 (commands 35-38, "
+                           "230-233).", True),  # fmt: skip
     georef: str | None = typer.Option(None, "--georef", metavar="LAT,LON[,ALT]", help=GEOREF_HELP),
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
@@ -195,17 +171,18 @@ def simulate(
     rate = check_replay(replay, speed, loop)
     world = _load_map(World, map_file) if map_file else None
     sims: list[PioneerSim] = []
-    with sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
+    with common.sigterm_as_interrupt():  # Ctrl-C, SIGTERM: the robots close, exit 130
         try:
-            with listening(bind):
-                sims = pioneers(robots, host=bind_address(bind), port=port, pty=pty, world=world,
-                                laser=laser, georef=_georef(georef) if georef else None,
+            with common.listening(bind):
+                sims = pioneers(robots, host=common.bind_address(bind), port=port, pty=pty,
+                                world=world, laser=laser,
+                                georef=_georef(georef) if georef else None,
                                 replay=_recorded(replay), speed=rate, loop=loop, subtype=subtype,
                                 sip_ms=sip_ms, time_scale=time_scale)  # fmt: skip
             what = f"replaying {replay}" if replay is not None else subtype
             for i, simulator in enumerate(sims):
                 typer.echo(f"robot {i + 1}: {what} on {simulator.pty_path or simulator.url}")
-            wait_forever()
+            common.wait_forever()
         finally:
             for simulator in sims:
                 simulator.close()
@@ -251,24 +228,3 @@ def _load_map(world_type: Any, path: Path) -> Any:
         ) from None
     except OSError as exc:
         raise typer.BadParameter(f"cannot read {path}: {exc.strerror or exc}") from None
-
-
-# ---------------------------------------------------------------------- rendering
-
-
-def _print_snapshot(robot: Pioneer, hokuyo: PlacedScan | None = None) -> None:
-    from robocli.views.pioneer import hokuyo_text, laser_text, pose_text, sonar_text, velocity_text
-
-    st = robot.state
-    ident = robot.identity
-    typer.echo(f"{ident.name} {ident.type} {ident.subtype} on {robot.transport.url}")
-    typer.echo(f"pose      {pose_text(st.x, st.y, st.th)}")
-    typer.echo(f"velocity  {velocity_text(st.v, st.w)}")
-    typer.echo(f"battery   {st.battery:.1f} V   motors {'on' if st.motors_enabled else 'off'}")
-    for i, line in enumerate(sonar_text(robot.sonar)):
-        typer.echo(f"{'sonar (m)' if i == 0 else '':10}{line}")
-    laser = laser_text(robot)
-    if laser is not None:
-        typer.echo(f"laser     {laser}")
-    if hokuyo is not None:
-        typer.echo(f"hokuyo    {hokuyo_text(hokuyo)}")

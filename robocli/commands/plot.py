@@ -8,32 +8,20 @@ from pathlib import Path
 
 import typer
 
-from robocli.commands._common import OverwriteOpt, print_json
-from robocli.commands._options import json_option
+from robocli.commands._common import print_json
+from robocli.commands._options import OverwriteOpt, RecordingArg, json_option, output_option
 
 
 def plot(
-    file: Path = typer.Argument(
-        ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
-    ),
-    channel: list[str] = typer.Option(
-        ...,
-        "--channel",
-        "-c",
-        metavar="TOPIC",
-        help="A channel to draw (repeatable): a pose (the path, with the scan channels given "
-        "beside it), joint states, or any channel with --field.",
-    ),
-    field: list[str] = typer.Option(
-        [],
-        "--field",
-        "-f",
-        metavar="A.B",
-        help="A numeric field to draw against time (repeatable), e.g. linear_acceleration.z.",
-    ),
-    output: Path = typer.Option(
-        ..., "--output", "-o", dir_okay=False, metavar="OUT.png", help="The figure (PNG)."
-    ),
+    file: Path = RecordingArg,
+    channel: list[str] = typer.Option(..., "--channel", "-c", metavar="TOPIC", help="A channel to "
+                                      "draw (repeatable): a pose (the path, with the scan "
+                                      "channels given beside it), joint states, or any channel "
+                                      "with --field."),  # fmt: skip
+    field: list[str] = typer.Option([], "--field", "-f", metavar="A.B", help="A numeric field to "
+                                    "draw against time (repeatable), e.g. "
+                                    "linear_acceleration.z."),  # fmt: skip
+    output: Path = output_option(..., "The figure (PNG).", dir_okay=False, metavar="OUT.png"),
     title: str | None = typer.Option(None, "--title", help="A title over the figure."),
     overwrite: bool = OverwriteOpt,
     json_out: bool = json_option(),

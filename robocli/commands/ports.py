@@ -2,29 +2,18 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import typer
 
 from robocli.commands._common import print_json
 from robocli.commands._options import json_option
 
 
-def list_serial_ports() -> list[dict[str, Any]]:
-    """Serial ports as pyserial's ``list_ports`` sees them: device, description, hardware id
-    (USB vendor:product and serial number), sorted by device name."""
-    from serial.tools import list_ports
-
-    return [
-        {"device": p.device, "description": p.description, "hwid": p.hwid}
-        for p in sorted(list_ports.comports(), key=lambda p: p.device)
-    ]
-
-
 def ports(
     json_out: bool = json_option("One line: a JSON list of the ports."),
 ) -> None:
     """List serial ports (a Pioneer's USB-serial adapter shows as /dev/ttyUSB0, COM3...)."""
+    from robocli.transports import list_serial_ports
+
     found = list_serial_ports()
     if json_out:
         print_json(found)

@@ -19,21 +19,16 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import typer
 
+from robocli.commands import _common as common
+from robocli.commands import _options as opt
 from robocli.commands._arm import LINK, ArmLink, arm_link
-from robocli.commands._common import (
-    SIM,
-    OverwriteOpt,
-    print_json,
-    shielded,
-    sigterm_as_interrupt,
-)
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, live_view
-from robocli.commands._options import count_option, duration_option, json_option
+from robocli.views.recording import progress_text, recorded_text
 
 Compression = Literal["zstd", "lz4", "none"]
 
 if TYPE_CHECKING:
-    from robocli.io.record import Recorder, RecordingInfo
+    from robocli.io.record import Recorder
     from robocli.io.record.session import RecordingSession
 
 #: The hub's sensors ``--sensors`` names (robocli.io.record.session.HUB_DEFAULTS).
@@ -52,59 +47,39 @@ def _sensors(text: str) -> list[tuple[str, dict[str, Any]]]:
 
 @arm_link(motion=False)
 def record(
-    output: Path = typer.Option(
-        ..., "--output", "-o", dir_okay=False, metavar="FILE.mcap", help="The recording (MCAP)."
-    ),
-    pioneer: list[str] = typer.Option(
-        [], "--pioneer", metavar="URL", help="A Pioneer (port, URL or 'sim'); repeatable."
-    ),
-    arm: list[str] = typer.Option(
-        [],
-        "--arm",
-        metavar="URL",
-        help="An arm controller (HOST, tcp://HOST or 'sim'; its state "
-        "port: --state-port); repeatable.",
-    ),
-    hub: str | None = typer.Option(
-        None, "--hub", metavar="URL", help="A sensor hub: HOST[:PORT], tcp://HOST:PORT or 'sim'."
-    ),
-    sensors: str = typer.Option(
-        "imu,adc",
-        "--sensors",
-        metavar="NAME[:HZ],...",
-        help="Hub sensors: " + ", ".join(HUB_SENSORS) + " (rate in Hz after a colon).",
-    ),
+    output: Path = opt.output_option(..., "The recording (MCAP).", dir_okay=False,
+                                     metavar="FILE.mcap"),  # fmt: skip
+    pioneer: list[str] = opt.device_option("--pioneer", "A Pioneer (port, URL or 'sim'); "
+                                           "repeatable.", []),  # fmt: skip
+    arm: list[str] = opt.device_option("--arm", "An arm controller (HOST, tcp://HOST or 'sim'; its "
+                                       "state port: --state-port); repeatable.", []),  # fmt: skip
+    hub: str | None = opt.device_option("--hub", "A sensor hub: HOST[:PORT], tcp://HOST:PORT or "
+                                        "'sim'."),  # fmt: skip
+    sensors: str = typer.Option("imu,adc", "--sensors", metavar="NAME[:HZ],...", help="Hub "
+                                f"sensors: {', '.join(HUB_SENSORS)} (rate in Hz after a colon)."),
     poll: int = typer.Option(20, "--poll", min=1, max=1000, help="Hub pulls per second, Hz."),
-    duration: float | None = duration_option(min=0.0, max=1e6),
-    count: int | None = count_option(help="Stop after N messages recorded.", min=1),
+    duration: float | None = opt.duration_option(min=0.0, max=1e6),
+    count: int | None = opt.count_option(help="Stop after N messages recorded.", min=1),
     compression: Compression = typer.Option("zstd", "--compression", help="Chunk compression."),
-    laser: str | None = typer.Option(
-        None, "--laser", metavar="URL", help="A Hokuyo laser (device, tcp://host:10940 or 'sim')."
-    ),
-    create: list[str] = typer.Option(
-        [], "--create", metavar="URL", help="An iRobot Create 2 (port, URL or 'sim'); repeatable."
-    ),
-    no_laser: bool = typer.Option(
-        False, "--no-laser", help="Do not start a Pioneer simulator's own (ARCOS) laser."
-    ),
-    overwrite: bool = OverwriteOpt,
+    laser: str | None = opt.device_option("--laser", "A Hokuyo laser (device, tcp://host:10940 or "
+                                          "'sim')."),  # fmt: skip
+    create: list[str] = opt.device_option("--create", "An iRobot Create 2 (port, URL or 'sim'); "
+                                          "repeatable.", []),  # fmt: skip
+    no_laser: bool = opt.flag("--no-laser", "Do not start a Pioneer simulator's own (ARCOS) "
+                              "laser."),  # fmt: skip
+    overwrite: bool = opt.OverwriteOpt,
     link: ArmLink = LINK,
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
-    ros2: bool = typer.Option(
-        False,
-        "--ros2",
-        help="Write a ROS 2 bag: standard messages "
-        "in CDR that ros2 bag play reads (see docs/ros2-bags.md).",
-    ),
+    ros2: bool = opt.flag("--ros2", "Write a ROS 2 bag: standard messages in CDR that ros2 bag "
+                          "play reads (see docs/ros2-bags.md)."),  # fmt: skip
 ) -> None:
     """Record Pioneers, arms (their state port), a hub, a Hokuyo laser and iRobot Creates
     into one MCAP file (Foxglove's schemas, raw frames for dump --file) until --duration,
     --count or Ctrl-C. The file is made once every source is connected; an existing one is refused
     unless --overwrite. To record an arm while uploading to it: upload --record."""
-    from robocli.commands.create import connect_create
     from robocli.errors import EXIT_INTERRUPTED
-    from robocli.io.record import COMPRESSIONS, Recorder
+    from robocli.io.record import Recorder
     from robocli.io.record.session import RecordingSession
     from robocli.output import check_output
 
@@ -113,13 +88,10 @@ def record(
                                  "--create")  # fmt: skip
     if output.suffix != ".mcap":
         raise typer.BadParameter(f"--output {output}: a recording needs a .mcap name")
-    if compression not in COMPRESSIONS:
-        raise typer.BadParameter(f"--compression is one of {', '.join(COMPRESSIONS)}, "
-                                 f"not {compression!r}")  # fmt: skip
     hub_sensors = _sensors(sensors) if hub else []
     check_output(output, overwrite)  # refused now, before anything connects
     interrupted = False
-    with sigterm_as_interrupt(), contextlib.ExitStack() as stack:
+    with common.sigterm_as_interrupt(), contextlib.ExitStack() as stack:
         view = stack.enter_context(live_view(foxglove, foxglove_host))
         rec = Recorder(output, compression=compression, overwrite=overwrite, deferred=True,
                        ros2=ros2)  # fmt: skip
@@ -129,19 +101,18 @@ def record(
         try:
             try:
                 _connect(run, pioneer, arm, hub, hub_sensors, not no_laser, link, laser)
-                for i, port in enumerate(create):
-                    run.devices[f"create{i or ''}"] = connect_create(stack, rec, port,
-                                                                     link.timeout)  # fmt: skip
+                for port in create:
+                    run.add_create(port, link.timeout)
                 rec.begin()  # every source connected: now the file is made
                 typer.echo(f"recording to {output} (Ctrl-C stops)", err=True)
                 run.run(duration, count, poll, progress_line(run) if sys.stderr.isatty() else None)
             except KeyboardInterrupt:
                 interrupted = True
             finally:
-                with shielded():
+                with common.shielded():
                     stack.close()  # devices stop first: their stop sequences are recorded
         finally:
-            with shielded():
+            with common.shielded():
                 close_recording(rec, time.monotonic() - run.start)
     if interrupted:
         raise typer.Exit(EXIT_INTERRUPTED)
@@ -156,12 +127,7 @@ def close_recording(rec: Recorder, seconds: float) -> None:
         if rec.begun:
             if sys.stderr.isatty():
                 sys.stderr.write("\r\x1b[K")  # the progress line goes
-            st = rec.stats
-            lost = f", {st.lost} not written (writing failed)" if st.lost else ""
-            why = "not written" if rec.error is not None else "the disk was too slow"
-            dropped = f", {st.dropped} dropped ({why})" if st.dropped else ""
-            typer.echo(f"recorded {st.messages} messages in {seconds:.1f} s to "
-                       f"{rec.path}{lost}{dropped}", err=True)  # fmt: skip
+            typer.echo(recorded_text(rec, seconds), err=True)
 
 
 def progress_line(run: RecordingSession, every: float = 0.5) -> Callable[[], None]:
@@ -172,9 +138,7 @@ def progress_line(run: RecordingSession, every: float = 0.5) -> Callable[[], Non
     def show() -> None:
         if time.monotonic() - last[0] >= every:
             last[0] = time.monotonic()
-            p = run.progress()
-            sys.stderr.write(f"\r\x1b[K{p.messages} messages, {_size(p.size)}, "
-                             f"{p.rate:.0f} msg/s, {p.seconds:.0f} s")  # fmt: skip
+            sys.stderr.write(f"\r\x1b[K{progress_text(run.progress())}")
             sys.stderr.flush()
 
     return show
@@ -209,7 +173,7 @@ def _connect(run: RecordingSession, pioneers: list[str], arms: list[str], hub: s
 @contextlib.contextmanager
 def _hub_address(hub: str) -> Iterator[str]:
     """``hub`` itself, or for ``sim`` an embedded simulated hub on an ephemeral port."""
-    if hub != SIM:
+    if hub != common.SIM:
         yield hub
         return
     from robocli.hub_server import HubServer
@@ -225,65 +189,18 @@ def _hub_address(hub: str) -> Iterator[str]:
 
 
 def info(
-    file: Path = typer.Argument(
-        ..., exists=True, dir_okay=False, metavar="FILE", help="A recording (.mcap)."
-    ),
-    json_out: bool = json_option(),
+    file: Path = opt.RecordingArg,
+    json_out: bool = opt.json_option(),
 ) -> None:
     """Summarise a recording like ros2 bag info: duration, start and end, each channel
     with its schema, count, mean rate and largest gap (from the summary section; a file
     cut short is scanned)."""
     from robocli.io.record import info as read_info
+    from robocli.views.recording import info_lines
 
     result = read_info(file)
     if json_out:
-        print_json(result.as_dict())
+        common.print_json(result.as_dict())
         return
-    _print_info(result)
-
-
-def _when(ns: int) -> str:
-    try:  # a file's times may be anything: a year past 9999 is shown as its number
-        stamp = time.strftime("%Y-%m-%d %H:%M:%S", time.localtime(ns // 1_000_000_000))
-    except (OverflowError, OSError, ValueError):
-        return f"{ns / 1e9:.6f}"
-    return f"{stamp}.{ns % 1_000_000_000 // 1000:06d} ({ns / 1e9:.6f})"
-
-
-def _size(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB"):
-        if n < 1024 or unit == "GiB":
-            return f"{n:.1f} {unit}" if unit != "B" else f"{int(n)} B"
-        n /= 1024
-    return f"{n:.1f} GiB"  # pragma: no cover
-
-
-def _print_info(r: RecordingInfo) -> None:
-    out = sys.stdout.write
-    out(f"File:        {r.path}\n")
-    out(f"Size:        {_size(r.size)}\n")
-    if r.library:
-        out(f"Written by:  {r.library}\n")
-    if not r.summary:
-        cut = " (cut short: everything up to the last complete record was read)" \
-            if r.truncated else ""  # fmt: skip
-        out(f"Summary:     none, the file was scanned{cut}\n")
-        if r.truncated and r.readable_bytes > 8:  # its header at least is whole
-            out(f"Recover:     robocli recover {r.path}\n")
-    out(f"Duration:    {r.duration_s:.3f} s\n")
-    if r.messages:
-        out(f"Start:       {_when(r.start_ns)}\n")
-        out(f"End:         {_when(r.end_ns)}\n")
-    out(f"Messages:    {r.messages}\n")
-    out(f"Chunks:      {r.chunks}" + (f" ({', '.join(r.compression)})" if r.compression else "")
-        + "\n")  # fmt: skip
-    out(f"Channels:    {len(r.channels)}\n")
-    width = max((len(c.topic) for c in r.channels), default=5)
-    swidth = max((len(c.schema or c.encoding) for c in r.channels), default=6)
-    out(f"  {'topic':<{width}}  {'schema':<{swidth}}  {'count':>8}  {'rate Hz':>9}  "
-        f"{'largest gap s':>13}\n")  # fmt: skip
-    for c in r.channels:
-        rate = f"{c.rate_hz:9.2f}" if c.rate_hz is not None else f"{'-':>9}"
-        out(f"  {c.topic:<{width}}  {c.schema or c.encoding:<{swidth}}  {c.count:>8}  {rate}  "
-            f"{c.largest_gap_s:13.3f}\n")  # fmt: skip
+    sys.stdout.write("".join(line + "\n" for line in info_lines(result)))
     sys.stdout.flush()

@@ -10,23 +10,15 @@ from pathlib import Path
 
 import typer
 
+from robocli.commands._options import output_option, overwrite_option
+
 
 def recover(
-    file: Path = typer.Argument(
-        ...,
-        exists=True,
-        dir_okay=False,
-        metavar="FILE",
-        help="The recording to recover (.mcap); never written to.",
-    ),
-    out: Path | None = typer.Option(
-        None,
-        "--output",
-        "-o",
-        metavar="OUT",
-        help="File to write (default: FILE's name + .recovered).",
-    ),
-    overwrite: bool = typer.Option(False, "--overwrite", help="Replace OUT if it exists."),
+    file: Path = typer.Argument(..., exists=True, dir_okay=False, metavar="FILE",
+                                help="The recording to recover (.mcap); never written to."),
+    out: Path | None = output_option(None, "File to write (default: FILE's name + .recovered).",
+                                     metavar="OUT"),  # fmt: skip
+    overwrite: bool = overwrite_option("Replace OUT if it exists."),
 ) -> None:
     """Rewrite every complete chunk and record of a recording that was killed or whose disk
     filled up into a new file with its summary, indexes and footer (as mcap recover does)."""

@@ -40,7 +40,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
                    timeout: float) -> None:  # fmt: skip
     """``connect pioneer zenoh/<robot>``: the state the bridge puts, one snapshot (--once)
     or one line (JSON Lines with --json) per state until Ctrl-C."""
-    from robocli.commands._common import print_json, print_json_line, reader_may_leave, rounded
+    from robocli.commands._common import print_json, reader_may_leave, rounded
     from robocli.commands._screens import state_line
 
     with reader_may_leave(), sigterm_as_interrupt(), remote(port, zenoh, timeout) as robot:
@@ -55,7 +55,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
         while True:
             state = robot.wait_for_state()
             if json_out:
-                print_json_line(rounded(_snapshot(robot)))
+                print_json(rounded(_snapshot(robot)))
             else:
                 print(state_line(state), flush=True)
 
@@ -63,7 +63,7 @@ def connect_remote(port: str, zenoh: str | None, once: bool, json_out: bool,
 def teleop_remote(port: str, zenoh: str | None, controller: Any, timeout: float) -> None:
     """``teleop pioneer zenoh/<robot>``: drive through the bridge (refused, exit 4, while
     another controller holds the robot)."""
-    from robocli.commands._screens import StatusLine, end_line, raw_terminal
+    from robocli.commands._screens import StatusLine, keys
     from robocli.devices.pioneer.teleop import run_teleop
 
     with sigterm_as_interrupt(), remote(port, zenoh, timeout) as robot:
@@ -72,11 +72,8 @@ def teleop_remote(port: str, zenoh: str | None, controller: Any, timeout: float)
         typer.echo(f"{robot.robot} through Zenoh as {robot.holder}: arrows/WASD drive, "
                    "space stops, q or Ctrl-C quits")  # fmt: skip
         status = StatusLine(robot)  # reads pose and battery only
-        try:
-            with raw_terminal() as read_key:
-                run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
-        finally:
-            end_line()
+        with keys() as read_key:
+            run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
 def _snapshot(robot: Any) -> dict[str, Any]:

@@ -10,40 +10,24 @@ from pathlib import Path
 import typer
 
 from robocli.commands._common import print_json, sigterm_as_interrupt
-from robocli.commands._options import json_option
+from robocli.commands._options import flag, json_option, timeout_option
 from robocli.commands._zenoh import zenoh_option, zenoh_session, zenoh_target
-
-EXIT_INTERRUPTED = 130
+from robocli.errors import EXIT_INTERRUPTED
 
 
 def router(
-    config: Path | None = typer.Option(
-        None,
-        "--config",
-        dir_okay=False,
-        metavar="FILE",
-        help="A Zenoh JSON5 configuration (access control, TLS...); run in router mode.",
-    ),
-    listen: str | None = typer.Option(
-        None,
-        "--listen",
-        "--zenoh",
-        metavar="ENDPOINT",
-        help="Listen on ENDPOINT (default tcp/127.0.0.1:7447; with --config: added to it).",
-    ),
-    users: Path | None = typer.Option(
-        None,
-        "--users",
-        dir_okay=False,
-        metavar="FILE",
-        help="Accept only clients with a user:password line of FILE (zenoh usrpwd).",
-    ),
-    acl: bool = typer.Option(
-        False,
-        "--acl",
-        help="With --users: each user writes only under its own name (serves as "
-        "robocli/USER/..., commands robots as robocli/ROBOT/@control/USER/...); all read.",
-    ),
+    config: Path | None = typer.Option(None, "--config", dir_okay=False, metavar="FILE", help="A "
+                                       "Zenoh JSON5 configuration (access control, TLS...); run "
+                                       "in router mode."),  # fmt: skip
+    listen: str | None = typer.Option(None, "--listen", "--zenoh", metavar="ENDPOINT", help="Listen"
+                                      " on ENDPOINT (default tcp/127.0.0.1:7447; with --config: "
+                                      "added to it)."),  # fmt: skip
+    users: Path | None = typer.Option(None, "--users", dir_okay=False, metavar="FILE",
+                                      help="Accept only clients with a user:password line of "
+                                      "FILE (zenoh usrpwd)."),  # fmt: skip
+    acl: bool = flag("--acl", "With --users: each user writes only under its own name (serves as "
+                     "robocli/USER/..., commands robots as robocli/ROBOT/@control/USER/...); all "
+                     "read."),  # fmt: skip
 ) -> None:
     """Run a Zenoh router until Ctrl-C: the lab server's, which robots and laptops connect
     to by endpoint (robocli serve/subscribe/list --zenoh CONFIG or ENDPOINT)."""
@@ -69,7 +53,7 @@ def router(
 def list_(
     zenoh: str | None = zenoh_option("client"),
     json_out: bool = json_option("One line: a JSON list of what is up."),
-    timeout: float = typer.Option(2.0, "--timeout", min=0.1, max=60, help="Wait for answers, s."),
+    timeout: float = timeout_option(2.0, "Wait for answers, s.", 0.1, 60),
 ) -> None:
     """List the hubs and robots that are up on Zenoh (their liveliness tokens), connecting
     to ENDPOINT (default tcp/127.0.0.1:7447) or as CONFIG."""

@@ -14,6 +14,7 @@ from typing import Any
 import typer
 
 from robocli.commands._common import PlainCommand, from_env
+from robocli.commands._options import baud_option, flag, timeout_option
 from robocli.commands.hub import TokenOpt, open_hub
 from robocli.defaults import HUB_ENV
 
@@ -29,44 +30,24 @@ class SerialCommand(PlainCommand):
 
 def serial(
     ctx: typer.Context,
-    hub: str = typer.Argument(
-        ...,
-        help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.",
-        metavar="[URL]",
-        show_default=False,
-        envvar=HUB_ENV,
-        show_envvar=True,
-    ),
-    port: str | None = typer.Argument(
-        None,
-        help="The serial port on the hub, e.g. /dev/ttyUSB0.",
-        metavar="PORT",
-        show_default=False,
-    ),
-    baud: int = typer.Option(9600, "--baud", min=50, help="Baud rate."),
+    hub: str = typer.Argument(..., help=f"Hub address HOST[:PORT]; leave it out to use ${HUB_ENV}.",
+                              metavar="[URL]", show_default=False, envvar=HUB_ENV,
+                              show_envvar=True),  # fmt: skip
+    port: str | None = typer.Argument(None, help="The serial port on the hub, e.g. /dev/ttyUSB0.",
+                                      metavar="PORT", show_default=False),  # fmt: skip
+    baud: int = baud_option(9600, "Baud rate.", 50, None),
     send: str = typer.Option("", "--send", help="Bytes to send: text, or hex with --hex."),
     recv: int = typer.Option(0, "--recv", min=0, max=1024, help="Bytes to read back."),
-    hex_io: bool = typer.Option(False, "--hex", help="--send is hex; print the reply in hex."),
-    timeout: float = typer.Option(  # at most robocli.hub_server.sources.real.MAX_SERIAL_WAIT_S
-        1.0,
-        "--timeout",
-        min=0,
-        max=SERIAL_MAX_WAIT_S,
-        help="Read timeout, s (the hub waits at most 5 s, ros4mat's receive timeout).",
-    ),
-    parity: bool = typer.Option(False, "--parity", help="Even parity."),
+    hex_io: bool = flag("--hex", "--send is hex; print the reply in hex."),
+    timeout: float = timeout_option(1.0, "Read timeout, s (the hub waits at most 5 s, ros4mat's "
+                                    "receive timeout).", 0, SERIAL_MAX_WAIT_S),  # fmt: skip
+    parity: bool = flag("--parity", "Even parity."),
     stop_bits: int = typer.Option(1, "--stop-bits", min=1, max=2, help="Stop bits."),
     token_file: Path | None = TokenOpt,
-    pty: bool = typer.Option(
-        False, "--pty", help="Print the path of a local pty relayed to PORT until Ctrl-C."
-    ),
-    zenoh: str | None = typer.Option(
-        None,
-        "--zenoh",
-        metavar="CONFIG",
-        help="With --pty: through the hub's Zenoh front-end, HUB being its name (the CONFIG "
-        "file's user streams the port). Needs robocli-robots[zenoh].",
-    ),
+    pty: bool = flag("--pty", "Print the path of a local pty relayed to PORT until Ctrl-C."),
+    zenoh: str | None = typer.Option(None, "--zenoh", metavar="CONFIG", help="With --pty: through "
+                                     "the hub's Zenoh front-end, HUB being its name (the CONFIG "
+                                     "file's user streams the port). Needs robocli-robots[zenoh]."),
 ) -> None:
     """Write to and read from a serial port on the hub (ros4mat SERIAL_CMD); with --pty, a
     local serial port (a pty) for any program, relayed both ways until Ctrl-C."""

@@ -16,18 +16,11 @@ from typing import TYPE_CHECKING, Any
 
 import typer
 
+from robocli.commands import _zenoh
 from robocli.commands._common import bind_address, listening, sigterm_as_interrupt
 from robocli.commands._live import FoxgloveHostOpt, FoxgloveOpt, hub_live_view
+from robocli.commands._options import bind_option, device_option, flag, port_option
 from robocli.commands._replay import LoopOpt, ReplayOpt, SpeedOpt, check_replay
-from robocli.commands._zenoh import (
-    Ros2DomainOpt,
-    Ros2NamespaceOpt,
-    Ros2Opt,
-    ros2_check,
-    server_name,
-    zenoh_option,
-    zenoh_session,
-)
 from robocli.errors import InvalidArgument
 
 if TYPE_CHECKING:
@@ -63,59 +56,36 @@ def token_from_file(path: Path | None) -> bytes | None:
 
 
 def serve(
-    sim: bool = typer.Option(False, "--sim", help="Serve every simulated sensor."),
-    port: int = typer.Option(1500, "--port", "-p", min=0, max=65535, help="TCP port (0: any)."),
-    bind: str = typer.Option(
-        "127.0.0.1", "--bind", help="Address to listen on (0.0.0.0 exposes the hub: warned)."
-    ),
-    pioneer: str | None = typer.Option(
-        None,
-        "--pioneer",
-        metavar="URL",
-        help="A Pioneer (or 'robocli sim pioneer') for the battery and ADC.",
-    ),
-    laser: str | None = typer.Option(
-        None,
-        "--laser",
-        metavar="URL",
-        help="A Hokuyo laser (or 'robocli sim laser') for the laser sensor (HOKUYO).",
-    ),
-    gpsd: str | None = typer.Option(
-        None, "--gpsd", metavar="HOST[:PORT]", help="Take the GPS from this gpsd daemon."
-    ),
-    serial: list[str] = typer.Option(
-        [], "--serial", metavar="PORT", help="A serial port clients may use (repeatable)."
-    ),
-    token_file: Path | None = typer.Option(
-        None,
-        "--token-file",
-        dir_okay=False,
-        metavar="FILE",
-        help="Require this file's token to change settings or write to a serial port.",
-    ),
+    sim: bool = flag("--sim", "Serve every simulated sensor."),
+    port: int = port_option(1500, "TCP port (0: any)."),
+    bind: str = bind_option("Address to listen on (0.0.0.0 exposes the hub: warned)."),
+    pioneer: str | None = device_option("--pioneer", "A Pioneer (or 'robocli sim pioneer') for "
+                                        "the battery and ADC."),  # fmt: skip
+    laser: str | None = device_option("--laser", "A Hokuyo laser (or 'robocli sim laser') for "
+                                      "the laser sensor (HOKUYO)."),  # fmt: skip
+    gpsd: str | None = typer.Option(None, "--gpsd", metavar="HOST[:PORT]",
+                                    help="Take the GPS from this gpsd daemon."),  # fmt: skip
+    serial: list[str] = typer.Option([], "--serial", metavar="PORT",
+                                     help="A serial port clients may use (repeatable)."),
+    token_file: Path | None = typer.Option(None, "--token-file", dir_okay=False, metavar="FILE",
+                                           help="Require this file's token to change settings "
+                                           "or write to a serial port."),  # fmt: skip
     max_clients: int = typer.Option(64, "--max-clients", min=1, max=4096, help="Connections."),
     foxglove: int | None = FoxgloveOpt,
     foxglove_host: str = FoxgloveHostOpt,
     replay: Path | None = ReplayOpt,
     speed: float | None = SpeedOpt,
     loop: bool = LoopOpt,
-    zenoh: str | None = zenoh_option("server"),
-    name: str | None = typer.Option(
-        None,
-        "--name",
-        help="The hub's name on Zenoh (default: the --zenoh configuration's user, else this "
-        "host's name).",
-    ),
-    publish: str = typer.Option(
-        ZENOH_PUBLISH,
-        "--publish",
-        metavar="SENSOR[=RATE],...",
-        help="Sensors published on Zenoh from the start (others once a client asks).",
-    ),
-    tcp: bool = typer.Option(True, "--tcp/--no-tcp", help="Serve ros4mat on TCP (--port)."),
-    ros2: bool = Ros2Opt,
-    ros2_domain: int = Ros2DomainOpt,
-    ros2_namespace: str = Ros2NamespaceOpt,
+    zenoh: str | None = _zenoh.zenoh_option("server"),
+    name: str | None = typer.Option(None, "--name", help="The hub's name on Zenoh (default: the "
+                                    "--zenoh configuration's user, else this host's name)."),
+    publish: str = typer.Option(ZENOH_PUBLISH, "--publish", metavar="SENSOR[=RATE],...",
+                                help="Sensors published on Zenoh from the start (others once a "
+                                "client asks)."),  # fmt: skip
+    tcp: bool = flag("--tcp/--no-tcp", "Serve ros4mat on TCP (--port).", True),
+    ros2: bool = _zenoh.Ros2Opt,
+    ros2_domain: int = _zenoh.Ros2DomainOpt,
+    ros2_namespace: str = _zenoh.Ros2NamespaceOpt,
 ) -> None:
     """Run the sensor hub, wire-compatible with ros4mat v3, until Ctrl-C. With --zenoh,
     also publish its sensors on robocli/NAME/SENSOR (--no-tcp: on Zenoh only)."""
@@ -124,7 +94,7 @@ def serve(
 
     if not tcp and zenoh is None:
         raise typer.BadParameter("--no-tcp serves nothing without --zenoh")
-    ros2_check(ros2, zenoh)
+    _zenoh.ros2_check(ros2, zenoh)
     rate = check_replay(replay, speed, loop)
     tune_hub_process()
     token = token_from_file(token_file)
@@ -138,13 +108,14 @@ def serve(
         if zenoh is not None:
             from robocli.zenoh.keys import default_name
 
-            hub_name = server_name(name, zenoh, default_name())
+            hub_name = _zenoh.server_name(name, zenoh, default_name())
             try:
                 sensors = service.published(publish)
             except InvalidArgument as exc:
                 raise typer.BadParameter(str(exc), param_hint="'--publish'") from None
             ros = {"domain": ros2_domain, "namespace": ros2_namespace} if ros2 else None
-            service.start_zenoh(zenoh_session(zenoh, "server"), hub_name, sensors, ros, zenoh)
+            session = _zenoh.zenoh_session(zenoh, "server")
+            service.start_zenoh(session, hub_name, sensors, ros, zenoh)
         for warning in service.server.warnings:
             typer.secho(f"WARNING: {warning}", err=True, fg="red", bold=True)
         for note in service.notes(pioneer, gpsd):

@@ -7,31 +7,20 @@ Both read keys in cbreak mode (Ctrl-C still interrupts), redraw a status line in
 
 from __future__ import annotations
 
-import contextlib
 import sys
 import time
-from collections.abc import Iterator
 from typing import TYPE_CHECKING, Any
 
 import typer
 
-from robocli.commands._arm import LINK, ArmLink, arm_link
+from robocli.commands import pioneer as pioneer_cli
+from robocli.commands._arm import LINK, ArmLink, HostArg, arm_link
 from robocli.commands._arm import connected as connected_arm
-from robocli.commands._options import device_argument
-from robocli.commands.pioneer import (
-    BaudOpt,
-    PortArg,
-    SubtypeOpt,
-    TimeoutOpt,
-    ZenohClientOpt,
-    connected,
-)
-from robocli.defaults import ARM_ENV
+from robocli.commands._options import StreamOpt
 
 if TYPE_CHECKING:
-    from robocli.views.keys import KeyReader
+    pass
 
-HostArg = device_argument("arm", ARM_ENV)
 RELEASE_HELP = "Stop this long after the last key, s."
 
 
@@ -42,20 +31,19 @@ def _limit(default: float, flag: str, most: float, help: str, least: float = 0.0
 
 
 def pioneer(
-    port: str = PortArg,
+    port: str = pioneer_cli.PortArg,
     max_v: float = _limit(0.4, "--max-v", 2.0, "Top speed, m/s.", metavar="M/S"),
-    max_w: float = _limit(
-        1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).", metavar="RAD/S"
-    ),
+    max_w: float = _limit(1.0, "--max-w", 5.0, "Top turn rate, rad/s (shown in deg/s).",
+                          metavar="RAD/S"),  # fmt: skip
     release: float = _limit(0.45, "--release", 0.5, RELEASE_HELP, 0.05, metavar="SECONDS"),
-    subtype: str | None = SubtypeOpt,
-    baud: int = BaudOpt,
-    timeout: float = TimeoutOpt,
-    zenoh: str | None = ZenohClientOpt,
+    subtype: str | None = pioneer_cli.SubtypeOpt,
+    baud: int = pioneer_cli.BaudOpt,
+    timeout: float = pioneer_cli.TimeoutOpt,
+    zenoh: str | None = pioneer_cli.ZenohClientOpt,
 ) -> None:
     """Drive with the arrow keys or WASD; space stops, q quits. Letting go stops the robot.
     PORT zenoh/ROBOT: a robot behind a bridge (robocli bridge pioneer), with --zenoh."""
-    from robocli.commands._screens import StatusLine
+    from robocli.commands._screens import StatusLine, keys
     from robocli.commands.remote import is_remote, teleop_remote
     from robocli.devices.pioneer.teleop import TeleopController, run_teleop
 
@@ -65,24 +53,23 @@ def pioneer(
     if remote:
         teleop_remote(port, zenoh, controller, timeout)
         return
-    with connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
+    with pioneer_cli.connected(port, subtype=subtype, baudrate=baud, timeout=timeout) as robot:
         robot.enable_motors()
         typer.echo(
             f"{robot.identity.name} ({robot.params.subtype}): arrows/WASD drive, "
             "space stops, q or Ctrl-C quits"
         )
         status = StatusLine(robot)
-        with _keys() as read_key:
+        with keys() as read_key:
             run_teleop(robot, status.reader(read_key), controller, on_update=status.command)
 
 
 @arm_link()
 def arm(
     host: str = HostArg,
-    stream: bool = typer.Option(False, "--stream", help="Stream (generic servers, not ABB)."),
-    joint_speed: float = _limit(
-        0.1, "--joint-speed", 1.0, "Fraction of the joint speed limits.", 0.01
-    ),
+    stream: bool = StreamOpt,
+    joint_speed: float = _limit(0.1, "--joint-speed", 1.0, "Fraction of the joint speed limits.",
+                                0.01),  # fmt: skip
     cart_speed: float = _limit(0.05, "--cart-speed", 1.0, "TCP speed, m/s.", 0.001),
     release: float = _limit(0.45, "--release", 1.0, RELEASE_HELP, 0.05),
     stale: float = _limit(1.0, "--stale", 60.0, "Stop when no joint state came this long, s.", 0.1),
@@ -90,6 +77,7 @@ def arm(
 ) -> None:
     """Jog a joint (1-6, arrows/WASD) or the TCP (c; arrows/WASD in x and y, r/f in z);
     +/- speed, space stops, q quits. Letting go of the key sends STOP."""
+    from robocli.commands._screens import keys
     from robocli.devices.arm.teleop import ArmTeleop, run_arm_teleop
 
     _need_terminal()
@@ -100,7 +88,7 @@ def arm(
         typer.echo("+/- speed, space stops, q or Ctrl-C quits")  # 80 columns each
         jog = ArmTeleop(arm, stream=stream, joint_speed=joint_speed, cart_speed=cart_speed,
                         release_timeout=release, stale=stale)  # fmt: skip
-        with _keys() as read_key:
+        with keys() as read_key:
             run_arm_teleop(jog, read_key, on_update=_status_line())
 
 
@@ -108,20 +96,6 @@ def _need_terminal() -> None:
     """A usage error unless keys can come from a terminal (checked before connecting)."""
     if not sys.stdin.isatty():
         raise typer.BadParameter("teleop needs an interactive terminal on standard input")
-
-
-@contextlib.contextmanager
-def _keys() -> Iterator[KeyReader]:
-    """``read_key(timeout)`` of the terminal in cbreak mode, restored afterwards; the cursor
-    left on a fresh line after the status line however the loop ends."""
-    from robocli.commands._screens import end_line
-    from robocli.views.keys import raw_terminal
-
-    try:
-        with raw_terminal() as read_key:
-            yield read_key
-    finally:
-        end_line()
 
 
 def _status_line() -> Any:

@@ -30,6 +30,7 @@ __all__ = [
     "deserialize",
     "message",
     "msgdef",
+    "node_types",
     "plain",
     "serialize",
     "type_hash",
@@ -68,6 +69,17 @@ def typestore() -> Any:
                               "pip install 'robocli-robots[record]'") from None  # fmt: skip
     store = get_typestore(Stores.ROS2_KILTED)
     store.register(get_types_from_msg(RAW_FRAME_MSG, RAW_FRAME))
+    return store
+
+
+def node_types() -> Any:
+    """:func:`typestore`, once what a ROS 2 node on Zenoh needs besides is there too (xxhash:
+    rmw_zenoh's GIDs); :class:`Ros2Unavailable` without it."""
+    store = typestore()
+    try:
+        import xxhash  # noqa: F401
+    except ImportError:
+        raise Ros2Unavailable("--ros2 needs xxhash: pip install 'robocli-robots[ros2]'") from None
     return store
 
 

@@ -11,12 +11,14 @@ from typing import TYPE_CHECKING, Any
 from robocli.io.jsonlines import rounded
 
 if TYPE_CHECKING:
-    from robocli.devices.laser import Laser, Scan
+    from robocli.devices.laser import Laser, PlacedScan, Scan
 
-__all__ = ["LASER_RESOLUTION", "identity_lines", "scan_json", "scan_line"]
+__all__ = ["LASER_RESOLUTION", "identity_lines", "placed_json", "scan_json", "scan_line"]
 
-#: JSON decimals by field: 1 mm ranges, angles to 1e-6 rad (a step is 4.4e-3 rad).
-LASER_RESOLUTION = {"t": 6, "received": 6, "ranges": 3, "angles": 6, "intensities": 0}
+#: JSON decimals by field: 1 mm ranges, angles to 1e-6 rad (a step is 4.4e-3 rad); points
+#: placed on a robot to 0.1 mm.
+LASER_RESOLUTION = {"t": 6, "received": 6, "ranges": 3, "angles": 6, "intensities": 0,
+                    "points_robot": 4, "points_odom": 4}  # fmt: skip
 
 
 def scan_json(laser: Laser, scan: Scan) -> dict[str, Any]:
@@ -24,6 +26,12 @@ def scan_json(laser: Laser, scan: Scan) -> dict[str, Any]:
     out = scan.as_dict()
     out["model"] = laser.info.model if laser.info else "?"
     return rounded(out, 6, LASER_RESOLUTION)  # type: ignore[no-any-return]
+
+
+def placed_json(placed: PlacedScan) -> dict[str, Any]:
+    """A scan placed on a robot (``connect pioneer --laser``) as JSON-ready SI data (see
+    :meth:`PlacedScan.as_dict`), rounded to the sensor's resolution."""
+    return rounded(placed.as_dict(), 6, LASER_RESOLUTION)  # type: ignore[no-any-return]
 
 
 def identity_lines(laser: Laser) -> list[str]:

@@ -15,8 +15,8 @@ if TYPE_CHECKING:
     from robocli.devices.pioneer import Pioneer
     from robocli.devices.pioneer.state import PioneerState
 
-__all__ = ["hokuyo_text", "laser_text", "pose_text", "snapshot", "sonar_text", "start_laser",
-           "state_line", "velocity_text"]  # fmt: skip
+__all__ = ["hokuyo_text", "laser_text", "pose_text", "snapshot", "snapshot_lines", "sonar_text",
+           "start_laser", "state_line", "velocity_text"]  # fmt: skip
 
 
 def pose_text(x: float, y: float, th: float) -> str:
@@ -72,6 +72,20 @@ def state_line(st: PioneerState) -> str:
         f"battery {st.battery:.1f} V  motors {'on' if st.motors_enabled else 'off'}"
         + ("  STALL" if st.stalled else "")
     )
+
+
+def snapshot_lines(robot: Pioneer, hokuyo: PlacedScan | None = None) -> list[str]:
+    """``connect pioneer --once``: the robot, its pose, velocity, battery, sonar and lasers
+    (``hokuyo``: a scan placed on it), a line each."""
+    st, ident = robot.state, robot.identity
+    out = [f"{ident.name} {ident.type} {ident.subtype} on {robot.transport.url}",
+           f"pose      {pose_text(st.x, st.y, st.th)}", f"velocity  {velocity_text(st.v, st.w)}",
+           f"battery   {st.battery:.1f} V   motors {'on' if st.motors_enabled else 'off'}"]
+    sonar = sonar_text(robot.sonar)
+    out += [f"{'sonar (m)' if i == 0 else '':10}{line}" for i, line in enumerate(sonar)]
+    laser = laser_text(robot)
+    out += [f"laser     {laser}"] if laser is not None else []
+    return out + ([f"hokuyo    {hokuyo_text(hokuyo)}"] if hokuyo is not None else [])
 
 
 def start_laser(robot: Pioneer, wait: bool) -> None:

@@ -119,6 +119,20 @@ class RecordingSession:
         laser.start()
         return name
 
+    def add_create(self, url: str, timeout: float = 5.0) -> str:
+        """An iRobot Create 2 recorded from its first byte; ``sim``: a simulated one on an
+        ephemeral loopback port (closed with the stack)."""
+        from robocli.devices.create import Create
+
+        if url == "sim":
+            from robocli.sim.create import CreateSim
+
+            url = self.stack.enter_context(CreateSim()).serve_tcp("127.0.0.1", 0)
+        listener = self.rec.listener("create", "create-oi", url=url)
+        robot = self.stack.enter_context(Create.connect(url, timeout=timeout,
+                                                        listeners=[listener]))  # fmt: skip
+        return self._added(robot, listener.name)
+
     def add_hub(self, connect: Callable[[Iterable[Any]], Hub], url: str,
                 sensors: list[tuple[str, dict[str, Any]]]) -> str:  # fmt: skip
         """A hub at ``url``, opened by ``connect(listeners)``, subscribed to ``sensors``
