@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from robocli.errors import EXIT_FAILURE, InvalidArgument, TimeoutError
+from robocli.errors import EXIT_FAILURE, InvalidArgument, RobocliError, TimeoutError
 from robocli.kinematics.model import RobotModel
 from robocli.kinematics.trajectory import check_limits
 from robocli.kinematics.trajlog import TrajectoryLog
@@ -178,7 +178,16 @@ class JointRecorder:
         self.samples: deque[JointSample] = deque(maxlen=max_samples)
         arm.add_listener(self.samples.append, kind="samples")
 
-    def stop(self) -> None:
+    def stop(self, settle: float = 1.0) -> None:
+        """Stop recording. The state in flight is waited for first (one more joint sample,
+        at most ``settle`` s; not on a link that is gone): a controller sends its
+        JOINT_FEEDBACK after the STATUS that ended a wait for idle, and that last sample of
+        the motion belongs in the log."""
+        if settle > 0 and self._arm.alive:
+            try:
+                self._arm.wait_for_state(settle)
+            except RobocliError:  # no state came, or the link went: keep what was recorded
+                pass
         self._arm.remove_listener(self.samples.append, kind="samples")
 
     def log(self) -> TrajectoryLog:
