@@ -250,20 +250,23 @@ class FoxgloveServer:
             if frame is None:
                 await client.wake.wait()
                 continue
+            stalled = False
             try:
                 await asyncio.wait_for(ws.send(frame), self.stall_s)
             except asyncio.TimeoutError:
-                self.slow_disconnected += 1
-                log.info("live view: %s read nothing for %g s: disconnected", client.name,
-                         self.stall_s)  # fmt: skip
-                self._forget(client)
-                ws.transport.abort()
-                return
-            finally:
+                stalled = True
+            finally:  # the frame in flight leaves the count however its send ended
                 if isinstance(frame, bytes):
                     with self._lock:
                         client.queued -= len(frame)
                         self._queued -= len(frame)
+            if stalled:  # counted once all it held is given back: the two never disagree
+                log.info("live view: %s read nothing for %g s: disconnected", client.name,
+                         self.stall_s)  # fmt: skip
+                self._forget(client)
+                self.slow_disconnected += 1
+                ws.transport.abort()
+                return
             client.sent += 1
 
     def _request(self, client: _Client, request: str | bytes) -> None:
