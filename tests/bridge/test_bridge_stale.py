@@ -40,7 +40,7 @@ class StallingController(RemotePioneer):
         super().__init__(*args, **kwargs)
 
     def _send(self, point: tuple[float, float, int | None]) -> None:
-        if self.armed.is_set() and threading.current_thread() is self._thread:
+        if self.armed.is_set() and threading.current_thread() is self._resender.thread:
             self.armed.clear()
             self.stalled.set()
             assert self.release.wait(WAIT), "the stalled re-send was never released"

@@ -45,6 +45,7 @@ from robocli.errors import (
     ProtocolError,
     TimeoutError,
 )
+from robocli.serving.periodic import PeriodicLoop
 from robocli.zenoh.keys import alive_key, check_name, info_key, topic_key
 from robocli.zenoh.robot_keys import JSON_ENCODING, control_key, decode, encode, holder_key
 from robocli.zenoh.session import (
@@ -127,9 +128,9 @@ class RemotePioneer(ZenohPeer):
             if own_session:
                 close_session(session)
             raise
-        self._thread = threading.Thread(target=self._resend, daemon=True,
-                                        name=f"remote-pioneer-{self.robot}")  # fmt: skip
-        self._thread.start()
+        self._resender = PeriodicLoop(f"remote-pioneer-{self.robot}", self._resend,
+                                      period=self.resend)  # fmt: skip
+        self._resender.start()
 
     @classmethod
     def connect(cls, robot: str, zenoh: str | ZenohTarget | None = None, *,
@@ -303,7 +304,7 @@ class RemotePioneer(ZenohPeer):
         with self._cond:
             self._closed = True
             self._cond.notify_all()
-        self._thread.join(timeout=2.0)
+        self._resender.close()
         for sub in self._subs:
             sub.undeclare()  # type: ignore[no-untyped-call]
         if self._own:
@@ -329,23 +330,13 @@ class RemotePioneer(ZenohPeer):
                           express=True)  # fmt: skip
 
     def _resend(self) -> None:
-        """Re-send a moving set-point every ``resend`` s while held (the silence rule); the
-        put goes out of the lock, so a stop event is never held up behind it."""
-        due = time.monotonic() + self.resend
-        while True:
-            with self._cond:  # (woken by every state: wait out the period)
-                while not self._closed and (left := due - time.monotonic()) > 0:
-                    self._cond.wait(left)
-                if self._closed:
-                    return
-                due = time.monotonic() + self.resend
-                point = self._setpoint
-                if point is None or point[:2] == (0.0, 0.0) or self._token is None:
-                    continue
-            try:
-                self._send(point)
-            except Exception:
-                log.debug("%s: re-send failed", self.url, exc_info=True)
+        """Re-send the moving set-point held now (the silence rule), every ``resend`` s; a
+        put that fails is the periodic loop's to log (once per run of failures)."""
+        with self._cond:
+            point = self._setpoint
+            if self._closed or point is None or point[:2] == (0.0, 0.0) or self._token is None:
+                return
+        self._send(point)  # out of the lock: a stop event is never held up behind it
 
     def _new_epoch(self, epoch: object, grant: bool = False) -> None:
         """The bridge's stop epoch from an event (a later one only) or a grant (as it is: a
