@@ -145,11 +145,13 @@ class Link:
         (now when nothing waits: a link building a reply is not one that stopped reading)."""
         return self._out_since if self._out else time.monotonic()
 
-    def evict(self, why: str) -> bool:
-        """Drop the link for another one's sake, unless its output lock is taken now (it is
-        being written: not a peer that stopped reading). Whether it was dropped."""
-        if not self._tx_lock.acquire(blocking=False):
-            return False
+    def evict(self, why: str, wait: float = 0.0) -> bool | None:
+        """Drop the link for another one's sake. Its output lock is taken first: by its own
+        thread writing, or by one the machine descheduled while it held it; ``wait``: how
+        long to wait for it (0: not at all). True when dropped, False when it was closed
+        already, None when its lock stayed taken."""
+        if not (self._tx_lock.acquire(timeout=wait) if wait > 0 else self._tx_lock.acquire(False)):
+            return None
         try:
             if self._closed:
                 return False
