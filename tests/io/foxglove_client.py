@@ -20,6 +20,7 @@ from tests.io.readback import viewer_checked
 
 SUBPROTOCOLS = ("foxglove.websocket.v1", "foxglove.sdk.v1")
 MESSAGE_DATA = 0x01
+KEPT = 64  #: messages kept for each subscription until they are taken
 
 
 @dataclass
@@ -54,7 +55,8 @@ class FoxgloveClient:
         )
         self.channels: dict[int, Channel] = {}
         self.subscriptions: dict[int, int] = {}  # subscription id -> channel id
-        self.pending: list[tuple[int, int, bytes]] = []
+        #: by subscription, the messages received and not yet taken (its first KEPT)
+        self.pending: dict[int, list[tuple[int, bytes]]] = {}
         self.server_info = self._next_json("serverInfo")
 
     def __enter__(self) -> FoxgloveClient:
@@ -74,7 +76,9 @@ class FoxgloveClient:
         if isinstance(frame, bytes):
             assert frame[0] == MESSAGE_DATA, f"opcode {frame[0]}"
             sub, log_ns = struct.unpack_from("<IQ", frame, 1)
-            self.pending.append((sub, log_ns, frame[13:]))
+            kept = self.pending.setdefault(sub, [])
+            if len(kept) < KEPT:  # a latched model comes once: kept while another is read
+                kept.append((log_ns, frame[13:]))
             return None
         msg: dict[str, Any] = json.loads(frame)
         if msg["op"] == "advertise":
@@ -117,13 +121,13 @@ class FoxgloveClient:
         deadline = time.monotonic() + self.timeout
         out: list[tuple[int, Any]] = []
         while len(out) < n:
-            while self.pending:
-                got, log_ns, payload = self.pending.pop(0)
-                if got == sub:
-                    data = viewer_checked(
-                        channel.schema_name, channel.schema, json.loads(payload), channel.topic
-                    )
-                    out.append((log_ns, data))
+            kept = self.pending.get(sub, [])
+            while kept and len(out) < n:
+                log_ns, payload = kept.pop(0)
+                data = viewer_checked(
+                    channel.schema_name, channel.schema, json.loads(payload), channel.topic
+                )
+                out.append((log_ns, data))
             if len(out) < n:
                 self._handle(self._recv(deadline))
         return out

@@ -184,7 +184,15 @@ def test_every_live_channel_loads_in_a_viewer(pioneer_url: str, abb: tuple[int, 
                     foxglove_subset(channel.schema, f"{topic} ({channel.schema_name})")
                     subs[topic] = client.subscribe(channel)
                 for topic, sub in subs.items():  # each checked as a viewer takes it
-                    assert client.messages(sub, 1), topic
+                    try:
+                        assert client.messages(sub, 1), topic
+                    except (TimeoutError, AssertionError) as exc:
+                        srv = view.server
+                        raise AssertionError(
+                            f"{topic}: {exc}; view dropped {view.dropped}, errors {view.errors},"
+                            f" messages {view.messages}; server dropped {srv.dropped}, "
+                            f"slow {srv.slow_disconnected}, peak queued {srv.peak_queued}"
+                        ) from None
         finally:
             stop.set()
             puller.join(30)
