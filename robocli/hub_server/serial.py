@@ -107,8 +107,15 @@ class SerialStream:
                     self.bytes_in += len(data)
                     if not self._push(bytes(data)):
                         break
-        except PORT_ERRORS as exc:  # pyserial's SerialException is an OSError
-            if not self._closed.is_set():
+        except (*PORT_ERRORS, TypeError) as exc:  # pyserial's SerialException is an OSError
+            if self._closed.is_set():
+                return
+            if isinstance(exc, TypeError) or not port.is_open:
+                # closed under the read (the hub shutting down): pyserial sets its fd to None
+                # before it says it is closed, and a read then fails on that None
+                log.info("serial %s: the port was closed on the hub", self.name)
+                self._on_fail(f"serial port {self.name!r} was closed on the hub")
+            else:
                 log.warning("serial %s: read failed: %s", self.name, exc)
                 self._on_fail(f"serial port {self.name!r} failed on the hub: {exc}")
 
