@@ -279,6 +279,20 @@ ORIGINAL = {line.split()[0]: bytes.fromhex(line.split(None, 1)[1]) for line in (
 """The original ros4mat MATLAB client's requests, as captured."""
 
 
+def holding(subscribe: bytes, samples: int) -> bytes:
+    """The original client's SUBSCRIBE with a buffer of ``samples`` instead of its 100 (0.2 s
+    of the recorded 500 Hz ADC: a loaded machine that holds the test's thread back longer
+    loses samples, as that client would); every other byte is the captured one."""
+    from robocli.protocols import ros4mat as r4m
+
+    msg = r4m.decode(subscribe)
+    body = {**msg.body, "buffer_size": max(samples, msg.body["buffer_size"])}
+    patched = r4m.encode_request(r4m.MsgType.SUBSCRIBE, body, client_id=msg.client_id)
+    changed = [i for i, (a, b) in enumerate(zip(subscribe, patched, strict=True)) if a != b]
+    assert not changed or changed[-1] - changed[0] < 4  # one u32 field
+    return patched
+
+
 def test_the_original_clients_bytes_get_the_recorded_adc(
         recording: tuple[Path, dict[str, Pulled]], replay_hub: HubServer) -> None:  # fmt: skip
     import socket
@@ -301,9 +315,10 @@ def test_the_original_clients_bytes_get_the_recorded_adc(
     _, pulled = recording
     rec_data, rec_t = pulled["adc"].arrays()
     samples: list[dict[str, Any]] = []
+    subscribe = holding(ORIGINAL["subscribe_adc"], len(rec_t))
     with socket.create_connection(("127.0.0.1", replay_hub.port), timeout=30) as sock:
         assert ask(sock, ORIGINAL["connect"]).error == 0
-        assert ask(sock, ORIGINAL["subscribe_adc"]).error == 0  # its 100 Hz: ignored
+        assert ask(sock, subscribe).error == 0  # its 100 Hz: ignored
 
         def pulled_all() -> bool:
             samples.extend(ask(sock, ORIGINAL["pull_adc"]).body or [])
