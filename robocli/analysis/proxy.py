@@ -7,7 +7,8 @@ ways, and each complete frame, cut by a :class:`~robocli.core.Framer` of the pro
 handed to ``on_message`` before it is passed on (so a reply is never shown before its
 request).
 
-Bounded: at most ``max_clients`` sessions at once (more are closed at once), one read of
+Bounded: at most ``max_clients`` sessions at once (one more is closed, after waiting at most
+``_SLOT_WAIT_S`` for a session whose client has closed to end), one read of
 64 KiB per relay step, a frame no larger than the framer's ``max_frame``, and a deadline of
 ``_IO_TIMEOUT_S`` on every write (a side that stops reading ends its session).
 """
@@ -16,7 +17,9 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import logging
 import os
+import select
 import socket
 import threading
 import time
@@ -32,6 +35,11 @@ __all__ = ["Describe", "Message", "RecordingProxy", "check_upstream", "listen"]
 #: the deadline for a write (and how often a quiet read checks for close)
 _IO_TIMEOUT_S = 1.0
 _READ = 65536
+_SLOT_WAIT_S = 2.0
+"""How long a client over ``max_clients`` waits for a session whose client has closed (its
+relaying thread may not have seen the end yet) before it is refused."""
+
+log = logging.getLogger("robocli.analysis.proxy")
 
 #: ``describe(frame) -> (name, fields)``: how a protocol names and decodes one whole frame.
 Describe = Callable[[bytes], tuple[str, dict[str, Any]]]
@@ -67,6 +75,7 @@ class RecordingProxy:
         self.upstream, self.on_message = upstream, on_message
         self._framer, self._max_frame, self._describe = framer, max_frame, describe
         self._lock = threading.Lock()
+        self._slots = threading.Condition(self._lock)  # notified when a session ends
         self._listener = listen(bind, port)
         self._listener.settimeout(0.25)
         self.port: int = self._listener.getsockname()[1]
@@ -105,7 +114,9 @@ class RecordingProxy:
                 s.settimeout(_IO_TIMEOUT_S)
                 s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             with self._lock:
-                if len(self._socks) >= 2 * self._max:
+                if len(self._socks) >= 2 * self._max and not self._slot_freed():
+                    log.warning("%s: %d sessions relayed already; a client refused",
+                                self._thread.name, self._max)  # fmt: skip
                     client.close()
                     device.close()
                     continue
@@ -113,6 +124,19 @@ class RecordingProxy:
             for src, dst, way in ((client, device, "c2s"), (device, client, "s2c")):
                 threading.Thread(target=self._pump, args=(src, dst, way), daemon=True,
                                  name=f"{self._thread.name}-{way}").start()  # fmt: skip
+
+    def _slot_freed(self) -> bool:
+        """All slots are taken (``_lock`` held): wait, at most :data:`_SLOT_WAIT_S`, for one
+        to free, if a session's side has something to read (a client that closed, whose
+        end its relaying thread has not seen yet). Whether one did."""
+        deadline = time.monotonic() + _SLOT_WAIT_S
+        while len(self._socks) >= 2 * self._max:
+            left = deadline - time.monotonic()
+            readable = select.select(self._socks, [], [], 0)[0]
+            if left <= 0 or not readable or self._closing.is_set():
+                return False
+            self._slots.wait(min(left, 0.05))
+        return True
 
     def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
         """Relay one direction of one session, showing each message before it is passed on.
@@ -158,6 +182,7 @@ class RecordingProxy:
                 if s in self._socks:
                     self._socks.remove(s)
                     s.close()
+            self._slots.notify_all()
 
     def close(self, grace: float = 1.0) -> None:
         """Stop accepting, let bytes already read reach their side (``grace`` s at most),

@@ -3,6 +3,7 @@ without using up its slots."""
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 
 import pytest
@@ -10,6 +11,7 @@ import pytest
 from robocli import Hub
 from robocli.analysis.ros4mat import DumpProxy, Message
 from robocli.hub_server import HubServer
+from tests.waiting import wait_for
 
 
 @pytest.fixture(scope="module")
@@ -26,6 +28,39 @@ def test_more_sessions_than_slots_one_after_another(server: HubServer) -> None:
                 hub.subscribe("adc", rate=100)
     names = [m.name for m in seen if m.direction == "c2s"]
     assert names.count("CONNECT") == 5 and names.count("SUBSCRIBE") >= 5
+
+
+def test_a_client_that_closed_gives_its_slot_to_the_next_one(server: HubServer) -> None:
+    """One slot; its client sends a request and closes while the proxy is still showing that
+    request (its relaying thread has not seen the end yet), and the next client connects:
+    it waits for the slot instead of being closed at once (a plain `make test` saw
+    "connection reset" on the third of five sessions one after another)."""
+    import socket
+
+    from robocli.protocols import ros4mat as r4m
+
+    shown, gate = threading.Event(), threading.Event()
+
+    def on_message(m: Message) -> None:
+        if m.direction == "c2s" and not shown.is_set():
+            shown.set()
+            gate.wait(10)  # the first request, held on its way
+
+    links = server._server.links
+    before = len(links())
+    connect = r4m.encode_request(r4m.MsgType.CONNECT, {"protocol_version": 1, "compression": 0})
+    with DumpProxy(("127.0.0.1", server.port), on_message, max_clients=1).start() as proxy:
+        with socket.create_connection(("127.0.0.1", proxy.port), timeout=10) as first:
+            first.sendall(connect)
+            assert shown.wait(10)
+        # closed; the next one: the proxy dials the hub for it, then finds the slot taken
+        with socket.create_connection(("127.0.0.1", proxy.port), timeout=10) as second:
+            wait_for(lambda: len(links()) >= before + 2, "the proxy dialling for the second")
+            gate.set()
+            second.sendall(connect)
+            head = second.recv(r4m.HEADER_SIZE, socket.MSG_WAITALL)
+            assert len(head) == r4m.HEADER_SIZE, "the second client was closed"
+            assert r4m.Header.parse(head).type == r4m.MsgType.CONNECT_ACK
 
 
 def test_the_shared_proxy_checks_its_framer_and_says_why_it_could_not_relay() -> None:
