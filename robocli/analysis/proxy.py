@@ -7,10 +7,10 @@ ways, and each complete frame, cut by a :class:`~robocli.core.Framer` of the pro
 handed to ``on_message`` before it is passed on (so a reply is never shown before its
 request).
 
-Bounded: at most ``max_clients`` sessions at once (one more is closed, after waiting at most
-``_SLOT_WAIT_S`` for a session whose client has closed to end), one read of
-64 KiB per relay step, a frame no larger than the framer's ``max_frame``, and a deadline of
-``_IO_TIMEOUT_S`` on every write (a side that stops reading ends its session).
+Bounded: at most ``max_clients`` sessions at once (a client over that is closed after
+waiting at most ``_SLOT_WAIT_S`` for a session to end: its client may have closed already),
+one read of 64 KiB per relay step, a frame no larger than the framer's ``max_frame``, and a
+deadline of ``_IO_TIMEOUT_S`` on every write (a side that stops reading ends its session).
 """
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import contextlib
 import errno
 import logging
 import os
-import select
 import socket
 import threading
 import time
@@ -126,17 +125,12 @@ class RecordingProxy:
                                  name=f"{self._thread.name}-{way}").start()  # fmt: skip
 
     def _slot_freed(self) -> bool:
-        """All slots are taken (``_lock`` held): wait, at most :data:`_SLOT_WAIT_S`, for one
-        to free, if a session's side has something to read (a client that closed, whose
-        end its relaying thread has not seen yet). Whether one did."""
-        deadline = time.monotonic() + _SLOT_WAIT_S
-        while len(self._socks) >= 2 * self._max:
-            left = deadline - time.monotonic()
-            readable = select.select(self._socks, [], [], 0)[0]
-            if left <= 0 or not readable or self._closing.is_set():
-                return False
-            self._slots.wait(min(left, 0.05))
-        return True
+        """All slots are taken (``_lock`` held): wait, at most ``_SLOT_WAIT_S``, for a
+        session to end (a client that closed, whose end its relaying thread has not seen
+        yet). Whether a slot is free."""
+        self._slots.wait_for(lambda: len(self._socks) < 2 * self._max or self._closing.is_set(),
+                             _SLOT_WAIT_S)  # fmt: skip
+        return len(self._socks) < 2 * self._max and not self._closing.is_set()
 
     def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
         """Relay one direction of one session, showing each message before it is passed on.
@@ -193,6 +187,7 @@ class RecordingProxy:
         self._listener.close()
         with self._lock:
             socks, self._socks = self._socks, []
+            self._slots.notify_all()  # a client waiting for a slot gets none
         for s in socks:
             with contextlib.suppress(OSError):
                 s.shutdown(socket.SHUT_RDWR)

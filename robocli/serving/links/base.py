@@ -145,13 +145,12 @@ class Link:
         (now when nothing waits: a link building a reply is not one that stopped reading)."""
         return self._out_since if self._out else time.monotonic()
 
-    def evict(self, why: str, wait: float = 0.0) -> bool | None:
-        """Drop the link for another one's sake. Its output lock is taken first: by its own
-        thread writing, or by one the machine descheduled while it held it; ``wait``: how
-        long to wait for it (0: not at all). True when dropped, False when it was closed
-        already, None when its lock stayed taken."""
-        if not (self._tx_lock.acquire(timeout=wait) if wait > 0 else self._tx_lock.acquire(False)):
-            return None
+    def evict(self, why: str, wait: float = 0.0) -> bool:
+        """Drop the link for another one's sake. Its output lock is taken first, waiting at
+        most ``wait`` s for it (its own thread may hold it, in a write, or descheduled in
+        one). Whether it was dropped (not when closed already or its lock stayed taken)."""
+        if not self._tx_lock.acquire(timeout=max(0.0, wait)):
+            return False
         try:
             if self._closed:
                 return False

@@ -14,9 +14,9 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 EVICT_WAIT_S = 1.0
-"""How long, at most, a link charged over the budget waits for the output locks of the links
-that should pay before it (held by their own threads, which the machine may have descheduled)
-before the next ones are asked without waiting."""
+"""How long, at most, one charge over the budget waits in all for the output locks of the
+links that should pay first (held by their own threads, which the machine may have
+descheduled) before the next ones are asked without waiting."""
 
 
 class OutputBudget:
@@ -69,6 +69,7 @@ class OutputBudget:
     def _make_room(self, link: Any, n: int) -> None:
         assert self.cap is not None
         mine = bool(getattr(link, "privileged", False))
+        deadline = time.monotonic() + EVICT_WAIT_S  # one for all the links dropped here
         while True:
             with self._lock:
                 if self.total + n <= self.cap:
@@ -76,21 +77,20 @@ class OutputBudget:
                 others = [h for h in self._holders if h is not link
                           and (mine or not h.privileged)]  # fmt: skip
             others.sort(key=lambda h: (h.privileged, h.waiting_since))
-            if not self._evict_first(others):
+            if not self._evict_first(others, deadline):
                 return  # nobody else may pay: the link charged is dropped
             with self._lock:
                 self.evicted += 1
 
     @staticmethod
-    def _evict_first(links: list[Any]) -> bool:
+    def _evict_first(links: list[Any], deadline: float) -> bool:
         """Drop the first of ``links`` (in the order they should pay) that can be. A link
-        whose output lock is taken is waited for, up to a deadline shared by all (two links
-        charged at once cannot wait for each other long), rather than passed over for one
-        that should pay after it: a busy loop beside the server must not turn "the silent
-        one pays" into "the reader pays". Past the deadline, the rest are asked without
-        waiting. Whether one was dropped."""
+        whose output lock is taken is waited for, until ``deadline`` (shared by every link
+        one charge drops: two links charged at once cannot wait for each other long),
+        rather than passed over for one that should pay after it: a busy loop beside the
+        server must not turn "the silent one pays" into "the reader pays". Past the
+        deadline, the rest are asked without waiting. Whether one was dropped."""
         why = "its output waited while the server's output budget was full"
-        deadline = time.monotonic() + EVICT_WAIT_S
         for h in links:
             if h.evict(why, wait=max(0.0, deadline - time.monotonic())):
                 return True
